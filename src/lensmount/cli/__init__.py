@@ -21,6 +21,13 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+
+
+@app.callback()
+def _root() -> None:
+    """regenerate → simulate → compare: the stray-light loop for lens mounts."""
+
+
 # Modules that define commands; each does `@app.command()` at import.
 COMMAND_MODULES = ("inspect", "regenerate", "simulate")
 
