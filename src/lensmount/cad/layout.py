@@ -1,0 +1,398 @@
+"""Layout: prescription + MountSpec → every part's template, placed in the assembly frame.
+
+Pure numbers, no CAD kernel: the axial stack (retainer, lens groups, spacers,
+diaphragm, shoulders), the barrel's stepped bore, hood, vanes and housing. The
+beam envelope (real rays of the full field, every wavelength, full pupil) sets the
+vane bores. Geometry rules, all in the (r, z) half plane of the solids of revolution:
+
+* A lens group's mechanical radius R is the largest of its surfaces' mechanical
+  semi-diameters (clear semi-diameter + edge allowance when the file gives none);
+  its bore is R + radial clearance.
+* Every contact (spacer, retainer, shoulder) touches an optical surface at the
+  contact height h = clear semi-diameter + contact margin, with an end face cone
+  whose slope keeps it off the glass everywhere else (`contact_slope`).
+* The bore steps where the glass outside the spacer's radius ends, so no part
+  overlaps another; `checks` verifies it on the final profiles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+from lensmount.optics.prescription import Prescription
+from lensmount.templates.barrel import Barrel
+from lensmount.templates.diaphragm import Diaphragm
+from lensmount.templates.hood import Hood
+from lensmount.templates.housing import Housing
+from lensmount.templates.lens_element import LensElement, OpticalFace
+from lensmount.templates.retainer import Retainer
+from lensmount.templates.spacer import Spacer
+from lensmount.templates.vane import Vane
+
+_SLOPE_SAMPLES = 256
+_EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
+ENVELOPE_STEP_MM = 0.5
+
+
+@dataclass
+class PartPlan:
+    """One part: name, kind, finish and the template that builds it."""
+
+    name: str
+    kind: str
+    finish: str
+    template: object
+
+
+@dataclass
+class Contact:
+    """A mechanical contact on an optical surface (for the clear-aperture check)."""
+
+    part: str
+    lens: str
+    surface: int
+    height: float
+    clear: float
+
+
+@dataclass
+class Layout:
+    prescription: Prescription  # with clear semi-diameters
+    parts: list[PartPlan]
+    contacts: list[Contact]
+    envelope: "Envelope"
+    notes: list[str] = field(default_factory=list)
+
+    def part(self, name: str) -> PartPlan:
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+class Envelope:
+    """Beam envelope radius at any z, from a grid of real-ray envelopes (max of neighbours).
+
+    In an air gap each ray's radius is a convex function of z, so the envelope is
+    convex there and the larger of the two grid values around z bounds it from above.
+    """
+
+    def __init__(self, prescription: Prescription, z_min: float, z_max: float, step: float = ENVELOPE_STEP_MM):
+        from lensmount.optics.apertures import beam_envelope
+
+        n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
+        self.z = np.linspace(z_min, z_max, n)
+        self.r = np.nan_to_num(beam_envelope(prescription, self.z), nan=0.0, posinf=0.0)
+
+    def max_over(self, z0: float, z1: float) -> float:
+        """Largest envelope radius for z in [z0, z1], mm."""
+        lo = np.searchsorted(self.z, min(z0, z1), side="right") - 1
+        hi = np.searchsorted(self.z, max(z0, z1), side="left")
+        lo, hi = max(lo, 0), min(hi, len(self.z) - 1)
+        return float(self.r[lo:hi + 1].max())
+
+    def at(self, z) -> np.ndarray:
+        """Upper bound of the envelope at each z: (n,)."""
+        z = np.atleast_1d(np.asarray(z, dtype=np.float64))
+        i = np.clip(np.searchsorted(self.z, z) - 1, 0, len(self.z) - 2)
+        return np.maximum(self.r[i], self.r[i + 1])
+
+
+def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) -> float:
+    """Cone slope m >= 0 of an end face touching the glass at radius h.
+
+    boundary(r) is the glass's z at r (the face toward the part); side = +1 when the
+    part lies behind the glass (larger z), -1 in front. The face z_c + side·m·(r − h)
+    must stay off the glass for h < r <= r_max: m >= side·(z(r) − z(h)) / (r − h).
+    Tangent contact uses the surface slope at h when that is safe.
+    """
+    zh = float(boundary(h))
+    m = 0.0
+    if r_max > h + 1e-9:
+        rs = np.linspace(h, r_max, _SLOPE_SAMPLES)[1:]
+        m = max(0.0, float((side * (boundary(rs) - zh) / (rs - h)).max()))
+    if tangent:
+        dh = 1e-4
+        m = max(m, side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh))
+    return m + _EPS_SLOPE
+
+
+def _radii(lo: float, R: float, chamfer: float) -> np.ndarray:
+    """Radii from lo to R including the chamfer's corner (where the glass's z peaks)."""
+    rs = np.linspace(lo, R, 129)
+    return np.unique(np.concatenate([rs, [R - chamfer] if R - chamfer >= lo else []]))
+
+
+def plan(prescription: Prescription, spec: MountSpec) -> Layout:
+    """Place every part. Raises GeometryError for a mount that cannot be built."""
+    from lensmount.optics.apertures import with_clear_semi_diameters
+
+    p = with_clear_semi_diameters(prescription)
+    surf, zv = p.surfaces, p.vertex_z
+    clear = [float(s.clear_semi_diameter) for s in surf]
+    edge = spec.lens_edge
+    chamfer = edge.chamfer_mm if edge.style == "chamfered" else 0.0
+    cm, tangent = edge.contact_margin_mm, spec.seats.contact == "tangent"
+    c_bore, c_sp = spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
+    min_t = spec.checks.min_thickness_mm
+    parts: list[PartPlan] = []
+    contacts: list[Contact] = []
+    notes: list[str] = []
+
+    def face(i):
+        s = surf[i]
+        return OpticalFace(i, float(zv[i]), s.curvature, s.conic, tuple(s.aspheric))
+
+    # ---- lens elements, grouped -------------------------------------------------------
+    groups = p.lens_groups()
+    if not groups:
+        raise GeometryError("the prescription has no glass: no lens element to mount", field="surfaces")
+    lens_parts: list[list[PartPlan]] = []
+    radii, bores = [], []
+    n_el = 0
+    for g in groups:
+        mech = [surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
+                else clear[i] + edge.allowance_mm for i in g]
+        R = float(max(mech))
+        radii.append(R)
+        bores.append(R + c_bore)
+        elements = []
+        for a, b in zip(g[:-1], g[1:]):
+            n_el += 1
+            el = LensElement(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0)
+            name = f"lens-{n_el}"
+            if el.center_thickness() < min_t or el.edge_thickness() < min_t:
+                raise GeometryError(
+                    f"{name} is too thin: centre {el.center_thickness():.3f} mm, edge "
+                    f"{el.edge_thickness():.3f} mm at radius {R:.3f} mm (minimum {min_t} mm)",
+                    field="lens_edge.allowance_mm",
+                    valid="a smaller edge allowance or chamfer, or a thicker element")
+            elements.append(PartPlan(name, "lens", spec.finish_of(name, edge.finish), el))
+        lens_parts.append(elements)
+    for R, g in zip(radii, groups):
+        for i in (g[0], g[-1]):
+            if clear[i] + cm > R - chamfer - 1e-6:
+                raise GeometryError(
+                    f"surface {i + 1}: contact height {clear[i] + cm:.3f} mm (clear {clear[i]:.3f} + margin {cm}) "
+                    f"lies beyond the edge chamfer at {R - chamfer:.3f} mm",
+                    field="lens_edge.contact_margin_mm", valid="a smaller contact margin or chamfer, "
+                    "or a larger edge allowance")
+
+    def first_el(gi):
+        return lens_parts[gi][0]
+
+    def last_el(gi):
+        return lens_parts[gi][-1]
+
+    # envelope over the whole assembly (hood mouth to the image plane)
+    hood = spec.hood
+    z_lo = -(hood.length_mm + 50.0 if hood.enabled else 50.0)
+    env = Envelope(p, z_lo, p.image_z)
+
+    bore_pts: list[tuple[float, float]] = []
+    spacers: list[PartPlan] = []
+    retainers: list[PartPlan] = []
+    seat_of = spec.seats.element
+
+    # ---- front seat ---------------------------------------------------------------------
+    el0 = first_el(0).template
+    i0 = groups[0][0]
+    h0 = clear[i0] + cm
+    if spec.seats.front == "retainer":
+        r_out = bores[0] - c_sp
+        m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent)
+        ret = Retainer(h0, float(el0.front_z(h0)), m, -1, r_out, spec.retainer.thickness_mm)
+        name = f"retainer-{len(retainers) + 1}"
+        retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
+        contacts.append(Contact(name, first_el(0).name, i0, h0, clear[i0]))
+        z_front = ret.far_face_z()
+        bore_pts.append((bores[0], z_front))
+    else:
+        m = contact_slope(el0.front_z, h0, radii[0], -1, tangent)
+        cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
+        z_front = cz(bores[0]) - spec.barrel.lip_mm
+        bore_pts += [(h0, z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
+        contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
+
+    # ---- gaps between groups --------------------------------------------------------------
+    stop = p.stop_index
+    stop_placed = False
+    for gi in range(len(groups) - 1):
+        A, B = last_el(gi), first_el(gi + 1)
+        ia, ib = groups[gi][-1], groups[gi + 1][0]
+        hA, hB = clear[ia] + cm, clear[ib] + cm
+        RA, RB = radii[gi], radii[gi + 1]
+        stop_here = ia < stop < ib
+        element_no = int(B.name.split("-")[1])
+        seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
+        if seat == "shoulder":
+            mA = contact_slope(A.template.back_z, hA, RA, +1, tangent)
+            mB = contact_slope(B.template.front_z, hB, RB, -1, tangent)
+            cA = lambda r, z0=float(A.template.back_z(hA)), m=mA, h=hA: z0 + m * (r - h)  # noqa: E731
+            cB = lambda r, z0=float(B.template.front_z(hB)), m=mB, h=hB: z0 - m * (r - h)  # noqa: E731
+            rr = np.linspace(max(hA, hB), min(bores[gi], bores[gi + 1]), 50)
+            thick = float(np.min([cB(r) - cA(r) for r in rr]))
+            if thick < min_t:
+                raise GeometryError(
+                    f"the barrel shoulder between {A.name} and {B.name} is {thick:.3f} mm thick "
+                    f"(minimum {min_t} mm)", field=f"seats.element.{element_no}",
+                    valid="'spacer', or a larger air gap")
+            bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (hB, cB(hB)), (bores[gi + 1], cB(bores[gi + 1]))]
+            contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact("barrel", B.name, ib, hB, clear[ib])]
+            continue
+        od = min(bores[gi], bores[gi + 1]) - c_sp
+        mA = contact_slope(A.template.back_z, hA, min(RA, od), +1, tangent)
+        mB = contact_slope(B.template.front_z, hB, min(RB, od), -1, tangent)
+        ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
+        if stop_here:
+            ds = spec.diaphragm
+            dia = Diaphragm(float(zv[stop]), clear[stop], od, ds.thickness_mm, ds.land_mm, ds.bevel_angle_deg,
+                            ds.bevel_side)
+            dz0, dz1 = dia.z_range()
+            parts_dia = PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia)
+            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
+            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
+            ends.append((hA, float(A.template.back_z(hA)), mA, hd0, dz0, _EPS_SLOPE, A.name, "diaphragm"))
+            ends.append((hd1, dz1, _EPS_SLOPE, hB, float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+            stop_placed = True
+        else:
+            ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
+        for k, (fr, fz, fm, br, bz, bm, pa, pb) in enumerate(ends):
+            tube = None
+            if bz - fz >= spec.vanes.long_gap_mm:
+                t = max(od - spec.spacers.tube_wall_mm, fr, br)
+                tube = t if t > max(fr, br) + 1e-6 else None
+            sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
+            name = f"spacer-{len(spacers) + 1}"
+            if sp.min_length() < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
+                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
+                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
+            if od - max(fr, br) < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",
+                    field="lens_edge.allowance_mm", valid="a larger edge allowance")
+            spacers.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish), sp))
+            if pa.startswith("lens"):
+                contacts.append(Contact(name, pa, ia, fr, clear[ia]))
+            if pb.startswith("lens"):
+                contacts.append(Contact(name, pb, ib, br, clear[ib]))
+            if k == 0 and stop_here:
+                parts.append(parts_dia)
+        # barrel steps where the glass outside the spacer ends
+        r_in = od + c_sp
+        za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max())
+        zb = float(B.template.front_z(_radii(min(r_in, RB), RB, B.template.front_chamfer)).min())
+        if zb < za:
+            raise GeometryError(f"the barrel cannot step between {A.name} and {B.name}: their edges overlap "
+                                f"axially by {za - zb:.3f} mm", field="lens_edge.allowance_mm",
+                                valid="a smaller edge allowance")
+        bore_pts += [(bores[gi], za), (r_in, za), (r_in, zb), (bores[gi + 1], zb)]
+    if not stop_placed:
+        raise GeometryError(
+            f"the stop (surface {stop + 1}) does not lie in an air gap between two lens groups; "
+            "the built-in diaphragm template needs one", field=f"surface[{stop + 1}]",
+            valid="a stop between two lens groups, or a user template for the diaphragm")
+
+    # ---- rear seat ----------------------------------------------------------------------
+    gl = len(groups) - 1
+    elL = last_el(gl)
+    iL = groups[gl][-1]
+    hL = clear[iL] + cm
+    if spec.seats.rear == "shoulder":
+        m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent)
+        cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
+        z_back = cz(bores[gl]) + spec.barrel.lip_mm
+        bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (hL, z_back)]
+        contacts.append(Contact("barrel", elL.name, iL, hL, clear[iL]))
+    else:
+        r_out = bores[gl] - c_sp
+        m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent)
+        ret = Retainer(hL, float(elL.template.back_z(hL)), m, +1, r_out, spec.retainer.thickness_mm)
+        name = f"retainer-{len(retainers) + 1}"
+        retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
+        contacts.append(Contact(name, elL.name, iL, hL, clear[iL]))
+        z_back = ret.far_face_z()
+        bore_pts.append((bores[gl], z_back))
+
+    r_barrel = max(r for r, _ in bore_pts) + spec.barrel.wall_mm
+    barrel = Barrel(tuple((float(r), float(z)) for r, z in bore_pts), float(r_barrel))
+    parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
+
+    # ---- hood and its vanes ---------------------------------------------------------------
+    vs = spec.vanes
+    vanes: list[tuple[float, float, float]] = []  # (z_front, inner, outer)
+    hood_part = None
+    if hood.enabled:
+        z_mouth = z_front - hood.length_mm
+        if hood.inner_diameter_mm is not None:
+            ri = 0.5 * hood.inner_diameter_mm
+        else:
+            ri = env.max_over(z_mouth, z_front) + vs.aperture_margin_mm + 4.0
+        beam_in_hood = env.max_over(z_mouth, z_front)
+        if ri < beam_in_hood:
+            raise GeometryError(f"the hood's bore (radius {ri:.3f} mm) cuts the beam (radius {beam_in_hood:.3f} mm) "
+                                f"by {beam_in_hood - ri:.3f} mm", field="hood.inner_diameter_mm",
+                                valid=f"an inner diameter above {2 * beam_in_hood:.2f} mm")
+        hood_part = PartPlan("hood", "hood", spec.finish_of("hood", hood.finish),
+                             Hood(float(z_mouth), float(z_front), float(ri), float(ri + hood.wall_mm)))
+        if vs.positions_mm is not None:
+            zs = [float(z) for z in vs.positions_mm]
+            for z in zs:
+                if not (z_mouth <= z <= z_front - vs.thickness_mm):
+                    raise GeometryError(f"vane position {z} mm lies outside the hood "
+                                        f"({z_mouth:.2f} .. {z_front - vs.thickness_mm:.2f} mm)",
+                                        field="vanes.positions_mm", valid="z values inside the hood")
+        else:
+            span = hood.length_mm - vs.thickness_mm
+            zs = [z_mouth + span * k / max(vs.count - 1, 1) for k in range(vs.count)] if vs.count > 1 else \
+                ([z_mouth] if vs.count == 1 else [])
+        for z in zs:
+            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, ri))
+    for sp_plan in spacers:
+        sp = sp_plan.template
+        if sp.tube_radius is None or vs.in_air_gaps == 0:
+            continue
+        za, zb = sp.front_z + sp.lip, sp.back_z - sp.lip
+        for k in range(vs.in_air_gaps):
+            z = za + (zb - za) * (k + 1) / (vs.in_air_gaps + 1) - 0.5 * vs.thickness_mm
+            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, sp.tube_radius))
+    vane_parts = []
+    for z, r_in, r_out in sorted(vanes):
+        if r_out - r_in < max(vs.min_height_mm, 1e-3):
+            notes.append(f"vane at z = {z:.2f} mm left out: only {r_out - r_in:.3f} mm of room above the beam")
+            continue
+        name = f"vane-{len(vane_parts) + 1}"
+        vane_parts.append(PartPlan(name, "vane", spec.finish_of(name, vs.finish),
+                                   Vane(float(z), float(r_in), float(r_out), vs.thickness_mm,
+                                        vs.edge_width_mm, vs.bevel_angle_deg)))
+
+    # ---- detector housing ------------------------------------------------------------------
+    housing_part = None
+    hs = spec.housing
+    if hs.enabled:
+        half_diag = 0.5 * float(np.hypot(hs.detector_width_mm, hs.detector_height_mm))
+        z_wall = p.image_z + hs.back_gap_mm
+        if z_wall <= z_back + min_t:
+            raise GeometryError("the housing would end before the barrel does", field="housing.back_gap_mm",
+                                valid="a larger back gap")
+        r_h = max(half_diag + hs.detector_clearance_mm,
+                  env.max_over(z_back, p.image_z) + vs.aperture_margin_mm)
+        housing_part = PartPlan("housing", "housing", spec.finish_of("housing", hs.finish),
+                                Housing(float(z_back), float(z_wall), float(r_h), hs.wall_mm))
+
+    ordered = [parts[0]] + [pp for grp in lens_parts for pp in grp] + retainers + spacers + parts[1:]
+    if hood_part:
+        ordered.append(hood_part)
+    ordered += vane_parts
+    if housing_part:
+        ordered.append(housing_part)
+    return Layout(p, ordered, contacts, env, notes)
+
+
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope"]

@@ -1,0 +1,96 @@
+"""Accumulator: batch-means statistics against numpy on known series, checkpoint round trip."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lensmount.analysis.passes import Accumulator
+from lensmount.integrators.estimate import PassEstimate
+
+
+def _pass(rng, scale=1.0, shape=(4, 5)):
+    img = rng.exponential(scale, size=shape)
+    parts = np.stack([0.25 * img, 0.75 * img])
+    return PassEstimate(img, parts, ["diaphragm", "barrel"], pixel_area_mm2=0.01, photons=100)
+
+
+def test_mean_and_std_error_match_numpy():
+    rng = np.random.default_rng(1)
+    passes = [_pass(rng) for _ in range(40)]
+    acc = Accumulator.empty((4, 5), ["diaphragm", "barrel"], 0.01)
+    for p in passes:
+        acc.add(p)
+    stack = np.stack([p.image for p in passes])
+    np.testing.assert_allclose(acc.mean_image, stack.mean(0), rtol=1e-12)
+    np.testing.assert_allclose(acc.std_error_image, stack.std(0, ddof=1) / math.sqrt(40), rtol=1e-9)
+    flux = stack.sum(axis=(1, 2)) * 0.01
+    assert acc.flux == pytest.approx(flux.mean(), rel=1e-12)
+    assert acc.flux_std_error == pytest.approx(flux.std(ddof=1) / math.sqrt(40), rel=1e-12)
+    np.testing.assert_allclose(acc.part_flux, [0.25 * flux.mean(), 0.75 * flux.mean()], rtol=1e-12)
+    assert acc.photons == 4000 and acc.n == 40 and acc.last_pass == 39
+
+
+def test_std_error_covers_the_truth_at_the_nominal_rate():
+    """Over many independent runs, |mean − truth| < 2 SE about 95 % of the time."""
+    rng = np.random.default_rng(7)
+    inside = 0
+    for _ in range(200):
+        acc = Accumulator.empty((1, 1), ["p"], 1.0)
+        for _ in range(30):
+            v = rng.exponential(1.0, size=(1, 1))
+            acc.add(PassEstimate(v, v[None], ["p"], 1.0, 1))
+        inside += abs(acc.flux - 1.0) < 2 * acc.flux_std_error
+    assert 0.88 < inside / 200 < 0.99
+
+
+def test_guards_before_two_passes_and_for_all_zero():
+    acc = Accumulator.empty((2, 2), ["p"], 1.0)
+    assert acc.rel_error() == math.inf and acc.flux == 0.0
+    assert np.all(acc.std_error_image == 0) and np.all(np.isfinite(acc.mean_image))
+    z = np.zeros((2, 2))
+    for _ in range(3):
+        acc.add(PassEstimate(z, z[None], ["p"], 1.0, 10))
+    assert acc.rel_error() == 0.0
+    d = acc.drift()
+    assert d.relative == 0.0 and d.z == 0.0
+
+
+def test_nan_pass_is_refused():
+    acc = Accumulator.empty((1, 2), ["p"], 1.0)
+    bad = np.array([[1.0, np.nan]])
+    with pytest.raises(ValueError):
+        acc.add(PassEstimate(bad, bad[None], ["p"], 1.0, 1))
+
+
+def test_drift_detects_a_trend_and_not_noise():
+    rng = np.random.default_rng(3)
+    flat = Accumulator.empty((1, 1), ["p"], 1.0)
+    trend = Accumulator.empty((1, 1), ["p"], 1.0)
+    for i in range(64):
+        v = 1.0 + 0.01 * rng.standard_normal((1, 1))
+        flat.add(PassEstimate(v, v[None], ["p"], 1.0, 1))
+        w = v + 0.002 * i
+        trend.add(PassEstimate(w, w[None], ["p"], 1.0, 1))
+    assert abs(flat.drift().z) < 4
+    assert trend.drift().z > 10 and trend.drift().relative > 0
+
+
+def test_checkpoint_round_trip_is_exact(tmp_path):
+    rng = np.random.default_rng(5)
+    acc = Accumulator.empty((4, 5), ["diaphragm", "barrel"], 0.01)
+    for i in range(5):
+        acc.add(_pass(rng), pass_index=i)
+    path = tmp_path / "checkpoint.npz"
+    acc.save(path, seed=3, input_hash="abc", method="bidirectional")
+    back, meta = Accumulator.load(path)
+    assert meta == {"seed": 3, "input_hash": "abc", "method": "bidirectional"}
+    assert back.n == 5 and back.last_pass == 4 and back.part_names == acc.part_names
+    np.testing.assert_array_equal(back.sum_image, acc.sum_image)
+    assert back.flux_std_error == acc.flux_std_error
+    # Continuing from the checkpoint equals never stopping.
+    p = _pass(rng)
+    acc.add(p, 5)
+    back.add(p, 5)
+    assert back.flux == acc.flux and back.flux_std_error == acc.flux_std_error
+    assert not list(tmp_path.glob("*.tmp"))

@@ -1,0 +1,80 @@
+"""Radius schedule against its recurrence; face half widths against geometry."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lensmount.integrators.radius import FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_scale
+
+
+def test_schedule_matches_recurrence_for_10000_passes():
+    alpha = 0.7
+    s2 = 1.0
+    for i in range(1, 10001):
+        assert radius_scale(i - 1, alpha) == pytest.approx(math.sqrt(s2), rel=1e-9)
+        s2 *= (i + alpha) / (i + 1)
+    s = radius_scale(9999, alpha)
+    assert 0 < s < 0.3 and math.isfinite(s)
+    # s_i² ~ Γ(2)/Γ(1+α) · i^(α−1) for large i
+    assert s**2 == pytest.approx(10000 ** (alpha - 1) / math.gamma(1 + alpha), rel=1e-3)
+
+
+def test_alpha_outside_range_is_refused():
+    with pytest.raises(ValueError):
+        radius_scale(3, 1.0)
+
+
+def _strip(width, length, n=20):
+    """A flat strip width × length as 2n triangles, tag 0, and a square plate beside it, tag 1."""
+    xs = np.linspace(0, length, n + 1)
+    v = np.concatenate([np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], 1),
+                        np.stack([xs, np.full_like(xs, width), np.zeros_like(xs)], 1)])
+    tri = []
+    for i in range(n):
+        tri += [[i, i + 1, n + 1 + i], [i + 1, n + 2 + i, n + 1 + i]]
+    plate_v = np.array([[0, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]], float) + [0, width, 0]
+    tri += [[len(v), len(v) + 1, len(v) + 2], [len(v), len(v) + 2, len(v) + 3]]
+    return np.concatenate([v, plate_v]), np.array(tri), np.array([0] * 2 * n + [1, 1])
+
+
+def test_face_half_width_of_a_strip_and_a_square():
+    v, tri, tags = _strip(0.05, 100.0)
+    hw = face_half_widths(v, tri, tags, 3)
+    assert hw[0] == pytest.approx(0.05 * 100 / (2 * 100.05), rel=1e-9)  # ≈ w/2
+    assert hw[1] == pytest.approx(0.25)  # square of side 1: area 1 / perimeter 4
+    assert hw[2] == np.inf
+
+
+def test_initial_radii_never_exceed_the_face():
+    rng = np.random.default_rng(0)
+    p = np.column_stack([rng.random(50) * 100, rng.random(50) * 0.05, np.zeros(50)])
+    r = initial_radii(p, np.zeros(50, int), np.array([0.025]))
+    assert np.all(r <= 0.05) and np.all(r > 0)  # at most the face's full width
+
+
+def _disc_on_strip_area(y0, r, w, n=2001):
+    """Area of disc (centre at height y0 in a strip |y| ≤ w/2) on the strip, by quadrature."""
+    ys = np.linspace(max(y0 - r, -w / 2), min(y0 + r, w / 2), n)
+    chord = 2 * np.sqrt(np.maximum(r * r - (ys - y0) ** 2, 0))
+    return np.trapezoid(chord, ys)
+
+
+@pytest.mark.parametrize("r", [0.01, 0.025, 0.05])
+def test_on_face_area_of_gather_discs_on_a_50um_strip(r):
+    v, tri, tags = _strip(0.05, 100.0, n=200)
+    fb = FaceBoundaries(v, tri, tags, 2)
+    y0 = np.array([0.025, 0.01, 0.002, 0.045])
+    pos = np.column_stack([np.full(4, 50.3), y0, np.zeros(4)])
+    area = fb.inside_area(pos, np.tile([0, 0, 1.0], (4, 1)), np.zeros(4, int), np.full(4, r))
+    expected = [_disc_on_strip_area(y - 0.025, r, 0.05) for y in y0]
+    np.testing.assert_allclose(area, np.maximum(expected, 0.05 * np.pi * r * r), rtol=1e-3)
+
+
+def test_boundaries_of_a_triangle_soup_are_welded():
+    v, tri, tags = _strip(0.05, 10.0, n=4)
+    soup_v = v[tri.ravel()]
+    soup_t = np.arange(len(soup_v)).reshape(-1, 3)
+    a, b, t = boundary_segments(soup_v, soup_t, tags)
+    a2, b2, t2 = boundary_segments(v, tri, tags)
+    assert len(a) == len(a2) == 10 + 4

@@ -1,0 +1,52 @@
+"""Result files: EXR channels round trip, PNG written, JSON refuses NaN, nothing half-written."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lensmount.analysis.passes import Accumulator
+from lensmount.integrators.estimate import PassEstimate
+from lensmount.results import read_exr, write_run, write_summary
+
+
+def _acc():
+    acc = Accumulator.empty((6, 8), ["diaphragm", "barrel", "hood"], 0.01)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        img = rng.random((6, 8))
+        parts = np.stack([img * 0.4, img * 0.6, np.zeros_like(img)])
+        acc.add(PassEstimate(img, parts, acc.part_names, 0.01, 10))
+    return acc
+
+
+def test_write_run_files(tmp_path):
+    acc = _acc()
+    summary = {"method": "bidirectional", "passes": acc.n, "stray_fraction": 1e-4, "unknown": None}
+    paths = write_run(tmp_path / "out", acc, summary, extent_mm=(-4, 4, -3, 3), field_radius_mm=3.0)
+    ch = read_exr(paths["exr"])
+    assert set(ch) == {"Y", "diaphragm", "barrel"}  # hood contributes nothing
+    assert ch["Y"].dtype == np.float32 and ch["Y"].shape == (6, 8)
+    np.testing.assert_allclose(ch["Y"], acc.mean_image, rtol=1e-6)
+    np.testing.assert_allclose(ch["diaphragm"] + ch["barrel"], ch["Y"], rtol=1e-5)
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert json.loads(paths["json"].read_text())["passes"] == 3
+    assert not [p for p in (tmp_path / "out").iterdir() if p.name.endswith(".tmp")]
+
+
+def test_summary_refuses_nan_and_keeps_old_file(tmp_path):
+    path = tmp_path / "summary.json"
+    write_summary(path, {"a": 1})
+    with pytest.raises(ValueError):
+        write_summary(path, {"a": float("nan")})
+    assert json.loads(path.read_text()) == {"a": 1}
+    assert len(list(tmp_path.iterdir())) == 1
+
+
+def test_preview_of_an_all_zero_image(tmp_path):
+    acc = Accumulator.empty((4, 4), ["p"], 1.0)
+    z = np.zeros((4, 4))
+    acc.add(PassEstimate(z, z[None], ["p"], 1.0, 1))
+    paths = write_run(tmp_path, acc, {"method": "forward"})
+    assert paths["png"].stat().st_size > 0
+    assert set(read_exr(paths["exr"])) == {"Y"}
