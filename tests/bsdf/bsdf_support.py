@@ -102,28 +102,51 @@ def chord_edges(bsdf, bins: int) -> np.ndarray:
     return np.sqrt(np.linspace(0.0, 4.0, bins + 1))
 
 
-def expected_fractions(bsdf, wi1, n1, s_edges, phi_bins: int, sub: int = 8, order: int = 4) -> np.ndarray:
-    """∫ pdf dω over each (s, φ) bin, (len(s_edges)-1, phi_bins), by Gauss–Legendre on sub×sub cells per bin."""
+def _cell_nodes(lo, hi, cells: int, order: int):
+    """Gauss–Legendre nodes/weights of `cells` equal cells in each interval [lo_i, hi_i]: (M, cells·order) each."""
     x, w = np.polynomial.legendre.leggauss(order)
-    t = ((np.arange(sub)[:, None] + 0.5 * (x[None, :] + 1.0)) / sub).ravel()  # nodes in [0,1]
-    wt = np.tile(0.5 * w / sub, sub)
+    t = ((np.arange(cells)[:, None] + 0.5 * (x[None, :] + 1.0)) / cells).ravel()
+    wt = np.tile(0.5 * w / cells, cells)
+    return lo[:, None] + (hi - lo)[:, None] * t[None, :], (hi - lo)[:, None] * wt[None, :]
+
+
+def _integrate_cells(bsdf, wi1, n1, r, e1, e2, s_lo, s_hi, p_lo, p_hi, cells, order):
+    """∫ pdf dω over each rectangle [s_lo, s_hi] × [p_lo, p_hi] (arrays (M,)), as (M, cells², order²) pieces
+    summed per sub-cell -> (M, cells*cells) contributions and a flag per sub-cell: pdf both zero and non-zero in it."""
+    s, ws = _cell_nodes(s_lo, s_hi, cells, order)  # (M, C·O)
+    ph, wp = _cell_nodes(p_lo, p_hi, cells, order)
+    m, k = s.shape
+    ss = np.repeat(s[:, :, None], k, 2)            # (M, k_s, k_p)
+    pp = np.repeat(ph[:, None, :], k, 1)
+    ww = ws[:, :, None] * wp[:, None, :] * ss       # dω = s ds dφ
+    count = ss.size
+    dirs = from_chord(np.repeat(r, count, 0), np.repeat(e1, count, 0), np.repeat(e2, count, 0), ss.ravel(), pp.ravel())
+    pdf = bsdf.pdf(np.repeat(wi1, count, 0), dirs, np.repeat(n1, count, 0)).reshape(ss.shape)
+    piece = (pdf * ww).reshape(m, cells, order, cells, order)
+    zero = (pdf == 0).reshape(piece.shape).any(axis=(2, 4))
+    nonzero = (pdf != 0).reshape(piece.shape).any(axis=(2, 4))
+    return piece.sum(axis=(2, 4)).reshape(m, -1), (zero & nonzero).reshape(m, -1)
+
+
+def expected_fractions(bsdf, wi1, n1, s_edges, phi_bins: int, cells: int = 8, order: int = 4) -> np.ndarray:
+    """∫ pdf dω over each (s, φ) bin, (len(s_edges)-1, phi_bins): Gauss–Legendre on cells×cells sub-cells
+    per bin; sub-cells that straddle the edge of the pdf's support (the horizon) are integrated again on a
+    16×16 finer grid, since the pdf jumps or kinks there."""
     r = mirror_of(wi1, n1)
     e1, e2 = lobe_axes(r, n1)
     phi_edges = np.linspace(0.0, 2.0 * math.pi, phi_bins + 1)
-    out = np.zeros((len(s_edges) - 1, phi_bins))
-    for i in range(len(s_edges) - 1):
-        s0, s1 = s_edges[i], s_edges[i + 1]
-        s = s0 + (s1 - s0) * t
-        for j in range(phi_bins):
-            p0, p1 = phi_edges[j], phi_edges[j + 1]
-            ph = p0 + (p1 - p0) * t
-            ss, pp = np.meshgrid(s, ph, indexing="ij")
-            ww = np.outer(wt, wt) * (s1 - s0) * (p1 - p0)
-            dirs = from_chord(np.repeat(r, ss.size, 0), np.repeat(e1, ss.size, 0), np.repeat(e2, ss.size, 0),
-                              ss.ravel(), pp.ravel())
-            pdf = bsdf.pdf(np.repeat(wi1, ss.size, 0), dirs, np.repeat(n1, ss.size, 0))
-            out[i, j] = np.sum(pdf * ss.ravel() * ww.ravel())  # dω = s ds dφ
-    return out
+    si, pj = np.meshgrid(np.arange(len(s_edges) - 1), np.arange(phi_bins), indexing="ij")
+    si, pj = si.ravel(), pj.ravel()
+    s_lo, s_hi, p_lo, p_hi = s_edges[si], s_edges[si + 1], phi_edges[pj], phi_edges[pj + 1]
+    part, mixed = _integrate_cells(bsdf, wi1, n1, r, e1, e2, s_lo, s_hi, p_lo, p_hi, cells, order)
+    b, c = np.nonzero(mixed)
+    if len(b):
+        ds, dp = (s_hi - s_lo)[b] / cells, (p_hi - p_lo)[b] / cells
+        c_s, c_p = c // cells, c % cells
+        sub_lo, sub_plo = s_lo[b] + c_s * ds, p_lo[b] + c_p * dp
+        fine, _ = _integrate_cells(bsdf, wi1, n1, r, e1, e2, sub_lo, sub_lo + ds, sub_plo, sub_plo + dp, 16, order)
+        part[b, c] = fine.sum(axis=1)
+    return part.sum(axis=1).reshape(len(s_edges) - 1, phi_bins)
 
 
 def chi2_test(bsdf, deg: float, count: int, rng: np.random.Generator, s_bins: int = 16, phi_bins: int = 12):

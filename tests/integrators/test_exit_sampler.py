@@ -44,3 +44,20 @@ def test_disc_concentrates_samples_on_the_lens():
     _, se_mix = _estimate(_cone(beta), ExitDisc(0.0, 10.0), 0.9, n=100_000)
     _, se_hemi = _estimate(_cone(beta), ExitDisc(0.0, 10.0), 0.0, n=100_000)
     assert se_mix < se_hemi / 5
+
+
+def test_disc_plus_rim_annulus_mixture_is_unbiased():
+    beta = math.radians(4.0)
+    disc = ExitDisc(0.0, 10.0)
+    rim = ExitDisc(20.0, 6.2, r_inner=5.8)
+    rng = np.random.default_rng(4)
+    n = 400_000
+    x = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.full(n, 100.0)])
+    omega, w = sample_toward_exit(x, rng.random((n, 3)), [disc, rim], [0.5, 0.4])
+    v = w * _cone(beta)(x, omega)
+    assert abs(v.mean() - math.pi * math.sin(beta) ** 2) < 4 * v.std() / math.sqrt(n)
+
+
+def test_weights_summing_above_one_are_refused():
+    with pytest.raises(ValueError):
+        sample_toward_exit(np.zeros((2, 3)), np.zeros((2, 3)), [ExitDisc(0, 1), ExitDisc(0, 2)], [0.6, 0.6])

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.radius import FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_scale
+from lensmount.integrators.radius import FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_caps, radius_scale
 
 
 def test_schedule_matches_recurrence_for_10000_passes():
@@ -49,8 +49,15 @@ def test_face_half_width_of_a_strip_and_a_square():
 def test_initial_radii_never_exceed_the_face():
     rng = np.random.default_rng(0)
     p = np.column_stack([rng.random(50) * 100, rng.random(50) * 0.05, np.zeros(50)])
-    r = initial_radii(p, np.zeros(50, int), np.array([0.025]))
-    assert np.all(r <= 0.05) and np.all(r > 0)  # at most the face's full width
+    r = initial_radii(p, np.zeros(50, int), np.array([0.05]))
+    assert np.all(r <= 0.05) and np.all(r > 0)
+
+
+def test_strips_may_gather_along_their_length_compact_faces_not():
+    v, tri, tags = _strip(0.05, 100.0)
+    caps = radius_caps(v, tri, tags, 2, cap_mm=5.0)
+    assert caps[0] == 5.0  # the 50 µm strip: along its length
+    assert caps[1] == pytest.approx(0.5)  # the unit square: its full width 2 · (1/4)
 
 
 def _disc_on_strip_area(y0, r, w, n=2001):
@@ -60,7 +67,7 @@ def _disc_on_strip_area(y0, r, w, n=2001):
     return np.trapezoid(chord, ys)
 
 
-@pytest.mark.parametrize("r", [0.01, 0.025, 0.05])
+@pytest.mark.parametrize("r", [0.01, 0.025, 0.05, 2.0])
 def test_on_face_area_of_gather_discs_on_a_50um_strip(r):
     v, tri, tags = _strip(0.05, 100.0, n=200)
     fb = FaceBoundaries(v, tri, tags, 2)
@@ -68,7 +75,7 @@ def test_on_face_area_of_gather_discs_on_a_50um_strip(r):
     pos = np.column_stack([np.full(4, 50.3), y0, np.zeros(4)])
     area = fb.inside_area(pos, np.tile([0, 0, 1.0], (4, 1)), np.zeros(4, int), np.full(4, r))
     expected = [_disc_on_strip_area(y - 0.025, r, 0.05) for y in y0]
-    np.testing.assert_allclose(area, np.maximum(expected, 0.05 * np.pi * r * r), rtol=1e-3)
+    np.testing.assert_allclose(area, expected, rtol=1e-3)
 
 
 def test_boundaries_of_a_triangle_soup_are_welded():
@@ -78,3 +85,14 @@ def test_boundaries_of_a_triangle_soup_are_welded():
     a, b, t = boundary_segments(soup_v, soup_t, tags)
     a2, b2, t2 = boundary_segments(v, tri, tags)
     assert len(a) == len(a2) == 10 + 4
+
+
+def test_a_hit_point_just_outside_a_strip_keeps_the_strip_area():
+    v, tri, tags = _strip(0.05, 100.0, n=200)
+    fb = FaceBoundaries(v, tri, tags, 2)
+    r = 2.0
+    pos = np.array([[50.3, -0.006, 0.0]])  # 6 µm beyond the y = 0 edge
+    area = fb.inside_area(pos, np.array([[0, 0, 1.0]]), np.zeros(1, int), np.array([r]))
+    ys = np.linspace(0.0, 0.05, 2001)
+    expected = np.trapezoid(2 * np.sqrt(r * r - (ys + 0.006) ** 2), ys)
+    assert area[0] == pytest.approx(expected, rel=1e-3)

@@ -77,3 +77,22 @@ def scene_dict(**over) -> dict:
 
 def make_scene(p: Prescription, mesh: TaggedMesh, **over):
     return build_scene(p, mesh, scene_from_dict(scene_dict(**over)))
+
+
+def air_plane() -> Prescription:
+    """A prescription with one plane air-air surface: scenes with no glass."""
+    return Prescription((Surface(thickness=100.0, clear_semi_diameter=10.0, mechanical_semi_diameter=10.0),),
+                        Aperture("epd", 10.0))
+
+
+def window(thickness: float = 5.0, glass: str = "SCHOTT:N-BK7", semi_diameter: float = 20.0) -> Prescription:
+    """A plane-parallel glass plate at z = 0 (a window), image plane 50 mm behind it."""
+    s = dict(clear_semi_diameter=semi_diameter, mechanical_semi_diameter=semi_diameter)
+    return Prescription((Surface(thickness=thickness, material=glass, **s), Surface(thickness=50.0, **s)),
+                        Aperture("epd", 2 * semi_diameter))
+
+
+def mech_scene(mesh: TaggedMesh, *, detector=None, **over):
+    """A scene of mechanical parts only (no glass), detector far away unless given."""
+    det = detector or {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": 1.0e4}
+    return make_scene(air_plane(), mesh, detector=det, **over)

@@ -35,7 +35,7 @@ from lensmount.templates.vane import Vane
 
 _SLOPE_SAMPLES = 256
 _EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
-ENVELOPE_STEP_MM = 0.5
+ENVELOPE_STEP_MM = 0.25
 
 
 @dataclass
@@ -75,31 +75,38 @@ class Layout:
 
 
 class Envelope:
-    """Beam envelope radius at any z, from a grid of real-ray envelopes (max of neighbours).
+    """Beam envelope radius at any z, interpolated from a fine grid of real-ray envelopes.
 
     In an air gap each ray's radius is a convex function of z, so the envelope is
-    convex there and the larger of the two grid values around z bounds it from above.
+    convex there and the chord between two grid values bounds it from above; across
+    a surface it is only an approximation, which is why `exact` exists for checks.
     """
 
     def __init__(self, prescription: Prescription, z_min: float, z_max: float, step: float = ENVELOPE_STEP_MM):
+        n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
+        self.prescription = prescription
+        self.z = np.linspace(z_min, z_max, n)
+        self.r = self.exact(self.z)
+
+    def exact(self, z) -> np.ndarray:
+        """The real-ray envelope at each z (slow: traces the beam), (n,)."""
         from lensmount.optics.apertures import beam_envelope
 
-        n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
-        self.z = np.linspace(z_min, z_max, n)
-        self.r = np.nan_to_num(beam_envelope(prescription, self.z), nan=0.0, posinf=0.0)
+        z = np.atleast_1d(np.asarray(z, dtype=np.float64))
+        if not len(z):
+            return np.zeros(0)
+        return np.nan_to_num(beam_envelope(self.prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
+
+    def at(self, z) -> np.ndarray:
+        """Envelope at each z by linear interpolation: (n,)."""
+        return np.interp(np.asarray(z, dtype=np.float64), self.z, self.r)
 
     def max_over(self, z0: float, z1: float) -> float:
         """Largest envelope radius for z in [z0, z1], mm."""
-        lo = np.searchsorted(self.z, min(z0, z1), side="right") - 1
-        hi = np.searchsorted(self.z, max(z0, z1), side="left")
-        lo, hi = max(lo, 0), min(hi, len(self.z) - 1)
-        return float(self.r[lo:hi + 1].max())
-
-    def at(self, z) -> np.ndarray:
-        """Upper bound of the envelope at each z: (n,)."""
-        z = np.atleast_1d(np.asarray(z, dtype=np.float64))
-        i = np.clip(np.searchsorted(self.z, z) - 1, 0, len(self.z) - 2)
-        return np.maximum(self.r[i], self.r[i + 1])
+        a, b = min(z0, z1), max(z0, z1)
+        inside = self.r[(self.z > a) & (self.z < b)]
+        ends = self.at([a, b])
+        return float(max(ends.max(), inside.max() if len(inside) else 0.0))
 
 
 def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) -> float:
@@ -121,10 +128,55 @@ def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) ->
     return m + _EPS_SLOPE
 
 
+def _opening(env: "Envelope", h: float, z_far: float, z_contact: float, spec: MountSpec) -> float:
+    """Bore radius at a ring's far face: the contact radius, or wider where the beam grows.
+
+    The bore runs straight from (h, z_contact) to (r, z_far); the beam is convex in z
+    in air, so clearing both ends (with the spacer margin) clears the whole bore.
+    """
+    beam = env.max_over(min(z_far, z_contact), max(z_far, z_contact))
+    return float(max(h, beam + spec.spacers.aperture_margin_mm if beam > h else h))
+
+
+def _check_ring(name: str, bore: float, outside: float, min_t: float) -> None:
+    if outside - bore < min_t:
+        raise GeometryError(
+            f"{name}: its bore must open to {bore:.3f} mm to clear the beam, leaving a wall of "
+            f"{outside - bore:.3f} mm inside its outside radius {outside:.3f} mm (minimum {min_t} mm)",
+            field="retainer.thickness_mm", valid="a thinner ring, a smaller aperture margin or a larger lens")
+
+
 def _radii(lo: float, R: float, chamfer: float) -> np.ndarray:
     """Radii from lo to R including the chamfer's corner (where the glass's z peaks)."""
     rs = np.linspace(lo, R, 129)
     return np.unique(np.concatenate([rs, [R - chamfer] if R - chamfer >= lo else []]))
+
+
+def _diaphragm(spec, stop, ia, ib, A, B, od, z_stop, r_stop, env) -> Diaphragm:
+    """The diaphragm in the gap between lens A and lens B.
+
+    A stop on a dummy surface in the gap puts the knife edge on the stop plane with the
+    stop's clear semi-diameter. A stop on A's rear (B's front) face puts the plate just
+    behind (in front of) the glass, its bore on the beam there, so the plate is the
+    aperture the file names without clipping more than the lens does.
+    """
+    ds = spec.diaphragm
+    args = (od, ds.thickness_mm, ds.land_mm, ds.bevel_angle_deg, ds.bevel_side)
+    if ia < stop < ib:
+        return Diaphragm(z_stop, r_stop, *args)
+    probe = Diaphragm(0.0, r_stop, *args)
+    off0, off1 = probe.z_range()  # face offsets from the land centre
+    gap = 0.01  # mm of air between glass and plate
+    if stop == ia:
+        rs = _radii(min(r_stop, A.outer_radius), min(od, A.outer_radius), A.back_chamfer)
+        z0 = float(A.back_z(rs).max()) + gap
+        zc = z0 - off0
+    else:
+        rs = _radii(min(r_stop, B.outer_radius), min(od, B.outer_radius), B.front_chamfer)
+        z1 = float(B.front_z(rs).min()) - gap
+        zc = z1 - off1
+    land = (zc - 0.5 * ds.land_mm, zc + 0.5 * ds.land_mm)
+    return Diaphragm(zc, env.max_over(*land), *args)
 
 
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
@@ -157,7 +209,9 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     for g in groups:
         mech = [surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
                 else clear[i] + edge.allowance_mm for i in g]
-        R = float(max(mech))
+        overrides = [edge.semi_diameter_mm[n_el + k + 1] for k in range(len(g) - 1)
+                     if n_el + k + 1 in edge.semi_diameter_mm]
+        R = float(max(overrides)) if overrides else float(max(mech))
         radii.append(R)
         bores.append(R + c_bore)
         elements = []
@@ -206,6 +260,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         r_out = bores[0] - c_sp
         m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent)
         ret = Retainer(h0, float(el0.front_z(h0)), m, -1, r_out, spec.retainer.thickness_mm)
+        ret.far_r = _opening(env, h0, ret.far_face_z(), ret.contact_z, spec)
+        _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
         name = f"retainer-{len(retainers) + 1}"
         retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
         contacts.append(Contact(name, first_el(0).name, i0, h0, clear[i0]))
@@ -215,7 +271,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         m = contact_slope(el0.front_z, h0, radii[0], -1, tangent)
         cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
         z_front = cz(bores[0]) - spec.barrel.lip_mm
-        bore_pts += [(h0, z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
+        bore_pts += [(_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
         contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
 
     # ---- gaps between groups --------------------------------------------------------------
@@ -226,7 +282,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         ia, ib = groups[gi][-1], groups[gi + 1][0]
         hA, hB = clear[ia] + cm, clear[ib] + cm
         RA, RB = radii[gi], radii[gi + 1]
-        stop_here = ia < stop < ib
+        stop_here = ia <= stop <= ib
         element_no = int(B.name.split("-")[1])
         seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
         if seat == "shoulder":
@@ -250,15 +306,18 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
         if stop_here:
             ds = spec.diaphragm
-            dia = Diaphragm(float(zv[stop]), clear[stop], od, ds.thickness_mm, ds.land_mm, ds.bevel_angle_deg,
-                            ds.bevel_side)
+            dia = _diaphragm(spec, stop, ia, ib, A.template, B.template, od, float(zv[stop]), clear[stop], env)
             dz0, dz1 = dia.z_range()
             parts_dia = PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia)
-            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
-            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
-            ends.append((hA, float(A.template.back_z(hA)), mA, hd0, dz0, _EPS_SLOPE, A.name, "diaphragm"))
-            ends.append((hd1, dz1, _EPS_SLOPE, hB, float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+            margin = spec.spacers.aperture_margin_mm
+            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + margin)
+            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + margin)
+            if stop != ia:  # a spacer between lens A and the diaphragm
+                ends.append((hA, float(A.template.back_z(hA)), mA, hd0, dz0, _EPS_SLOPE, A.name, "diaphragm"))
+            if stop != ib:  # and one between the diaphragm and lens B
+                ends.append((hd1, dz1, _EPS_SLOPE, hB, float(B.template.front_z(hB)), mB, "diaphragm", B.name))
             stop_placed = True
+            parts.append(parts_dia)
         else:
             ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
         for k, (fr, fz, fm, br, bz, bm, pa, pb) in enumerate(ends):
@@ -282,8 +341,6 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                 contacts.append(Contact(name, pa, ia, fr, clear[ia]))
             if pb.startswith("lens"):
                 contacts.append(Contact(name, pb, ib, br, clear[ib]))
-            if k == 0 and stop_here:
-                parts.append(parts_dia)
         # barrel steps where the glass outside the spacer ends
         r_in = od + c_sp
         za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max())
@@ -308,12 +365,14 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent)
         cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
         z_back = cz(bores[gl]) + spec.barrel.lip_mm
-        bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (hL, z_back)]
+        bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (_opening(env, hL, z_back, cz(hL), spec), z_back)]
         contacts.append(Contact("barrel", elL.name, iL, hL, clear[iL]))
     else:
         r_out = bores[gl] - c_sp
         m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent)
         ret = Retainer(hL, float(elL.template.back_z(hL)), m, +1, r_out, spec.retainer.thickness_mm)
+        ret.far_r = _opening(env, hL, ret.far_face_z(), ret.contact_z, spec)
+        _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
         name = f"retainer-{len(retainers) + 1}"
         retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
         contacts.append(Contact(name, elL.name, iL, hL, clear[iL]))

@@ -61,14 +61,15 @@ def inspect_document(prescription) -> dict:
 
 
 def _print_tables(doc: dict) -> None:
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
-    t = Table(title=f"{doc['name']}: surfaces (mm)", title_justify="left")
-    for col in ("#", "radius", "thickness", "material", f"n @ {doc['primary_wavelength_um']:g} µm",
-                "clear semi-dia", "z vertex", ""):
-        t.add_column(col, justify="left" if col in ("material", "") else "right")
+    t = Table(title=f"{doc['name']} (mm; n at {doc['primary_wavelength_um']:g} µm; sd = semi-diameter)",
+              title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("#", "radius", "thickness", "material", "n", "clear sd", "z vertex", "stop"):
+        t.add_column(col, justify="left" if col in ("material", "stop") else "right", no_wrap=True, min_width=len(col))
     for s in doc["surfaces"]:
         radius = "inf" if s["radius_mm"] is None else f"{s['radius_mm']:.4f}"
         csd = "-" if s["clear_semi_diameter_mm"] is None else f"{s['clear_semi_diameter_mm']:.3f}"

@@ -45,8 +45,7 @@ def _load_mesh(design_dir: Path, cache_dir: Path):
     from lensmount.cad.mesh import TaggedMesh
 
     manifest = regenerate(design_dir, cache_dir)
-    path = Path(getattr(manifest, "mesh_path", None) or cache_dir / "mesh.npz")
-    return TaggedMesh.load(path)
+    return TaggedMesh.load(Path(cache_dir) / getattr(manifest, "mesh", "mesh.npz"))
 
 
 def input_hash(design_dir: Path, scene_path: Path, **params) -> str:

@@ -15,6 +15,7 @@ Checks beyond the file's syntax:
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ import numpy as np
 from lensmount.errors import InputError
 from lensmount.optics.apertures import with_clear_semi_diameters
 from lensmount.optics.glass import refractive_index
-from lensmount.optics.io.lens_toml import read_lens_toml, write_lens_toml
+from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
 from lensmount.optics.io.zemax import read_zmx
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
@@ -49,13 +50,13 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
     else:
         prescription, file_margin = read_lens_toml(path)
     margin = file_margin if margin_mm is None else margin_mm
-    validate(prescription, file)
     try:
+        validate(prescription, file)
         complete = with_clear_semi_diameters(prescription, margin)
+        _check_radii(complete, file, given_only=False)
+        _check_crossings(complete, file)
     except InputError as exc:
-        raise exc.located(file) from None
-    _check_radii(complete, file, given_only=False)
-    _check_crossings(complete, file)
+        raise _located(exc, path) from None
     return complete if auto_clear_apertures else prescription
 
 
@@ -67,6 +68,15 @@ def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, hea
 def validate(prescription: Prescription, file: str = "lens") -> None:
     """Checks that need no ray trace. Raises InputError."""
     p = prescription
+    if not all(0.1 <= w <= 20.0 for w in p.wavelengths_um):
+        raise InputError(f"wavelengths {list(p.wavelengths_um)} µm include one outside 0.1-20 µm", file=file,
+                         field="wavelengths.values_um", valid="wavelengths in µm between 0.1 and 20")
+    if not all(abs(f) < 89.0 for f in p.field_angles_deg):
+        raise InputError(f"field angles {list(p.field_angles_deg)} include one of 89° or more", file=file,
+                         field="field.angles_deg", valid="field angles strictly between -89 and 89 degrees")
+    if not (p.aperture.value > 0 and math.isfinite(p.aperture.value)):
+        raise InputError(f"aperture value {p.aperture.value} is not a positive number", file=file,
+                         field="aperture", valid="an f-number or entrance pupil diameter > 0")
     stops = [i for i, s in enumerate(p.surfaces) if s.is_stop]
     if not stops:
         raise InputError("no surface is marked as the aperture stop", file=file, field="surface[].stop",
@@ -149,6 +159,17 @@ def _check_crossings(p: Prescription, file: str) -> None:
                 f"{i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} ({medium} gap of "
                 f"{a.thickness:g} mm on the axis)", file=file, field=f"surface[{i + 1}].thickness",
                 valid=f"a thickness of at least {a.thickness - gap[k]:.4g} mm, or flatter curvatures")
+
+
+def _located(exc: InputError, path: Path) -> InputError:
+    """The error with the file, and for lens.toml the line of the field, filled in."""
+    line = exc.line
+    if line is None and exc.field and path.suffix.lower() != ".zmx":
+        try:
+            line = line_of_field(path.read_text(encoding="utf-8"), exc.field)
+        except OSError:
+            line = None
+    return InputError(exc.detail, file=exc.file or str(path), field=exc.field, line=line, valid=exc.valid)
 
 
 def _resolve(path: Path) -> Path:

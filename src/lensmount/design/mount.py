@@ -7,6 +7,7 @@ angles in degrees (as everywhere in files).
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 from typing import Literal
@@ -42,6 +43,9 @@ class LensEdge(_Strict):
                                 "when the lens file gives no mechanical semi-diameter")
     contact_margin_mm: float = Field(0.5, ge=0, description="mechanical contact height above the "
                                      "clear semi-diameter")
+    semi_diameter_mm: dict[int, float] = Field(
+        default_factory=dict, description="1-based element number → mechanical semi-diameter (mm); "
+        "a cemented group takes the largest of its elements")
     finish: str = "ground-glass"
 
 
@@ -189,7 +193,11 @@ def load_mount(path: str | Path) -> MountSpec:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         line = getattr(exc, "lineno", None)
-        raise InputError(f"not valid TOML: {exc}", file=str(path), line=line,
+        if line is None:  # Python 3.11: only the message says where
+            m = re.search(r"at line (\d+)", str(exc))
+            line = int(m.group(1)) if m else None
+        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
+        raise InputError(f"not valid TOML: {message}", file=str(path), line=line,
                          valid="TOML syntax (https://toml.io)") from None
     return parse_mount(data, file=str(path))
 

@@ -51,6 +51,7 @@ target_rel_error = 0.05
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 from typing import Literal
@@ -178,7 +179,9 @@ def load_scene(path: str | Path) -> SceneSpec:
     except FileNotFoundError:
         raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
     except tomllib.TOMLDecodeError as exc:
-        line = getattr(exc, "lineno", None)
+        line = getattr(exc, "lineno", None)  # Python >= 3.14; older versions only say it in the text
+        m = re.search(r"at line (\d+)", str(exc))
+        line = line if line is not None else (int(m.group(1)) if m else None)
         raise InputError(f"not valid TOML ({exc})", file=str(path), line=line) from None
     return scene_from_dict(data, file=str(path), base_dir=str(path.parent))
 

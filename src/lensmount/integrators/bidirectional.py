@@ -32,13 +32,13 @@ import numpy as np
 
 from lensmount.integrators.estimate import PassEstimate
 from lensmount.integrators.photon_gather import Gatherer, PhotonHits
-from lensmount.integrators.radius import FaceBoundaries, face_half_widths
+from lensmount.integrators.radius import FaceBoundaries, radius_caps
 from lensmount.integrators.tracing import DETECTOR, FACE, detector_geometry, next_step
 from lensmount.integrators.view_map import build_view_map
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import stream
 
-GLOSSY_THRESHOLD_DEG = 2.0  # lobes narrower than this are followed by photons, not gathered
+GLOSSY_THRESHOLD_DEG = 15.0  # lobes narrower than this (HWHM) are followed by photons, not gathered
 MAX_BOUNCES = 32
 RR_LEVEL = 1e-3  # Russian roulette starts when throughput < RR_LEVEL · initial flux
 NO_SCATTER = "no-scatter"  # the channel of direct / ghost light (no scattering vertex)
@@ -65,7 +65,7 @@ def _scene_tables(scene):
     if key not in _CACHE:
         m = scene.mesh
         n_tags = len(m.tag_table)
-        hw = face_half_widths(m.vertices, m.triangles, m.tags, n_tags)
+        hw = radius_caps(m.vertices, m.triangles, m.tags, n_tags)
         boundaries = FaceBoundaries(m.vertices, m.triangles, m.tags, n_tags)
         _CACHE.clear()
         _CACHE[key] = (scene, hw, boundaries, m.part_of_tag(), list(m.parts))
@@ -89,7 +89,7 @@ def _effect(scene, name: str) -> bool:
 
 
 def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, radius_scale: float, *,
-                       samples_per_pixel: int = 1, mixture_c: float = 0.9,
+                       samples_per_pixel: int = 1, mixture_c: float = 0.5,
                        glossy_threshold_deg: float = GLOSSY_THRESHOLD_DEG, max_bounces: int = MAX_BOUNCES,
                        rr_level: float = RR_LEVEL) -> PassEstimate:
     """One complete, independent pass. Returns the pass's image (ny, nx) of E/E_sun."""

@@ -72,10 +72,11 @@ def light_paths(scene, tracer, rays: RayBatch, rng: np.random.Generator, *, max_
     w0 = rays.weight.copy()  # each photon's starting flux, the roulette's reference
     part = np.full(len(rays), -1, np.int32)
     reflections = np.zeros(len(rays), np.int32)
+    start_normal = None  # photons start in free space; after a scatter, on the face they left
     for bounce in range(max_bounces + 1):
         if len(rays) == 0:
             return
-        ev = tracer.next_event(rays, rng)
+        ev = tracer.next_event(rays, rng, start_normal)
         reflections = reflections + ev.reflections
         ledger.lost_flux += float(ev.weight[ev.lost].sum())
         yield Bounce(ev, part, reflections, bounce)
@@ -109,6 +110,7 @@ def light_paths(scene, tracer, rays: RayBatch, rng: np.random.Generator, *, max_
         keep = idx[ok]
         rays = RayBatch(origin=ev.position[keep], direction=wo[ok], weight=w[ok], wavelength=ev.wavelength[keep],
                         alive=np.ones(len(keep), bool), id=ev.id[keep])
+        start_normal = n[ok]
         part = part_of_tag[tag[ok]].astype(np.int32)
         reflections = reflections[keep]
         w0 = w0[keep]

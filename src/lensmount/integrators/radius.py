@@ -11,7 +11,7 @@ keeps pass 10 000 as exact as pass 2.
 
 r_0(y) is the hit point's own footprint — the distance to its k-th nearest
 neighbour among the pass's hit points on the same CAD face — capped by the face's
-width (2 · area / boundary length).
+width (2 · area / boundary length), or for strips by a few mm along them (`radius_caps`).
 
 Boundary correction (`FaceBoundaries.inside_area`): the density estimate divides by
 the area of the gather disc that lies ON the face, not by π r². Near a face boundary
@@ -68,6 +68,28 @@ def face_half_widths(vertices: np.ndarray, triangles: np.ndarray, tags: np.ndarr
     return out
 
 
+def radius_caps(vertices, triangles, tags, n_tags: int, cap_mm: float = 5.0, strip_ratio: float = 0.05) -> np.ndarray:
+    """(n_tags,) largest r_0 per face.
+
+    A compact face (half width ≥ strip_ratio × its extent: plates, annuli of some width)
+    caps r_0 at its full width 2·hw. A strip (the 50 µm diaphragm edge, a lens rim, a bevel:
+    half width ≪ extent) allows r_0 up to cap_mm ALONG the strip: its boundary near any hit
+    point is two parallel lines, so `FaceBoundaries.inside_area` gives the on-face area of a
+    large disc exactly (≈ 2 r w) and the gather collects the edge's photons over millimetres
+    of its length instead of a 25 µm disc.
+    """
+    hw = face_half_widths(vertices, triangles, tags, n_tags)
+    v = np.asarray(vertices, np.float64)[np.asarray(triangles, np.int64)].reshape(-1, 3)
+    t3 = np.repeat(np.asarray(tags, np.int64), 3)
+    lo = np.full((n_tags, 3), np.inf)
+    hi = np.full((n_tags, 3), -np.inf)
+    np.minimum.at(lo, t3, v)
+    np.maximum.at(hi, t3, v)
+    extent = np.where(np.isfinite(lo).all(axis=1), np.linalg.norm(hi - lo, axis=1), 0.0)
+    strip = np.isfinite(hw) & (hw < strip_ratio * extent)
+    return np.where(strip, cap_mm, np.minimum(2.0 * hw, cap_mm))
+
+
 def _weld(vertices: np.ndarray, triangles: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """Triangles re-indexed so coincident vertices (within tol mm) share an index."""
     key = np.round(np.asarray(vertices, np.float64) / tol).astype(np.int64)
@@ -102,8 +124,10 @@ def _cap(d: np.ndarray, r: np.ndarray) -> np.ndarray:
 class FaceBoundaries:
     """Boundary segments of every face, indexed by tag, for the on-face gather area."""
 
-    def __init__(self, vertices, triangles, tags, n_tags: int, k: int = 12):
+    def __init__(self, vertices, triangles, tags, n_tags: int, k: int = 24):
         a, b, t = boundary_segments(vertices, triangles, tags)
+        hw = face_half_widths(vertices, triangles, tags, n_tags)
+        self.half_width = {int(k): float(hw[k]) for k in range(n_tags) if np.isfinite(hw[k])}
         self.k = k
         self.by_tag: dict[int, tuple[np.ndarray, np.ndarray, cKDTree]] = {}
         for tag in np.unique(t):
@@ -140,14 +164,24 @@ class FaceBoundaries:
             d2 = np.where(opposite, d, np.inf).min(axis=1)
             r = radius[idx]
             inside = np.pi * r * r - _cap(d1, r) - np.where(np.isfinite(d2), _cap(np.where(np.isfinite(d2), d2, r), r), 0.0)
-            area[idx] = np.maximum(inside, 0.05 * np.pi * r * r)  # a hit point on the face keeps ≥ 5 % of its disc
+            # A hit point a few µm OUTSIDE a thin face (float32 grazing hits on a facet's plane):
+            # both boundary lines lie on one side; the face is the band between them.
+            far = np.where(~opposite & (d > d1[:, None] + self.half_width.get(int(t), np.inf)), d, np.inf).min(axis=1)
+            outside = ~np.isfinite(d2) & np.isfinite(far)
+            inside = np.where(outside, _cap(d1, r) - _cap(np.where(outside, far, r), r), inside)
+            d2 = np.where(outside, far - d1, d2)
+            # Floor against rounding only: a point on a strip of width w = d1 + d2 always keeps at
+            # least min(π r²/2, r w) of its disc; half of that is never above the true area.
+            width = d1 + np.where(np.isfinite(d2), d2, r)
+            floor = 0.5 * np.minimum(0.5 * np.pi * r * r, r * width)
+            area[idx] = np.maximum(inside, np.maximum(floor, 1e-12 * np.pi * r * r))
         return area
 
 
-def initial_radii(position: np.ndarray, tag: np.ndarray, half_width: np.ndarray, k: int = 8,
+def initial_radii(position: np.ndarray, tag: np.ndarray, cap: np.ndarray, k: int = 8,
                   floor_mm: float = 1e-4, cap_mm: float = 5.0) -> np.ndarray:
     """(H,) r_0 per hit point: k-th neighbour distance on the same face, clipped to
-    [floor_mm, min(cap_mm, 2 · face half width)]. Loops over faces (tags), not over points."""
+    [floor_mm, min(cap_mm, cap[tag])] (`radius_caps`). Loops over faces (tags), not over points."""
     position = np.asarray(position, dtype=np.float64).reshape(-1, 3)
     tag = np.asarray(tag)
     r = np.full(len(position), cap_mm)
@@ -157,9 +191,9 @@ def initial_radii(position: np.ndarray, tag: np.ndarray, half_width: np.ndarray,
             kk = min(k, len(idx) - 1)
             d, _ = cKDTree(position[idx]).query(position[idx], k=kk + 1)
             r[idx] = d[:, kk]
-        limit = min(cap_mm, 2.0 * float(half_width[t]) if t < len(half_width) else cap_mm)
+        limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
         r[idx] = np.clip(r[idx], min(floor_mm, limit), limit)
     return r
 
 
-__all__ = ["DEFAULT_ALPHA", "radius_scale", "face_half_widths", "initial_radii", "FaceBoundaries", "boundary_segments"]
+__all__ = ["DEFAULT_ALPHA", "radius_scale", "face_half_widths", "radius_caps", "initial_radii", "FaceBoundaries", "boundary_segments"]

@@ -37,6 +37,10 @@ def exit_disc(scene, det: DetectorGeometry, margin: float = 0.05) -> ExitDisc | 
     facing = -1.0 if det.z >= max(s.z_vertex for s in optical) else 1.0
     last = max(optical, key=lambda s: facing * -s.z_vertex)
     h = float(last.clear_semi_diameter)
+    if not math.isfinite(h) or h <= 0:
+        h = float(getattr(last, "mechanical_semi_diameter", math.inf))
+    if not math.isfinite(h) or h <= 0:
+        return None  # unknown size: the hemisphere alone
     sag_edge = float(last.profile.sag(np.array([h * h]))[0])
     if not math.isfinite(sag_edge):
         sag_edge = 0.0
@@ -45,13 +49,50 @@ def exit_disc(scene, det: DetectorGeometry, margin: float = 0.05) -> ExitDisc | 
     return ExitDisc(z=float(z), radius=h * (1.0 + margin) + 0.5, facing=facing)
 
 
+def stop_rim_target(scene, det: DetectorGeometry, broad: np.ndarray, rel_width: float = 0.02) -> ExitDisc | None:
+    """Annulus around the paraxial exit pupil's rim: the diaphragm edge seen from the detector.
+
+    Only when a broad scatterer has role `diaphragm-edge` (case 1): rays aimed at the image
+    of the stop rim meet the 50 µm edge ~ 1/(2·rel_width) times more often than rays spread
+    over the whole exit disc. The stop rim is the mean radius and z of the edge's vertices;
+    its image is a y–nu trace through the optical surfaces behind it (wavelength 0).
+    """
+    mesh = scene.mesh
+    edge_tags = [k for k, t in enumerate(mesh.tag_table) if t.role == "diaphragm-edge" and k < len(broad) and broad[k]]
+    optical = sorted(getattr(scene, "optical", []) or [], key=lambda s: s.z_vertex)
+    if not edge_tags or not optical:
+        return None
+    tri = mesh.triangles[np.isin(mesh.tags, edge_tags)]
+    v = mesh.vertices[np.unique(tri)]
+    z_s, r_s = float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+    behind = [s for s in optical if s.z_vertex > z_s] if det.z > z_s else []
+    if not behind:
+        return None
+    y, nu, z = 0.0, 1.0, z_s  # a ray from the stop's axial point
+    nu_in = nu
+    for s in behind:
+        n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
+        y = y + (s.z_vertex - z) * nu / n1
+        z = s.z_vertex
+        nu = nu - y * (n2 - n1) * s.profile.curvature
+    n_last = float(np.atleast_1d(behind[-1].n_after)[0])
+    if abs(nu) < 1e-12:
+        return None
+    z_xp = z - y / (nu / n_last)
+    r_xp = abs(r_s * nu_in / nu)
+    if not (math.isfinite(z_xp) and math.isfinite(r_xp)) or r_xp <= 0 or abs(det.z - z_xp) < 1e-6:
+        return None
+    return ExitDisc(z=z_xp, radius=r_xp * (1 + rel_width), r_inner=r_xp * (1 - rel_width),
+                    facing=-1.0 if det.z > z_xp else 1.0)
+
+
 def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generator, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    mixture_c: float = 0.9) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     broad : (n_tags,) bool, tags where hit points are made
-    half_widths : (n_tags,) face half widths (mm), the cap on r_0
+    half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
     boundaries : FaceBoundaries for the on-face gather area (None: π r²)
     """
     n_pix = det.nx * det.ny
@@ -62,8 +103,13 @@ def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generato
     x = det.pixel_centres_and_points(pixel, u[:, 0:2])
     disc = exit_disc(scene, det)
     if disc is None:  # no optics: the hemisphere alone (still unbiased)
-        disc, mixture_c = ExitDisc(z=det.z - 1.0, radius=1.0), 0.0
-    omega, w = sample_toward_exit(x, u[:, 2:5], disc, mixture_c)
+        targets, weights = [ExitDisc(z=det.z - 1.0, radius=1.0)], [0.0]
+    else:
+        targets, weights = [disc], [mixture_c]
+        rim = stop_rim_target(scene, det, broad)
+        if rim is not None and rim.facing == disc.facing:
+            targets, weights = [disc, rim], [mixture_c * 2.0 / 3.0, mixture_c / 3.0]
+    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights)
     n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
     response = getattr(scene.detector, "spectral_weight", None)

@@ -49,9 +49,9 @@ def _beam(prescription: Prescription, fields, pupil, clip: bool):
 def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0) -> Prescription:
     """The prescription with automatic clear semi-diameters where it gives none.
 
-    Surfaces that have a clear semi-diameter keep it. Raises InputError (field
-    `surface[i].radius`, 1-based i) when the beam misses a surface, i.e. its radius
-    is smaller than the semi-diameter the beam needs.
+    Surfaces that have a clear semi-diameter keep it (and vignette the rays beyond it).
+    Raises InputError (field `surface[i].radius`, 1-based i) when the beam misses a
+    surface, i.e. its radius is smaller than the semi-diameter the beam needs.
     """
     if margin_mm < 0:
         raise InputError(f"clear-aperture margin {margin_mm} mm is negative", field="margin_mm",
@@ -61,10 +61,15 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
     pupil = pupil_rings(CLEAR_RINGS, CLEAR_SPOKES, half=True)
     nsurf = len(prescription.surfaces)
     heights = np.zeros(nsurf)
-    for rays in _beam(prescription, fields, pupil, clip=False):
-        missed = rays.vignetted_at[(rays.vignetted_at >= 0) & (rays.vignetted_at < nsurf)]
-        if len(missed):
-            i = int(missed.min())
+    given = np.array([s.clear_semi_diameter is not None for s in prescription.surfaces])
+    # Surfaces with a given clear semi-diameter clip the beam (those rays are legitimately
+    # vignetted); a ray stopped where nothing clips missed the surface or met TIR.
+    for rays in _beam(prescription, fields, pupil, clip=True):
+        at = rays.vignetted_at
+        lost = at[(at >= 0) & (at < nsurf)]
+        lost = lost[~given[lost]]
+        if len(lost):
+            i = int(lost.min())
             s = prescription.surfaces[i]
             raise InputError(
                 f"rays of the full field and aperture miss surface {i + 1} (radius {s.radius:g} mm) "
@@ -72,7 +77,10 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
                 field=f"surface[{i + 1}].radius",
                 valid="a |radius| larger than the beam's semi-diameter on that surface, "
                       "or a smaller aperture or field")
-        heights = np.maximum(heights, rays.heights()[:nsurf].max(axis=1))
+        # a ray counts on surface j if it reached it (arrived, or stopped at a later surface)
+        reached = (at[None, :] < 0) | (at[None, :] > np.arange(nsurf)[:, None])
+        h = np.where(reached, rays.heights()[:nsurf], 0.0)
+        heights = np.maximum(heights, h.max(axis=1))
     out = []
     for i, s in enumerate(prescription.surfaces):
         if s.clear_semi_diameter is not None:

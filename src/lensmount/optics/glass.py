@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import logging
 import re
+import warnings
 
 import numpy as np
 
@@ -28,7 +29,9 @@ def _catalogue_glass(name: str, catalogue: str):
     from opticalglass import glassfactory
 
     logging.getLogger("opticalglass").setLevel(logging.ERROR)
-    return glassfactory.create_glass(name, catalogue)
+    with warnings.catch_warnings():  # the catalogue loader's pandas deprecation notices are not the user's business
+        warnings.simplefilter("ignore")
+        return glassfactory.create_glass(name, catalogue)
 
 
 @functools.lru_cache(maxsize=None)

@@ -90,6 +90,10 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
     wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
     o = np.array(origins, dtype=np.float64, ndmin=2).reshape(-1, 3)
     d = np.array(directions, dtype=np.float64, ndmin=2).reshape(-1, 3)
+    # Lanes with a non-finite or zero-length start are dead from the outset (no NaN downstream).
+    bad = ~(np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1)) | ~(np.abs(d).sum(axis=1) > 0.0)
+    o = np.where(bad[:, None], 0.0, o)
+    d = np.where(bad[:, None], [0.0, 0.0, 1.0], d)
     d = d / _safe_norm(d)[:, None]
     n_rays = len(o)
     surfaces = prescription.surfaces[: len(prescription.surfaces) if n_surfaces is None else n_surfaces]
@@ -99,8 +103,8 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
 
     points = np.empty((nsurf + 1, n_rays, 3))
     dirs = np.empty((nsurf + 1, n_rays, 3))
-    alive = np.ones(n_rays, bool)
-    stopped_at = np.full(n_rays, -1, dtype=np.int64)
+    alive = ~bad
+    stopped_at = np.where(bad, 0, -1).astype(np.int64)
     p, cur = o.copy(), d.copy()
 
     for i, surface in enumerate(surfaces):

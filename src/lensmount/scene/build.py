@@ -115,9 +115,11 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
     mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
     library = finish_library(spec.finishes)
+    # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
+    assign = {f"part:{o.name}": o.finish for o in spec.objects} | dict(spec.assign)
     finishes, bsdfs, cache = [], [], {}
     for tag in mesh.tag_table:
-        name = finish_of(tag, spec.assign, library)
+        name = finish_of(tag, assign, library)
         finishes.append(name or "")
         if name is None:
             bsdfs.append(None)

@@ -1,5 +1,7 @@
 """Lens element: a solid of revolution bounded by its two optical faces, the ground
-cylindrical edge and (optionally) 45° protective chamfers.
+cylindrical edge and (optionally) protective chamfers of size b: from the surface at
+radius R - b straight to the edge cylinder, b inside the surface's own edge height
+(45° on a flat face).
 
 Spherical faces are exact arcs (so the STEP face is a true sphere), planes are
 lines, conics and aspheres a spline through sag samples. Cemented interfaces get
@@ -90,9 +92,9 @@ class LensElement(RevolvedPart):
         r = np.asarray(r, dtype=np.float64)
         R, b = self.outer_radius, self.front_chamfer
         z = self.front.z(np.minimum(r, R - b))
-        if b > 0:
-            z0 = float(self.front.z(R - b))
-            z = np.where(r > R - b, z0 + (r - (R - b)), z)  # 45°: 1 mm of z per mm of r
+        if b > 0:  # the chamfer: straight from (R - b, surface) to (R, edge start)
+            z0, z1 = float(self.front.z(R - b)), self.edge_z()[0]
+            z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
     def back_z(self, r) -> np.ndarray:
@@ -101,8 +103,8 @@ class LensElement(RevolvedPart):
         R, b = self.outer_radius, self.back_chamfer
         z = self.back.z(np.minimum(r, R - b))
         if b > 0:
-            z0 = float(self.back.z(R - b))
-            z = np.where(r > R - b, z0 - (r - (R - b)), z)
+            z0, z1 = float(self.back.z(R - b)), self.edge_z()[1]
+            z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
     def center_thickness(self) -> float:

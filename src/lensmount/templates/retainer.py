@@ -21,6 +21,8 @@ class Retainer(RevolvedPart):
         side: -1 when the ring is in front of the lens (object side), +1 behind it.
         outer_radius: thread (outside) radius, mm.
         thickness: axial thickness at the outside, mm.
+        far_r: bore radius at the far face (the bore opens conically when the beam
+            grows away from the lens); None = contact_r.
     """
 
     contact_r: float
@@ -29,6 +31,7 @@ class Retainer(RevolvedPart):
     side: int
     outer_radius: float
     thickness: float
+    far_r: float | None = None
 
     def contact_face_z(self, r):
         return self.contact_z - self.side * self.slope * (r - self.contact_r)
@@ -41,7 +44,8 @@ class Retainer(RevolvedPart):
         R = self.outer_radius
         zc_out = float(self.contact_face_z(R))
         zf = self.far_face_z()
-        return polygon([(self.contact_r, self.contact_z), (R, zc_out), (R, zf), (self.contact_r, zf)])
+        return polygon([(self.contact_r, self.contact_z), (R, zc_out), (R, zf),
+                        (self.contact_r if self.far_r is None else self.far_r, zf)])
 
 
 __all__ = ["Retainer"]

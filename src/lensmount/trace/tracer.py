@@ -17,9 +17,12 @@ How a query stays exact although Embree is float32 (the tracer's three rules):
    `t_min` (the surface the ray just left, seen again through float32 rounding), or an optical
    facet whose analytic surface has no crossing near it (a refined point is not on the
    tessellated facet, so the facets of the surface just crossed lie a chord's sag ahead), is
-   skipped and the query relaunched past it along the same line. Launches start `eps` along
-   the ray (a scale-aware offset, 2e-6 of the assembly size: 1 µm for a 500 mm lens), far less
-   than a 50 µm knife edge, so thin parts are hit from both sides.
+   skipped and the query relaunched just beyond it. A ray leaving a surface is probed from
+   `eps` off that surface along its normal, on the side it leaves by (a scale-aware offset,
+   2e-6 of the assembly size: 1 µm for a 500 mm lens), so it never re-hits it, and the probe
+   stays inside the neighbouring faces at a concave corner (no leak). eps is far less than
+   a 50 µm knife edge, so thin parts are hit from both sides. The probe only finds the
+   triangle: the hit is computed on the ray's own float64 line.
 
 Media come from the prescription (n_before / n_after of surface i by the sign of d·n), never
 from which solid was hit, so cemented interfaces (two coincident facet sets, one surface index)
@@ -119,12 +122,12 @@ class Tracer:
 
         self.scene = scene
         mesh = scene.mesh
-        det = scene.detector
-        corners = np.array([[-det.width / 2, -det.height / 2, det.z], [det.width / 2, det.height / 2, det.z]])
-        pts = np.vstack([mesh.vertices, corners]) if len(mesh.vertices) else corners
+        # The frame and the offsets follow the mesh alone (the detector is analytic): float32
+        # keeps ~7 digits of the largest centred coordinate.
+        pts = mesh.vertices if len(mesh.vertices) else np.zeros((1, 3))
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         self.centre = 0.5 * (lo + hi)
-        self.extent = float(max(np.max(hi - lo), 1.0))
+        self.extent = float(max(np.max(hi - lo), 1e-6))
         self.eps = _EPS_REL * self.extent
         self.t_min = _TMIN_REL * self.extent
 
@@ -213,36 +216,99 @@ class Tracer:
             best = np.where(closer, t, best)
         return best
 
-    def _nearest(self, o: np.ndarray, d: np.ndarray) -> Hits:
-        """Nearest refined hit for rays (n, 3) in float64 (see the module docstring)."""
+    def _mechanical_hit(self, prim, o, d, probe, te, n_start, rows):
+        """Float64 hit of rays (m,) with mechanical triangles `prim`: (t, normal, point).
+
+        t is the crossing of the ray's line with the triangle's plane; inf marks a fake hit (the
+        face the ray leaves, or a coplanar neighbour of it). Exactly at a concave corner a ray
+        may leave one face straight into the next (t ≈ 0 on a face not parallel to the one it
+        starts on): that is a real hit at t = 0. The point is kept inside the triangle: where
+        float32 chose a triangle the float64 line only grazes past (seams, grazing incidence),
+        the point is the probe's hit moved into the triangle, so no event ever lands outside
+        a closed enclosure (the leak a seam would otherwise open).
+        """
+        tn = self._tri_n[prim]
+        v0 = self._tri_v0[prim]
+        den = np.einsum("ij,ij->i", tn, d)
+        num = np.einsum("ij,ij->i", tn, v0 - o)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(np.abs(den) > 1e-15, num / np.where(np.abs(den) > 1e-15, den, 1.0), np.inf)
+        t = np.where(np.isfinite(t), t, np.inf)
+        real = t > self.t_min
+        if n_start is not None:
+            ns = n_start[rows]
+            other_face = (np.abs(np.einsum("ij,ij->i", ns, tn)) < 1.0 - 1e-9) & (np.abs(ns).sum(axis=1) > 0)
+            corner = other_face & (t <= self.t_min) & (t > -1e3 * self.t_min)
+            t = np.where(corner, np.maximum(t, 0.0), t)
+            real |= corner
+        t = np.where(real, t, np.inf)
+        point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+        inside, clamped = self._into_triangle(prim, point, probe + (te - np.einsum("ij,ij->i", probe - o, d))[:, None] * d)
+        point = np.where(inside[:, None], point, clamped)
+        t = np.where(inside | ~np.isfinite(t), t, np.maximum(np.einsum("ij,ij->i", point - o, d), 0.0))
+        return t, tn, point
+
+    def _into_triangle(self, prim, point, fallback):
+        """(inside (m,) bool, fallback projected onto the triangle's plane and clipped into it (m, 3))."""
+        tri = self.scene.mesh.triangles[prim]
+        v = self.scene.mesh.vertices
+        a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+
+        def bary(x):
+            v0, v1, v2 = b - a, c - a, x - a
+            d00 = np.einsum("ij,ij->i", v0, v0)
+            d01 = np.einsum("ij,ij->i", v0, v1)
+            d11 = np.einsum("ij,ij->i", v1, v1)
+            d20 = np.einsum("ij,ij->i", v2, v0)
+            d21 = np.einsum("ij,ij->i", v2, v1)
+            den = d00 * d11 - d01 * d01
+            den = np.where(np.abs(den) > 1e-300, den, 1e-300)
+            l1 = (d11 * d20 - d01 * d21) / den
+            l2 = (d00 * d21 - d01 * d20) / den
+            return np.column_stack([1.0 - l1 - l2, l1, l2])
+
+        lam = bary(np.where(np.isfinite(point), point, a))
+        inside = np.all(lam >= -1e-9, axis=1)
+        lf = np.clip(bary(np.where(np.isfinite(fallback), fallback, a)), 0.0, None)
+        lf = lf / np.maximum(lf.sum(axis=1, keepdims=True), 1e-300)
+        return inside, lf[:, :1] * a + lf[:, 1:2] * b + lf[:, 2:] * c
+
+    def _nearest(self, o: np.ndarray, d: np.ndarray, n_start: np.ndarray | None = None) -> Hits:
+        """Nearest refined hit for rays (n, 3) in float64 (see the module docstring).
+
+        n_start (n, 3): normal of the surface each ray starts on (zeros for rays in free space).
+        The Embree probe then starts `eps` off that surface on the side the ray leaves by, so
+        float32 rounding can never put it behind the surface it leaves; the hit itself is
+        computed on the ray's own line in float64.
+        """
         n = len(o)
         t_hit = np.full(n, np.inf)
         prim = np.full(n, -1, np.int64)
         normal = np.zeros((n, 3))
         lost = np.zeros(n, bool)
         if self._has_mesh and n:
-            launch = np.full(n, self.eps)
+            probe = o.copy()
+            if n_start is not None:
+                side = np.where(np.einsum("ij,ij->i", n_start, d) >= 0.0, 1.0, -1.0)
+                probe = probe + (self.eps * side)[:, None] * n_start
             todo = np.arange(n)
+            mech_point = np.full((n, 3), np.nan)  # mechanical hit points (inside their triangle)
             for round_ in range(_MAX_SKIPS):
                 if todo.size == 0:
                     break
                 oo, dd = o[todo], d[todo]
-                p, te = self._embree_query(oo + launch[todo, None] * dd, dd)
-                te = te + launch[todo]
+                p, te = self._embree_query(probe[todo], dd)
+                te = te + np.einsum("ij,ij->i", probe[todo] - oo, dd)  # distance along the ray's own line
                 hit = p >= 0
                 t64 = np.full(len(todo), np.inf)
                 nn = np.zeros((len(todo), 3))
-                surf = np.where(hit, self._tri_surface[np.where(hit, p, 0)], -1) if hit.any() else np.full(len(todo), -1)
+                surf = np.where(hit, self._tri_surface[np.where(hit, p, 0)], -1)
                 # Mechanical faces: the float64 plane of the triangle.
                 mech = hit & (surf < 0)
                 if mech.any():
-                    tn = self._tri_n[p[mech]]
-                    den = np.einsum("ij,ij->i", tn, dd[mech])
-                    num = np.einsum("ij,ij->i", tn, self._tri_v0[p[mech]] - oo[mech])
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        tm = np.where(np.abs(den) > 1e-15, num / np.where(np.abs(den) > 1e-15, den, 1.0), np.inf)
-                    t64[mech] = np.where(np.isfinite(tm) & (tm > self.t_min), tm, np.inf)
-                    nn[mech] = tn
+                    t64[mech], nn[mech], pt = self._mechanical_hit(p[mech], oo[mech], dd[mech], probe[todo[mech]],
+                                                                   te[mech], n_start, todo[mech])
+                    mech_point[todo[mech]] = pt
                 # Optical faces: the analytic surface, point and normal.
                 for k in np.unique(surf[hit & (surf >= 0)]):
                     sel = hit & (surf == k)
@@ -259,13 +325,16 @@ class Tracer:
                 t_hit[idx] = t64[done & hit]
                 prim[idx] = p[done & hit]
                 normal[idx] = nn[done & hit]
-                # Fake hit: relaunch past it along the same line (further each time it repeats).
+                # Fake hit: probe again from just beyond that facet (the probe steps eps past the
+                # facet's plane; the ray's line is unchanged), further each time it repeats.
                 again = ~done
                 if again.any():
+                    ia = todo[again]
                     tn = self._tri_n[p[again]]
-                    cos = np.abs(np.einsum("ij,ij->i", tn, dd[again]))
-                    step = self.eps / np.maximum(cos, 0.02) * (2.0 ** max(0, round_ - 8))
-                    launch[todo[again]] = np.maximum(te[again], launch[todo[again]]) + step
+                    side = np.where(np.einsum("ij,ij->i", tn, dd[again]) >= 0.0, 1.0, -1.0)
+                    grow = self.eps * (2.0 ** max(0, round_ - 8))
+                    probe[ia] = o[ia] + te[again, None] * dd[again] + (grow * side)[:, None] * tn \
+                        + (probe[ia] - o[ia] - np.einsum("ij,ij->i", probe[ia] - o[ia], dd[again])[:, None] * dd[again])
                 todo = todo[again]
             lost[todo] = True
         # The detector rectangle, analytic, merged with the mesh hit: nearest wins.
@@ -278,15 +347,23 @@ class Tracer:
         surface = np.where(prim >= 0, self._tri_surface[np.maximum(prim, 0)] if self._has_mesh else -1, -1)
         normal = np.where(on_det[:, None], np.array([0.0, 0.0, -1.0]), normal)
         point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+        if self._has_mesh and n:
+            snap = ~on_det & (prim >= 0) & (surface < 0) & np.all(np.isfinite(mech_point), axis=1)
+            point[snap] = mech_point[snap]
         return Hits(t, point, normal, prim, tag, surface.astype(np.int32), on_det, on_det & front, lost)
 
-    def intersect(self, rays: RayBatch) -> Hits:
-        """Nearest hit of every ray (dead rays included; callers mask with `rays.alive`)."""
-        return self._nearest(rays.origin, rays.direction)
+    def intersect(self, rays: RayBatch, origin_normal: np.ndarray | None = None) -> Hits:
+        """Nearest hit of every ray (dead rays included; callers mask with `rays.alive`).
+
+        origin_normal (N, 3), optional: normal of the surface each ray starts on (e.g. the
+        `Events.normal` of the event it was scattered at; zeros for rays in free space).
+        """
+        return self._nearest(rays.origin, rays.direction, origin_normal)
 
     # ------------------------------------------------------------------ events
 
-    def next_event(self, rays: RayBatch, rng: np.random.Generator | None = None) -> Events:
+    def next_event(self, rays: RayBatch, rng: np.random.Generator | None = None,
+                   origin_normal: np.ndarray | None = None) -> Events:
         """Carry live rays through the optics until a mechanical face, the detector, or out.
 
         At every optical hit: media from the prescription, Snell refraction with the
@@ -294,6 +371,12 @@ class Tracer:
         `effects.ghosts` off the ray transmits and its weight is multiplied by T = 1 − R; with
         ghosts on it reflects with probability R (weight unchanged) using `rng`.
         The input batch is not modified.
+
+        origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
+        the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
+        Without it a ray leaving a face is still correct (its self-hit is rejected in float64),
+        but at a concave corner a ray leaving within ~1 µm of the edge could slip past the
+        neighbouring face.
         """
         n = len(rays)
         o = rays.origin.copy()
@@ -307,11 +390,13 @@ class Tracer:
         lost = np.zeros(n, bool)
         reflections = np.zeros(n, np.int32)
         ghosts = bool(self.scene.effects.ghosts)
+        start_n = np.zeros((n, 3)) if origin_normal is None else np.where(
+            np.isfinite(origin_normal), np.asarray(origin_normal, np.float64), 0.0)
         work = np.flatnonzero(rays.alive & (w > 0) & np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1))
         for _ in range(_MAX_OPTICAL):
             if work.size == 0:
                 break
-            h = self._nearest(o[work], d[work])
+            h = self._nearest(o[work], d[work], start_n[work])
             o[work] = h.point
             lost[work[h.lost]] = True
             det = h.detector & h.detector_front
@@ -330,6 +415,7 @@ class Tracer:
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.point[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, rng)
                 reflections[gi] += refl
+                start_n[gi] = h.normal[glass]
                 bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
                 lost[gi[bad]] = True
                 gi = gi[~bad]

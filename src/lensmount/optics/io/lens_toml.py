@@ -248,6 +248,14 @@ def _owner_model(loc):
     return models.get(loc[0], LensFile) if len(loc) > 1 else LensFile
 
 
+def line_of_field(text: str, field: str) -> int | None:
+    """Best-effort line of a field path such as 'surface[3].thickness' in lens.toml text."""
+    m = re.fullmatch(r"surface\[(\d+)\]\.(\w+)", field or "")
+    if m:
+        return _line_of(text, int(m.group(1)), m.group(2))
+    return _line_of(text, None, (field or "").split(".")[-1] or None)
+
+
 def _line_of(text: str, surface_no: int | None, key: str | None) -> int | None:
     """Best-effort 1-based line of `key` (inside the n-th [[surface]] table if given)."""
     lines = text.splitlines()
@@ -338,4 +346,4 @@ def _str(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-__all__ = ["LensFile", "parse_lens_toml", "read_lens_toml", "format_lens_toml", "write_lens_toml"]
+__all__ = ["LensFile", "line_of_field", "parse_lens_toml", "read_lens_toml", "format_lens_toml", "write_lens_toml"]

@@ -115,6 +115,9 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             if unit not in _UNITS:
                 raise err(f"unknown lens unit '{unit}'", ln, "UNIT MM, CM, IN or METER")
             lens.unit = _UNITS[unit]
+        elif cmd == "MODE":
+            if args and args[0].upper() != "SEQ":
+                raise err(f"MODE {args[0]} (non-sequential) is not supported", ln, "MODE SEQ: a sequential lens")
         elif cmd == "NAME":
             lens.name = rest.strip().strip('"') or lens.name
         elif cmd == "ENPD":

@@ -41,16 +41,17 @@ import math
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.trace.bsdf.base import (BSDF, COS_EPS, as_rows, dot, mirror, normalize, number,
+from lensmount.trace.bsdf.base import (BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, mirror, normalize, number,
                                        reject_unknown, tangent_frame)
 
-_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(256)
-_U = 0.5 * (_NODES + 1.0)  # Gauss–Legendre on [0, 1]
-_W = 0.5 * _WEIGHTS
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(128)
+_S = 0.5 * (_NODES + 1.0)  # Gauss–Legendre on [0, 1], then t = (1 − cos πs)/2 to cluster at both ends
+_T = 0.5 * (1.0 - np.cos(math.pi * _S))
+_TW = 0.5 * _WEIGHTS * 0.5 * math.pi * np.sin(math.pi * _S)
 _CHUNK = 4096
 
 
-class Gaussian(BSDF):
+class Gaussian(TabulatedAlbedo, BSDF):
     """Reciprocal Gaussian (von Mises–Fisher) lobe around the mirror direction; see the module docstring."""
 
     name = "gaussian"
@@ -118,29 +119,39 @@ class Gaussian(BSDF):
 
     def _x_of_u(self, u):
         """Inverse CDF of x = 1 − cosθ under p: x = −ln(1 − u(1 − e^{−2κ}))/κ ∈ [0, 2)."""
-        return np.minimum(-np.log1p(-u * self._mass) / self.kappa, 2.0)
+        with np.errstate(divide="ignore"):  # u·(1 − e^{−2κ}) = 1 only when e^{−2κ} underflows: x = 2 then
+            return np.minimum(-np.log1p(-u * self._mass) / self.kappa, 2.0)
 
     # -- albedo ---------------------------------------------------------------------------
-    def albedo(self, wi, n):
-        wi, n = as_rows(wi, "wi"), as_rows(n, "n")
-        ci = dot(wi, n)
-        out = np.zeros(len(ci))
-        live = ci > COS_EPS
-        out[live] = self.reflectance * self._scale * self._lobe_fraction(np.minimum(ci[live], 1.0))
-        return out
+    def _albedo_exact(self, ci):
+        """albedo at cosθi = ci (M,) by quadrature; `albedo` interpolates a table of it (TabulatedAlbedo)."""
+        return self.reflectance * self._scale * self._lobe_fraction(np.clip(ci, 0.0, 1.0))
 
     def _lobe_fraction(self, ci: np.ndarray) -> np.ndarray:
         """E_p[2cosθo/(cosθi + cosθo); cosθo > 0] for cosθi = ci (M,) — the albedo over ρN.
 
-        The expectation over p is a Gauss–Legendre sum over the lobe's own quantile u
-        (so narrow and wide lobes are resolved alike); for each θ the integral over φ is
-        closed-form (below).
+        The expectation over p is a sum over the lobe's own quantile u (so narrow and wide
+        lobes are resolved alike), split where the circle at angle θ from r starts to cross
+        the horizon (θ = 90° − θi) and where it has sunk below it (θ = 90° + θi); on each
+        panel, Gauss–Legendre after t = (1 − cos πs)/2 (clustering at the panel's square-root
+        ends). For each θ the integral over φ is closed-form (`_phi_integral`).
         """
-        out = np.empty(len(ci))
-        for start in range(0, len(ci), _CHUNK):
-            c = ci[start:start + _CHUNK, None]
-            out[start:start + _CHUNK] = (_phi_integral(c, self._x_of_u(_U)[None, :]) @ _W) / (2.0 * math.pi)
+        theta_i = np.arccos(np.clip(ci, 0.0, 1.0))
+        bounds = [np.zeros_like(ci), self._u_of_theta(0.5 * math.pi - theta_i),
+                  self._u_of_theta(0.5 * math.pi + theta_i)]
+        out = np.zeros(len(ci))
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            for start in range(0, len(ci), _CHUNK):
+                a, b = lo[start:start + _CHUNK, None], hi[start:start + _CHUNK, None]
+                u = a + (b - a) * _T[None, :]
+                values = _phi_integral(ci[start:start + _CHUNK, None], self._x_of_u(u))
+                out[start:start + _CHUNK] += (values * (b - a)) @ _TW / (2.0 * math.pi)
         return out
+
+    def _u_of_theta(self, theta):
+        """CDF of p at angle θ from r: (1 − e^{−κ(1 − cosθ)})/(1 − e^{−2κ})."""
+        x = 2.0 * np.sin(0.5 * np.clip(theta, 0.0, math.pi)) ** 2
+        return np.clip(-np.expm1(-self.kappa * x) / self._mass, 0.0, 1.0)
 
     def _worst_albedo_factor(self) -> float:
         """max over incidence of albedo/ρ (slightly above 1 for wide lobes at oblique incidence)."""

@@ -1,0 +1,87 @@
+"""Layout geometry against independent formulas, and the interference checks."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lensmount.cad.checks import check_interference, outline
+from lensmount.cad.layout import plan
+from lensmount.errors import GeometryError
+from lensmount.templates.spacer import Spacer
+
+
+def sphere_sag(radius, h):
+    """Sag of a sphere of vertex radius `radius` at height h (independent of Profile)."""
+    if math.isinf(radius):
+        return 0.0
+    return radius - math.copysign(math.sqrt(radius * radius - h * h), radius)
+
+
+def test_spacer_length_from_vertex_gap_and_sags(reference_layout):
+    layout, spec = reference_layout
+    p = layout.prescription
+    sp = layout.part("spacer-1").template  # between lens-1 (surface 2) and lens-2 (surface 3)
+    r2, r3 = p.surfaces[1].radius, p.surfaces[2].radius
+    gap = p.surfaces[1].thickness  # 1.8 mm vertex gap
+    hA, hB = sp.front_r, sp.back_r
+    assert hA == pytest.approx(p.surfaces[1].clear_semi_diameter + spec.lens_edge.contact_margin_mm)
+    assert hB == pytest.approx(p.surfaces[2].clear_semi_diameter + spec.lens_edge.contact_margin_mm)
+    expected = gap + sphere_sag(r3, hB) - sphere_sag(r2, hA)
+    assert sp.back_z - sp.front_z == pytest.approx(expected, abs=1e-9)
+
+
+def test_every_contact_is_outside_the_clear_aperture(reference_layout):
+    layout, _ = reference_layout
+    assert len(layout.contacts) >= 8
+    for c in layout.contacts:
+        assert c.height >= c.clear
+
+
+def test_diaphragm_sits_at_the_stop_with_the_stop_radius(reference_layout):
+    from lensmount.optics.paraxial import paraxial
+
+    layout, spec = reference_layout
+    p = layout.prescription
+    d = layout.part("diaphragm").template
+    assert d.z_stop == pytest.approx(p.vertex_z[5])
+    assert d.inner_radius == pytest.approx(p.surfaces[5].clear_semi_diameter)
+    # the stop radius is the marginal ray's height: paraxially EPD/2 times the pupil magnification
+    assert d.inner_radius == pytest.approx(paraxial(p).stop_semi_diameter, rel=2e-3)
+    assert d.land == pytest.approx(0.05)
+
+
+def test_reference_has_all_parts(reference_layout):
+    layout, _ = reference_layout
+    names = [pp.name for pp in layout.parts]
+    for n in ["barrel", "diaphragm", "hood", "housing", "retainer-1"] + [f"lens-{i}" for i in range(1, 7)]:
+        assert n in names
+    assert sum(n.startswith("spacer-") for n in names) == 4
+    assert sum(n.startswith("vane-") for n in names) >= 3
+
+
+def test_overlap_names_both_parts_and_depth():
+    a = Spacer(30.0, 0.0, 0.0, 30.0, 10.0, 0.0, 33.0)
+    b = Spacer(30.0, 9.5, 0.0, 30.0, 20.0, 0.0, 33.0)
+    with pytest.raises(GeometryError) as exc:
+        check_interference({"spacer-a": outline(a.segments()), "spacer-b": outline(b.segments())})
+    text = exc.value.paragraph()
+    assert "spacer-a" in text and "spacer-b" in text and "0.500 mm" in text
+    touching = Spacer(30.0, 10.0, 0.0, 30.0, 20.0, 0.0, 33.0)
+    check_interference({"spacer-a": outline(a.segments()), "spacer-c": outline(touching.segments())})
+
+
+def test_hood_too_narrow_is_reported(reference_layout):
+    layout, spec = reference_layout
+    bad = spec.model_copy(update={"hood": spec.hood.model_copy(update={"inner_diameter_mm": 80.0})})
+    with pytest.raises(GeometryError) as exc:
+        plan(layout.prescription, bad)
+    assert "hood" in exc.value.paragraph() and "beam" in exc.value.paragraph()
+
+
+def test_contact_beyond_the_chamfer_is_reported(reference_layout):
+    layout, spec = reference_layout
+    bad = spec.model_copy(update={"lens_edge": spec.lens_edge.model_copy(update={"contact_margin_mm": 3.0})})
+    with pytest.raises(GeometryError) as exc:
+        plan(layout.prescription, bad)
+    assert "contact height" in exc.value.paragraph()

@@ -1,0 +1,91 @@
+"""Templates against closed-form volumes, tags against the analytic surfaces."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lensmount.cad.tessellate import tessellate_part
+from lensmount.templates.diaphragm import Diaphragm
+from lensmount.templates.lens_element import LensElement, OpticalFace
+from lensmount.templates.profile import face_roles
+from lensmount.templates.spacer import Spacer
+
+
+def _cap(rho, h):
+    """Volume of a spherical cap of height h on a sphere of radius rho."""
+    return math.pi * h * h * (3 * rho - h) / 3
+
+
+def test_biconvex_volume_is_cylinder_plus_two_caps():
+    rho, a, t = 100.0, 20.0, 10.0
+    el = LensElement(OpticalFace(0, 0.0, 1 / rho), OpticalFace(1, t, -1 / rho), a)
+    h = rho - math.sqrt(rho * rho - a * a)
+    expected = math.pi * a * a * (t - 2 * h) + 2 * _cap(rho, h)
+    solid = el.build()
+    assert solid.is_valid
+    assert solid.volume == pytest.approx(expected, rel=1e-9)
+
+
+def test_meniscus_chamfers_remove_the_corner_volume():
+    """Each chamfer removes the ring between the surface, the chord and the edge: ∫ 2πr Δz dr."""
+    rho1, rho2, a, t, b = 80.0, 150.0, 25.0, 8.0, 0.5
+    plain = LensElement(OpticalFace(0, 0.0, 1 / rho1), OpticalFace(1, t, 1 / rho2), a)
+    cham = LensElement(OpticalFace(0, 0.0, 1 / rho1), OpticalFace(1, t, 1 / rho2), a, b, b)
+    vp, vc = plain.build().volume, cham.build().volume
+    # each chamfer cuts the corner between the surface and the edge cylinder; the cut is
+    # bounded by the 45° line, the cylinder and the sphere: integrate it numerically in r
+    r = np.linspace(a - b, a, 20001)
+    s1 = rho1 - np.sqrt(rho1**2 - r**2)
+    s2 = t + rho2 - np.sqrt(rho2**2 - r**2)
+    def chord(z0, z1):  # the chamfer: from the surface at a - b to the edge, b inside
+        return z0 + (z1 - z0) * (r - (a - b)) / b
+    line1 = chord(s1[0], s1[-1] + b)
+    line2 = chord(s2[0], s2[-1] - b)
+    cut = np.trapezoid(2 * np.pi * r * ((line1 - s1) + (s2 - line2)), r)
+    assert vp - vc == pytest.approx(cut, rel=1e-5)
+
+
+def test_flat_spacer_is_an_annulus():
+    sp = Spacer(30.0, 10.0, 0.0, 30.0, 25.0, 0.0, 33.0)
+    assert sp.build().volume == pytest.approx(math.pi * (33.0**2 - 30.0**2) * 15.0, rel=1e-9)
+
+
+def test_spacer_tube_volume():
+    sp = Spacer(30.0, 0.0, 0.0, 30.0, 50.0, 0.0, 36.0, tube_radius=34.0, lip=2.0)
+    expected = math.pi * (36.0**2 - 34.0**2) * 50.0 + 2 * math.pi * (34.0**2 - 30.0**2) * 2.0
+    assert sp.build().volume == pytest.approx(expected, rel=1e-9)
+
+
+def test_lens_tags_lie_on_the_analytic_surfaces():
+    rho1, rho2, a, t = 60.0, -90.0, 18.0, 9.0
+    front, back = OpticalFace(4, 100.0, 1 / rho1), OpticalFace(5, 109.0, 1 / rho2)
+    el = LensElement(front, back, a, 0.4, 0.4)
+    solid = el.build()
+    roles = face_roles(solid, el.segments())
+    assert sorted(r for r, _ in roles) == ["bevel", "bevel", "lens-edge", "optical", "optical"]
+    mesh = tessellate_part(solid, "lens-x", "lens", "ground-glass", roles, 0.05, 6.0)
+    for tag_id, tag in enumerate(mesh.tag_table):
+        v = mesh.vertices[np.unique(mesh.triangles[mesh.tags == tag_id])]
+        r = np.hypot(v[:, 0], v[:, 1])
+        if tag.role == "optical":
+            f = front if tag.surface == 4 else back
+            assert tag.surface in (4, 5)
+            np.testing.assert_allclose(v[:, 2], f.z(r), atol=1e-7)
+        elif tag.role == "lens-edge":
+            np.testing.assert_allclose(r, a, atol=1e-7)
+        elif tag.role == "bevel":
+            assert r.min() >= a - 0.4 - 1e-7
+
+
+def test_diaphragm_edge_land_width():
+    d = Diaphragm(150.0, 16.3, 31.0, 1.0, 0.05, 45.0, "rear")
+    solid = d.build()
+    roles = face_roles(solid, d.segments())
+    mesh = tessellate_part(solid, "diaphragm", "diaphragm", "black-anodised", roles, 0.05, 6.0)
+    edge = [i for i, t in enumerate(mesh.tag_table) if t.role == "diaphragm-edge"]
+    assert len(edge) == 1
+    v = mesh.vertices[np.unique(mesh.triangles[mesh.tags == edge[0]])]
+    np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), 16.3, atol=1e-7)
+    assert v[:, 2].max() - v[:, 2].min() == pytest.approx(0.05, abs=1e-9)
+    assert 0.5 * (v[:, 2].max() + v[:, 2].min()) == pytest.approx(150.0, abs=1e-9)

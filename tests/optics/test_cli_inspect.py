@@ -1,0 +1,106 @@
+"""`lensmount inspect`: tables, --json, and one-paragraph errors with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+
+runner = CliRunner()
+
+GOOD = """name = "singlet"
+aperture = { entrance_pupil_diameter = 10.0 }
+
+[[surface]]
+radius = 50.0
+thickness = 6.0
+material = "N-BK7"
+stop = true
+
+[[surface]]
+radius = -80.0
+thickness = 90.0
+"""
+
+JSON_KEYS = ("efl_mm", "bfl_mm", "f_number", "epd_mm", "entrance_pupil_z_mm", "exit_pupil_z_mm",
+             "exit_pupil_diameter_mm", "surfaces")
+SURFACE_KEYS = ("radius_mm", "thickness_mm", "material", "n_primary", "clear_semi_diameter_mm")
+
+
+def test_json_document_of_the_reference_lens(examples):
+    result = runner.invoke(app, ["inspect", str(examples["double_gauss"]), "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    for k in JSON_KEYS:
+        assert k in doc
+    assert doc["efl_mm"] == pytest.approx(360.013, rel=1e-4)
+    assert doc["epd_mm"] == pytest.approx(51.430, abs=0.0015)
+    assert doc["f_number"] == pytest.approx(7.0)
+    assert len(doc["surfaces"]) == 11
+    for s in doc["surfaces"]:
+        for k in SURFACE_KEYS:
+            assert k in s
+        assert s["clear_semi_diameter_mm"] > 0
+    assert doc["surfaces"][5]["radius_mm"] is None and doc["surfaces"][5]["is_stop"]
+
+
+def test_twin_files_print_identical_json(examples):
+    a = runner.invoke(app, ["inspect", str(examples["cooke_toml"]), "--json"])
+    b = runner.invoke(app, ["inspect", str(examples["cooke_zmx"]), "--json"])
+    assert a.exit_code == b.exit_code == 0
+    assert json.loads(a.stdout) == json.loads(b.stdout)
+
+
+def test_table_output_and_toml_conversion(examples, tmp_path):
+    out = tmp_path / "converted.toml"
+    result = runner.invoke(app, ["inspect", str(examples["cooke_zmx"]), "--save-toml", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "effective focal length" in result.stdout and "STOP" in result.stdout
+    again = runner.invoke(app, ["inspect", str(out), "--json"])
+    direct = runner.invoke(app, ["inspect", str(examples["cooke_zmx"]), "--json"])
+    assert json.loads(again.stdout) == json.loads(direct.stdout)
+
+
+BAD_CASES = {
+    "missing file": (None, "file not found"),
+    "malformed toml": (("thickness = 6.0", "thickness = = 6.0"), "malformed TOML"),
+    "unknown glass": (('"N-BK7"', '"N-BK7-NOPE"'), "unknown glass"),
+    "negative glass thickness": (("thickness = 6.0", "thickness = -6.0"), "glass thickness"),
+    "radius smaller than semi-diameter": (("radius = 50.0", "radius = 50.0\nclear_semi_diameter = 55.0"),
+                                          "smaller than its clear semi-diameter"),
+    "crossing surfaces": (("thickness = 6.0", "thickness = 0.1"), "cross each other"),
+    "no stop": (("stop = true\n", ""), "stop"),
+    "unknown key": (("stop = true", "stop = true\nwobble = 1"), "unknown key 'wobble'"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_CASES))
+def test_bad_input_is_one_paragraph_and_exit_code_2(tmp_path, case):
+    edit, words = BAD_CASES[case]
+    path = tmp_path / "lens.toml"
+    if edit is not None:
+        text = GOOD.replace(*edit)
+        assert text != GOOD
+        path.write_text(text, encoding="utf-8")
+    result = runner.invoke(app, ["inspect", str(path)])
+    assert result.exit_code == 2, (result.output, result.exception)
+    err = result.stderr.strip()
+    assert "Traceback" not in result.output
+    assert err.count("\n") == 0                       # one paragraph
+    assert err.startswith(f"error: {path}")           # names the file
+    assert words in err
+    assert "Valid:" in err                            # and what would be valid
+
+
+def test_console_entry_point_prints_no_traceback(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from lensmount.cli import main; sys.argv[0] = 'lensmount'; main()",
+         "inspect", str(tmp_path / "nope.toml")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip().count("\n") == 0 and "file not found" in proc.stderr

@@ -1,0 +1,93 @@
+"""Scene files: the examples load, unknown keys and bad values are InputErrors naming the field."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lensmount.errors import InputError
+from lensmount.design.scene import load_scene, scene_from_dict
+from lensmount.scene.finishes import finish_of
+from lensmount.cad.mesh import FaceTag
+from tests.trace.geometry import double_gauss, double_gauss_mesh, scene_dict
+from lensmount.scene.build import build_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = sorted((ROOT / "examples" / "double-gauss-360" / "scenes").glob("case*.toml"))
+
+
+def test_example_scenes_load():
+    assert len(SCENES) == 3
+    for path in SCENES:
+        spec = load_scene(path)
+        assert spec.source.off_axis_deg == 7.0 and spec.detector.pixels == (600, 600)
+        assert spec.coatings["default"] == "perfect-ar"
+
+
+@pytest.mark.parametrize("patch,field", [
+    ({"colour": 1}, "colour"),
+    ({"source": {"type": "sun", "off_axis_deg": 7.0, "elevation": 3}}, "source.elevation"),
+    ({"source": {"type": "laser", "off_axis_deg": 7.0}}, "source.type"),
+    ({"detector": {"width_mm": -1, "height_mm": 1}}, "detector.width_mm"),
+    ({"coatings": {"default": "shiny"}}, "coatings"),
+    ({"finishes": {"x": {"model": "lambertian", "reflectance": 2.0}}, "assign": {"*": "x"}}, "finishes.x.reflectance"),
+    ({"finishes": {"x": {"model": "lambertian", "colour": 1}}, "assign": {"*": "x"}}, "finishes.x"),
+    ({"assign": {"*": "nope"}}, "assign.*"),
+    ({"assign": {"colour:red": "absorber"}}, "assign.colour:red"),
+    ({"objects": [{"type": "disk", "name": "d"}]}, "objects.0"),
+])
+def test_bad_scene_files_name_the_field(tmp_path, patch, field):
+    import tomli_w
+
+    data = scene_dict(**patch)
+    path = tmp_path / "bad.toml"
+    path.write_text(tomli_w.dumps(data))
+    with pytest.raises(InputError) as exc:
+        load_scene(path)
+    text = exc.value.paragraph()
+    assert str(path) in text and field in text, text
+
+
+def test_not_toml_names_the_line(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[source]\noff_axis_deg = = 7\n")
+    with pytest.raises(InputError) as exc:
+        load_scene(path)
+    assert exc.value.line == 2
+
+
+def test_assignment_priority():
+    assign = {"*": "absorber", "kind:barrel": "black-anodised", "role:diaphragm-edge": "ground-glass",
+              "part:spacer-2": "mirror", "finish:matt": "ground-glass"}
+    lib = {k: {} for k in ("absorber", "black-anodised", "ground-glass", "mirror")}
+    tag = FaceTag("spacer-2", "spacer", "diaphragm-edge", "matt")
+    assert finish_of(tag, assign, lib) == "mirror"
+    assert finish_of(FaceTag("diaphragm", "diaphragm", "diaphragm-edge", "x"), assign, lib) == "ground-glass"
+    assert finish_of(FaceTag("barrel", "barrel", "mount", "x"), assign, lib) == "black-anodised"
+    assert finish_of(FaceTag("hood", "hood", "mount", "matt"), assign, lib) == "ground-glass"
+    assert finish_of(FaceTag("hood", "hood", "mount", "x"), assign, lib) == "absorber"
+    assert finish_of(FaceTag("lens-1", "lens", "optical", "x", surface=0), assign, lib) is None
+
+
+def test_build_scene_objects_coatings_media():
+    p = double_gauss()
+    spec = scene_from_dict(scene_dict(
+        coatings={"default": "perfect-ar", "surface-3": "uncoated"},
+        objects=[{"type": "disk", "name": "dust", "centre_mm": [0, 0, -50], "radius_mm": 30, "tilt_deg": [10, 0],
+                  "finish": "ground-glass"},
+                 {"type": "rectangle", "name": "target", "centre_mm": [0, 0, -80], "width_mm": 10,
+                  "height_mm": 5, "finish": "mirror"}]))
+    scene = build_scene(p, double_gauss_mesh(p), spec)
+    assert scene.optical[2].coating.kind == "uncoated" and scene.optical[0].coating.kind == "perfect-ar"
+    assert "dust" in scene.part_names and "target" in scene.part_names
+    i = [t.part for t in scene.mesh.tag_table].index("dust")
+    assert scene.finish_of_tag[i] == "ground-glass" and scene.bsdf_of_tag[i] is not None
+    # Media per wavelength: blue sees a larger index than red in N-SSK2 (surface 1's glass).
+    n_after = scene.optical[0].n_after
+    assert n_after.shape == (3,) and n_after[1] > n_after[0] > n_after[2] > 1.5
+    np.testing.assert_array_equal(scene.optical[0].n_before, 1.0)
+    # The cemented surface 4 has glass on both sides.
+    assert scene.optical[3].n_before[0] > 1.5 and scene.optical[3].n_after[0] > 1.5
+    assert scene.entrance_pupil_area_mm2 == pytest.approx(np.pi * (51.43 / 2) ** 2, rel=1e-3)
+    # The dust plate sits at z = -50: the front opening and the emission disc move in front of it.
+    assert scene.front_opening.z <= -50.0 - 30 * np.sin(np.radians(10)) + 1e-9
