@@ -12,7 +12,7 @@ from scipy import integrate
 
 from bsdf_support import incidence, mirror_of
 from lensmount.errors import InputError
-from lensmount.trace.bsdf import MODELS, make_bsdf
+from lensmount.trace.bsdf import make_bsdf
 from lensmount.trace.sampler import stream
 
 

@@ -85,3 +85,37 @@ def test_contact_beyond_the_chamfer_is_reported(reference_layout):
     with pytest.raises(GeometryError) as exc:
         plan(layout.prescription, bad)
     assert "contact height" in exc.value.paragraph()
+
+
+def test_thin_diaphragm_plate_is_reported(reference_layout):
+    from lensmount.cad.checks import check_thickness
+
+    layout, spec = reference_layout
+    strict = spec.model_copy(update={"checks": spec.checks.model_copy(update={"min_thickness_mm": 1.5})})
+    with pytest.raises(GeometryError) as exc:
+        check_thickness(layout, strict)
+    assert "1.5 mm" in exc.value.paragraph()
+    check_thickness(layout, spec)
+
+
+def test_tangent_contact_follows_the_sphere_slope(reference_layout):
+    layout, spec = reference_layout
+    tangent = spec.model_copy(update={"seats": spec.seats.model_copy(update={"contact": "tangent"})})
+    sp = plan(layout.prescription, tangent).part("spacer-1").template
+    r3 = layout.prescription.surfaces[2].radius  # lens-2 front, convex toward the spacer
+    h = sp.back_r
+    # the end face follows the sphere's tangent at h: z grows outward like the glass does
+    assert sp.back_slope == pytest.approx(-h / math.sqrt(r3 * r3 - h * h), rel=1e-5, abs=2e-6)
+    # sharp-corner contact on the same convex surface: a flat end
+    assert layout.part("spacer-1").template.back_slope == pytest.approx(0.0, abs=1e-5)
+
+
+def test_envelope_never_returns_nan(monkeypatch, reference_layout):
+    import lensmount.optics.apertures as apertures
+    from lensmount.cad.layout import Envelope
+
+    layout, _ = reference_layout
+    monkeypatch.setattr(apertures, "beam_envelope", lambda p, z: np.full(np.shape(z), np.nan))
+    env = Envelope(layout.prescription, -10.0, 10.0, step=1.0)
+    assert np.isfinite(env.at(np.linspace(-20, 20, 9))).all()
+    assert np.isfinite(env.max_over(-5.0, 5.0))

@@ -74,6 +74,17 @@ def diaphragm(z, r_in, r_out, width=0.05, segments=512):
     ])
 
 
+def barrel(z0, z1, r_in, r_out, *, part="barrel", segments=256):
+    """A closed tube with one tag per CAD face (inner wall, outer wall, two ends), as the CAD layer tags."""
+    f = lambda k: FaceTag(part, "barrel", "mount", "x", face=k)  # noqa: E731
+    return TaggedMesh.concatenate([
+        cylinder(z0, z1, r_in, tag=f(0), inward=True, segments=segments),
+        cylinder(z0, z1, r_out, tag=f(1), inward=False, segments=segments),
+        annulus(z0, r_in, r_out, facing=-1, tag=f(2), segments=segments),
+        annulus(z1, r_in, r_out, facing=+1, tag=f(3), segments=segments),
+    ])
+
+
 def double_gauss_case(case: int = 1, *, off_axis_deg=7.0, pixels=(60, 60), edge_width=0.05, gauss_deg=5.0,
                       reflectance=None, ghosts=False):
     """The paper's case 1 (Lambertian 10 % diaphragm edge), 2 (mount Lambertian 5 %) or 3 (Gaussian 5°)."""
@@ -85,7 +96,7 @@ def double_gauss_case(case: int = 1, *, off_axis_deg=7.0, pixels=(60, 60), edge_
     r_barrel = max(sds) + 0.5
     mesh = TaggedMesh.concatenate([
         primitives.lens_elements(lens, sds, rings=24, segments=128, finish="x"),
-        primitives.tube(-20.0, z_img - 5.0, r_barrel, r_barrel + 5.0, part="barrel", finish="x", segments=256),
+        barrel(-20.0, z_img - 5.0, r_barrel, r_barrel + 5.0),
         diaphragm(zs[stop], SD[stop], r_barrel, edge_width),
     ])
     wl = np.array([0.5875618])
@@ -124,7 +135,7 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
     z_img = lens.image_z
     mesh = TaggedMesh.concatenate([
         primitives.lens_elements(lens, [h, h], rings=24, segments=128, finish="x"),
-        primitives.tube(-30.0, z_img + 2.0, h, h + 3.0, part="barrel", finish="x", segments=128),
+        barrel(-30.0, z_img + 2.0, h, h + 3.0, segments=128),
     ])
     wl = np.array([0.5875618])
     bsdfs = [None if t.role == "optical" else (bsdf if t.part == "barrel" else make_bsdf("absorber"))

@@ -124,3 +124,27 @@ def test_direct_light_through_a_window(theta):
         # Tilted, the thin rim blocks a sliver: at most 5 mm·tan(θ') of the 40 mm diameter.
         assert expected * 0.9 < est.flux < expected + 4 * err
     assert est.part_names[-1] == "direct" and est.per_part[-1].sum() == pytest.approx(est.image.sum())
+
+
+def test_ghost_channel_of_a_window():
+    """Uncoated window at normal incidence, ghosts on: the unscattered light splits into the
+    `direct` channel (no reflection: A T²) and the `ghosts` channel (2k reflections, k >= 1:
+    A T² R² / (1 − R²)), the incoherent plate's series."""
+    p = window(semi_diameter=20.0)
+    plate = primitives.tube(-2.0, -1.0, 20.0, 80.0, part="plate", kind="housing", finish="absorber", segments=64)
+    mesh = type(plate).concatenate([primitives.lens_elements(p, [20.0, 20.0], rings=4, segments=64), plate])
+    scene = make_scene(p, mesh, detector={"width_mm": 80, "height_mm": 80, "pixels": [1, 1]},
+                       source={"type": "collimated", "off_axis_deg": 0.0, "azimuth_deg": 0.0},
+                       coatings={"default": "uncoated"}, effects={"direct": True, "ghosts": True, "scatter": False})
+    n_photons = 400_000
+    est = forward_pass(scene, Tracer(scene), n_photons, seed=2, pass_index=0)
+    n = float(scene.optical[0].n_after[0])
+    r = ((n - 1) / (n + 1)) ** 2
+    area = 0.5 * 64 * math.sin(2 * math.pi / 64) * 20.0**2
+    flux = dict(zip(est.part_names, est.part_flux))
+    disc = scene.source.disc.area
+    for name, expected in (("direct", area * (1 - r) ** 2), ("ghosts", area * (1 - r) ** 2 * r**2 / (1 - r**2))):
+        frac = expected / disc
+        err = disc * math.sqrt(frac * (1 - frac) / n_photons)
+        assert abs(flux[name] - expected) < 4 * err, (name, flux[name], expected, err)
+    assert flux["ghosts"] > 0

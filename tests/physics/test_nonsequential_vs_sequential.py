@@ -71,3 +71,32 @@ def test_dispersion_separates_colours(lens_and_tracer):
     seq_blue = trace(p, o[1:2], d[1:2], p.wavelengths_um[1]).points[-1][0]
     assert np.abs(ev.position[1] - seq_blue).max() < 1e-6
     assert abs(ev.position[1, 1] - ev.position[2, 1]) > 1e-4
+
+
+@pytest.mark.slow
+def test_through_the_regenerated_cad_mesh(tmp_path):
+    """The same check on the mount engineer's tessellated CAD (lens solids from STEP faces)."""
+    pytest.importorskip("build123d")
+    from lensmount.cad import regenerate
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.design.lens import load_lens
+    from lensmount.design.scene import scene_from_dict
+    from lensmount.scene.build import build_scene
+    from tests.trace.geometry import scene_dict
+
+    design = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"
+    p = load_lens(design / "lens.toml")
+    manifest = regenerate(design, tmp_path)
+    mesh = TaggedMesh.load(tmp_path / manifest.mesh)
+    scene = build_scene(p, mesh, scene_from_dict(scene_dict(detector={"width_mm": 80.0, "height_mm": 80.0,
+                                                                      "pixels": [4, 4]})))
+    tracer = Tracer(scene)
+    rng = np.random.default_rng(9)
+    for field_deg in (0.0, 3.5):
+        for k, wl in enumerate(p.wavelengths_um):
+            o, d = _bundle(p, field_deg, 5000, rng)
+            ev = tracer.next_event(RayBatch.make(o, d, wavelength=np.full(len(o), k)), rng)
+            seq = trace(p, o, d, wl)
+            both = (ev.kind == DETECTOR) & ~seq.vignetted
+            assert both.mean() > 0.97
+            assert np.abs(ev.position[both] - seq.points[-1][both]).max() < 1e-6

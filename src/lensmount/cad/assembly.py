@@ -92,6 +92,16 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
     return out
 
 
+def _common(a, b):
+    """The boolean intersection of two solids (OCC), as a build123d shape."""
+    from build123d import Shape
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+
+    op = BRepAlgoAPI_Common(a.wrapped, b.wrapped)
+    op.Build()
+    return Shape.cast(op.Shape())
+
+
 def check_user_parts(parts: list[BuiltPart]) -> None:
     """3D interference of user-template parts with every other part (OCC boolean common)."""
     for a in parts:
@@ -105,8 +115,8 @@ def check_user_parts(parts: list[BuiltPart]) -> None:
             if (ba.min.X > bb.max.X or bb.min.X > ba.max.X or ba.min.Y > bb.max.Y or bb.min.Y > ba.max.Y
                     or ba.min.Z > bb.max.Z or bb.min.Z > ba.max.Z):
                 continue
-            common = a.solid.intersect(b.solid)
-            vol = 0.0 if common is None else float(common.volume)
+            common = _common(a.solid, b.solid)
+            vol = float(common.volume)
             if vol > USER_OVERLAP_TOL_MM3:
                 box = common.bounding_box()
                 depth = min(box.size.X, box.size.Y, box.size.Z)

@@ -8,7 +8,8 @@ reaches into the other) is the number the error reports. Checks:
 * spacers, retainers and shoulders touch lenses outside the clear aperture;
 * no mechanical face enters the beam footprint (real rays, full field), the
   diaphragm's knife edge excepted (it *is* the stop);
-* lens edge to bore clearance at least `checks.min_radial_clearance_mm`.
+* lens edge to bore clearance at least `checks.min_radial_clearance_mm`;
+* plates and walls at least `checks.min_thickness_mm` (knife-edge lands excepted).
 
 A violation raises GeometryError naming both parts and the overlap in mm.
 """
@@ -137,13 +138,40 @@ def check_clearance(layout: Layout, spec: MountSpec) -> None:
             valid=f"a clearance >= {spec.checks.min_radial_clearance_mm} mm")
 
 
+def check_thickness(layout: Layout, spec: MountSpec) -> None:
+    """Every part at least `checks.min_thickness_mm` thick where it is not a knife edge.
+
+    Lenses, spacers, shoulders and rings are checked where they are planned
+    (lensmount.cad.layout); here the plates and walls whose size comes straight
+    from mount.toml.
+    """
+    min_t = spec.checks.min_thickness_mm
+    for plan in layout.parts:
+        t = plan.template
+        sizes = {
+            "diaphragm": lambda: ("plate thickness", t.thickness),
+            "vane": lambda: ("thickness", t.thickness),
+            "hood": lambda: ("wall", t.outer_radius - t.inner_radius),
+            "housing": lambda: ("wall", t.wall),
+            "retainer": lambda: ("thickness", t.thickness),
+            "barrel": lambda: ("wall", t.outer_radius - max(r for r, _ in t.bore)),
+        }
+        if plan.kind not in sizes:
+            continue
+        what, value = sizes[plan.kind]()
+        if value < min_t:
+            raise GeometryError(f"{plan.name}: {what} {value:.3f} mm is below the minimum {min_t} mm",
+                                field=f"{plan.kind}", valid=f"a {what} >= {min_t} mm (checks.min_thickness_mm)")
+
+
 def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:
     """All checks, on the built-in profiles (`segments` per part name)."""
     outlines = {name: outline(segs) for name, segs in segments.items()}
     check_contacts(layout)
     check_clearance(layout, spec)
+    check_thickness(layout, spec)
     check_interference(outlines)
     check_beam(layout, outlines)
 
 
-__all__ = ["check_layout", "penetration", "outline", "OVERLAP_TOL_MM"]
+__all__ = ["check_layout", "check_thickness", "penetration", "outline", "OVERLAP_TOL_MM"]

@@ -110,21 +110,26 @@ class Envelope:
 
 
 def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) -> float:
-    """Cone slope m >= 0 of an end face touching the glass at radius h.
+    """Cone slope m of an end face touching the glass at radius h.
 
     boundary(r) is the glass's z at r (the face toward the part); side = +1 when the
     part lies behind the glass (larger z), -1 in front. The face z_c + side·m·(r − h)
     must stay off the glass for h < r <= r_max: m >= side·(z(r) − z(h)) / (r − h).
-    Tangent contact uses the surface slope at h when that is safe.
+    Sharp-corner contact: the flattest safe face, never steeper into the part than
+    flat (m >= 0). Tangent contact: the surface's own slope at h, m = side·z'(h), which
+    is safe on a surface convex toward the part (m may then be negative); on a
+    concave one the safe slope wins and the contact stays a sharp corner.
     """
     zh = float(boundary(h))
-    m = 0.0
+    need = -np.inf
     if r_max > h + 1e-9:
         rs = np.linspace(h, r_max, _SLOPE_SAMPLES)[1:]
-        m = max(0.0, float((side * (boundary(rs) - zh) / (rs - h)).max()))
+        need = float((side * (boundary(rs) - zh) / (rs - h)).max())
     if tangent:
         dh = 1e-4
-        m = max(m, side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh))
+        m = max(need, side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh))
+    else:
+        m = max(0.0, need)
     return m + _EPS_SLOPE
 
 
@@ -235,6 +240,15 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                     f"lies beyond the edge chamfer at {R - chamfer:.3f} mm",
                     field="lens_edge.contact_margin_mm", valid="a smaller contact margin or chamfer, "
                     "or a larger edge allowance")
+
+    seat_numbers = {int(grp[0].name.split("-")[1]) for grp in lens_parts[1:]}
+    for number in spec.seats.element:
+        if number not in seat_numbers:
+            raise GeometryError(
+                f"element {number} has no seat of its own to choose (it is the first element, "
+                "cemented to the one before, or does not exist)", field=f"seats.element.{number}",
+                valid="the number of the first element of a lens group after the first: "
+                      + ", ".join(str(n) for n in sorted(seat_numbers)))
 
     def first_el(gi):
         return lens_parts[gi][0]

@@ -16,6 +16,7 @@ input hash is cached returns from the cache (lensmount.cad.cache).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -93,7 +94,8 @@ def _previous(out: Path) -> Manifest | None:
         return None
 
 
-def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True) -> Manifest:
+def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
+               tessellation: dict | None = None) -> Manifest:
     """Regenerate a design's CAD outputs.
 
     Args:
@@ -101,6 +103,8 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True) 
         out_dir: output folder; defaults to DESIGN/build.
         progress: optional callable progress(step, done, total), step one of STEPS.
         use_cache: return from the content-addressed cache when the inputs are unchanged.
+        tessellation: overrides of mount.toml's [tessellation] (`linear_tolerance_mm`,
+            `angular_tolerance_deg`); they become part of the cache key.
     Returns:
         The Manifest (also written as OUT/manifest.json); `.cached` tells whether the
         CAD kernel ran.
@@ -113,6 +117,15 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True) 
     out = Path(out_dir) if out_dir is not None else design.root / "build"
     out.mkdir(parents=True, exist_ok=True)
     key = design.input_hash
+    spec = design.mount
+    if tessellation:
+        try:
+            tess = spec.tessellation.model_validate({**spec.tessellation.model_dump(), **tessellation})
+        except ValueError as exc:
+            raise InputError(f"bad tessellation option: {exc.errors()[0]['msg']}", field="tessellation",
+                             valid="linear tolerance > 0 mm, angular tolerance in (0, 45] degrees") from None
+        spec = spec.model_copy(update={"tessellation": tess})
+        key = hashlib.sha256((key + json.dumps(tess.model_dump(), sort_keys=True)).encode()).hexdigest()
     if use_cache:
         prev = _previous(out)
         files_ok = prev is not None and prev.input_hash == key and (out / ASSEMBLY).is_file() and \
@@ -126,7 +139,6 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True) 
                 m.cached = True
                 return m
 
-    spec = design.mount
     try:
         layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress)
     except InputError as exc:

@@ -38,6 +38,10 @@ def regenerate(
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder (default DESIGN/build)"),
     no_cache: bool = typer.Option(False, "--no-cache", help="rebuild even when the inputs are unchanged"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+    linear_tolerance: Optional[float] = typer.Option(
+        None, "--linear-tolerance", help="tessellation chord deviation, mm (overrides mount.toml)"),
+    angular_tolerance: Optional[float] = typer.Option(
+        None, "--angular-tolerance", help="tessellation angular deflection, degrees (overrides mount.toml)"),
 ) -> None:
     """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json."""
     from rich.console import Console
@@ -46,9 +50,11 @@ def regenerate(
     from lensmount.cad import regenerate as run
 
     console = Console(stderr=True)
+    tess = {k: v for k, v in (("linear_tolerance_mm", linear_tolerance),
+                              ("angular_tolerance_deg", angular_tolerance)) if v is not None}
     try:
         if quiet:
-            manifest = run(design, out, progress=None, use_cache=not no_cache)
+            manifest = run(design, out, progress=None, use_cache=not no_cache, tessellation=tess)
         else:
             with Progress(TextColumn("{task.description:<14}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                           TimeElapsedColumn(), console=console, transient=False) as bar:
@@ -59,7 +65,7 @@ def regenerate(
                         tasks[step] = bar.add_task(step, total=total)
                     bar.update(tasks[step], completed=done, total=total)
 
-                manifest = run(design, out, progress=progress, use_cache=not no_cache)
+                manifest = run(design, out, progress=progress, use_cache=not no_cache, tessellation=tess)
     except InputError as error:
         _fail(error)
     target = Path(out) if out is not None else Path(design) / "build"

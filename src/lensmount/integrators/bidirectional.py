@@ -39,7 +39,7 @@ from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import stream
 
 GLOSSY_THRESHOLD_DEG = 15.0  # lobes narrower than this (HWHM) are followed by photons, not gathered
-MAX_BOUNCES = 32
+MAX_BOUNCES = 64
 RR_LEVEL = 1e-3  # Russian roulette starts when throughput < RR_LEVEL · initial flux
 NO_SCATTER = "no-scatter"  # the channel of direct / ghost light (no scattering vertex)
 

@@ -106,7 +106,9 @@ def _cap(profile: Profile, z_vertex: float, radius: float, rings: int, segments:
     phi = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
     r = np.repeat(rr, segments)
     p = np.tile(phi, rings)
-    z = z_vertex + profile.sag(r * r)
+    # A hemisphere's rim sits exactly at the conic's edge: keep r² on the defined side of it.
+    r2max = profile.max_radius() ** 2
+    z = z_vertex + profile.sag(np.minimum(r * r, r2max * (1.0 - 1e-15)))
     v = np.vstack([[0.0, 0.0, z_vertex], np.column_stack([r * np.cos(p), r * np.sin(p), z])])
     i = np.arange(segments)
     j = (i + 1) % segments

@@ -17,7 +17,7 @@ class Retainer(RevolvedPart):
 
     Args:
         contact_r, contact_z: inner corner touching the lens, mm.
-        slope: contact-face cone slope (>= 0).
+        slope: contact-face cone slope (z moves away from the lens by slope per mm outward).
         side: -1 when the ring is in front of the lens (object side), +1 behind it.
         outer_radius: thread (outside) radius, mm.
         thickness: axial thickness at the outside, mm.

@@ -23,9 +23,10 @@ class Spacer(RevolvedPart):
 
     Args:
         front_r, front_z: inner corner touching the object-side neighbour (mm).
-        front_slope: end-face cone slope dz/dr at the front (>= 0, z grows outward).
+        front_slope: end-face cone slope at the front (z grows outward by front_slope per mm;
+            negative for tangent contact on a surface convex toward the spacer).
         back_r, back_z: inner corner touching the image-side neighbour.
-        back_slope: end-face cone slope at the back (>= 0, z shrinks outward).
+        back_slope: end-face cone slope at the back (z shrinks outward by back_slope per mm).
         outer_radius: outside radius, mm.
         tube_radius: bore of a long spacer between its end lips; None = straight bore
             from corner to corner.

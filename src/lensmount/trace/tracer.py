@@ -121,7 +121,10 @@ class Tracer:
         from embreex.mesh_construction import TriangleMesh
 
         self.scene = scene
+        self.embree_rays = 0  # rays sent to Embree so far (probes and relaunches), for benchmarks
         mesh = scene.mesh
+        if not np.all(np.isfinite(mesh.vertices)):
+            raise ValueError("the scene's mesh has non-finite vertices (a tessellation bug upstream)")
         # The frame and the offsets follow the mesh alone (the detector is analytic): float32
         # keeps ~7 digits of the largest centred coordinate.
         pts = mesh.vertices if len(mesh.vertices) else np.zeros((1, 3))
@@ -177,6 +180,7 @@ class Tracer:
         return 4.0 * tol + 100.0 * self.eps
 
     def _embree_query(self, start: np.ndarray, d: np.ndarray):
+        self.embree_rays += len(start)
         res = self._embree.run((start - self.centre).astype(np.float32), d.astype(np.float32),
                                query="INTERSECT", output=1)
         prim = res["primID"].astype(np.int64)
@@ -387,12 +391,14 @@ class Tracer:
         normal = np.zeros((n, 3))
         tag = np.full(n, -1, np.int32)
         prim = np.full(n, -1, np.int64)
-        lost = np.zeros(n, bool)
         reflections = np.zeros(n, np.int32)
         ghosts = bool(self.scene.effects.ghosts)
         start_n = np.zeros((n, 3)) if origin_normal is None else np.where(
             np.isfinite(origin_normal), np.asarray(origin_normal, np.float64), 0.0)
-        work = np.flatnonzero(rays.alive & (w > 0) & np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1))
+        valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
+        valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
+        lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
+        work = np.flatnonzero(rays.alive & (w > 0) & valid)
         for _ in range(_MAX_OPTICAL):
             if work.size == 0:
                 break
@@ -426,6 +432,7 @@ class Tracer:
         on = kind == DETECTOR
         pixel[on] = self.scene.detector.pixel_of(o[on])
         o = np.where(np.isfinite(o), o, 0.0)
+        d = np.where(np.all(np.isfinite(d), axis=1, keepdims=True), d, 0.0)
         w = np.where(np.isfinite(w) & rays.alive, w, 0.0)
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections)

@@ -1,4 +1,6 @@
-"""Gaussian lobe around the specular direction (the seed paper's case 3: "5 % reflectance within a lobe of 5° half-width").
+"""Gaussian lobe around the specular direction.
+
+The seed paper's case 3: "5 % reflectance within a lobe of 5° half-width".
 
 | parameter        | meaning                                                        | valid     |
 |------------------|----------------------------------------------------------------|-----------|
@@ -82,7 +84,7 @@ class Gaussian(TabulatedAlbedo, BSDF):
 
     # -- geometry of the lobe -------------------------------------------------------------
     def _chord_x(self, wi, wo, n):
-        """x = 1 − cos(angle(wo, mirror(wi))) = |wo − r|²/2, accurate for tiny angles (no 1 − cos cancellation)."""
+        """x = 1 − cos(angle(wo, mirror(wi))) = |wo − r|²/2: accurate for tiny angles (no 1 − cos cancellation)."""
         d = wo - mirror(wi, n)
         return np.minimum(0.5 * dot(d, d), 2.0)
 

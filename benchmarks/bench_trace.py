@@ -1,0 +1,153 @@
+"""Tracer throughput on the reference lens and mount.
+
+Prints:
+- rays/s of a full non-sequential trace (`Tracer.next_event`: every refraction of the double
+  Gauss, analytic refinement, to the detector) of an f/7 bundle at 0° and 3.5°;
+- the raw embreex intersection rate (one nearest-hit query per ray) on the same mesh and the
+  same number of rays, and the ratio of the two;
+- Embree queries per traced ray (probes + relaunches past facets);
+- the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
+  a time in Python) as a peer, with the largest landing-point difference.
+
+Mesh: `lensmount.cad.regenerate` of examples/double-gauss-360 when the CAD layer works,
+else the tests' revolved lens solids with a barrel.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+N_RAYS = 200_000
+N_PEER = 1_000
+
+
+def _reference():
+    from lensmount.design.lens import load_lens
+    from lensmount.design.scene import load_scene
+    from lensmount.scene.build import build_scene
+
+    design = ROOT / "examples" / "double-gauss-360"
+    p = load_lens(design / "lens.toml")
+    try:
+        from lensmount.cad import regenerate
+        from lensmount.cad.mesh import TaggedMesh
+
+        out = Path(tempfile.mkdtemp(prefix="bench-trace-"))
+        manifest = regenerate(design, out)
+        mesh = TaggedMesh.load(out / manifest.mesh)
+        origin = "cad.regenerate"
+    except Exception as exc:  # the CAD layer is optional for this benchmark
+        from tests.trace.geometry import double_gauss_mesh
+
+        mesh = double_gauss_mesh(p)
+        origin = f"test solids ({exc.__class__.__name__} from cad.regenerate)"
+    spec = load_scene(design / "scenes" / "case2-lambertian.toml")
+    return p, mesh, build_scene(p, mesh, spec), origin
+
+
+def _bundle(p, n, rng):
+    from lensmount.optics.paraxial import paraxial
+
+    par = paraxial(p)
+    field = np.where(rng.random(n) < 0.5, 0.0, np.radians(3.5))
+    d = np.column_stack([np.zeros(n), np.sin(field), np.cos(field)])
+    r = 0.45 * par.epd * np.sqrt(rng.random(n))
+    ph = 2 * np.pi * rng.random(n)
+    pupil = np.column_stack([r * np.cos(ph), r * np.sin(ph), np.full(n, par.entrance_pupil_z)])
+    origin = pupil - ((par.entrance_pupil_z + 150.0) / d[:, 2])[:, None] * d
+    return origin, d
+
+
+def _rayoptics_peer(p, origins, dirs):
+    """Trace with rayoptics; returns (rays/s, landing points (n, 3) in our frame) or a reason."""
+    try:
+        from rayoptics.environment import OpticalModel, PupilSpec, FieldSpec, WvlSpec
+        from rayoptics.raytr import trace as rtrace
+    except Exception as exc:
+        return f"rayoptics not installed ({exc.__class__.__name__}); `pip install -e '.[bench]'`", None
+    from lensmount.optics.glass import refractive_index
+
+    wl_um = p.primary_wavelength_um
+    opm = OpticalModel()
+    sm, osp = opm["seq_model"], opm["optical_spec"]
+    osp["pupil"] = PupilSpec(osp, key=["object", "epd"], value=51.43)
+    osp["fov"] = FieldSpec(osp, key=["object", "angle"], flds=[0.0])
+    osp["wvls"] = WvlSpec([(wl_um * 1000.0, 1.0)], ref_wl=0)
+    opm.radius_mode = True
+    object_gap = 1000.0  # a finite object gap keeps the launch points exact in float64
+    sm.gaps[0].thi = object_gap
+    for s in p.surfaces:
+        # The same indices as ours at this wavelength (a peer for the geometry, not the catalogue).
+        n = float(refractive_index(s.material, wl_um))
+        sm.add_surface([s.radius if np.isfinite(s.radius) else 0.0, s.thickness, n, 64.0])
+        if s.is_stop:
+            sm.set_stop()
+    opm.update_model()
+    # rayoptics launches in the object surface's frame, `object_gap` in front of surface 1.
+    wvl = wl_um * 1000.0
+    t0 = time.perf_counter()
+    pts = np.full((len(origins), 3), np.nan)
+    for i, (o, d) in enumerate(zip(origins, dirs)):
+        try:
+            ray = rtrace.trace(sm, o + [0.0, 0.0, object_gap], d.copy(), wvl)[0]
+        except Exception:  # rayoptics signals a miss by raising; count it as not arrived
+            continue
+        pts[i] = ray[-1][0]
+    dt = time.perf_counter() - t0
+    pts[:, 2] = p.image_z
+    return len(origins) / dt, pts
+
+
+def main() -> None:
+    from lensmount.trace.rays import RayBatch
+    from lensmount.trace.tracer import DETECTOR, Tracer
+
+    t0 = time.perf_counter()
+    p, mesh, scene, origin = _reference()
+    print(f"mesh: {len(mesh.triangles)} triangles from {origin} ({time.perf_counter() - t0:.1f} s)")
+    t0 = time.perf_counter()
+    tracer = Tracer(scene)
+    print(f"Tracer build (Embree BVH): {time.perf_counter() - t0:.3f} s")
+    rng = np.random.default_rng(1)
+    o, d = _bundle(p, N_RAYS, rng)
+    rays = RayBatch.make(o, d, wavelength=np.full(N_RAYS, p.primary_wavelength))
+    tracer.next_event(rays.subset(slice(0, 2000)))  # warm-up
+    tracer.embree_rays = 0
+    t0 = time.perf_counter()
+    ev = tracer.next_event(rays)
+    full = time.perf_counter() - t0
+    arrived = (ev.kind == DETECTOR).mean()
+    print(f"full non-sequential trace: {N_RAYS / full:,.0f} rays/s ({N_RAYS} rays, {full:.2f} s, "
+          f"{arrived:.1%} reach the detector, {tracer.embree_rays / N_RAYS:.1f} Embree queries per ray)")
+
+    start = (o - tracer.centre).astype(np.float32)
+    dirs = d.astype(np.float32)
+    tracer._embree.run(start[:2000], dirs[:2000], query="INTERSECT", output=1)
+    t0 = time.perf_counter()
+    tracer._embree.run(start, dirs, query="INTERSECT", output=1)
+    raw = time.perf_counter() - t0
+    print(f"raw embreex nearest-hit: {N_RAYS / raw:,.0f} rays/s (same mesh, same {N_RAYS} rays)")
+    print(f"ratio raw embreex / full trace: {full / raw:.1f}x "
+          f"(per Embree query: {(full / tracer.embree_rays) / (raw / N_RAYS):.1f}x the raw cost)")
+
+    sel = slice(0, N_PEER)
+    rate, pts = _rayoptics_peer(p, o[sel], d[sel])
+    if pts is None:
+        print(f"peer: {rate}")
+    else:
+        ok = (ev.kind[sel] == DETECTOR) & np.isfinite(pts[:, 0])
+        diff = np.abs(pts[ok, :2] - ev.position[sel][ok, :2]).max()
+        print(f"peer rayoptics 0.9 (sequential, per-ray Python): {rate:,.0f} rays/s; "
+              f"lensmount full trace is {(N_RAYS / full) / rate:.0f}x faster; "
+              f"largest landing difference {diff:.2e} mm over {ok.sum()} rays")
+
+
+if __name__ == "__main__":
+    main()
