@@ -82,7 +82,11 @@ _WORKER: dict = {}
 
 
 def _init_worker(scene, tracer_path: str = TRACER) -> None:
-    """Build the tracer once per process."""
+    """Build the tracer once per process. Workers ignore Ctrl-C: the driver stops them and
+    keeps the passes already merged (a worker killed mid-pass would break the pool)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER["scene"] = scene
     _WORKER["tracer"] = _resolve(tracer_path)(scene)
 

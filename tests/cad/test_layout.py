@@ -119,3 +119,13 @@ def test_envelope_never_returns_nan(monkeypatch, reference_layout):
     env = Envelope(layout.prescription, -10.0, 10.0, step=1.0)
     assert np.isfinite(env.at(np.linspace(-20, 20, 9))).all()
     assert np.isfinite(env.max_over(-5.0, 5.0))
+
+
+def test_housing_leaves_the_detector_free(reference_layout):
+    layout, spec = reference_layout
+    h = layout.part("housing").template
+    half_diagonal = 0.5 * math.hypot(spec.housing.detector_width_mm, spec.housing.detector_height_mm)
+    assert h.inner_radius >= half_diagonal
+    assert h.z_back_wall > layout.prescription.image_z
+    barrel = layout.part("barrel").template
+    assert h.z_front == pytest.approx(barrel.bore[-1][1])  # it starts where the barrel ends

@@ -52,14 +52,15 @@ def _expected_pixel_irradiance():
 def test_lambertian_disc_irradiance_matches_configuration_factor():
     scene = _disc_scene()
     tracer = Tracer(scene)
-    est = forward_pass(scene, tracer, 400_000, seed=3, pass_index=0)
+    passes = [forward_pass(scene, tracer, 300_000, seed=3, pass_index=i) for i in range(4)]
+    est = passes[0]
     expected = _expected_pixel_irradiance()
     assert est.image.shape == (2, 2) and est.lost_flux == 0.0
-    # Error bar from the pixel-to-pixel spread (four independent estimates of the same value).
-    mean = est.image.mean()
-    err = est.image.std(ddof=1) / 2.0
-    assert abs(mean - expected) < max(4 * err, 0.01 * expected), (mean, err, expected)
-    assert abs(mean - expected) < 0.03 * expected
+    # Error bar from the spread of independent passes (batch means), as a run reports it.
+    values = [e.image.mean() for e in passes]
+    mean, err = np.mean(values), np.std(values, ddof=1) / 2.0
+    assert abs(mean - expected) < 4 * err, (mean, err, expected)
+    assert err < 0.02 * expected  # teeth: a 10 % bias (a lost cos θ or π would be far more) fails
     np.testing.assert_allclose(est.per_part.sum(axis=0), est.image)
     assert est.part_names == ["plate"]
 
@@ -74,8 +75,8 @@ def test_emission_disc_size_does_not_change_the_result():
     runs_big = [forward_pass(big, tracer, 2 * n, seed=12, pass_index=i).flux for i in range(3)]
     s, b = np.mean(runs_small), np.mean(runs_big)
     err = math.hypot(np.std(runs_small, ddof=1) / math.sqrt(3), np.std(runs_big, ddof=1) / math.sqrt(3))
-    assert abs(s - b) < 4 * err + 0.01 * s, (s, b, err)
-    assert abs(s - b) < 0.03 * s
+    assert abs(s - b) < 4 * err, (s, b, err)
+    assert err < 0.05 * s  # a bookkeeping error (flux not ∝ A_S) would be a factor 2, ~ 50 σ
 
 
 def test_same_seed_same_image_and_passes_differ():

@@ -100,3 +100,30 @@ def test_through_the_regenerated_cad_mesh(tmp_path):
             both = (ev.kind == DETECTOR) & ~seq.vignetted
             assert both.mean() > 0.97
             assert np.abs(ev.position[both] - seq.points[-1][both]).max() < 1e-6
+
+
+def test_even_asphere_and_conic_singlet():
+    """A conic + even-asphere singlet (the Newton and conic-root paths) against the sequential trace."""
+    from lensmount.optics.prescription import Aperture, Prescription, Surface
+    from lensmount.scene import primitives
+
+    p = Prescription((Surface(radius=60.0, thickness=8.0, material="SCHOTT:N-BK7", conic=-0.8,
+                              aspheric=(-2e-6, 1e-9), clear_semi_diameter=15.0, mechanical_semi_diameter=15.0),
+                      Surface(radius=-200.0, thickness=100.0, conic=2.0, clear_semi_diameter=15.0,
+                              mechanical_semi_diameter=15.0, is_stop=True)),
+                     Aperture("epd", 28.0), (0.5875618,), (1.0,), 0, (0.0,), "asphere")
+    mesh = primitives.lens_elements(p, [15.0, 15.0], rings=16, segments=64)
+    scene = make_scene(p, mesh, detector={"width_mm": 40.0, "height_mm": 40.0, "pixels": [1, 1]})
+    tracer = Tracer(scene)
+    rng = np.random.default_rng(4)
+    n = 4000
+    r = 14.0 * np.sqrt(rng.random(n))
+    ph = 2 * np.pi * rng.random(n)
+    th = np.radians(2.0)
+    d = np.tile([0.0, np.sin(th), np.cos(th)], (n, 1))
+    o = np.column_stack([r * np.cos(ph), r * np.sin(ph), np.zeros(n)]) - 20.0 * d
+    ev = tracer.next_event(RayBatch.make(o, d))
+    seq = trace(p, o, d, 0.5875618)
+    both = (ev.kind == DETECTOR) & ~seq.vignetted
+    assert both.mean() > 0.97
+    assert np.abs(ev.position[both] - seq.points[-1][both]).max() < 1e-6

@@ -91,3 +91,55 @@ def test_build_scene_objects_coatings_media():
     assert scene.entrance_pupil_area_mm2 == pytest.approx(np.pi * (51.43 / 2) ** 2, rel=1e-3)
     # The dust plate sits at z = -50: the front opening and the emission disc move in front of it.
     assert scene.front_opening.z <= -50.0 - 30 * np.sin(np.radians(10)) + 1e-9
+
+
+def test_stl_object_from_scene_file(tmp_path):
+    """A `[[objects]] type = "mesh"` STL, placed and tilted, is traced like any mount part."""
+    import tomli_w
+    import trimesh
+
+    from lensmount.trace.rays import RayBatch
+    from lensmount.trace.tracer import FACE, Tracer
+    from tests.trace.geometry import air_plane
+
+    trimesh.creation.box(extents=(10.0, 10.0, 2.0)).export(tmp_path / "target.stl")
+    data = scene_dict(objects=[{"type": "mesh", "name": "target", "path": "target.stl", "centre_mm": [0, 0, 50.0],
+                                "tilt_deg": [0.0, 0.0], "finish": "ground-glass"}],
+                      detector={"width_mm": 1, "height_mm": 1, "pixels": [1, 1], "z_mm": 1000.0})
+    (tmp_path / "scene.toml").write_text(tomli_w.dumps(data))
+    spec = load_scene(tmp_path / "scene.toml")
+    from lensmount.cad.mesh import TaggedMesh
+
+    empty = TaggedMesh(np.zeros((0, 3)), np.zeros((0, 3), int), np.zeros(0, np.int32), [])
+    scene = build_scene(air_plane(), empty, spec)
+    ev = Tracer(scene).next_event(RayBatch.make([[1.0, 2.0, 0.0]], [[0, 0, 1.0]]))
+    assert ev.kind[0] == FACE and ev.position[0, 2] == pytest.approx(49.0, abs=1e-9)
+    assert scene.finish_of_tag[ev.tag[0]] == "ground-glass"
+
+
+def test_missing_mesh_file_is_an_input_error(tmp_path):
+    from tests.trace.geometry import air_plane
+    from lensmount.cad.mesh import TaggedMesh
+
+    spec = scene_from_dict(scene_dict(objects=[{"type": "mesh", "name": "x", "path": "nope.stl"}]),
+                           base_dir=str(tmp_path))
+    empty = TaggedMesh(np.zeros((0, 3)), np.zeros((0, 3), int), np.zeros(0, np.int32), [])
+    with pytest.raises(InputError) as exc:
+        build_scene(air_plane(), empty, spec)
+    assert "objects.0.path" in str(exc.value)
+
+
+@pytest.mark.slow
+def test_step_object_from_scene_file(tmp_path):
+    cq = pytest.importorskip("cadquery")
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.scene.build import object_meshes
+
+    cq.exporters.export(cq.Workplane("XY").box(10, 10, 2), str(tmp_path / "plate.step"))
+    spec = scene_from_dict(scene_dict(objects=[{"type": "mesh", "name": "plate", "path": "plate.step",
+                                                "centre_mm": [0, 0, 20.0], "finish": "mirror"}]),
+                           base_dir=str(tmp_path))
+    (mesh,) = object_meshes(spec)
+    assert isinstance(mesh, TaggedMesh) and len(mesh.triangles) >= 12
+    np.testing.assert_allclose(mesh.vertices.min(axis=0), [-5, -5, 19], atol=1e-6)
+    np.testing.assert_allclose(mesh.vertices.max(axis=0), [5, 5, 21], atol=1e-6)

@@ -26,12 +26,9 @@ from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.barrel import Barrel
 from lensmount.templates.diaphragm import Diaphragm
-from lensmount.templates.hood import Hood
-from lensmount.templates.housing import Housing
 from lensmount.templates.lens_element import LensElement, OpticalFace
 from lensmount.templates.retainer import Retainer
 from lensmount.templates.spacer import Spacer
-from lensmount.templates.vane import Vane
 
 _SLOPE_SAMPLES = 256
 _EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
@@ -397,67 +394,11 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     barrel = Barrel(tuple((float(r), float(z)) for r, z in bore_pts), float(r_barrel))
     parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
 
-    # ---- hood and its vanes ---------------------------------------------------------------
-    vs = spec.vanes
-    vanes: list[tuple[float, float, float]] = []  # (z_front, inner, outer)
-    hood_part = None
-    if hood.enabled:
-        z_mouth = z_front - hood.length_mm
-        if hood.inner_diameter_mm is not None:
-            ri = 0.5 * hood.inner_diameter_mm
-        else:
-            ri = env.max_over(z_mouth, z_front) + vs.aperture_margin_mm + 4.0
-        beam_in_hood = env.max_over(z_mouth, z_front)
-        if ri < beam_in_hood:
-            raise GeometryError(f"the hood's bore (radius {ri:.3f} mm) cuts the beam (radius {beam_in_hood:.3f} mm) "
-                                f"by {beam_in_hood - ri:.3f} mm", field="hood.inner_diameter_mm",
-                                valid=f"an inner diameter above {2 * beam_in_hood:.2f} mm")
-        hood_part = PartPlan("hood", "hood", spec.finish_of("hood", hood.finish),
-                             Hood(float(z_mouth), float(z_front), float(ri), float(ri + hood.wall_mm)))
-        if vs.positions_mm is not None:
-            zs = [float(z) for z in vs.positions_mm]
-            for z in zs:
-                if not (z_mouth <= z <= z_front - vs.thickness_mm):
-                    raise GeometryError(f"vane position {z} mm lies outside the hood "
-                                        f"({z_mouth:.2f} .. {z_front - vs.thickness_mm:.2f} mm)",
-                                        field="vanes.positions_mm", valid="z values inside the hood")
-        else:
-            span = hood.length_mm - vs.thickness_mm
-            zs = [z_mouth + span * k / max(vs.count - 1, 1) for k in range(vs.count)] if vs.count > 1 else \
-                ([z_mouth] if vs.count == 1 else [])
-        for z in zs:
-            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, ri))
-    for sp_plan in spacers:
-        sp = sp_plan.template
-        if sp.tube_radius is None or vs.in_air_gaps == 0:
-            continue
-        za, zb = sp.front_z + sp.lip, sp.back_z - sp.lip
-        for k in range(vs.in_air_gaps):
-            z = za + (zb - za) * (k + 1) / (vs.in_air_gaps + 1) - 0.5 * vs.thickness_mm
-            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, sp.tube_radius))
-    vane_parts = []
-    for z, r_in, r_out in sorted(vanes):
-        if r_out - r_in < max(vs.min_height_mm, 1e-3):
-            notes.append(f"vane at z = {z:.2f} mm left out: only {r_out - r_in:.3f} mm of room above the beam")
-            continue
-        name = f"vane-{len(vane_parts) + 1}"
-        vane_parts.append(PartPlan(name, "vane", spec.finish_of(name, vs.finish),
-                                   Vane(float(z), float(r_in), float(r_out), vs.thickness_mm,
-                                        vs.edge_width_mm, vs.bevel_angle_deg)))
+    # ---- hood, vanes, detector housing (lensmount.cad.baffles) ---------------------------
+    from lensmount.cad.baffles import hood_and_vanes, housing
 
-    # ---- detector housing ------------------------------------------------------------------
-    housing_part = None
-    hs = spec.housing
-    if hs.enabled:
-        half_diag = 0.5 * float(np.hypot(hs.detector_width_mm, hs.detector_height_mm))
-        z_wall = p.image_z + hs.back_gap_mm
-        if z_wall <= z_back + min_t:
-            raise GeometryError("the housing would end before the barrel does", field="housing.back_gap_mm",
-                                valid="a larger back gap")
-        r_h = max(half_diag + hs.detector_clearance_mm,
-                  env.max_over(z_back, p.image_z) + vs.aperture_margin_mm)
-        housing_part = PartPlan("housing", "housing", spec.finish_of("housing", hs.finish),
-                                Housing(float(z_back), float(z_wall), float(r_h), hs.wall_mm))
+    hood_part, vane_parts = hood_and_vanes(spec, env, z_front, r_barrel, bore_pts[0][0], spacers, notes)
+    housing_part = housing(spec, env, p.image_z, z_back)
 
     ordered = [parts[0]] + [pp for grp in lens_parts for pp in grp] + retainers + spacers + parts[1:]
     if hood_part:

@@ -80,6 +80,17 @@ def simulate(
     resume: bool = typer.Option(False, "--resume", help="Continue from DIR/checkpoint.npz."),
 ) -> None:
     """Simulate the stray light on the detector and write irradiance.exr, preview.png, summary.json."""
+    from lensmount.cli import fail
+
+    try:
+        _simulate(design, scene, method, seed, out, photons, time_s, target_rel_error, passes, photons_per_pass,
+                  samples_per_pixel, alpha, workers, resume)
+    except InputError as error:
+        fail(error)
+
+
+def _simulate(design, scene, method, seed, out, photons, time_s, target_rel_error, passes, photons_per_pass,
+              samples_per_pixel, alpha, workers, resume) -> None:
     from lensmount.analysis.metrics import aperture_flux_normalised
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.summary import build_summary
@@ -105,9 +116,12 @@ def simulate(
     if not design.is_dir():
         raise InputError("design folder not found", file=str(design), valid="a folder with lens.toml and mount.toml")
 
+    out = Path(out) if out is not None else Path("out") / Path(scene).stem
+    checkpoint = out / "checkpoint.npz"
+    if resume and not checkpoint.exists():
+        raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
     spec = load_scene(scene)
     seed = spec.run.seed if seed is None else seed
-    out = Path(out) if out is not None else Path("out") / Path(scene).stem
     per_pass = photons_per_pass or spec.run.photons
     prescription = _load_prescription(design)
     mesh = _load_mesh(design, out / "geometry")
@@ -122,11 +136,8 @@ def simulate(
     options = {"samples_per_pixel": samples_per_pixel} if method == "bidirectional" else {}
     digest = input_hash(design, Path(scene), method=method, photons_per_pass=per_pass, alpha=alpha, **options)
     names = part_names(sc) if method == "bidirectional" else None
-    checkpoint = out / "checkpoint.npz"
     acc = None
     if resume:
-        if not checkpoint.exists():
-            raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
         acc, meta = Accumulator.load(checkpoint)
         if meta.get("input_hash") != digest or int(meta.get("seed", -1)) != seed or meta.get("method") != method:
             raise InputError("the checkpoint belongs to another run (inputs, seed or method differ)",

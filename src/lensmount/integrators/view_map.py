@@ -108,7 +108,7 @@ def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generato
         targets, weights = [disc], [mixture_c]
         rim = stop_rim_target(scene, det, broad)
         if rim is not None and rim.facing == disc.facing:
-            targets, weights = [disc, rim], [mixture_c * 2.0 / 3.0, mixture_c / 3.0]
+            targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
     omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights)
     n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)

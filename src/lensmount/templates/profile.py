@@ -10,7 +10,7 @@ of user-template parts that follow the built-in profile, and `mount` otherwise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -44,7 +44,7 @@ def load_template(path: Path, kind: str):
 
 def to_solid(obj, path: Path, kind: str):
     """Convert a build123d or CadQuery result to one build123d Solid (via OCP)."""
-    from build123d import Compound, Shape, Solid
+    from build123d import Compound, Shape
 
     wrapped = None
     if hasattr(obj, "vals") and hasattr(obj, "val"):  # cadquery Workplane

@@ -198,8 +198,7 @@ class Tracer:
         ol = o - np.array([0.0, 0.0, self._z_vertex[k]])
         c, k1 = prof.curvature, 1.0 + prof.conic
         if any(prof.aspheric):
-            t = prof._newton(ol, d, t_guess.copy())
-            cands = [t]
+            cands = [_newton_asphere(prof, ol, d, t_guess)]
         else:
             a = c * (d[:, 0] ** 2 + d[:, 1] ** 2 + k1 * d[:, 2] ** 2)
             b = c * (ol[:, 0] * d[:, 0] + ol[:, 1] * d[:, 1] + k1 * ol[:, 2] * d[:, 2]) - d[:, 2]
@@ -466,6 +465,27 @@ class Tracer:
             w = w * np.where(tir, 1.0, 1.0 - r)
             refl = np.zeros(len(p), np.int32)
         return new_d, w, refl
+
+
+def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
+    """Ray parameter of the crossing with an aspheric profile near t0 (n,), by Newton on
+    f(t) = z(t) − sag(r(t)); inf where it does not converge (treated as a fake hit)."""
+    t = np.where(np.isfinite(t0), t0, 0.0).astype(np.float64)
+    ok = np.isfinite(t0)
+    for _ in range(steps):
+        p = o + t[:, None] * d
+        r2 = p[:, 0] ** 2 + p[:, 1] ** 2
+        f = p[:, 2] - prof.sag(r2)
+        df = d[:, 2] - prof.slope(r2) * (p[:, 0] * d[:, 0] + p[:, 1] * d[:, 1])
+        good = np.isfinite(f) & np.isfinite(df) & (np.abs(df) > 1e-12)
+        step = np.where(good, f / np.where(good, df, 1.0), 0.0)
+        ok &= good
+        t = t - step
+        if np.all(np.abs(step[ok]) < tol):
+            break
+    p = o + t[:, None] * d
+    resid = np.abs(p[:, 2] - prof.sag(p[:, 0] ** 2 + p[:, 1] ** 2))
+    return np.where(ok & np.isfinite(resid) & (resid < 1e-9), t, np.inf)
 
 
 __all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR"]

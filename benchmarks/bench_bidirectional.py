@@ -1,0 +1,120 @@
+"""Bidirectional vs forward on the seed paper's case 1, and the neighbour search's scaling.
+
+Figures printed:
+1. Case 1 (50 µm diaphragm edge, Lambertian 10 %), reference design, 600 × 600 pixels:
+   wall time for each method to reach 5 % relative error on the total stray flux, and
+   their ratio. Each method runs passes for a time budget; if it has not reached 5 % its
+   time is extrapolated from its measured error (rel. error ∝ 1/√time, passes being
+   independent). Both on one core, same machine, same run.
+2. Photon gather: time to gather M photons into H hit points (cKDTree pairs), showing
+   near-linear scaling in M.
+
+`python benchmarks/bench_bidirectional.py [budget_seconds]` (default 60 s per method).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DESIGN = ROOT / "examples" / "double-gauss-360"
+TARGET = 0.05
+
+
+def _case1_scene():
+    from lensmount.cad import regenerate
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.design.folder import load_design
+    from lensmount.design.scene import scene_from_dict
+    from lensmount.scene.build import build_scene
+
+    out = Path(tempfile.gettempdir()) / "lensmount-bench-geometry"
+    manifest = regenerate(DESIGN, out)
+    mesh = TaggedMesh.load(out / manifest.mesh)
+    path = DESIGN / "scenes" / "case1-diaphragm-edge.toml"
+    spec = scene_from_dict(tomllib.loads(path.read_text()), base_dir=str(path.parent))
+    return build_scene(load_design(DESIGN).prescription, mesh, spec)
+
+
+def _time_to_target(run_pass, budget_s: float, min_passes: int = 4):
+    """Run passes until 5 % or the budget; return (time to 5 % (measured or extrapolated), passes, rel, measured?)."""
+    flux = []
+    start = time.perf_counter()
+    while True:
+        flux.append(run_pass(len(flux)))
+        elapsed = time.perf_counter() - start
+        rel = math.inf
+        if len(flux) >= 2 and np.mean(flux) > 0:
+            rel = np.std(flux, ddof=1) / math.sqrt(len(flux)) / np.mean(flux)
+        if len(flux) >= min_passes and rel <= TARGET:
+            return elapsed, len(flux), rel, True
+        if elapsed >= budget_s and len(flux) >= 2:
+            if not math.isfinite(rel):
+                return math.inf, len(flux), rel, False
+            return elapsed * (rel / TARGET) ** 2, len(flux), rel, False
+
+
+def bench_case1(budget_s: float) -> None:
+    from lensmount.integrators.bidirectional import bidirectional_pass
+    from lensmount.integrators.forward import forward_pass
+    from lensmount.integrators.radius import radius_scale
+    from lensmount.trace.tracer import Tracer
+
+    t0 = time.perf_counter()
+    scene = _case1_scene()
+    tracer = Tracer(scene)
+    print(f"case 1 scene: {len(scene.mesh.triangles)} triangles, {scene.detector.nx}×{scene.detector.ny} px "
+          f"(setup {time.perf_counter() - t0:.1f} s)")
+    photons = 200_000
+    bi = _time_to_target(lambda i: bidirectional_pass(scene, tracer, photons, 1, i, radius_scale(i)).flux, budget_s)
+    fw = _time_to_target(lambda i: forward_pass(scene, tracer, 1_000_000, 1, i).flux, budget_s)
+    for name, (t, n, rel, measured) in (("bidirectional", bi), ("forward", fw)):
+        how = "measured" if measured else f"extrapolated from {100 * rel:.1f} % after {n} passes"
+        print(f"  {name:13s}: time to {100 * TARGET:.0f} % rel. error = {t:9.1f} s ({how}; {n} passes)")
+    if math.isfinite(bi[0]) and bi[0] > 0:
+        ratio = fw[0] / bi[0]
+        print(f"  forward / bidirectional time ratio = {ratio:.1f}" if math.isfinite(ratio)
+              else "  forward / bidirectional time ratio = inf (forward put no photon on the detector)")
+
+
+def bench_gather() -> None:
+    from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
+
+    class Lambert:
+        def eval(self, wi, wo, n):
+            return np.full(len(wi), 0.1 / math.pi)
+
+    rng = np.random.default_rng(0)
+    h = 100_000
+    pos = np.column_stack([rng.uniform(0, 100, (h, 2)), np.zeros(h)])
+    nz = np.tile([0, 0, 1.0], (h, 1))
+    hits = HitPoints(pos, nz, nz.copy(), np.ones(h), np.arange(h), np.zeros(h, np.int32), np.zeros(h, np.int32),
+                     np.full(h, 0.3))
+    t0 = time.perf_counter()
+    g = Gatherer(hits, [Lambert()])
+    print(f"gather: {h} hit points indexed in {time.perf_counter() - t0:.3f} s")
+    for m in (10_000, 100_000, 1_000_000):
+        p = np.column_stack([rng.uniform(0, 100, (m, 2)), np.zeros(m)])
+        photons = PhotonHits(p, np.tile([0, 0, -1.0], (m, 1)), np.tile([0, 0, 1.0], (m, 1)), np.ones(m),
+                             np.zeros(m, np.int32), np.zeros(m, np.int32))
+        t0 = time.perf_counter()
+        g.gather(photons)
+        dt = time.perf_counter() - t0
+        print(f"  {m:>9,} photons: {dt:7.3f} s  ({1e6 * dt / m:.2f} µs/photon, {g.pairs_tested:,} pairs so far)")
+
+
+def main() -> None:
+    budget = float(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].replace(".", "").isdigit() else 60.0
+    bench_gather()
+    bench_case1(budget)
+
+
+if __name__ == "__main__":
+    main()
