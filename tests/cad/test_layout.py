@@ -129,3 +129,17 @@ def test_housing_leaves_the_detector_free(reference_layout):
     assert h.z_back_wall > layout.prescription.image_z
     barrel = layout.part("barrel").template
     assert h.z_front == pytest.approx(barrel.bore[-1][1])  # it starts where the barrel ends
+
+
+def test_cooke_housing_is_closed_against_the_narrow_barrel(examples_dir):
+    from lensmount.cad.checks import check_layout
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import load_mount
+
+    spec = load_mount(examples_dir / "cooke-triplet" / "mount.toml")
+    layout = plan(load_lens(examples_dir / "cooke-triplet" / "lens.toml"), spec)
+    check_layout(layout, spec, {q.name: q.template.segments() for q in layout.parts})
+    barrel, housing, hood = (layout.part(n).template for n in ("barrel", "housing", "hood"))
+    assert housing.inner_radius > barrel.outer_radius  # the detector is wider than the lens
+    assert housing.flange_radius is not None and housing.flange_radius < barrel.outer_radius
+    assert hood.flange_radius is not None and hood.flange_radius < barrel.outer_radius

@@ -89,3 +89,24 @@ def test_diaphragm_edge_land_width():
     np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), 16.3, atol=1e-7)
     assert v[:, 2].max() - v[:, 2].min() == pytest.approx(0.05, abs=1e-9)
     assert 0.5 * (v[:, 2].max() + v[:, 2].min()) == pytest.approx(150.0, abs=1e-9)
+
+
+def test_asphere_spline_face_follows_the_sag():
+    """Conic + even-asphere faces are splines through sag samples: volume and mesh on the surface."""
+    from lensmount.optics.profiles import Profile
+
+    front = OpticalFace(0, 0.0, 1 / 40.0, -0.6, (2e-6,))
+    back = OpticalFace(1, 9.0, -1 / 120.0)
+    a = 15.0
+    el = LensElement(front, back, a)
+    solid = el.build()
+    assert solid.is_valid
+    r = np.linspace(0.0, a, 200001)
+    thickness = back.z(r) - front.z(r)
+    assert solid.volume == pytest.approx(np.trapezoid(2 * np.pi * r * thickness, r), rel=1e-5)
+    roles = face_roles(solid, el.segments())
+    mesh = tessellate_part(solid, "asph", "lens", "ground-glass", roles, 0.02, 5.0)
+    k = [i for i, t in enumerate(mesh.tag_table) if t.role == "optical" and t.surface == 0]
+    v = mesh.vertices[np.unique(mesh.triangles[np.isin(mesh.tags, k)])]
+    sag = Profile(1 / 40.0, -0.6, (2e-6,)).sag(v[:, 0] ** 2 + v[:, 1] ** 2)
+    assert np.abs(v[:, 2] - sag).max() < 1e-4  # the tracer refines hits analytically anyway

@@ -90,10 +90,12 @@ def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_f
     return hood_part, vane_parts
 
 
-def housing(spec: MountSpec, env, image_z: float, z_back: float):
+def housing(spec: MountSpec, env, image_z: float, z_back: float, r_barrel: float, bore_back: float,
+            notes: list[str]):
     """The detector housing PartPlan (None when disabled): from the barrel's back face
     (z_back) to `back_gap_mm` behind the image plane, its bore clear of the detector's
-    corners and of the beam."""
+    corners and of the beam; a front flange closes it against a narrower barrel
+    (r_barrel outside, bore_back bore at the back face)."""
     from lensmount.cad.layout import PartPlan
 
     hs = spec.housing
@@ -105,8 +107,15 @@ def housing(spec: MountSpec, env, image_z: float, z_back: float):
         raise GeometryError("the housing would end before the barrel does", field="housing.back_gap_mm",
                             valid="a larger back gap")
     r_h = max(half_diag + hs.detector_clearance_mm, env.max_over(z_back, image_z) + spec.vanes.aperture_margin_mm)
+    flange, min_t = None, spec.checks.min_thickness_mm
+    if r_h >= r_barrel - min_t:
+        rf = max(bore_back, env.max_over(z_back, z_back + hs.wall_mm) + spec.vanes.aperture_margin_mm)
+        if rf < r_barrel - min_t:
+            flange = float(rf)
+        else:
+            notes.append("housing: no room for a front flange between the beam and the barrel's outside")
     return PartPlan("housing", "housing", spec.finish_of("housing", hs.finish),
-                    Housing(float(z_back), float(z_wall), float(r_h), hs.wall_mm))
+                    Housing(float(z_back), float(z_wall), float(r_h), hs.wall_mm, flange))
 
 
 __all__ = ["hood_and_vanes", "housing"]

@@ -185,7 +185,9 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     """Place every part. Raises GeometryError for a mount that cannot be built."""
     from lensmount.optics.apertures import with_clear_semi_diameters
 
-    p = with_clear_semi_diameters(prescription)
+    p = prescription
+    if any(s.clear_semi_diameter is None for s in p.surfaces):
+        p = with_clear_semi_diameters(p)
     surf, zv = p.surfaces, p.vertex_z
     clear = [float(s.clear_semi_diameter) for s in surf]
     edge = spec.lens_edge
@@ -364,8 +366,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     if not stop_placed:
         raise GeometryError(
             f"the stop (surface {stop + 1}) does not lie in an air gap between two lens groups; "
-            "the built-in diaphragm template needs one", field=f"surface[{stop + 1}]",
-            valid="a stop between two lens groups, or a user template for the diaphragm")
+            "the mount layout needs one", field=f"surface[{stop + 1}]",
+            valid="a stop between two lens groups (a stop in front of or behind the lens is not supported yet)")
 
     # ---- rear seat ----------------------------------------------------------------------
     gl = len(groups) - 1
@@ -398,7 +400,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     from lensmount.cad.baffles import hood_and_vanes, housing
 
     hood_part, vane_parts = hood_and_vanes(spec, env, z_front, r_barrel, bore_pts[0][0], spacers, notes)
-    housing_part = housing(spec, env, p.image_z, z_back)
+    housing_part = housing(spec, env, p.image_z, z_back, r_barrel, bore_pts[-1][0], notes)
 
     ordered = [parts[0]] + [pp for grp in lens_parts for pp in grp] + retainers + spacers + parts[1:]
     if hood_part:

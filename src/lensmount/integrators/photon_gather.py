@@ -97,8 +97,9 @@ class Gatherer:
         point's (other side of a sheet, another facet under a shared tag) are not gathered
     """
 
-    def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = 30.0):
+    def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = 30.0, chunk: int = 100_000):
         self.hits = hits
+        self.chunk = int(chunk)
         self.bsdf_of_tag = bsdf_of_tag
         self.cos_max = math.cos(math.radians(max_normal_deg))
         self.radiance = np.zeros(len(hits))  # Σ f Φ / (π r²) per hit point, units E_sun/sr
@@ -120,33 +121,38 @@ class Gatherer:
         """Deposit one bounce of photons into the hit points within their radius on the same face."""
         if len(self.hits) == 0 or len(photons.flux) == 0:
             return
-        h = self.hits
         for tag in np.intersect1d(np.unique(photons.tag), np.fromiter(self.groups, dtype=np.int64)):
             bsdf = self.bsdf_of_tag[int(tag)] if int(tag) < len(self.bsdf_of_tag) else None
             if bsdf is None:
                 continue
-            pidx = np.flatnonzero(photons.tag == tag)
-            ptree = cKDTree(photons.position[pidx])
-            for hidx, htree, rmax in self.groups[int(tag)]:
-                pairs = htree.sparse_distance_matrix(ptree, rmax, output_type="ndarray")
-                if len(pairs) == 0:
-                    continue
-                hi = hidx[pairs["i"]]
-                pj = pidx[pairs["j"]]
-                self.pairs_tested += len(pairs)
-                n_h = h.normal[hi]
-                wi = -photons.direction[pj]
-                keep = ((pairs["v"] < h.radius[hi])
-                        & (h.wavelength[hi] == photons.wavelength[pj])
-                        & (np.einsum("ij,ij->i", n_h, photons.normal[pj]) > self.cos_max)
-                        & (np.einsum("ij,ij->i", n_h, wi) > 0.0))
-                if not keep.any():
-                    continue
-                hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
-                f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
-                f = np.where(np.isfinite(f) & (f > 0), f, 0.0)
-                contrib = f * photons.flux[pj] / h.area[hi]
-                self.radiance += np.bincount(hi, weights=contrib, minlength=len(h))
+            on_face = np.flatnonzero(photons.tag == tag)
+            for start in range(0, len(on_face), self.chunk):
+                self._gather_face(int(tag), bsdf, on_face[start:start + self.chunk], photons)
+
+    def _gather_face(self, tag: int, bsdf, pidx: np.ndarray, photons: PhotonHits) -> None:
+        """Photons pidx (one face, one chunk: chunks bound the memory of the pair arrays)."""
+        h = self.hits
+        ptree = cKDTree(photons.position[pidx])
+        for hidx, htree, rmax in self.groups[tag]:
+            pairs = htree.sparse_distance_matrix(ptree, rmax, output_type="ndarray")
+            if len(pairs) == 0:
+                continue
+            hi = hidx[pairs["i"]]
+            pj = pidx[pairs["j"]]
+            self.pairs_tested += len(pairs)
+            n_h = h.normal[hi]
+            wi = -photons.direction[pj]
+            keep = ((pairs["v"] < h.radius[hi])
+                    & (h.wavelength[hi] == photons.wavelength[pj])
+                    & (np.einsum("ij,ij->i", n_h, photons.normal[pj]) > self.cos_max)
+                    & (np.einsum("ij,ij->i", n_h, wi) > 0.0))
+            if not keep.any():
+                continue
+            hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
+            f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
+            f = np.where(np.isfinite(f) & (f > 0), f, 0.0)
+            contrib = f * photons.flux[pj] / h.area[hi]
+            self.radiance += np.bincount(hi, weights=contrib, minlength=len(h))
 
     def image(self, shape: tuple[int, int], part_of_tag: np.ndarray, n_parts: int):
         """(ny, nx) image and (P, ny, nx) per-part images of Σ τ L_o per pixel."""
