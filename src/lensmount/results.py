@@ -113,6 +113,12 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, fill=False, ec="cyan", lw=1, label="field of view"))
     if field_radius_mm or field_half_size_mm:
         ax.legend(loc="upper right", fontsize=7)
+        # Show the whole outline even where the field is larger than the detector.
+        reach = max(field_radius_mm or 0.0, *(field_half_size_mm or (0.0,)))
+        x0, x1, y0, y1 = extent_mm
+        ax.set_xlim(min(x0, -1.02 * reach), max(x1, 1.02 * reach))
+        ax.set_ylim(min(y0, -1.02 * reach), max(y1, 1.02 * reach))
+        ax.set_facecolor("0.85")
     ax.set_xlabel("x on detector (mm)")
     ax.set_ylabel("y on detector (mm)")
     ax.set_title(title or "stray irradiance", fontsize=9)

@@ -126,7 +126,8 @@ def double_gauss_case(case: int = 1, *, off_axis_deg=7.0, pixels=(60, 60), edge_
                  entrance_pupil_area_mm2=math.pi * 25.715**2)
 
 
-def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0, ghosts=False):
+def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0, ghosts=False, direct=False,
+                   coating="perfect-ar"):
     """A 100 mm f/4 singlet in a barrel whose inside scatters with `bsdf`: forward converges fast here."""
     h = 12.5
     lens = Prescription((Surface(51.68, 6.0, "N-BK7", is_stop=True, clear_semi_diameter=h, mechanical_semi_diameter=h),
@@ -142,8 +143,8 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
              for t in mesh.tag_table]
     d = source_direction(off_axis_deg, 90.0)
     disc = EmissionDisc(tuple(float(x) for x in np.array([0.0, 0.0, -30.0]) - 500.0 * d), h + 4.0 + 500 * 0.005)
-    coating = parse_coating("perfect-ar")
+    coating = parse_coating(coating)
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc),
                  detector=Detector(detector_mm, detector_mm, *pixels, z_img), wavelengths_um=wl,
-                 effects=Effects(True, ghosts, False), entrance_pupil_area_mm2=math.pi * h * h)
+                 effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h)

@@ -79,3 +79,17 @@ def test_no_hit_points_and_no_photons_are_harmless():
     g.gather(_photons(np.zeros((3, 3)), [0, 0, -1.0], [0, 0, 1.0], 1.0, 0))
     img, parts = g.image((2, 2), np.array([0]), 1)
     assert img.shape == (2, 2) and not img.any() and parts.shape == (1, 2, 2)
+
+
+def test_chunked_gather_equals_one_chunk():
+    rng = np.random.default_rng(8)
+    m = 5000
+    pos = np.column_stack([rng.uniform(-5, 5, (m, 2)), np.zeros(m)])
+    photons = _photons(pos, [0, 0, -1.0], [0, 0, 1.0], 0.01, 0)
+    hits = _hits(np.column_stack([rng.uniform(-4, 4, (50, 2)), np.zeros(50)]), np.tile([0, 0, 1.0], (50, 1)),
+                 [0] * 50, rng.uniform(0.1, 1.0, 50))
+    whole, parts = Gatherer(hits, [Lambert(0.5)]), Gatherer(hits, [Lambert(0.5)], chunk=333)
+    whole.gather(photons)
+    parts.gather(photons)
+    np.testing.assert_allclose(parts.radiance, whole.radiance, rtol=1e-12)
+    assert whole.radiance.sum() > 0

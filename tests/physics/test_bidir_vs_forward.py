@@ -67,3 +67,21 @@ def test_relative_error_is_the_same_at_1_and_10_percent_tis():
         m, s = _flux(scene, Tracer(scene), "bidirectional", 8, 20_000, samples_per_pixel=32)
         rel.append(s / m)
     assert rel[0] == pytest.approx(rel[1], rel=0.25), rel
+
+
+def test_direct_and_ghost_channels_match_forward():
+    """Sun inside the field, uncoated glass, ghosts and direct on: the unscattered light is
+    counted by the photons in the forward estimator's channels, the scatter by the gather."""
+    scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.1), off_axis_deg=3.0, ghosts=True, direct=True,
+                           coating="uncoated")
+    tracer = Tracer(scene)
+    bi = [bidirectional_pass(scene, tracer, 50_000, 1, i, 1.0, samples_per_pixel=32) for i in range(6)]
+    fw = [forward_pass(scene, tracer, 50_000, 2, i) for i in range(6)]
+    assert bi[0].part_names == fw[0].part_names
+    for channel in ("direct", "ghosts", "barrel"):
+        k = fw[0].part_names.index(channel)
+        b = np.array([e.part_flux[k] for e in bi])
+        f = np.array([e.part_flux[k] for e in fw])
+        assert f.mean() > 0, channel
+        se = math.hypot(b.std(ddof=1), f.std(ddof=1)) / math.sqrt(6)
+        assert abs(b.mean() - f.mean()) <= 3 * se + 1e-9 * f.mean(), (channel, b.mean(), f.mean(), se)

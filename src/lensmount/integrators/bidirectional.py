@@ -41,7 +41,8 @@ from lensmount.trace.sampler import stream
 GLOSSY_THRESHOLD_DEG = 15.0  # lobes narrower than this (HWHM) are followed by photons, not gathered
 MAX_BOUNCES = 64
 RR_LEVEL = 1e-3  # Russian roulette starts when throughput < RR_LEVEL · initial flux
-NO_SCATTER = "no-scatter"  # the channel of direct / ghost light (no scattering vertex)
+# Channels of light with no scattering vertex, named as the forward estimator names them.
+DIRECT, GHOSTS = "direct", "ghosts"
 
 _CACHE: dict[int, tuple] = {}
 
@@ -73,8 +74,10 @@ def _scene_tables(scene):
 
 
 def part_names(scene) -> list[str]:
-    """The per-part channels a pass reports: the mesh's parts, then `no-scatter`."""
-    return list(scene.mesh.parts) + [NO_SCATTER]
+    """The per-part channels a pass reports: the mesh's parts, then `direct` (when the scene
+    has direct on) and `ghosts` (when it has ghosts on) — the forward estimator's channels."""
+    return (list(scene.mesh.parts) + ([DIRECT] if _effect(scene, "direct") else [])
+            + ([GHOSTS] if _effect(scene, "ghosts") else []))
 
 
 def _effect(scene, name: str) -> bool:
@@ -95,8 +98,9 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
     """One complete, independent pass. Returns the pass's image (ny, nx) of E/E_sun."""
     det = detector_geometry(scene)
     half_widths, boundaries, part_of_tag, parts = _scene_tables(scene)
-    names = parts + [NO_SCATTER]
+    names = part_names(scene)
     n_parts = len(names)
+    direct_on, ghosts_on = _effect(scene, "direct"), _effect(scene, "ghosts")
     shape = (det.ny, det.nx)
     n_pix = det.nx * det.ny
     broad, scatters = classify(scene.bsdf_of_tag, glossy_threshold_deg)
@@ -111,11 +115,10 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
     # Phase 2: photons.
     rng = stream(seed, "photons", pass_index)
     rays, flux0 = _emit(scene, n_photons, rng)
-    count_unscattered = _effect(scene, "direct") or _effect(scene, "ghosts")
     splat = np.zeros(n_parts * n_pix)  # Σ Φ for photons counted by the last-vertex rule
-    last_part = np.full(len(rays), n_parts - 1, np.int64)  # NO_SCATTER until a scatter happens
+    last_part = np.full(len(rays), -1, np.int64)  # -1 until a scatter happens
+    reflections = np.zeros(len(rays), np.int64)  # Fresnel reflections so far (ghost paths)
     last_broad = np.zeros(len(rays), bool)
-    scattered = np.zeros(len(rays), bool)
     lost = 0.0
     for _bounce in range(max_bounces):
         if len(rays) == 0:
@@ -125,11 +128,19 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
             lost += float(np.sum(rays.weight[step.lost & rays.alive]))
         # Photons at the detector: counted here only if their last vertex was narrow/specular.
         at_det = step.kind == DETECTOR
-        count = at_det & ~last_broad & (scattered | count_unscattered)
+        if step.reflections is not None:
+            reflections = reflections + step.reflections
+        # Unscattered light: a ghost channel if it reflected at glass (ghosts on), else direct.
+        channel = last_part.copy()
+        if direct_on:
+            channel = np.where(channel < 0, len(parts), channel)
+        if ghosts_on:
+            channel = np.where((last_part < 0) & (reflections > 0), n_parts - 1, channel)
+        count = at_det & ~last_broad & (channel >= 0)
         if count.any():
             pix = det.pixel_of(step.position[count])
             inside = pix >= 0
-            idx = last_part[count][inside] * n_pix + pix[inside]
+            idx = channel[count][inside] * n_pix + pix[inside]
             value = step.weight[count][inside] * spectral[step.wavelength[count][inside]]
             splat += np.bincount(idx, weights=value, minlength=n_parts * n_pix)
         # Photons at scattering faces: deposit, then scatter.
@@ -151,7 +162,7 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
         f, wo, weight = f[keep], wo[keep], weight[keep]
         last_part = part_of_tag[tag[f]].astype(np.int64)
         last_broad = broad[tag[f]]
-        scattered = np.ones(len(f), bool)
+        reflections = reflections[f]
         rays = RayBatch(origin=step.position[f].copy(), direction=wo, weight=weight, wavelength=step.wavelength[f].copy(),
                         alive=np.ones(len(f), bool), id=step.id[f].copy())
     else:  # bounce limit: what is still travelling is the ledger's lost flux

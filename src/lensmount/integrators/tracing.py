@@ -30,6 +30,7 @@ class Step:
     weight : (N,) throughput after the optics (Fresnel branch choice, absorption)
     wavelength, id : (N,) carried through
     lost : (N,) bool, ended by a numerical guard of the tracer (weight = lost flux)
+    reflections : (N,) Fresnel (ghost) reflections during this step, or None
     """
 
     kind: np.ndarray
@@ -41,6 +42,7 @@ class Step:
     wavelength: np.ndarray
     id: np.ndarray
     lost: np.ndarray | None = None
+    reflections: np.ndarray | None = None
 
 
 def next_step(tracer, rays: RayBatch, rng: np.random.Generator) -> Step:
@@ -55,7 +57,7 @@ def from_events(ev, rays: RayBatch) -> Step:
     """`trace.tracer.Events` → Step (the tracer uses the same kind codes)."""
     return Step(kind=np.asarray(ev.kind, np.int8), position=ev.position, direction=ev.direction, normal=ev.normal,
                 tag=np.asarray(ev.tag, np.int32), weight=ev.weight, wavelength=np.asarray(ev.wavelength, np.int32),
-                id=ev.id, lost=getattr(ev, "lost", None))
+                id=ev.id, lost=getattr(ev, "lost", None), reflections=getattr(ev, "reflections", None))
 
 
 @dataclass(frozen=True)
