@@ -16,26 +16,18 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
+from lensmount.atomic import atomic_path
 
 
-def _atomic(path: Path, write) -> None:
-    """Call write(tmp_path) then rename tmp onto path."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix + ".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def _atomic(path, write) -> None:
+    """Call write(tmp) then rename tmp onto path (lensmount.atomic)."""
+    with atomic_path(path) as tmp:
+        write(str(tmp))
 
 
 def channel_name(part: str) -> str:

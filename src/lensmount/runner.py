@@ -16,7 +16,6 @@ Stopping rules (any that is given; at least one pass always runs):
 from __future__ import annotations
 
 import importlib
-import math
 import os
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait

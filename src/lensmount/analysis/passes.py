@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import PassEstimate
 
 _STATE_VERSION = 1
@@ -170,7 +170,6 @@ class Accumulator:
     def save(self, path: str | os.PathLike, **meta) -> None:
         """Write the state to an .npz atomically; `meta` (seed, input_hash, method, ...) goes along."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         arrays = dict(
             version=np.int64(_STATE_VERSION), n=np.int64(self.n), photons=np.int64(self.photons),
             lost_flux=np.float64(self.lost_flux), last_pass=np.int64(self.last_pass),
@@ -181,15 +180,7 @@ class Accumulator:
         )
         for key, value in meta.items():
             arrays[f"meta_{key}"] = np.array(value)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        write_npz(path, **arrays)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> tuple["Accumulator", dict]:

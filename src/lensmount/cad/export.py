@@ -8,9 +8,9 @@ temporary name in the target folder and renamed.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
+
+from lensmount.atomic import atomic_path
 
 STEP_TIMESTAMP = "2000-01-01T00:00:00"
 
@@ -33,18 +33,9 @@ def colour_of(kind: str, finish: str) -> tuple[float, float, float]:
 def _atomic_step(shape, path: Path) -> None:
     from build123d import export_step
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".step.tmp")
-    os.close(fd)
-    try:
-        if not export_step(shape, tmp, timestamp=STEP_TIMESTAMP):
+    with atomic_path(path) as tmp:
+        if not export_step(shape, str(tmp), timestamp=STEP_TIMESTAMP):
             raise OSError(f"STEP writer failed for {path}")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _labelled(solid, name: str, kind: str, finish: str):

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
-
 import numpy as np
+
+from lensmount.atomic import write_npz
 
 ROLES = ("optical", "lens-edge", "bevel", "mount", "diaphragm-edge", "vane-edge", "object")
 KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "object")
@@ -91,18 +90,8 @@ class TaggedMesh:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write atomically (temp file + rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(fh, vertices=self.vertices, triangles=self.triangles, tags=self.tags,
-                                    tag_table=np.array(json.dumps([asdict(t) for t in self.tag_table])))
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        write_npz(path, compressed=True, vertices=self.vertices, triangles=self.triangles, tags=self.tags,
+                  tag_table=np.array(json.dumps([asdict(t) for t in self.tag_table])))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "TaggedMesh":

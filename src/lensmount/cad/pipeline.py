@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import lensmount
+from lensmount.atomic import write_text
 from lensmount.cad import cache
 from lensmount.errors import InputError
 
@@ -73,18 +72,6 @@ class Manifest:
         raise KeyError(name)
 
 
-def _write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _previous(out: Path) -> Manifest | None:
@@ -162,11 +149,10 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
             old.unlink()
     write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], out / ASSEMBLY)
     mesh.save(out / MESH)
-    os.chmod(out / MESH, 0o644)
     if progress:
         progress("export", len(parts) + 2, len(parts) + 2)
     manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(), notes=list(layout.notes))
-    _write_text(out / MANIFEST, manifest.to_json())
+    write_text(out / MANIFEST, manifest.to_json())
     cache.store(out, key, [ASSEMBLY, MESH, MANIFEST] + [e.step for e in entries])
     return manifest
 

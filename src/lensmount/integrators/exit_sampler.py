@@ -75,7 +75,6 @@ def sample_toward_exit(x: np.ndarray, u: np.ndarray, targets, weights=0.9):
     """
     targets, weights = _as_lists(targets, weights)
     x = np.asarray(x, dtype=np.float64)
-    n = len(x)
     if any(c < 0 for c in weights) or sum(weights) > 1.0 + 1e-12:
         raise ValueError(f"mixture weights must be ≥ 0 with sum ≤ 1, got {weights}")
     facing = targets[0].facing

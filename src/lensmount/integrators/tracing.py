@@ -8,7 +8,6 @@ into that `Step`, so a change in the tracer's event record touches one file.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -32,14 +32,13 @@ Staged like the Zemax reader: TOML text -> pydantic model (`LensFile`) -> Prescr
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from lensmount.atomic import write_text
 from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
@@ -330,15 +329,7 @@ def write_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, he
     """Write lens.toml atomically (temp file in the same folder, then rename)."""
     path = Path(path)
     text = format_lens_toml(prescription, margin_mm, header)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text(path, text)
     return path
 
 
