@@ -125,6 +125,31 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         plt.close(fig)
 
 
+def display_binning(mean: np.ndarray, std_error: np.ndarray, target_rel_error: float = 0.25,
+                    max_bin: int = 60) -> tuple[int, np.ndarray]:
+    """The smallest square bin b (dividing both image sides) whose lit bins reach the target error.
+
+    A short run leaves isolated lit pixels (each pixel's own error is ~100 %); the
+    preview then shows b×b-pixel means so the distribution can be read. Bins are
+    treated as sums of independent pixels (photon sharing makes that optimistic,
+    which only errs toward finer bins). The EXR always keeps full resolution.
+    Returns (b, (ny/b, nx/b) binned mean).
+    """
+    ny, nx = mean.shape
+    sizes = [b for b in range(1, min(max_bin, ny, nx) + 1) if ny % b == 0 and nx % b == 0]
+    binned = mean
+    for b in sizes:
+        total = mean.reshape(ny // b, b, nx // b, b).sum(axis=(1, 3))
+        var = (std_error**2).reshape(ny // b, b, nx // b, b).sum(axis=(1, 3))
+        lit = total > 0
+        binned = total / (b * b)
+        if not lit.any():
+            return 1, mean
+        if float(np.median(np.sqrt(var[lit]) / total[lit])) <= target_rel_error:
+            return b, binned
+    return sizes[-1], binned
+
+
 def write_summary(path: str | os.PathLike, summary: dict) -> None:
     """JSON with sorted keys, refusing NaN/Inf (a bug upstream, never silently written)."""
     text = json.dumps(summary, indent=2, sort_keys=True, allow_nan=False)
@@ -148,9 +173,12 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
     paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json"}
     write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names)
     title = f"{summary.get('method', '')} · {summary.get('passes', accumulator.n)} passes"
-    write_preview(paths["png"], accumulator.mean_image, extent_mm, field_radius_mm, field_half_size_mm, title)
+    b, shown = display_binning(accumulator.mean_image, accumulator.std_error_image)
+    if b > 1:
+        title += f" · shown as {b}×{b}-pixel means (EXR: full {nx}×{ny})"
+    write_preview(paths["png"], shown, extent_mm, field_radius_mm, field_half_size_mm, title)
     write_summary(paths["json"], summary)
     return paths
 
 
-__all__ = ["write_run", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]
+__all__ = ["write_run", "display_binning", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]

@@ -50,3 +50,25 @@ def test_preview_of_an_all_zero_image(tmp_path):
     paths = write_run(tmp_path, acc, {"method": "forward"})
     assert paths["png"].stat().st_size > 0
     assert set(read_exr(paths["exr"])) == {"Y"}
+
+
+def test_display_binning_keeps_a_converged_image_and_coarsens_a_speckled_one():
+    from lensmount.results import display_binning
+
+    rng = np.random.default_rng(3)
+    smooth = np.full((60, 60), 2.0)
+    b, shown = display_binning(smooth, 0.01 * smooth)
+    assert b == 1 and np.array_equal(shown, smooth)
+    # 5 % of pixels lit, each with 100 % error: bins must hold ~16+ lit pixels for 25 %.
+    speckle = np.where(rng.random((60, 60)) < 0.05, 1.0, 0.0)
+    b, shown = display_binning(speckle, speckle.copy())
+    assert b >= 10 and 60 % b == 0
+    assert shown.shape == (60 // b, 60 // b)
+    assert np.isclose(shown.mean(), speckle.mean())  # binning preserves the mean irradiance
+
+
+def test_display_binning_of_a_dark_image_is_the_image():
+    from lensmount.results import display_binning
+
+    dark = np.zeros((6, 4))
+    assert display_binning(dark, dark)[0] == 1

@@ -189,13 +189,51 @@ def _simulate(design, scene, method, seed, out, photons, time_s, target_rel_erro
     paths = write_run(out, acc, summary_now(runner.elapsed),
                       extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
                       field_radius_mm=field_r)
-    rel = acc.rel_error()
-    typer.echo(f"{method}: {acc.n} passes, {acc.photons:,} photons, stray fraction "
-               f"{summary_now(runner.elapsed)['stray_fraction']:.4g}"
-               + (f" ± {100 * rel:.1f} %" if math.isfinite(rel) else "") + f" → {paths['json'].parent}")
+    print_summary(summary_now(runner.elapsed), paths)
     if runner.interrupted:
         typer.echo("interrupted: results and checkpoint written; continue with --resume", err=True)
         raise typer.Exit(code=130)
+
+
+def print_summary(summary: dict, paths: dict) -> None:
+    """The figures an engineer reads first: the stray level with its error bar, then who carries it."""
+    from rich.console import Console
+    from rich.table import Table
+
+    def pm(value, error):
+        return f"{value:.4g} ± {error:.2g}" if error is not None else f"{value:.4g}"
+
+    console = Console()
+    table = Table(title=f"{summary['method']} · {summary['passes']} passes · {summary['photons']:,} photons "
+                        f"· {summary['time_s']:.1f} s", title_justify="left", show_header=False)
+    table.add_column(style="bold")
+    table.add_column(justify="right")
+    table.add_row("stray fraction", pm(summary["stray_fraction"], summary.get("stray_fraction_std_error")))
+    rel = summary.get("stray_fraction_rel_error")
+    table.add_row("relative error", f"{100 * rel:.2f} %" if rel is not None else "—")
+    drift = summary.get("stray_fraction_drift")
+    if drift is not None:
+        table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} % (z = {summary.get('stray_fraction_drift_z') or 0:.1f})")
+    table.add_row("peak irradiance / E_sun", f"{summary['peak_irradiance']:.4g}")
+    table.add_row("effects", ", ".join(summary["effects"]) + (f" (skipped: {', '.join(summary['effects_skipped'])})"
+                                                               if summary["effects_skipped"] else ""))
+    if summary.get("lost_flux"):
+        table.add_row("lost flux (mm²)", f"{summary['lost_flux']:.3g}")
+    console.print(table)
+    parts = sorted(((v["fraction"], name, v["std_error"]) for name, v in summary["per_part"].items()
+                    if v["fraction"] > 0), reverse=True)
+    if parts:
+        by_part = Table(title="stray fraction by part (last scattering surface)", title_justify="left")
+        by_part.add_column("part")
+        by_part.add_column("fraction", justify="right")
+        by_part.add_column("share", justify="right")
+        total = sum(f for f, _, _ in parts)
+        for fraction, name, error in parts[:10]:
+            by_part.add_row(name, pm(fraction, error), f"{100 * fraction / total:.1f} %")
+        if len(parts) > 10:
+            by_part.add_row(f"… {len(parts) - 10} more", "", "")
+        console.print(by_part)
+    console.print("wrote " + ", ".join(str(p) for p in paths.values()))
 
 
 def _forward_part_names(sc) -> list[str]:
