@@ -1,0 +1,57 @@
+"""summary.json content from an Accumulator: the numbers a user reads first.
+
+Every value is finite or null (unknown, e.g. an error bar from a single pass); the
+writer refuses NaN/Inf, so this module guards each division itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lensmount.analysis.metrics import finite_or_none, stray_fraction
+from lensmount.analysis.passes import Accumulator
+
+
+def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list[str], effects_skipped: list[str],
+                  time_s: float, aperture_flux_mm2: float, input_hash: str, extra: dict | None = None) -> dict:
+    """The summary dict. aperture_flux_mm2: flux entering the entrance pupil per unit E_sun."""
+    flux, se = acc.flux, acc.flux_std_error
+    scale = 1.0 / aperture_flux_mm2 if aperture_flux_mm2 > 0 else 0.0
+    drift = acc.drift()
+    part_flux, part_se = acc.part_flux, acc.part_flux_std_error
+    per_part = {
+        name: {"fraction": finite_or_none(stray_fraction(float(f), aperture_flux_mm2)),
+               "std_error": finite_or_none(float(s) * scale) if np.isfinite(s) else None,
+               "flux_mm2": finite_or_none(float(f))}
+        for name, f, s in zip(acc.part_names, part_flux, part_se)
+    }
+    image = acc.mean_image
+    summary = {
+        "method": method,
+        "seed": int(seed),
+        "effects": list(effects_ran),
+        "effects_skipped": list(effects_skipped),
+        "photons": int(acc.photons),
+        "passes": int(acc.n),
+        "time_s": round(float(time_s), 3),
+        "stray_flux_mm2": finite_or_none(flux),
+        "stray_flux_std_error_mm2": finite_or_none(se),
+        "aperture_flux_mm2": finite_or_none(aperture_flux_mm2),
+        "stray_fraction": finite_or_none(stray_fraction(flux, aperture_flux_mm2)),
+        "stray_fraction_std_error": finite_or_none(se * scale),
+        "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
+        "stray_fraction_drift": finite_or_none(drift.relative),
+        "stray_fraction_drift_z": finite_or_none(drift.z),
+        "mean_irradiance": finite_or_none(float(image.mean()) if image.size else 0.0),
+        "peak_irradiance": finite_or_none(float(image.max()) if image.size else 0.0),
+        "lost_flux": finite_or_none(acc.lost_flux / max(acc.n, 1)),
+        "per_part": per_part,
+        "input_hash": input_hash,
+        "units": {"irradiance": "E/E_sun", "flux": "mm² (flux / E_sun)"},
+    }
+    if extra:
+        summary.update(extra)
+    return summary
+
+
+__all__ = ["build_summary"]

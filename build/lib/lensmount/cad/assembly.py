@@ -1,0 +1,179 @@
+"""Assembly: the planned parts built as solids (built-in or user templates), checked,
+and tessellated into one tagged mesh.
+
+Order of work (each step is one progress tick in `lensmount regenerate`):
+layout → profile checks → solids → checks on user-template parts → tessellation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import lensmount
+from lensmount.cad.checks import check_layout
+from lensmount.cad.layout import Layout, PartPlan, plan
+from lensmount.cad.mesh import TaggedMesh
+from lensmount.cad.tessellate import tessellate_part
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+from lensmount.optics.prescription import Prescription
+from lensmount.templates.profile import face_roles
+from lensmount.templates.user import load_template, to_solid
+
+USER_OVERLAP_TOL_MM3 = 1e-3
+
+
+@dataclass
+class BuiltPart:
+    """A part ready for export: its plan, solid, face roles and content hash."""
+
+    plan: PartPlan
+    solid: object
+    roles: list[tuple[str, int]]
+    user_template: Path | None
+    hash: str
+
+    @property
+    def name(self) -> str:
+        return self.plan.name
+
+
+def part_hash(plan: PartPlan, template_bytes: bytes | None) -> str:
+    """Hash of everything a part's STEP depends on (not its neighbours)."""
+    payload = {"version": lensmount.__version__, "name": plan.name, "kind": plan.kind, "finish": plan.finish,
+               "template": type(plan.template).__name__, "params": plan.template.params()}
+    h = hashlib.sha256(json.dumps(payload, sort_keys=True, default=_json_default).encode())
+    if template_bytes is not None:
+        h.update(template_bytes)
+    return h.hexdigest()
+
+
+def _json_default(x):
+    if isinstance(x, float):
+        return repr(x)
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, tuple):
+        return list(x)
+    raise TypeError(type(x))
+
+
+def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path] | None = None,
+                progress=None) -> list[BuiltPart]:
+    """Solids for every planned part; user templates replace the built-in ones per kind."""
+    template_paths = template_paths or {}
+    makers = {kind: load_template(path, kind) for kind, path in template_paths.items()}
+    out = []
+    for k, pp in enumerate(layout.parts):
+        segs = pp.template.segments()
+        path = template_paths.get(pp.kind)
+        if path is not None:
+            try:
+                result = makers[pp.kind](pp.name, pp.template.params())
+            except Exception as exc:  # the user's code
+                raise GeometryError(f"user template for {pp.name} failed: {exc!r}", file=str(path),
+                                    field=f"templates.{pp.kind}", valid="make_part returning a solid") from None
+            solid = to_solid(result, path, pp.kind)
+            raw = path.read_bytes()
+        else:
+            solid = pp.template.build()
+            raw = None
+        if not solid.is_valid:
+            raise GeometryError(f"{pp.name}: the CAD kernel built an invalid solid", field=pp.kind,
+                                valid="parameters giving a simple closed profile")
+        out.append(BuiltPart(pp, solid, face_roles(solid, segs), path, part_hash(pp, raw)))
+        if progress:
+            progress("solids", k + 1, len(layout.parts))
+    return out
+
+
+def _common(a, b):
+    """The boolean intersection of two solids (OCC), as a build123d shape."""
+    from build123d import Shape
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+
+    op = BRepAlgoAPI_Common(a.wrapped, b.wrapped)
+    op.Build()
+    return Shape.cast(op.Shape())
+
+
+def check_user_parts(parts: list[BuiltPart]) -> None:
+    """3D interference of user-template parts with every other part (OCC boolean common)."""
+    for a in parts:
+        if a.user_template is None:
+            continue
+        ba = a.solid.bounding_box()
+        for b in parts:
+            if b is a or (b.user_template is not None and b.name < a.name):
+                continue
+            bb = b.solid.bounding_box()
+            if (ba.min.X > bb.max.X or bb.min.X > ba.max.X or ba.min.Y > bb.max.Y or bb.min.Y > ba.max.Y
+                    or ba.min.Z > bb.max.Z or bb.min.Z > ba.max.Z):
+                continue
+            common = _common(a.solid, b.solid)
+            vol = float(common.volume)
+            if vol > USER_OVERLAP_TOL_MM3:
+                box = common.bounding_box()
+                depth = min(box.size.X, box.size.Y, box.size.Z)
+                raise GeometryError(f"{a.name} and {b.name} overlap by {depth:.3f} mm ({vol:.3f} mm³)",
+                                    file=str(a.user_template), field=f"templates.{a.plan.kind}",
+                                    valid="a part that stays clear of its neighbours")
+
+
+def check_user_beam(layout: Layout, part: BuiltPart, mesh: TaggedMesh) -> None:
+    """A user-template part's mesh vertices stay out of the beam (exact envelope near it)."""
+    if part.plan.kind in ("lens", "diaphragm"):
+        return
+    v = mesh.vertices
+    r, z = np.hypot(v[:, 0], v[:, 1]), v[:, 2]
+    env = layout.envelope
+    inside_z = (z >= env.z[0]) & (z <= env.z[-1])
+    near = inside_z & (r < env.at(z) + 0.3)
+    if not near.any():
+        return
+    into = env.exact(z[near]) - r[near]
+    k = int(np.argmax(into))
+    if into[k] > 1e-3:
+        raise GeometryError(f"{part.name} enters the beam footprint of the full field by {into[k]:.3f} mm "
+                            f"at z = {z[near][k]:.2f} mm", file=str(part.user_template),
+                            field=f"templates.{part.plan.kind}", valid="a part outside the beam envelope")
+
+
+def tessellate(parts: list[BuiltPart], spec: MountSpec, layout: Layout, progress=None) -> tuple[TaggedMesh, dict]:
+    """One TaggedMesh for the assembly (parts in order) and triangles per part."""
+    tol = spec.tessellation
+    meshes, counts = [], {}
+    for k, bp in enumerate(parts):
+        m = tessellate_part(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, bp.roles,
+                            tol.linear_tolerance_mm, tol.angular_tolerance_deg)
+        if bp.user_template is not None:
+            check_user_beam(layout, bp, m)
+        meshes.append(m)
+        counts[bp.name] = int(len(m.triangles))
+        if progress:
+            progress("tessellation", k + 1, len(parts))
+    return TaggedMesh.concatenate(meshes), counts
+
+
+def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=None, progress=None):
+    """Layout, checks, solids: (Layout, [BuiltPart]). Raises GeometryError on a violation."""
+    if progress:
+        progress("layout", 0, 1)
+    layout = plan(prescription, spec)
+    if progress:
+        progress("layout", 1, 1)
+    check_layout(layout, spec, {p.name: p.template.segments() for p in layout.parts
+                                if p.kind not in (template_paths or {})})
+    if progress:
+        progress("checks", 1, 1)
+    parts = build_parts(layout, spec, template_paths, progress)
+    check_user_parts(parts)
+    return layout, parts
+
+
+__all__ = ["BuiltPart", "build_parts", "build_assembly", "tessellate", "part_hash", "check_user_parts"]

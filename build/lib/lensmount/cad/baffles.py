@@ -1,0 +1,121 @@
+"""The parts around the lens stack: front hood with its vanes, vanes inside long
+spacer tubes, and the rear detector housing.
+
+Vane bores are the real-ray beam envelope (full field, full pupil, every
+wavelength) plus `vanes.aperture_margin_mm`, so a vane can never clip the beam;
+a vane with less than `vanes.min_height_mm` of room above the beam is left out
+and a note says so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+from lensmount.templates.hood import Hood
+from lensmount.templates.housing import Housing
+from lensmount.templates.vane import Vane
+
+HOOD_VANE_ROOM_MM = 4.0  # automatic hood bore: beam + vane margin + this much room for vanes
+
+
+def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_front: float,
+                   spacers: list, notes: list[str]):
+    """(hood PartPlan or None, [vane PartPlan]) for a barrel whose front face is at z_front.
+
+    Args:
+        env: the layout's Envelope.
+        z_front: z of the barrel's front face (the hood's back end), mm.
+        r_barrel: barrel outside radius, mm. bore_front: barrel bore at its front, mm.
+        spacers: the spacer PartPlans (long ones are tubes that hold vanes).
+        notes: list the caller reports; vanes left out are noted here.
+    """
+    from lensmount.cad.layout import PartPlan
+
+    hood, vs, min_t = spec.hood, spec.vanes, spec.checks.min_thickness_mm
+    vanes: list[tuple[float, float, float]] = []  # (z_front, inner, outer)
+    hood_part = None
+    if hood.enabled:
+        z_mouth = z_front - hood.length_mm
+        beam_in_hood = env.max_over(z_mouth, z_front)
+        if hood.inner_diameter_mm is not None:
+            ri = 0.5 * hood.inner_diameter_mm
+        else:
+            ri = beam_in_hood + vs.aperture_margin_mm + HOOD_VANE_ROOM_MM
+        if ri < beam_in_hood:
+            raise GeometryError(f"the hood's bore (radius {ri:.3f} mm) cuts the beam (radius {beam_in_hood:.3f} mm) "
+                                f"by {beam_in_hood - ri:.3f} mm", field="hood.inner_diameter_mm",
+                                valid=f"an inner diameter above {2 * beam_in_hood:.2f} mm")
+        # a flange closes the annulus between a hood wider than the barrel and the barrel's face
+        flange, z_inner_end = None, z_front
+        if ri >= r_barrel - min_t:
+            rf = max(bore_front, env.max_over(z_front - hood.wall_mm, z_front) + vs.aperture_margin_mm)
+            if rf < r_barrel - min_t:
+                flange, z_inner_end = float(rf), z_front - hood.wall_mm
+            else:
+                notes.append("hood: no room for a back flange between the beam and the barrel's outside")
+        hood_part = PartPlan("hood", "hood", spec.finish_of("hood", hood.finish),
+                             Hood(float(z_mouth), float(z_front), float(ri), float(ri + hood.wall_mm),
+                                  flange, hood.wall_mm))
+        if vs.positions_mm is not None:
+            zs = [float(z) for z in vs.positions_mm]
+            for z in zs:
+                if not (z_mouth <= z <= z_inner_end - vs.thickness_mm):
+                    raise GeometryError(f"vane position {z} mm lies outside the hood "
+                                        f"({z_mouth:.2f} .. {z_inner_end - vs.thickness_mm:.2f} mm)",
+                                        field="vanes.positions_mm", valid="z values inside the hood")
+        else:  # evenly from the mouth to the back of the hood
+            span = z_inner_end - z_mouth - vs.thickness_mm
+            zs = [z_mouth + span * k / max(vs.count - 1, 1) for k in range(vs.count)]
+        for z in zs:
+            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, ri))
+    for sp_plan in spacers:
+        sp = sp_plan.template
+        if sp.tube_radius is None or vs.in_air_gaps == 0:
+            continue
+        za, zb = sp.front_z + sp.lip, sp.back_z - sp.lip
+        for k in range(vs.in_air_gaps):
+            z = za + (zb - za) * (k + 1) / (vs.in_air_gaps + 1) - 0.5 * vs.thickness_mm
+            vanes.append((z, env.max_over(z, z + vs.thickness_mm) + vs.aperture_margin_mm, sp.tube_radius))
+    vane_parts = []
+    for z, r_in, r_out in sorted(vanes):
+        if r_out - r_in < max(vs.min_height_mm, 1e-3):
+            notes.append(f"vane at z = {z:.2f} mm left out: only {r_out - r_in:.3f} mm of room above the beam")
+            continue
+        name = f"vane-{len(vane_parts) + 1}"
+        vane_parts.append(PartPlan(name, "vane", spec.finish_of(name, vs.finish),
+                                   Vane(float(z), float(r_in), float(r_out), vs.thickness_mm,
+                                        vs.edge_width_mm, vs.bevel_angle_deg)))
+    return hood_part, vane_parts
+
+
+def housing(spec: MountSpec, env, image_z: float, z_back: float, r_barrel: float, bore_back: float,
+            notes: list[str]):
+    """The detector housing PartPlan (None when disabled): from the barrel's back face
+    (z_back) to `back_gap_mm` behind the image plane, its bore clear of the detector's
+    corners and of the beam; a front flange closes it against a narrower barrel
+    (r_barrel outside, bore_back bore at the back face)."""
+    from lensmount.cad.layout import PartPlan
+
+    hs = spec.housing
+    if not hs.enabled:
+        return None
+    half_diag = 0.5 * float(np.hypot(hs.detector_width_mm, hs.detector_height_mm))
+    z_wall = image_z + hs.back_gap_mm
+    if z_wall <= z_back + spec.checks.min_thickness_mm:
+        raise GeometryError("the housing would end before the barrel does", field="housing.back_gap_mm",
+                            valid="a larger back gap")
+    r_h = max(half_diag + hs.detector_clearance_mm, env.max_over(z_back, image_z) + spec.vanes.aperture_margin_mm)
+    flange, min_t = None, spec.checks.min_thickness_mm
+    if r_h >= r_barrel - min_t:
+        rf = max(bore_back, env.max_over(z_back, z_back + hs.wall_mm) + spec.vanes.aperture_margin_mm)
+        if rf < r_barrel - min_t:
+            flange = float(rf)
+        else:
+            notes.append("housing: no room for a front flange between the beam and the barrel's outside")
+    return PartPlan("housing", "housing", spec.finish_of("housing", hs.finish),
+                    Housing(float(z_back), float(z_wall), float(r_h), hs.wall_mm, flange))
+
+
+__all__ = ["hood_and_vanes", "housing"]

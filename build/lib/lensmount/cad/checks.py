@@ -1,0 +1,177 @@
+"""Interference and sanity checks before export, on the parts' (r, z) profiles.
+
+Every built-in part is a solid of revolution, so two parts overlap exactly when
+their profiles overlap in the half plane; the overlap depth (how far one profile
+reaches into the other) is the number the error reports. Checks:
+
+* any two parts: no overlap deeper than OVERLAP_TOL_MM (contacts touch, never cut);
+* spacers, retainers and shoulders touch lenses outside the clear aperture;
+* no mechanical face enters the beam footprint (real rays, full field), the
+  diaphragm's knife edge excepted (it *is* the stop);
+* lens edge to bore clearance at least `checks.min_radial_clearance_mm`;
+* plates and walls at least `checks.min_thickness_mm` (knife-edge lands excepted).
+
+A violation raises GeometryError naming both parts and the overlap in mm.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from lensmount.cad.layout import Layout
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+
+OVERLAP_TOL_MM = 2e-3
+BEAM_TOL_MM = 1e-3
+_SAMPLE_STEP_MM = 0.25
+_NEAR_MM = 0.3  # points this close to the interpolated envelope get the exact test
+
+
+def outline(segments) -> np.ndarray:
+    """Closed (m, 2) polyline of a profile: arcs and splines sampled densely."""
+    pts = []
+    for s in segments:
+        pl = s.polyline(256)
+        pts.append(pl[:-1])
+    return np.concatenate(pts)
+
+
+def _densify(poly: np.ndarray, step: float = _SAMPLE_STEP_MM) -> np.ndarray:
+    out = []
+    closed = np.vstack([poly, poly[:1]])
+    for a, b in zip(closed[:-1], closed[1:]):
+        n = max(1, int(np.ceil(np.hypot(*(b - a)) / step)))
+        t = np.arange(n)[:, None] / n
+        out.append(a + t * (b - a))
+    return np.concatenate(out)
+
+
+def _distance_to_boundary(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a
+    ap = points[:, None, :] - a[None]
+    t = np.clip((ap * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300)[None], 0.0, 1.0)
+    q = a[None] + t[..., None] * ab[None]
+    return np.sqrt(((points[:, None, :] - q) ** 2).sum(-1)).min(axis=1)
+
+
+def penetration(poly_a: np.ndarray, poly_b: np.ndarray) -> float:
+    """How deep (mm) the boundary of either profile reaches into the other one."""
+    depth = 0.0
+    for p, q in ((poly_a, poly_b), (poly_b, poly_a)):
+        lo, hi = q.min(0) - 1e-9, q.max(0) + 1e-9
+        pts = _densify(p)
+        pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+        if not len(pts):
+            continue
+        inside = MplPath(q).contains_points(pts)
+        if inside.any():
+            depth = max(depth, float(_distance_to_boundary(pts[inside], q).max()))
+    return depth
+
+
+def check_interference(outlines: dict[str, np.ndarray]) -> None:
+    """Raise GeometryError for the deepest overlap between two parts."""
+    names = list(outlines)
+    boxes = {n: (o.min(0), o.max(0)) for n, o in outlines.items()}
+    worst = (0.0, None, None)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            (la, ha), (lb, hb) = boxes[a], boxes[b]
+            if np.any(la > hb + OVERLAP_TOL_MM) or np.any(lb > ha + OVERLAP_TOL_MM):
+                continue
+            d = penetration(outlines[a], outlines[b])
+            if d > worst[0]:
+                worst = (d, a, b)
+    if worst[0] > OVERLAP_TOL_MM:
+        d, a, b = worst
+        raise GeometryError(f"{a} and {b} overlap by {d:.3f} mm", field="mount",
+                            valid="parameters that leave the parts apart (larger gaps, smaller margins)")
+
+
+def check_beam(layout: Layout, outlines: dict[str, np.ndarray]) -> None:
+    """No mechanical part's profile reaches into the beam envelope (diaphragm edge excepted)."""
+    env = layout.envelope
+    z_lo, z_hi = env.z[0], env.z[-1]
+    for plan in layout.parts:
+        if plan.kind == "lens" or plan.name not in outlines:
+            continue
+        pts = _densify(outlines[plan.name])
+        pts = pts[(pts[:, 1] >= z_lo) & (pts[:, 1] <= z_hi)]
+        if plan.kind == "diaphragm":
+            # the land at the stop radius *is* the aperture: only the rest must clear the beam
+            pts = pts[pts[:, 0] > plan.template.inner_radius + 1e-6]
+        if not len(pts):
+            continue
+        near = pts[:, 0] < env.at(pts[:, 1]) + _NEAR_MM
+        if not near.any():
+            continue
+        pts = pts[near]
+        into = env.exact(pts[:, 1]) - pts[:, 0]  # the real rays at these very planes
+        k = int(np.argmax(into))
+        if into[k] > BEAM_TOL_MM:
+            raise GeometryError(
+                f"{plan.name} enters the beam footprint of the full field by {into[k]:.3f} mm at z = "
+                f"{pts[k, 1]:.2f} mm (part radius {pts[k, 0]:.3f} mm, beam radius {pts[k, 0] + into[k]:.3f} mm)",
+                field=f"{plan.kind}", valid="larger bores or aperture margins for this part")
+
+
+def check_contacts(layout: Layout) -> None:
+    for c in layout.contacts:
+        if c.height < c.clear - 1e-9:
+            raise GeometryError(
+                f"{c.part} cuts into the clear aperture of {c.lens} (surface {c.surface + 1}) by "
+                f"{c.clear - c.height:.3f} mm", field="lens_edge.contact_margin_mm",
+                valid="a contact height at or above the clear semi-diameter")
+
+
+def check_clearance(layout: Layout, spec: MountSpec) -> None:
+    c = spec.barrel.radial_clearance_mm
+    if c < spec.checks.min_radial_clearance_mm:
+        lens = next(p.name for p in layout.parts if p.kind == "lens")
+        raise GeometryError(
+            f"{lens} and barrel: radial clearance {c} mm is below the minimum "
+            f"{spec.checks.min_radial_clearance_mm} mm", field="barrel.radial_clearance_mm",
+            valid=f"a clearance >= {spec.checks.min_radial_clearance_mm} mm")
+
+
+def check_thickness(layout: Layout, spec: MountSpec) -> None:
+    """Every part at least `checks.min_thickness_mm` thick where it is not a knife edge.
+
+    Lenses, spacers, shoulders and rings are checked where they are planned
+    (lensmount.cad.layout); here the plates and walls whose size comes straight
+    from mount.toml.
+    """
+    min_t = spec.checks.min_thickness_mm
+    for plan in layout.parts:
+        t = plan.template
+        sizes = {
+            "diaphragm": lambda: ("plate thickness", t.thickness),
+            "vane": lambda: ("thickness", t.thickness),
+            "hood": lambda: ("wall", t.outer_radius - t.inner_radius),
+            "housing": lambda: ("wall", t.wall),
+            "retainer": lambda: ("thickness", t.thickness),
+            "barrel": lambda: ("wall", t.outer_radius - max(r for r, _ in t.bore)),
+        }
+        if plan.kind not in sizes:
+            continue
+        what, value = sizes[plan.kind]()
+        if value < min_t:
+            raise GeometryError(f"{plan.name}: {what} {value:.3f} mm is below the minimum {min_t} mm",
+                                field=f"{plan.kind}", valid=f"a {what} >= {min_t} mm (checks.min_thickness_mm)")
+
+
+def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:
+    """All checks, on the built-in profiles (`segments` per part name)."""
+    outlines = {name: outline(segs) for name, segs in segments.items()}
+    check_contacts(layout)
+    check_clearance(layout, spec)
+    check_thickness(layout, spec)
+    check_interference(outlines)
+    check_beam(layout, outlines)
+
+
+__all__ = ["check_layout", "check_thickness", "penetration", "outline", "OVERLAP_TOL_MM"]

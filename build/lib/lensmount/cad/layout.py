@@ -1,0 +1,414 @@
+"""Layout: prescription + MountSpec → every part's template, placed in the assembly frame.
+
+Pure numbers, no CAD kernel: the axial stack (retainer, lens groups, spacers,
+diaphragm, shoulders), the barrel's stepped bore, hood, vanes and housing. The
+beam envelope (real rays of the full field, every wavelength, full pupil) sets the
+vane bores. Geometry rules, all in the (r, z) half plane of the solids of revolution:
+
+* A lens group's mechanical radius R is the largest of its surfaces' mechanical
+  semi-diameters (clear semi-diameter + edge allowance when the file gives none);
+  its bore is R + radial clearance.
+* Every contact (spacer, retainer, shoulder) touches an optical surface at the
+  contact height h = clear semi-diameter + contact margin, with an end face cone
+  whose slope keeps it off the glass everywhere else (`contact_slope`).
+* The bore steps where the glass outside the spacer's radius ends, so no part
+  overlaps another; `checks` verifies it on the final profiles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+from lensmount.optics.prescription import Prescription
+from lensmount.templates.barrel import Barrel
+from lensmount.templates.diaphragm import Diaphragm
+from lensmount.templates.lens_element import LensElement, OpticalFace
+from lensmount.templates.retainer import Retainer
+from lensmount.templates.spacer import Spacer
+
+_SLOPE_SAMPLES = 256
+_EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
+ENVELOPE_STEP_MM = 0.25
+
+
+@dataclass
+class PartPlan:
+    """One part: name, kind, finish and the template that builds it."""
+
+    name: str
+    kind: str
+    finish: str
+    template: object
+
+
+@dataclass
+class Contact:
+    """A mechanical contact on an optical surface (for the clear-aperture check)."""
+
+    part: str
+    lens: str
+    surface: int
+    height: float
+    clear: float
+
+
+@dataclass
+class Layout:
+    prescription: Prescription  # with clear semi-diameters
+    parts: list[PartPlan]
+    contacts: list[Contact]
+    envelope: "Envelope"
+    notes: list[str] = field(default_factory=list)
+
+    def part(self, name: str) -> PartPlan:
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+class Envelope:
+    """Beam envelope radius at any z, interpolated from a fine grid of real-ray envelopes.
+
+    In an air gap each ray's radius is a convex function of z, so the envelope is
+    convex there and the chord between two grid values bounds it from above; across
+    a surface it is only an approximation, which is why `exact` exists for checks.
+    """
+
+    def __init__(self, prescription: Prescription, z_min: float, z_max: float, step: float = ENVELOPE_STEP_MM):
+        n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
+        self.prescription = prescription
+        self.z = np.linspace(z_min, z_max, n)
+        self.r = self.exact(self.z)
+
+    def exact(self, z) -> np.ndarray:
+        """The real-ray envelope at each z (slow: traces the beam), (n,)."""
+        from lensmount.optics.apertures import beam_envelope
+
+        z = np.atleast_1d(np.asarray(z, dtype=np.float64))
+        if not len(z):
+            return np.zeros(0)
+        return np.nan_to_num(beam_envelope(self.prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
+
+    def at(self, z) -> np.ndarray:
+        """Envelope at each z by linear interpolation: (n,)."""
+        return np.interp(np.asarray(z, dtype=np.float64), self.z, self.r)
+
+    def max_over(self, z0: float, z1: float) -> float:
+        """Largest envelope radius for z in [z0, z1], mm."""
+        a, b = min(z0, z1), max(z0, z1)
+        inside = self.r[(self.z > a) & (self.z < b)]
+        ends = self.at([a, b])
+        return float(max(ends.max(), inside.max() if len(inside) else 0.0))
+
+
+def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) -> float:
+    """Cone slope m of an end face touching the glass at radius h.
+
+    boundary(r) is the glass's z at r (the face toward the part); side = +1 when the
+    part lies behind the glass (larger z), -1 in front. The face z_c + side·m·(r − h)
+    must stay off the glass for h < r <= r_max: m >= side·(z(r) − z(h)) / (r − h).
+    Sharp-corner contact: the flattest safe face, never steeper into the part than
+    flat (m >= 0). Tangent contact: the surface's own slope at h, m = side·z'(h), which
+    is safe on a surface convex toward the part (m may then be negative); on a
+    concave one the safe slope wins and the contact stays a sharp corner.
+    """
+    zh = float(boundary(h))
+    need = -np.inf
+    if r_max > h + 1e-9:
+        rs = np.linspace(h, r_max, _SLOPE_SAMPLES)[1:]
+        need = float((side * (boundary(rs) - zh) / (rs - h)).max())
+    if tangent:
+        dh = 1e-4
+        m = max(need, side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh))
+    else:
+        m = max(0.0, need)
+    return m + _EPS_SLOPE
+
+
+def _opening(env: "Envelope", h: float, z_far: float, z_contact: float, spec: MountSpec) -> float:
+    """Bore radius at a ring's far face: the contact radius, or wider where the beam grows.
+
+    The bore runs straight from (h, z_contact) to (r, z_far); the beam is convex in z
+    in air, so clearing both ends (with the spacer margin) clears the whole bore.
+    """
+    beam = env.max_over(min(z_far, z_contact), max(z_far, z_contact))
+    return float(max(h, beam + spec.spacers.aperture_margin_mm if beam > h else h))
+
+
+def _check_ring(name: str, bore: float, outside: float, min_t: float) -> None:
+    if outside - bore < min_t:
+        raise GeometryError(
+            f"{name}: its bore must open to {bore:.3f} mm to clear the beam, leaving a wall of "
+            f"{outside - bore:.3f} mm inside its outside radius {outside:.3f} mm (minimum {min_t} mm)",
+            field="retainer.thickness_mm", valid="a thinner ring, a smaller aperture margin or a larger lens")
+
+
+def _radii(lo: float, R: float, chamfer: float) -> np.ndarray:
+    """Radii from lo to R including the chamfer's corner (where the glass's z peaks)."""
+    rs = np.linspace(lo, R, 129)
+    return np.unique(np.concatenate([rs, [R - chamfer] if R - chamfer >= lo else []]))
+
+
+def _diaphragm(spec, stop, ia, ib, A, B, od, z_stop, r_stop, env) -> Diaphragm:
+    """The diaphragm in the gap between lens A and lens B.
+
+    A stop on a dummy surface in the gap puts the knife edge on the stop plane with the
+    stop's clear semi-diameter. A stop on A's rear (B's front) face puts the plate just
+    behind (in front of) the glass, its bore on the beam there, so the plate is the
+    aperture the file names without clipping more than the lens does.
+    """
+    ds = spec.diaphragm
+    args = (od, ds.thickness_mm, ds.land_mm, ds.bevel_angle_deg, ds.bevel_side)
+    if ia < stop < ib:
+        return Diaphragm(z_stop, r_stop, *args)
+    probe = Diaphragm(0.0, r_stop, *args)
+    off0, off1 = probe.z_range()  # face offsets from the land centre
+    gap = 0.01  # mm of air between glass and plate
+    if stop == ia:
+        rs = _radii(min(r_stop, A.outer_radius), min(od, A.outer_radius), A.back_chamfer)
+        z0 = float(A.back_z(rs).max()) + gap
+        zc = z0 - off0
+    else:
+        rs = _radii(min(r_stop, B.outer_radius), min(od, B.outer_radius), B.front_chamfer)
+        z1 = float(B.front_z(rs).min()) - gap
+        zc = z1 - off1
+    land = (zc - 0.5 * ds.land_mm, zc + 0.5 * ds.land_mm)
+    return Diaphragm(zc, env.max_over(*land), *args)
+
+
+def plan(prescription: Prescription, spec: MountSpec) -> Layout:
+    """Place every part. Raises GeometryError for a mount that cannot be built."""
+    from lensmount.optics.apertures import with_clear_semi_diameters
+
+    p = prescription
+    if any(s.clear_semi_diameter is None for s in p.surfaces):
+        p = with_clear_semi_diameters(p)
+    surf, zv = p.surfaces, p.vertex_z
+    clear = [float(s.clear_semi_diameter) for s in surf]
+    edge = spec.lens_edge
+    chamfer = edge.chamfer_mm if edge.style == "chamfered" else 0.0
+    cm, tangent = edge.contact_margin_mm, spec.seats.contact == "tangent"
+    c_bore, c_sp = spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
+    min_t = spec.checks.min_thickness_mm
+    parts: list[PartPlan] = []
+    contacts: list[Contact] = []
+    notes: list[str] = []
+
+    def face(i):
+        s = surf[i]
+        return OpticalFace(i, float(zv[i]), s.curvature, s.conic, tuple(s.aspheric))
+
+    # ---- lens elements, grouped -------------------------------------------------------
+    groups = p.lens_groups()
+    if not groups:
+        raise GeometryError("the prescription has no glass: no lens element to mount", field="surfaces")
+    lens_parts: list[list[PartPlan]] = []
+    radii, bores = [], []
+    n_el = 0
+    for g in groups:
+        mech = [surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
+                else clear[i] + edge.allowance_mm for i in g]
+        overrides = [edge.semi_diameter_mm[n_el + k + 1] for k in range(len(g) - 1)
+                     if n_el + k + 1 in edge.semi_diameter_mm]
+        R = float(max(overrides)) if overrides else float(max(mech))
+        radii.append(R)
+        bores.append(R + c_bore)
+        elements = []
+        for a, b in zip(g[:-1], g[1:]):
+            n_el += 1
+            el = LensElement(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0)
+            name = f"lens-{n_el}"
+            if el.center_thickness() < min_t or el.edge_thickness() < min_t:
+                raise GeometryError(
+                    f"{name} is too thin: centre {el.center_thickness():.3f} mm, edge "
+                    f"{el.edge_thickness():.3f} mm at radius {R:.3f} mm (minimum {min_t} mm)",
+                    field="lens_edge.allowance_mm",
+                    valid="a smaller edge allowance or chamfer, or a thicker element")
+            elements.append(PartPlan(name, "lens", spec.finish_of(name, edge.finish), el))
+        lens_parts.append(elements)
+    for R, g in zip(radii, groups):
+        for i in (g[0], g[-1]):
+            if clear[i] + cm > R - chamfer - 1e-6:
+                raise GeometryError(
+                    f"surface {i + 1}: contact height {clear[i] + cm:.3f} mm (clear {clear[i]:.3f} + margin {cm}) "
+                    f"lies beyond the edge chamfer at {R - chamfer:.3f} mm",
+                    field="lens_edge.contact_margin_mm", valid="a smaller contact margin or chamfer, "
+                    "or a larger edge allowance")
+
+    seat_numbers = {int(grp[0].name.split("-")[1]) for grp in lens_parts[1:]}
+    for number in spec.seats.element:
+        if number not in seat_numbers:
+            raise GeometryError(
+                f"element {number} has no seat of its own to choose (it is the first element, "
+                "cemented to the one before, or does not exist)", field=f"seats.element.{number}",
+                valid="the number of the first element of a lens group after the first: "
+                      + ", ".join(str(n) for n in sorted(seat_numbers)))
+
+    def first_el(gi):
+        return lens_parts[gi][0]
+
+    def last_el(gi):
+        return lens_parts[gi][-1]
+
+    # envelope over the whole assembly (hood mouth to the image plane)
+    hood = spec.hood
+    z_lo = -(hood.length_mm + 50.0 if hood.enabled else 50.0)
+    env = Envelope(p, z_lo, p.image_z)
+
+    bore_pts: list[tuple[float, float]] = []
+    spacers: list[PartPlan] = []
+    retainers: list[PartPlan] = []
+    seat_of = spec.seats.element
+
+    # ---- front seat ---------------------------------------------------------------------
+    el0 = first_el(0).template
+    i0 = groups[0][0]
+    h0 = clear[i0] + cm
+    if spec.seats.front == "retainer":
+        r_out = bores[0] - c_sp
+        m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent)
+        ret = Retainer(h0, float(el0.front_z(h0)), m, -1, r_out, spec.retainer.thickness_mm)
+        ret.far_r = _opening(env, h0, ret.far_face_z(), ret.contact_z, spec)
+        _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
+        name = f"retainer-{len(retainers) + 1}"
+        retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
+        contacts.append(Contact(name, first_el(0).name, i0, h0, clear[i0]))
+        z_front = ret.far_face_z()
+        bore_pts.append((bores[0], z_front))
+    else:
+        m = contact_slope(el0.front_z, h0, radii[0], -1, tangent)
+        cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
+        z_front = cz(bores[0]) - spec.barrel.lip_mm
+        bore_pts += [(_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
+        contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
+
+    # ---- gaps between groups --------------------------------------------------------------
+    stop = p.stop_index
+    stop_placed = False
+    for gi in range(len(groups) - 1):
+        A, B = last_el(gi), first_el(gi + 1)
+        ia, ib = groups[gi][-1], groups[gi + 1][0]
+        hA, hB = clear[ia] + cm, clear[ib] + cm
+        RA, RB = radii[gi], radii[gi + 1]
+        stop_here = ia <= stop <= ib
+        element_no = int(B.name.split("-")[1])
+        seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
+        if seat == "shoulder":
+            mA = contact_slope(A.template.back_z, hA, RA, +1, tangent)
+            mB = contact_slope(B.template.front_z, hB, RB, -1, tangent)
+            cA = lambda r, z0=float(A.template.back_z(hA)), m=mA, h=hA: z0 + m * (r - h)  # noqa: E731
+            cB = lambda r, z0=float(B.template.front_z(hB)), m=mB, h=hB: z0 - m * (r - h)  # noqa: E731
+            rr = np.linspace(max(hA, hB), min(bores[gi], bores[gi + 1]), 50)
+            thick = float(np.min([cB(r) - cA(r) for r in rr]))
+            if thick < min_t:
+                raise GeometryError(
+                    f"the barrel shoulder between {A.name} and {B.name} is {thick:.3f} mm thick "
+                    f"(minimum {min_t} mm)", field=f"seats.element.{element_no}",
+                    valid="'spacer', or a larger air gap")
+            bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (hB, cB(hB)), (bores[gi + 1], cB(bores[gi + 1]))]
+            contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact("barrel", B.name, ib, hB, clear[ib])]
+            continue
+        od = min(bores[gi], bores[gi + 1]) - c_sp
+        mA = contact_slope(A.template.back_z, hA, min(RA, od), +1, tangent)
+        mB = contact_slope(B.template.front_z, hB, min(RB, od), -1, tangent)
+        ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
+        if stop_here:
+            ds = spec.diaphragm
+            dia = _diaphragm(spec, stop, ia, ib, A.template, B.template, od, float(zv[stop]), clear[stop], env)
+            dz0, dz1 = dia.z_range()
+            parts_dia = PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia)
+            margin = spec.spacers.aperture_margin_mm
+            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + margin)
+            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + margin)
+            if stop != ia:  # a spacer between lens A and the diaphragm
+                ends.append((hA, float(A.template.back_z(hA)), mA, hd0, dz0, _EPS_SLOPE, A.name, "diaphragm"))
+            if stop != ib:  # and one between the diaphragm and lens B
+                ends.append((hd1, dz1, _EPS_SLOPE, hB, float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+            stop_placed = True
+            parts.append(parts_dia)
+        else:
+            ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
+        for k, (fr, fz, fm, br, bz, bm, pa, pb) in enumerate(ends):
+            tube = None
+            if bz - fz >= spec.vanes.long_gap_mm:
+                t = max(od - spec.spacers.tube_wall_mm, fr, br)
+                tube = t if t > max(fr, br) + 1e-6 else None
+            sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
+            name = f"spacer-{len(spacers) + 1}"
+            if sp.min_length() < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
+                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
+                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
+            if od - max(fr, br) < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",
+                    field="lens_edge.allowance_mm", valid="a larger edge allowance")
+            spacers.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish), sp))
+            if pa.startswith("lens"):
+                contacts.append(Contact(name, pa, ia, fr, clear[ia]))
+            if pb.startswith("lens"):
+                contacts.append(Contact(name, pb, ib, br, clear[ib]))
+        # barrel steps where the glass outside the spacer ends
+        r_in = od + c_sp
+        za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max())
+        zb = float(B.template.front_z(_radii(min(r_in, RB), RB, B.template.front_chamfer)).min())
+        if zb < za:
+            raise GeometryError(f"the barrel cannot step between {A.name} and {B.name}: their edges overlap "
+                                f"axially by {za - zb:.3f} mm", field="lens_edge.allowance_mm",
+                                valid="a smaller edge allowance")
+        bore_pts += [(bores[gi], za), (r_in, za), (r_in, zb), (bores[gi + 1], zb)]
+    if not stop_placed:
+        raise GeometryError(
+            f"the stop (surface {stop + 1}) does not lie in an air gap between two lens groups; "
+            "the mount layout needs one", field=f"surface[{stop + 1}]",
+            valid="a stop between two lens groups (a stop in front of or behind the lens is not supported yet)")
+
+    # ---- rear seat ----------------------------------------------------------------------
+    gl = len(groups) - 1
+    elL = last_el(gl)
+    iL = groups[gl][-1]
+    hL = clear[iL] + cm
+    if spec.seats.rear == "shoulder":
+        m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent)
+        cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
+        z_back = cz(bores[gl]) + spec.barrel.lip_mm
+        bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (_opening(env, hL, z_back, cz(hL), spec), z_back)]
+        contacts.append(Contact("barrel", elL.name, iL, hL, clear[iL]))
+    else:
+        r_out = bores[gl] - c_sp
+        m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent)
+        ret = Retainer(hL, float(elL.template.back_z(hL)), m, +1, r_out, spec.retainer.thickness_mm)
+        ret.far_r = _opening(env, hL, ret.far_face_z(), ret.contact_z, spec)
+        _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
+        name = f"retainer-{len(retainers) + 1}"
+        retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
+        contacts.append(Contact(name, elL.name, iL, hL, clear[iL]))
+        z_back = ret.far_face_z()
+        bore_pts.append((bores[gl], z_back))
+
+    r_barrel = max(r for r, _ in bore_pts) + spec.barrel.wall_mm
+    barrel = Barrel(tuple((float(r), float(z)) for r, z in bore_pts), float(r_barrel))
+    parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
+
+    # ---- hood, vanes, detector housing (lensmount.cad.baffles) ---------------------------
+    from lensmount.cad.baffles import hood_and_vanes, housing
+
+    hood_part, vane_parts = hood_and_vanes(spec, env, z_front, r_barrel, bore_pts[0][0], spacers, notes)
+    housing_part = housing(spec, env, p.image_z, z_back, r_barrel, bore_pts[-1][0], notes)
+
+    ordered = [parts[0]] + [pp for grp in lens_parts for pp in grp] + retainers + spacers + parts[1:]
+    if hood_part:
+        ordered.append(hood_part)
+    ordered += vane_parts
+    if housing_part:
+        ordered.append(housing_part)
+    return Layout(p, ordered, contacts, env, notes)
+
+
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope"]

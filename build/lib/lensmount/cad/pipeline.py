@@ -1,0 +1,160 @@
+"""`regenerate`: design folder → assembly.step, parts/NAME.step, mesh.npz, manifest.json.
+
+manifest.json:
+
+    {"input_hash": "<sha256>", "lensmount_version": "0.1.0",
+     "assembly": "assembly.step", "mesh": "mesh.npz",
+     "tessellation": {"linear_tolerance_mm": .., "angular_tolerance_deg": ..},
+     "parts": [{"name", "kind", "finish", "step", "volume_mm3", "triangles", "hash"}, ...],
+     "notes": [...]}
+
+A part's STEP file is rewritten only when its own hash (its template parameters,
+finish, user template) changed, so changing one parameter changes only the
+affected parts' files (and assembly.step, mesh.npz, manifest.json). A run whose
+input hash is cached returns from the cache (lensmount.cad.cache).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import lensmount
+from lensmount.atomic import write_text
+from lensmount.cad import cache
+from lensmount.errors import InputError
+
+MANIFEST = "manifest.json"
+ASSEMBLY = "assembly.step"
+MESH = "mesh.npz"
+STEPS = ("layout", "checks", "solids", "tessellation", "export")
+
+
+@dataclass
+class PartEntry:
+    name: str
+    kind: str
+    finish: str
+    step: str
+    volume_mm3: float
+    triangles: int
+    hash: str
+
+
+@dataclass
+class Manifest:
+    input_hash: str
+    parts: list[PartEntry]
+    lensmount_version: str = lensmount.__version__
+    assembly: str = ASSEMBLY
+    mesh: str = MESH
+    tessellation: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    cached: bool = False  # not written: True when this run came from the cache
+
+    def to_json(self) -> str:
+        d = asdict(self)
+        d.pop("cached")
+        return json.dumps(d, indent=2)
+
+    @classmethod
+    def from_json(cls, text: str, cached: bool = False) -> "Manifest":
+        d = json.loads(text)
+        d["parts"] = [PartEntry(**p) for p in d["parts"]]
+        return cls(**d, cached=cached)
+
+    def part(self, name: str) -> PartEntry:
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+
+
+def _previous(out: Path) -> Manifest | None:
+    try:
+        return Manifest.from_json((out / MANIFEST).read_text())
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
+               tessellation: dict | None = None) -> Manifest:
+    """Regenerate a design's CAD outputs.
+
+    Args:
+        design_dir: the design folder (lens file, mount.toml, scenes/).
+        out_dir: output folder; defaults to DESIGN/build.
+        progress: optional callable progress(step, done, total), step one of STEPS.
+        use_cache: return from the content-addressed cache when the inputs are unchanged.
+        tessellation: overrides of mount.toml's [tessellation] (`linear_tolerance_mm`,
+            `angular_tolerance_deg`); they become part of the cache key.
+    Returns:
+        The Manifest (also written as OUT/manifest.json); `.cached` tells whether the
+        CAD kernel ran.
+    """
+    from lensmount.cad.assembly import build_assembly, tessellate
+    from lensmount.cad.export import write_assembly_step, write_part_step
+    from lensmount.design.folder import load_design
+
+    design = load_design(design_dir)
+    out = Path(out_dir) if out_dir is not None else design.root / "build"
+    out.mkdir(parents=True, exist_ok=True)
+    key = design.input_hash
+    spec = design.mount
+    if tessellation:
+        try:
+            tess = spec.tessellation.model_validate({**spec.tessellation.model_dump(), **tessellation})
+        except ValueError as exc:
+            raise InputError(f"bad tessellation option: {exc.errors()[0]['msg']}", field="tessellation",
+                             valid="linear tolerance > 0 mm, angular tolerance in (0, 45] degrees") from None
+        spec = spec.model_copy(update={"tessellation": tess})
+        key = hashlib.sha256((key + json.dumps(tess.model_dump(), sort_keys=True)).encode()).hexdigest()
+    if use_cache:
+        prev = _previous(out)
+        files_ok = prev is not None and prev.input_hash == key and (out / ASSEMBLY).is_file() and \
+            (out / MESH).is_file() and all((out / p.step).is_file() for p in prev.parts)
+        if files_ok:
+            prev.cached = True
+            return prev
+        if cache.restore(out, key):
+            m = _previous(out)
+            if m is not None:
+                m.cached = True
+                return m
+
+    try:
+        layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress)
+    except InputError as exc:
+        raise exc.located(str(design.mount_path)) from None
+    mesh, triangles = tessellate(parts, spec, layout, progress)
+
+    prev = _previous(out)
+    prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
+    entries = []
+    for k, bp in enumerate(parts):
+        rel = f"parts/{bp.name}.step"
+        if prev_hash.get(bp.name) != bp.hash or not (out / rel).is_file():
+            write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, out / rel)
+        entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
+                                 triangles[bp.name], bp.hash))
+        if progress:
+            progress("export", k + 1, len(parts) + 2)
+    # parts that no longer exist (e.g. fewer vanes) leave the folder
+    for old in (out / "parts").glob("*.step"):
+        if old.stem not in triangles:
+            old.unlink()
+    write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], out / ASSEMBLY)
+    mesh.save(out / MESH)
+    if progress:
+        progress("export", len(parts) + 2, len(parts) + 2)
+    manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(), notes=list(layout.notes))
+    write_text(out / MANIFEST, manifest.to_json())
+    cache.store(out, key, [ASSEMBLY, MESH, MANIFEST] + [e.step for e in entries])
+    return manifest
+
+
+__all__ = ["regenerate", "Manifest", "PartEntry", "STEPS"]

@@ -1,0 +1,125 @@
+"""`lensmount inspect LENS [--json]`: the surfaces with their clear semi-diameters and the paraxial data.
+
+Parses, calls lensmount.design / lensmount.optics, prints. No physics here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.cli import app  # defined before lensmount.cli imports this module
+from lensmount.errors import InputError
+
+
+def inspect_document(prescription) -> dict:
+    """The `--json` document: paraxial data and one entry per surface (mm; radius null = plane)."""
+    from lensmount.optics.glass import refractive_index
+    from lensmount.optics.paraxial import paraxial
+
+    par = paraxial(prescription)
+    wl = prescription.primary_wavelength_um
+    z = prescription.vertex_z
+    surfaces = []
+    for i, s in enumerate(prescription.surfaces):
+        surfaces.append({
+            "number": i + 1,
+            "radius_mm": None if math.isinf(s.radius) else s.radius,
+            "thickness_mm": s.thickness,
+            "material": s.material,
+            "n_primary": float(refractive_index(s.material, wl)),
+            "conic": s.conic,
+            "aspheric": list(s.aspheric),
+            "clear_semi_diameter_mm": s.clear_semi_diameter,
+            "mechanical_semi_diameter_mm": s.mechanical_semi_diameter,
+            "is_stop": s.is_stop,
+            "coating": s.coating,
+            "z_mm": z[i],
+        })
+    return {
+        "name": prescription.name,
+        "efl_mm": par.efl,
+        "bfl_mm": par.bfl,
+        "f_number": par.f_number,
+        "epd_mm": par.epd,
+        "entrance_pupil_z_mm": par.entrance_pupil_z,
+        "exit_pupil_z_mm": par.exit_pupil_z,
+        "exit_pupil_diameter_mm": par.exit_pupil_diameter,
+        "stop_semi_diameter_mm": par.stop_semi_diameter,
+        "paraxial_image_z_mm": par.image_z,
+        "image_plane_z_mm": prescription.image_z,
+        "stop_surface": prescription.stop_index + 1,
+        "wavelengths_um": list(prescription.wavelengths_um),
+        "primary_wavelength_um": wl,
+        "field_angles_deg": list(prescription.field_angles_deg),
+        "surfaces": surfaces,
+    }
+
+
+def _print_tables(doc: dict) -> None:
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    t = Table(title=f"{doc['name']} (mm; n at {doc['primary_wavelength_um']:g} µm; sd = semi-diameter)",
+              title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("#", "radius", "thickness", "material", "n", "clear sd", "z vertex", "stop"):
+        t.add_column(col, justify="left" if col in ("material", "stop") else "right", no_wrap=True, min_width=len(col))
+    for s in doc["surfaces"]:
+        radius = "inf" if s["radius_mm"] is None else f"{s['radius_mm']:.4f}"
+        csd = "-" if s["clear_semi_diameter_mm"] is None else f"{s['clear_semi_diameter_mm']:.3f}"
+        t.add_row(str(s["number"]), radius, f"{s['thickness_mm']:.4f}", s["material"], f"{s['n_primary']:.6f}",
+                  csd, f"{s['z_mm']:.3f}", "STOP" if s["is_stop"] else "")
+    console.print(t)
+    p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
+    p.add_column("quantity")
+    p.add_column("value", justify="right")
+    rows = [("effective focal length", f"{doc['efl_mm']:.4f} mm"),
+            ("back focal length", f"{doc['bfl_mm']:.4f} mm"),
+            ("image-space F/#", f"{doc['f_number']:.4f}"),
+            ("entrance pupil diameter", f"{doc['epd_mm']:.4f} mm"),
+            ("entrance pupil z", f"{doc['entrance_pupil_z_mm']:.4f} mm"),
+            ("exit pupil z", f"{doc['exit_pupil_z_mm']:.4f} mm"),
+            ("exit pupil diameter", f"{doc['exit_pupil_diameter_mm']:.4f} mm"),
+            ("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm"),
+            ("image plane z (file)", f"{doc['image_plane_z_mm']:.4f} mm"),
+            ("field angles", ", ".join(f"{a:g}°" for a in doc["field_angles_deg"])),
+            ("wavelengths", ", ".join(f"{w:g}" for w in doc["wavelengths_um"]) + " µm")]
+    for r in rows:
+        p.add_row(*r)
+    console.print(p)
+
+
+@app.command("inspect")
+def inspect_command(
+    lens: Path = typer.Argument(..., help="lens.toml or Zemax .zmx (or a design folder holding one)."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON document instead of tables."),
+    margin: Optional[float] = typer.Option(None, "--margin", help="Margin (mm) added to automatic clear "
+                                           "semi-diameters; default: the file's clear_aperture_margin_mm."),
+    save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
+                                             "(e.g. to convert a .zmx); automatic semi-diameters stay automatic."),
+) -> None:
+    """Show a lens: surfaces with computed clear semi-diameters, and its paraxial data."""
+    from lensmount.design.lens import load_lens, save_lens_toml
+
+    try:
+        prescription = load_lens(lens, margin_mm=margin)
+        if save_toml is not None:
+            raw = load_lens(lens, auto_clear_apertures=False)
+            save_lens_toml(raw, save_toml, margin_mm=margin or 0.0,
+                           header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
+        doc = inspect_document(prescription)
+    except InputError as error:
+        from lensmount.cli import fail  # defined after the command modules are imported
+
+        fail(error)
+        return
+    if as_json:
+        typer.echo(json.dumps(doc, indent=2))
+    else:
+        _print_tables(doc)

@@ -1,0 +1,100 @@
+"""`lensmount regenerate DESIGN [--out DIR]` and `lensmount init DIR --example NAME`.
+
+Parses, calls lensmount.cad / lensmount.design, prints. No geometry here.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.cli import app  # defined before lensmount.cli imports this module
+from lensmount.errors import InputError
+
+EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml")
+
+
+def examples_root() -> Path:
+    """The examples shipped inside the package (the repo's top-level `examples` links here)."""
+    return Path(__file__).resolve().parent.parent / "examples"
+
+
+def _fail(error: InputError) -> None:
+    typer.echo(f"error: {error.paragraph()}", err=True)
+    raise typer.Exit(code=2)
+
+
+@app.command()
+def regenerate(
+    design: Path = typer.Argument(..., help="design folder: lens.toml (or lens.zmx), mount.toml, scenes/"),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder (default DESIGN/build)"),
+    no_cache: bool = typer.Option(False, "--no-cache", help="rebuild even when the inputs are unchanged"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+    linear_tolerance: Optional[float] = typer.Option(
+        None, "--linear-tolerance", help="tessellation chord deviation, mm (overrides mount.toml)"),
+    angular_tolerance: Optional[float] = typer.Option(
+        None, "--angular-tolerance", help="tessellation angular deflection, degrees (overrides mount.toml)"),
+) -> None:
+    """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from lensmount.cad import regenerate as run
+
+    console = Console(stderr=True)
+    tess = {k: v for k, v in (("linear_tolerance_mm", linear_tolerance),
+                              ("angular_tolerance_deg", angular_tolerance)) if v is not None}
+    try:
+        if quiet:
+            manifest = run(design, out, progress=None, use_cache=not no_cache, tessellation=tess)
+        else:
+            with Progress(TextColumn("{task.description:<14}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                          TimeElapsedColumn(), console=console, transient=False) as bar:
+                tasks = {}
+
+                def progress(step: str, done: int, total: int) -> None:
+                    if step not in tasks:
+                        tasks[step] = bar.add_task(step, total=total)
+                    bar.update(tasks[step], completed=done, total=total)
+
+                manifest = run(design, out, progress=progress, use_cache=not no_cache, tessellation=tess)
+    except InputError as error:
+        _fail(error)
+    target = Path(out) if out is not None else Path(design) / "build"
+    tri = sum(p.triangles for p in manifest.parts)
+    how = "from the cache (inputs unchanged)" if manifest.cached else "built"
+    typer.echo(f"{target}: {len(manifest.parts)} parts, {tri} triangles, {how}; input hash {manifest.input_hash[:12]}")
+    for note in manifest.notes:
+        typer.echo(f"note: {note}")
+
+
+@app.command()
+def init(
+    directory: Path = typer.Argument(..., help="new design folder"),
+    example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),
+    force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
+) -> None:
+    """Scaffold a design folder from an example (lens file, mount.toml, scenes/)."""
+    try:
+        root = examples_root()
+        names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())
+        src = root / example
+        if example not in names:
+            raise InputError(f"unknown example {example!r}", field="--example", valid=", ".join(names))
+        directory = Path(directory)
+        if directory.exists() and any(directory.iterdir()) and not force:
+            raise InputError("the folder exists and is not empty", file=str(directory),
+                             valid="a new or empty folder, or --force")
+    except InputError as error:
+        _fail(error)
+    directory.mkdir(parents=True, exist_ok=True)
+    for name in EXAMPLE_FILES:
+        if (src / name).is_file():
+            shutil.copy2(src / name, directory / name)
+    for sub in ("scenes", "templates"):
+        if (src / sub).is_dir():
+            shutil.copytree(src / sub, directory / sub, dirs_exist_ok=True)
+    typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")

@@ -1,0 +1,1 @@
+"""Design folder loading: lens, mount and scene files to validated inputs."""

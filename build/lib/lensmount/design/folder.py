@@ -1,0 +1,104 @@
+"""A design folder: lens file + mount.toml + scenes/, loaded and content-hashed.
+
+    DESIGN/
+      lens.toml | lens.zmx     the prescription (exactly one)
+      mount.toml               the mount (docs/mount-toml.md)
+      scenes/*.toml            stray-light scenes (names = file stems)
+      templates/*.py           optional user templates named in mount.toml
+
+`input_hash` is the SHA-256 of what the CAD depends on: the lens file's bytes, the
+mount file's bytes, every user template's bytes and the lensmount version. It keys
+the regenerate cache (lensmount.cad.cache).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import lensmount
+from lensmount.design.mount import MountSpec, load_mount
+from lensmount.errors import InputError
+from lensmount.optics.prescription import Prescription
+
+LENS_NAMES = ("lens.toml", "lens.zmx")
+MOUNT_NAME = "mount.toml"
+
+
+@dataclass(frozen=True)
+class Design:
+    """A loaded design folder.
+
+    Args:
+        root: the folder.
+        lens_path: the lens file.
+        prescription: the lens, clear semi-diameters completed (automatic where the file gives none).
+        mount_path: mount.toml.
+        mount: the validated mount.
+        scenes: scene name → path.
+        template_paths: part kind → user template file.
+        input_hash: content hash of the CAD inputs (hex).
+    """
+
+    root: Path
+    lens_path: Path
+    prescription: Prescription
+    mount_path: Path
+    mount: MountSpec
+    scenes: dict[str, Path]
+    template_paths: dict[str, Path]
+    input_hash: str
+
+
+def find_lens(root: Path) -> Path:
+    found = [root / n for n in LENS_NAMES if (root / n).is_file()]
+    if not found:
+        raise InputError("no lens file in the design folder", file=str(root),
+                         valid="a lens.toml or lens.zmx in the folder")
+    if len(found) > 1 and found[0].name == "lens.toml":
+        return found[0]  # lens.toml wins when both describe the lens (as in examples/cooke-triplet)
+    return found[0]
+
+
+def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path]) -> str:
+    h = hashlib.sha256()
+    h.update(f"lensmount {lensmount.__version__}\n".encode())
+    for label, path in [("lens", lens_path), ("mount", mount_path)] + sorted(
+            (f"template:{k}", v) for k, v in templates.items()):
+        data = path.read_bytes()
+        h.update(f"{label} {len(data)}\n".encode())
+        h.update(data)
+    return h.hexdigest()
+
+
+def load_design(directory: str | Path) -> Design:
+    """Load and validate a design folder (InputError on anything a user must fix)."""
+    from lensmount.design.lens import load_lens
+
+    root = Path(directory)
+    if not root.is_dir():
+        raise InputError("design folder not found", file=str(root),
+                         valid="a folder with lens.toml (or lens.zmx) and mount.toml; "
+                               "`lensmount init DIR --example double-gauss-360` makes one")
+    lens_path = find_lens(root)
+    mount_path = root / MOUNT_NAME
+    if not mount_path.is_file():
+        raise InputError("no mount.toml in the design folder", file=str(root),
+                         valid="a mount.toml (docs/mount-toml.md)")
+    mount = load_mount(mount_path)
+    templates = {}
+    for kind, rel in mount.templates.items():
+        path = (root / rel)
+        if not path.is_file():
+            raise InputError(f"user template file {rel!r} not found", file=str(mount_path),
+                             field=f"templates.{kind}", valid="a .py file path relative to the design folder")
+        templates[kind] = path
+    prescription = load_lens(lens_path)
+    scenes_dir = root / "scenes"
+    scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
+    return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
+                  content_hash(lens_path, mount_path, templates))
+
+
+__all__ = ["Design", "load_design", "content_hash", "find_lens"]

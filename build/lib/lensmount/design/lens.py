@@ -1,0 +1,187 @@
+"""Load and save lens prescriptions: `lens.toml` (the project's format) or Zemax `.zmx`.
+
+`load_lens` reads, checks what a lens must satisfy to be built and traced, and
+fills in automatic clear semi-diameters (real rays, Zemax's rule) where the file
+gives none. Every problem is an InputError naming the file, the field or line,
+and what would be valid.
+
+Checks beyond the file's syntax:
+- every material is a known glass, a model glass n_d/V_d, or AIR; image space is air;
+- glass thicknesses are positive;
+- exactly one stop;
+- |radius| is at least the clear semi-diameter (given, or needed by the beam);
+- neighbouring surfaces do not cross inside their common semi-diameter.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from lensmount.errors import InputError
+from lensmount.optics.apertures import with_clear_semi_diameters
+from lensmount.optics.glass import refractive_index
+from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
+from lensmount.optics.io.zemax import read_zmx
+from lensmount.optics.prescription import Prescription
+from lensmount.optics.profiles import Profile
+
+_CROSS_SAMPLES = 64
+_CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is not
+
+
+def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None) -> Prescription:
+    """Read `lens.toml` or `.zmx` into a validated Prescription.
+
+    Args:
+        path: the lens file; `.zmx` is read as Zemax, anything else as lens.toml. A
+            folder means `folder/lens.toml` (or `folder/lens.zmx`).
+        auto_clear_apertures: fill in clear semi-diameters the file does not give.
+            Defaults to True.
+        margin_mm: margin added to automatic semi-diameters; defaults to the file's
+            `clear_aperture_margin_mm` (0 for .zmx).
+    """
+    path = _resolve(Path(path))
+    file = str(path)
+    if path.suffix.lower() == ".zmx":
+        prescription, file_margin = read_zmx(path), 0.0
+    else:
+        prescription, file_margin = read_lens_toml(path)
+    margin = file_margin if margin_mm is None else margin_mm
+    try:
+        validate(prescription, file)
+        complete = with_clear_semi_diameters(prescription, margin)
+        _check_radii(complete, file, given_only=False)
+        _check_crossings(complete, file)
+    except InputError as exc:
+        raise _located(exc, path) from None
+    return complete if auto_clear_apertures else prescription
+
+
+def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, header: str | None = None) -> Path:
+    """Write the prescription as lens.toml (atomically)."""
+    return write_lens_toml(prescription, path, margin_mm, header)
+
+
+def validate(prescription: Prescription, file: str = "lens") -> None:
+    """Checks that need no ray trace. Raises InputError."""
+    p = prescription
+    if not all(0.1 <= w <= 20.0 for w in p.wavelengths_um):
+        raise InputError(f"wavelengths {list(p.wavelengths_um)} µm include one outside 0.1-20 µm", file=file,
+                         field="wavelengths.values_um", valid="wavelengths in µm between 0.1 and 20")
+    if not all(abs(f) < 89.0 for f in p.field_angles_deg):
+        raise InputError(f"field angles {list(p.field_angles_deg)} include one of 89° or more", file=file,
+                         field="field.angles_deg", valid="field angles strictly between -89 and 89 degrees")
+    if not (p.aperture.value > 0 and math.isfinite(p.aperture.value)):
+        raise InputError(f"aperture value {p.aperture.value} is not a positive number", file=file,
+                         field="aperture", valid="an f-number or entrance pupil diameter > 0")
+    stops = [i for i, s in enumerate(p.surfaces) if s.is_stop]
+    if not stops:
+        raise InputError("no surface is marked as the aperture stop", file=file, field="surface[].stop",
+                         valid="exactly one surface with stop = true (Zemax: a STOP line)")
+    if len(stops) > 1:
+        raise InputError(f"surfaces {', '.join(str(i + 1) for i in stops)} are all marked as the stop",
+                         file=file, field=f"surface[{stops[1] + 1}].stop", valid="exactly one stop surface")
+    for i, s in enumerate(p.surfaces):
+        try:
+            n = refractive_index(s.material, np.asarray(p.wavelengths_um))
+        except InputError as exc:
+            raise InputError(exc.detail, file=file, field=f"surface[{i + 1}].material", valid=exc.valid) from None
+        if not np.all(np.isfinite(n)) or np.any(n < 1.0):
+            raise InputError(f"material '{s.material}' has no valid index over the wavelengths "
+                             f"{', '.join(f'{w:g}' for w in p.wavelengths_um)} µm", file=file,
+                             field=f"surface[{i + 1}].material", valid="a glass whose catalogue covers these wavelengths")
+        if not s.is_air_after and s.thickness <= 0:
+            raise InputError(f"glass thickness {s.thickness:g} mm after surface {i + 1} is not positive",
+                             file=file, field=f"surface[{i + 1}].thickness",
+                             valid="a centre thickness > 0 mm for a glass (negative thickness only in air)")
+        if s.clear_semi_diameter is not None and s.mechanical_semi_diameter is not None \
+                and s.mechanical_semi_diameter < s.clear_semi_diameter:
+            raise InputError(f"mechanical semi-diameter {s.mechanical_semi_diameter:g} mm is smaller than the clear "
+                             f"semi-diameter {s.clear_semi_diameter:g} mm", file=file,
+                             field=f"surface[{i + 1}].mechanical_semi_diameter",
+                             valid="mechanical semi-diameter >= clear semi-diameter")
+    if not p.surfaces[-1].is_air_after:
+        raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
+                         field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
+    if p.image_z <= 0:
+        raise InputError("the image plane lies in front of surface 1", file=file,
+                         field=f"surface[{len(p.surfaces)}].thickness", valid="a total track > 0 mm")
+    _check_radii(p, file, given_only=True)
+
+
+def _outer_semi_diameter(s) -> float | None:
+    return s.mechanical_semi_diameter if s.mechanical_semi_diameter is not None else s.clear_semi_diameter
+
+
+def _check_radii(p: Prescription, file: str, given_only: bool) -> None:
+    """|radius| (more exactly: the conic's reach) must cover the semi-diameter."""
+    for i, s in enumerate(p.surfaces):
+        h = _outer_semi_diameter(s)
+        if h is None:
+            continue
+        reach = Profile.of(s).max_radius()
+        if h > reach * (1.0 + 1e-12):
+            which = "clear" if s.mechanical_semi_diameter is None else "mechanical"
+            src = "given" if given_only else "needed by the beam"
+            raise InputError(
+                f"radius {s.radius:g} mm of surface {i + 1} is smaller than its {which} semi-diameter "
+                f"{h:.4g} mm ({src})", file=file, field=f"surface[{i + 1}].radius",
+                valid=f"|radius| >= {h:.4g} mm for this semi-diameter, or a smaller semi-diameter")
+
+
+def _check_crossings(p: Prescription, file: str) -> None:
+    """Neighbouring surfaces must not cross within the semi-diameter they share.
+
+    In glass the element's edge is where both faces reach (the larger semi-diameter,
+    as long as both profiles exist there); across air the common clear zone (the
+    smaller one), since what lies beyond is the mount's business.
+    """
+    z = p.vertex_z
+    for i in range(len(p.surfaces) - 1):
+        a, b = p.surfaces[i], p.surfaces[i + 1]
+        ha, hb = _outer_semi_diameter(a), _outer_semi_diameter(b)
+        if ha is None or hb is None:
+            continue
+        pa, pb = Profile.of(a), Profile.of(b)
+        h = max(ha, hb) if not a.is_air_after else min(ha, hb)
+        h = min(h, pa.max_radius(), pb.max_radius())
+        r = np.linspace(0.0, h, _CROSS_SAMPLES)
+        gap = (z[i + 1] + pb.sag(r * r)) - (z[i] + pa.sag(r * r))
+        gap = np.where(np.isfinite(gap), gap, np.inf)
+        k = int(np.argmin(gap))
+        if gap[k] < -_CROSS_TOL:
+            medium = "glass" if not a.is_air_after else "air"
+            raise InputError(
+                f"surfaces {i + 1} and {i + 2} cross each other: at {r[k]:.3g} mm from the axis surface "
+                f"{i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} ({medium} gap of "
+                f"{a.thickness:g} mm on the axis)", file=file, field=f"surface[{i + 1}].thickness",
+                valid=f"a thickness of at least {a.thickness - gap[k]:.4g} mm, or flatter curvatures")
+
+
+def _located(exc: InputError, path: Path) -> InputError:
+    """The error with the file, and for lens.toml the line of the field, filled in."""
+    line = exc.line
+    if line is None and exc.field and path.suffix.lower() != ".zmx":
+        try:
+            line = line_of_field(path.read_text(encoding="utf-8"), exc.field)
+        except OSError:
+            line = None
+    return InputError(exc.detail, file=exc.file or str(path), field=exc.field, line=line, valid=exc.valid)
+
+
+def _resolve(path: Path) -> Path:
+    if path.is_dir():
+        for name in ("lens.toml", "lens.zmx"):
+            if (path / name).exists():
+                return path / name
+        raise InputError("the folder holds no lens.toml or lens.zmx", file=str(path),
+                         valid="a design folder with lens.toml (or lens.zmx), or a path to the file")
+    if not path.exists():
+        raise InputError("file not found", file=str(path), valid="a path to an existing lens.toml or .zmx file")
+    return path
+
+
+__all__ = ["load_lens", "save_lens_toml", "validate"]

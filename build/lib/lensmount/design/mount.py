@@ -1,0 +1,205 @@
+"""mount.toml → MountSpec: the mechanical parameters of a lens mount, validated.
+
+Every table and key is documented in docs/mount-toml.md. Unknown keys are errors
+(a misspelt key silently ignored would give the wrong mount). Lengths in mm,
+angles in degrees (as everywhere in files).
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from lensmount.errors import InputError
+
+SeatStyle = Literal["spacer", "shoulder", "retainer"]
+ContactStyle = Literal["sharp", "tangent"]
+KNOWN_KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Barrel(_Strict):
+    """The barrel: a stepped bore with seats."""
+
+    wall_mm: float = Field(3.0, gt=0, description="radial wall outside the largest bore")
+    radial_clearance_mm: float = Field(0.05, ge=0, description="lens edge to bore, radial")
+    lip_mm: float = Field(2.0, gt=0, description="axial thickness of a barrel shoulder or end lip")
+    finish: str = "black-anodised"
+
+
+class LensEdge(_Strict):
+    """How lens elements are edged."""
+
+    style: Literal["ground-cylinder", "chamfered"] = "chamfered"
+    chamfer_mm: float = Field(0.5, ge=0, description="45° protective chamfer size (style chamfered)")
+    allowance_mm: float = Field(2.0, ge=0, description="mechanical minus clear semi-diameter, "
+                                "when the lens file gives no mechanical semi-diameter")
+    contact_margin_mm: float = Field(0.5, ge=0, description="mechanical contact height above the "
+                                     "clear semi-diameter")
+    semi_diameter_mm: dict[int, float] = Field(
+        default_factory=dict, description="1-based element number → mechanical semi-diameter (mm); "
+        "a cemented group takes the largest of its elements")
+    finish: str = "ground-glass"
+
+
+class Seats(_Strict):
+    """What holds each element: the seat on its object side."""
+
+    contact: ContactStyle = "sharp"
+    front: Literal["retainer", "shoulder"] = "retainer"
+    rear: Literal["retainer", "shoulder"] = "shoulder"
+    default: Literal["spacer", "shoulder"] = "spacer"
+    element: dict[int, Literal["spacer", "shoulder"]] = Field(
+        default_factory=dict, description="1-based element number → seat on its object side")
+
+
+class Spacers(_Strict):
+    radial_clearance_mm: float = Field(0.02, ge=0, description="spacer outside to bore")
+    aperture_margin_mm: float = Field(1.0, ge=0, description="spacer bore above the beam where "
+                                      "the spacer meets the diaphragm")
+    tube_wall_mm: float = Field(2.0, gt=0, description="radial wall of a long spacer tube "
+                                "(long gaps get a tube with end lips and vanes inside)")
+    lip_mm: float = Field(2.0, gt=0, description="axial thickness of a long spacer's end lips")
+    finish: str = "black-anodised"
+
+
+class Retainer(_Strict):
+    thickness_mm: float = Field(3.0, gt=0, description="axial thickness at the outside")
+    finish: str = "black-anodised"
+
+
+class Diaphragm(_Strict):
+    thickness_mm: float = Field(1.0, gt=0)
+    land_mm: float = Field(0.05, gt=0, description="axial width of the knife-edge land "
+                           "(the seed paper's edge is 0.05 mm)")
+    bevel_angle_deg: float = Field(45.0, gt=0, lt=90, description="bevel angle to the plate face")
+    bevel_side: Literal["rear", "front"] = "rear"
+    finish: str = "black-anodised"
+
+
+class Vanes(_Strict):
+    count: int = Field(3, ge=0, description="vanes in the hood, placed automatically")
+    positions_mm: list[float] | None = Field(None, description="explicit z of hood vane front faces "
+                                             "(assembly frame) instead of automatic placement")
+    in_air_gaps: int = Field(1, ge=0, description="vanes in each long spacer tube")
+    long_gap_mm: float = Field(40.0, gt=0, description="a spacer at least this long is a tube with vanes")
+    aperture_margin_mm: float = Field(0.5, ge=0, description="vane bore above the beam envelope")
+    edge_width_mm: float = Field(0.1, gt=0, description="axial width of the inner edge land")
+    thickness_mm: float = Field(1.0, gt=0)
+    bevel_angle_deg: float = Field(45.0, gt=0, lt=90)
+    min_height_mm: float = Field(0.5, ge=0, description="a vane lower than this (radially) is left out")
+    finish: str = "black-anodised"
+
+
+class Hood(_Strict):
+    enabled: bool = True
+    length_mm: float = Field(100.0, gt=0)
+    inner_diameter_mm: float | None = Field(None, gt=0, description="None: beam + margins + 4 mm")
+    wall_mm: float = Field(2.0, gt=0)
+    finish: str = "black-anodised"
+
+
+class Housing(_Strict):
+    enabled: bool = True
+    detector_width_mm: float = Field(44.5, gt=0)
+    detector_height_mm: float = Field(44.5, gt=0)
+    detector_clearance_mm: float = Field(2.0, ge=0, description="radial room around the detector corners")
+    back_gap_mm: float = Field(5.0, gt=0, description="image plane to the housing's back wall")
+    wall_mm: float = Field(3.0, gt=0)
+    finish: str = "black-anodised"
+
+
+class Checks(_Strict):
+    min_thickness_mm: float = Field(0.3, gt=0, description="every part at least this thick "
+                                    "(the diaphragm and vane edge lands excepted)")
+    min_radial_clearance_mm: float = Field(0.0, ge=0, description="lens edge to bore")
+
+
+class Tessellation(_Strict):
+    linear_tolerance_mm: float = Field(0.05, gt=0)
+    angular_tolerance_deg: float = Field(6.0, gt=0, le=45)
+
+
+class MountSpec(_Strict):
+    """The whole mount.toml."""
+
+    name: str = "mount"
+    barrel: Barrel = Barrel()
+    lens_edge: LensEdge = LensEdge()
+    seats: Seats = Seats()
+    spacers: Spacers = Spacers()
+    retainer: Retainer = Retainer()
+    diaphragm: Diaphragm = Diaphragm()
+    vanes: Vanes = Vanes()
+    hood: Hood = Hood()
+    housing: Housing = Housing()
+    checks: Checks = Checks()
+    tessellation: Tessellation = Tessellation()
+    finishes: dict[str, str] = Field(default_factory=dict, description="part name → finish override")
+    templates: dict[str, str] = Field(default_factory=dict, description="part kind → user template .py")
+
+    @field_validator("templates")
+    @classmethod
+    def _kinds(cls, v):
+        for k in v:
+            if k not in KNOWN_KINDS:
+                raise ValueError(f"unknown part kind {k!r}; valid: {', '.join(KNOWN_KINDS)}")
+        return v
+
+    def finish_of(self, part: str, default: str) -> str:
+        return self.finishes.get(part, default)
+
+
+def _field_path(loc) -> str:
+    return ".".join(str(x) for x in loc)
+
+
+def parse_mount(data: dict, file: str | None = None) -> MountSpec:
+    """Validate a mount.toml dictionary; raises InputError naming the first bad field."""
+    try:
+        return MountSpec.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = _field_path(err["loc"])
+        if err["type"] == "extra_forbidden":
+            raise InputError(f"unknown key '{field}'", file=file, field=field,
+                             valid="the keys documented in docs/mount-toml.md") from None
+        valid = {
+            "greater_than": f"a number > {err.get('ctx', {}).get('gt')}",
+            "greater_than_equal": f"a number >= {err.get('ctx', {}).get('ge')}",
+            "less_than": f"a number < {err.get('ctx', {}).get('lt')}",
+            "less_than_equal": f"a number <= {err.get('ctx', {}).get('le')}",
+        }.get(err["type"], "see docs/mount-toml.md")
+        raise InputError(f"{err['msg']} (got {err.get('input')!r})", file=file, field=field,
+                         valid=valid) from None
+
+
+def load_mount(path: str | Path) -> MountSpec:
+    """Read and validate mount.toml."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InputError(f"cannot read the mount file ({exc.strerror})", file=str(path),
+                         valid="a readable mount.toml") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        line = getattr(exc, "lineno", None)
+        if line is None:  # Python 3.11: only the message says where
+            m = re.search(r"at line (\d+)", str(exc))
+            line = int(m.group(1)) if m else None
+        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
+        raise InputError(f"not valid TOML: {message}", file=str(path), line=line,
+                         valid="TOML syntax (https://toml.io)") from None
+    return parse_mount(data, file=str(path))
+
+
+__all__ = ["MountSpec", "load_mount", "parse_mount", "SeatStyle", "ContactStyle"]

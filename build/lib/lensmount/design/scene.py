@@ -1,0 +1,241 @@
+"""Scene files (`scenes/*.toml`) → validated `SceneSpec`. Unknown keys are errors.
+
+```toml
+description = "Seed paper case 1: only the 50 µm diaphragm edge scatters"
+
+[source]
+type = "sun"                 # "sun" | "collimated"
+off_axis_deg = 7.0
+azimuth_deg = 90.0           # 90 = source displaced toward +y (its light travels toward -y)
+angular_diameter_deg = 0.53  # sun only
+limb_darkening = false       # sun only
+
+[detector]
+width_mm = 44.5
+height_mm = 44.5
+pixels = [600, 600]          # [nx, ny]
+# z_mm = 400.0               # default: the prescription's image plane
+# spectral_weight = [1.0]    # one per lens wavelength (relative response)
+
+[effects]
+scatter = true
+ghosts = false
+direct = false
+
+[coatings]
+default = "perfect-ar"       # perfect-ar | uncoated | mgf2-quarter-wave | R=0.01
+# surface-3 = "uncoated"     # per surface, 1-based as in the lens file
+
+[finishes]
+edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
+
+[assign]                     # part: > role: > kind: > finish: > "*"
+"*" = "absorber"
+"role:diaphragm-edge" = "edge-lambert-10"
+
+[[objects]]                  # extra scene objects beyond the mount
+type = "disk"                # disk | rectangle | mesh (STL or STEP file, relative to the scene file)
+name = "dust-plate"
+centre_mm = [0.0, 0.0, -20.0]
+radius_mm = 30.0             # disk; rectangle: width_mm, height_mm; mesh: path
+tilt_deg = [0.0, 0.0]        # about x, then about y
+finish = "ground-glass"
+
+[run]
+photons = 1_000_000
+passes = 32
+seed = 1
+target_rel_error = 0.05
+```
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from lensmount.errors import InputError
+from lensmount.scene.finishes import check_rules, finish_library
+from lensmount.trace.interfaces import parse_coating
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SourceSpec(_Strict):
+    type: Literal["sun", "collimated"] = "sun"
+    off_axis_deg: float = Field(ge=0.0, le=180.0)
+    azimuth_deg: float = 90.0
+    angular_diameter_deg: float = Field(default=0.53, ge=0.0, le=10.0)
+    limb_darkening: bool = False
+
+    @model_validator(mode="after")
+    def _sun_only(self):
+        if self.type == "collimated" and self.limb_darkening:
+            raise ValueError("limb_darkening applies to type = 'sun' only")
+        return self
+
+
+class DetectorSpec(_Strict):
+    width_mm: float = Field(gt=0.0)
+    height_mm: float = Field(gt=0.0)
+    pixels: tuple[int, int] = (600, 600)
+    z_mm: float | None = None
+    spectral_weight: tuple[float, ...] | None = None
+
+    @field_validator("pixels")
+    @classmethod
+    def _positive(cls, v):
+        if v[0] < 1 or v[1] < 1 or v[0] * v[1] > 50_000_000:
+            raise ValueError("pixels must be [nx, ny] with nx, ny >= 1 and at most 5e7 pixels")
+        return v
+
+    @field_validator("spectral_weight")
+    @classmethod
+    def _weights(cls, v):
+        if v is not None and (any(w < 0 for w in v) or not any(w > 0 for w in v)):
+            raise ValueError("spectral_weight must be non-negative with at least one positive value")
+        return v
+
+
+class EffectsSpec(_Strict):
+    scatter: bool = True
+    ghosts: bool = False
+    direct: bool = False
+
+
+class RunSpec(_Strict):
+    photons: int = Field(default=1_000_000, ge=1)
+    passes: int = Field(default=32, ge=1)
+    seed: int = 1
+    target_rel_error: float | None = Field(default=None, gt=0.0)
+
+
+class ObjectSpec(_Strict):
+    type: Literal["disk", "rectangle", "mesh"]
+    name: str
+    centre_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tilt_deg: tuple[float, float] = (0.0, 0.0)
+    finish: str = "absorber"
+    radius_mm: float | None = Field(default=None, gt=0.0)
+    width_mm: float | None = Field(default=None, gt=0.0)
+    height_mm: float | None = Field(default=None, gt=0.0)
+    path: str | None = None
+
+    @model_validator(mode="after")
+    def _dimensions(self):
+        need = {"disk": ("radius_mm",), "rectangle": ("width_mm", "height_mm"), "mesh": ("path",)}[self.type]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.type} object needs {', '.join(missing)}")
+        if self.type == "mesh" and not str(self.path).lower().endswith((".stl", ".step", ".stp")):
+            raise ValueError("path must be an .stl, .step or .stp file")
+        return self
+
+
+class SceneSpec(_Strict):
+    """A validated scene file (see the module docstring for every key)."""
+
+    description: str = ""
+    source: SourceSpec
+    detector: DetectorSpec
+    effects: EffectsSpec = EffectsSpec()
+    coatings: dict[str, str] = Field(default_factory=lambda: {"default": "perfect-ar"})
+    finishes: dict[str, dict] = Field(default_factory=dict)
+    assign: dict[str, str] = Field(default_factory=lambda: {"*": "absorber"})
+    objects: tuple[ObjectSpec, ...] = ()
+    run: RunSpec = RunSpec()
+    base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
+
+    @field_validator("coatings")
+    @classmethod
+    def _coatings(cls, v):
+        for key, name in v.items():
+            if key != "default" and not (key.startswith("surface-") and key[8:].isdigit() and int(key[8:]) >= 1):
+                raise ValueError(f"coating key '{key}' must be 'default' or 'surface-N' (N >= 1)")
+            parse_coating(name, field=f"coatings.{key}")
+        return v
+
+    def coating_of_surface(self, index0: int, lens_coating: str | None = None):
+        """Coating of 0-based surface: the scene's per-surface entry, else the lens file's, else default."""
+        key = f"surface-{index0 + 1}"
+        if key in self.coatings:
+            return parse_coating(self.coatings[key])
+        if lens_coating is not None:
+            return parse_coating(lens_coating)
+        return parse_coating(self.coatings.get("default", "perfect-ar"))
+
+
+def load_scene(path: str | Path) -> SceneSpec:
+    """Read and validate a scene file; every problem is an InputError naming the file and field."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
+    except tomllib.TOMLDecodeError as exc:
+        line = getattr(exc, "lineno", None)  # Python >= 3.14; older versions only say it in the text
+        m = re.search(r"at line (\d+)", str(exc))
+        line = line if line is not None else (int(m.group(1)) if m else None)
+        raise InputError(f"not valid TOML ({exc})", file=str(path), line=line) from None
+    return scene_from_dict(data, file=str(path), base_dir=str(path.parent))
+
+
+def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".") -> SceneSpec:
+    """Validate a parsed scene table (also what tests and scripts use)."""
+    if "base_dir" in data:
+        raise InputError("unknown key", file=file, field="base_dir", valid=_TOP_KEYS)
+    try:
+        spec = SceneSpec(**data, base_dir=base_dir)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(x) for x in err["loc"])
+        if err["type"] == "extra_forbidden":
+            raise InputError("unknown key", file=file, field=where, valid=_valid_keys(err["loc"])) from None
+        raise InputError(err["msg"], file=file, field=where or None, valid=_valid_keys(err["loc"][:-1])) from None
+    except InputError as exc:
+        raise exc.located(file) if file else exc
+    library = finish_library(spec.finishes)
+    try:
+        from lensmount.trace.bsdf import make_bsdf
+
+        for name, params in spec.finishes.items():
+            params = dict(params)
+            if "model" not in params:
+                raise InputError(f"finish '{name}' has no model", field=f"finishes.{name}.model",
+                                 valid="absorber, lambertian, gaussian, abg, harvey, mirror")
+            try:
+                make_bsdf(params.pop("model"), **params)
+            except InputError as exc:
+                raise InputError(exc.detail, field=f"finishes.{name}.{exc.field or 'model'}", valid=exc.valid) from None
+        check_rules(spec.assign, library)
+        for k, obj in enumerate(spec.objects):
+            if obj.finish not in library:
+                raise InputError(f"object '{obj.name}' names undefined finish '{obj.finish}'",
+                                 field=f"objects.{k}.finish", valid=", ".join(sorted(library)))
+    except InputError as exc:
+        raise exc.located(file) if file else exc
+    return spec
+
+
+_TOP_KEYS = "description, source, detector, effects, coatings, finishes, assign, objects, run"
+
+
+def _valid_keys(loc) -> str:
+    models = {"source": SourceSpec, "detector": DetectorSpec, "effects": EffectsSpec, "run": RunSpec,
+              "objects": ObjectSpec}
+    if not loc:
+        return _TOP_KEYS
+    model = models.get(str(loc[0]))
+    if model is None:
+        return _TOP_KEYS if len(loc) <= 1 else ""
+    return ", ".join(k for k in model.model_fields)
+
+
+__all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "RunSpec", "ObjectSpec", "load_scene",
+           "scene_from_dict"]

@@ -1,0 +1,95 @@
+"""Adapter between the tracer's events and the bidirectional integrator.
+
+The integrator needs, per ray and per call, only: did it end on a mechanical face
+(where, which tag, which normal), on the detector (where), or nowhere; its travel
+direction and weight after the optics. This module turns `Tracer.next_event` output
+into that `Step`, so a change in the tracer's event record touches one file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.trace.rays import RayBatch
+
+GONE, FACE, DETECTOR = 0, 1, 2
+
+
+@dataclass
+class Step:
+    """Where each of N rays ended this call.
+
+    kind : (N,) int8, GONE (escaped, absorbed by glass, killed), FACE or DETECTOR
+    position : (N, 3) mm
+    direction : (N, 3) unit travel direction arriving at the event
+    normal : (N, 3) unit face normal on the side the ray came from (FACE only)
+    tag : (N,) int32 face tag (FACE only, else -1)
+    weight : (N,) throughput after the optics (Fresnel branch choice, absorption)
+    wavelength, id : (N,) carried through
+    lost : (N,) bool, ended by a numerical guard of the tracer (weight = lost flux)
+    reflections : (N,) Fresnel (ghost) reflections during this step, or None
+    """
+
+    kind: np.ndarray
+    position: np.ndarray
+    direction: np.ndarray
+    normal: np.ndarray
+    tag: np.ndarray
+    weight: np.ndarray
+    wavelength: np.ndarray
+    id: np.ndarray
+    lost: np.ndarray | None = None
+    reflections: np.ndarray | None = None
+
+
+def next_step(tracer, rays: RayBatch, rng: np.random.Generator) -> Step:
+    """Advance every live ray to its next mechanical face, the detector, or out."""
+    if hasattr(tracer, "next_step"):  # tracers that already speak `Step` (the test scenes' planar tracer)
+        return tracer.next_step(rays, rng)
+    ev = tracer.next_event(rays, rng)
+    return from_events(ev, rays)
+
+
+def from_events(ev, rays: RayBatch) -> Step:
+    """`trace.tracer.Events` → Step (the tracer uses the same kind codes)."""
+    return Step(kind=np.asarray(ev.kind, np.int8), position=ev.position, direction=ev.direction, normal=ev.normal,
+                tag=np.asarray(ev.tag, np.int32), weight=ev.weight, wavelength=np.asarray(ev.wavelength, np.int32),
+                id=ev.id, lost=getattr(ev, "lost", None), reflections=getattr(ev, "reflections", None))
+
+
+@dataclass(frozen=True)
+class DetectorGeometry:
+    """The detector plane: centred on the axis at z, (nx, ny) pixels, row 0 at −y."""
+
+    width: float
+    height: float
+    nx: int
+    ny: int
+    z: float
+
+    @property
+    def pixel_area(self) -> float:
+        return (self.width / self.nx) * (self.height / self.ny)
+
+    def pixel_centres_and_points(self, pixel: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(N, 3) points uniform in the given flat pixels (row-major (ny, nx)), u (N, 2)."""
+        iy, ix = np.divmod(pixel, self.nx)
+        x = -0.5 * self.width + (ix + u[:, 0]) * (self.width / self.nx)
+        y = -0.5 * self.height + (iy + u[:, 1]) * (self.height / self.ny)
+        return np.column_stack([x, y, np.full(len(pixel), self.z)])
+
+    def pixel_of(self, points: np.ndarray) -> np.ndarray:
+        """(N,) flat pixel index, −1 outside the detector."""
+        fx = (points[:, 0] + 0.5 * self.width) / (self.width / self.nx)
+        fy = (points[:, 1] + 0.5 * self.height) / (self.height / self.ny)
+        ok = (fx >= 0) & (fx < self.nx) & (fy >= 0) & (fy < self.ny) & np.isfinite(fx) & np.isfinite(fy)
+        ix = np.where(ok, np.floor(np.where(ok, fx, 0)), 0).astype(np.int64)
+        iy = np.where(ok, np.floor(np.where(ok, fy, 0)), 0).astype(np.int64)
+        return np.where(ok, iy * self.nx + ix, -1)
+
+
+def detector_geometry(scene) -> DetectorGeometry:
+    d = scene.detector
+    return DetectorGeometry(float(d.width), float(d.height), int(d.nx), int(d.ny), float(d.z))

@@ -1,0 +1,137 @@
+"""Stage 1: backward samples from every pixel → the pass's view map (hit points).
+
+For each pixel, `samples_per_pixel` points x uniform in the pixel and directions ω
+from the exit-disc mixture (`exit_sampler`), weight w = cos θ / p(ω). The ray is
+traced back through the optics by the tracer (refraction; a Fresnel branch only if
+the scene has ghosts on). Where it first meets a mechanical face:
+
+- a *broad* scatterer (Lambertian, or a lobe at least `glossy_threshold_deg` wide):
+  store a hit point (position, normal, ω_o = −ω, τ = w·W/S, pixel, tag) and stop;
+- anything else (absorber, mirror, narrow lobe): stop without a hit point. Light
+  whose last scattering vertex is a mirror or a narrow lobe is counted by the photons
+  themselves when they reach the detector (see `bidirectional.py`, "last-vertex rule").
+
+W is the number of wavelengths: each sample picks one uniformly and gathers only
+photons of that wavelength.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
+from lensmount.integrators.photon_gather import HitPoints
+from lensmount.integrators.radius import initial_radii
+from lensmount.integrators.tracing import FACE, DetectorGeometry, next_step
+from lensmount.trace.rays import RayBatch
+
+
+def exit_disc(scene, det: DetectorGeometry, margin: float = 0.05) -> ExitDisc | None:
+    """Disc covering the optical surface nearest the detector, in the plane of its point nearest
+    the detector, radius = clear semi-diameter · (1 + margin) + 0.5 mm. None without optics."""
+    optical = list(getattr(scene, "optical", []) or [])
+    if not optical:
+        return None
+    facing = -1.0 if det.z >= max(s.z_vertex for s in optical) else 1.0
+    last = max(optical, key=lambda s: facing * -s.z_vertex)
+    h = float(last.clear_semi_diameter)
+    if not math.isfinite(h) or h <= 0:
+        h = float(getattr(last, "mechanical_semi_diameter", math.inf))
+    if not math.isfinite(h) or h <= 0:
+        return None  # unknown size: the hemisphere alone
+    sag_edge = float(last.profile.sag(np.array([h * h]))[0])
+    if not math.isfinite(sag_edge):
+        sag_edge = 0.0
+    z_edge = last.z_vertex + sag_edge
+    z = max(last.z_vertex, z_edge) if facing < 0 else min(last.z_vertex, z_edge)
+    return ExitDisc(z=float(z), radius=h * (1.0 + margin) + 0.5, facing=facing)
+
+
+def stop_rim_target(scene, det: DetectorGeometry, broad: np.ndarray, rel_width: float = 0.02) -> ExitDisc | None:
+    """Annulus around the paraxial exit pupil's rim: the diaphragm edge seen from the detector.
+
+    Only when a broad scatterer has role `diaphragm-edge` (case 1): rays aimed at the image
+    of the stop rim meet the 50 µm edge ~ 1/(2·rel_width) times more often than rays spread
+    over the whole exit disc. The stop rim is the mean radius and z of the edge's vertices;
+    its image is a y–nu trace through the optical surfaces behind it (wavelength 0).
+    """
+    mesh = scene.mesh
+    edge_tags = [k for k, t in enumerate(mesh.tag_table) if t.role == "diaphragm-edge" and k < len(broad) and broad[k]]
+    optical = sorted(getattr(scene, "optical", []) or [], key=lambda s: s.z_vertex)
+    if not edge_tags or not optical:
+        return None
+    tri = mesh.triangles[np.isin(mesh.tags, edge_tags)]
+    v = mesh.vertices[np.unique(tri)]
+    z_s, r_s = float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+    behind = [s for s in optical if s.z_vertex > z_s] if det.z > z_s else []
+    if not behind:
+        return None
+    y, nu, z = 0.0, 1.0, z_s  # a ray from the stop's axial point
+    nu_in = nu
+    for s in behind:
+        n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
+        y = y + (s.z_vertex - z) * nu / n1
+        z = s.z_vertex
+        nu = nu - y * (n2 - n1) * s.profile.curvature
+    n_last = float(np.atleast_1d(behind[-1].n_after)[0])
+    if abs(nu) < 1e-12:
+        return None
+    z_xp = z - y / (nu / n_last)
+    r_xp = abs(r_s * nu_in / nu)
+    if not (math.isfinite(z_xp) and math.isfinite(r_xp)) or r_xp <= 0 or abs(det.z - z_xp) < 1e-6:
+        return None
+    return ExitDisc(z=z_xp, radius=r_xp * (1 + rel_width), r_inner=r_xp * (1 - rel_width),
+                    facing=-1.0 if det.z > z_xp else 1.0)
+
+
+def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generator, *, broad: np.ndarray,
+                   half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
+                   mixture_c: float = 0.9) -> HitPoints:
+    """Trace the backward samples and return the hit points with their pass radii.
+
+    broad : (n_tags,) bool, tags where hit points are made
+    half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
+    boundaries : FaceBoundaries for the on-face gather area (None: π r²)
+    """
+    n_pix = det.nx * det.ny
+    s = int(samples_per_pixel)
+    pixel = np.repeat(np.arange(n_pix, dtype=np.int64), s)
+    n = len(pixel)
+    u = rng.random((n, 6))
+    x = det.pixel_centres_and_points(pixel, u[:, 0:2])
+    disc = exit_disc(scene, det)
+    if disc is None:  # no optics: the hemisphere alone (still unbiased)
+        targets, weights = [ExitDisc(z=det.z - 1.0, radius=1.0)], [0.0]
+    else:
+        targets, weights = [disc], [mixture_c]
+        rim = stop_rim_target(scene, det, broad)
+        if rim is not None and rim.facing == disc.facing:
+            targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
+    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights)
+    n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
+    wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
+    response = getattr(scene.detector, "spectral_weight", None)
+    if response is not None:  # the detector's spectral response weights each sample's wavelength
+        w = w * np.asarray(response, np.float64)[wl]
+    live = w > 0
+    rays = RayBatch.make(x[live], omega[live], weight=w[live] * n_wl / s, wavelength=wl[live], ids=pixel[live])
+    if len(rays) == 0:
+        return HitPoints.empty()
+    step = next_step(tracer, rays, rng)
+    tag = step.tag
+    ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
+    ok[ok] &= broad[tag[ok]]
+    ok &= (step.weight > 0) & np.isfinite(step.weight)
+    if not ok.any():
+        return HitPoints.empty()
+    pos, nrm, tg = step.position[ok], step.normal[ok], tag[ok]
+    radius = initial_radii(pos, tg, half_widths) * float(radius_scale)
+    area = boundaries.inside_area(pos, nrm, tg, radius) if boundaries is not None else None
+    return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=step.weight[ok],
+                     pixel=step.id[ok].astype(np.int64), tag=tg.astype(np.int32),
+                     wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area)
+
+
+__all__ = ["exit_disc", "build_view_map"]

@@ -1,0 +1,152 @@
+"""Paraxial (first-order) properties of a prescription, derived on demand.
+
+Each surface is a 2x2 matrix acting on (y, n·u): refraction [[1, 0], [-phi, 1]]
+with power phi = (n' - n)·c, transfer over a gap t in index n [[1, t/n], [0, 1]].
+Object at infinity. All z in the assembly frame (surface 1 vertex at z = 0).
+
+Definitions (Zemax's, for an object at infinity, image space in air):
+    efl = -1 / C of the whole system (in air on both sides)
+    bfl = distance from the last vertex to the paraxial focus
+    f_number = efl / epd (image-space F/#; for an object at infinity it equals
+               the paraxial working F/# 1 / (2 n' u'))
+    entrance pupil = paraxial image of the stop through the surfaces in front of it
+    exit pupil = paraxial image of the stop through the surfaces behind it
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.optics.glass import refractive_index
+from lensmount.optics.prescription import Prescription
+
+_TINY = 1e-300
+
+
+@dataclass(frozen=True)
+class Paraxial:
+    """First-order data of a lens (mm, assembly frame).
+
+    efl: effective focal length.
+    bfl: back focal length, last vertex to paraxial focus.
+    epd: entrance pupil diameter (given, or efl / f-number).
+    f_number: image-space F/# = efl / epd.
+    entrance_pupil_z, exit_pupil_z: pupil positions.
+    entrance_pupil_diameter is `epd`; exit_pupil_diameter: paraxial image of the stop.
+    stop_semi_diameter: paraxial marginal-ray height at the stop.
+    image_z: paraxial focus (last vertex z + bfl); the detector may sit elsewhere
+        (`Prescription.image_z`).
+    wavelength_um: the wavelength these were computed at.
+    """
+
+    efl: float
+    bfl: float
+    epd: float
+    f_number: float
+    entrance_pupil_z: float
+    exit_pupil_z: float
+    exit_pupil_diameter: float
+    stop_semi_diameter: float
+    image_z: float
+    wavelength_um: float
+
+
+def indices(prescription: Prescription, wavelength_um: float) -> np.ndarray:
+    """Refractive index of every medium: (S+1,), [0] in front of surface 1, [i+1] after surface i."""
+    out = [1.0]
+    for s in prescription.surfaces:
+        out.append(float(refractive_index(s.material, wavelength_um)))
+    return np.array(out)
+
+
+def surface_matrices(prescription: Prescription, wavelength_um: float) -> tuple[list, list]:
+    """Refraction matrices R[i] (S) and transfer matrices T[i] (S) acting on (y, n u)."""
+    n = indices(prescription, wavelength_um)
+    refr, trans = [], []
+    for i, s in enumerate(prescription.surfaces):
+        phi = (n[i + 1] - n[i]) * s.curvature
+        refr.append(np.array([[1.0, 0.0], [-phi, 1.0]]))
+        trans.append(np.array([[1.0, s.thickness / n[i + 1]], [0.0, 1.0]]))
+    return refr, trans
+
+
+def _chain(refr, trans, first: int, last: int, include_last_refraction: bool = True) -> np.ndarray:
+    """Matrix from just before surface `first` to just after surface `last` (vertex planes)."""
+    m = np.eye(2)
+    for i in range(first, last + 1):
+        if i > first:
+            m = trans[i - 1] @ m
+        if i < last or include_last_refraction:
+            m = refr[i] @ m
+    return m
+
+
+def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> Paraxial:
+    """First-order properties at `wavelength_um` (default: the primary wavelength)."""
+    wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
+    refr, trans = surface_matrices(prescription, wl)
+    nsurf = len(prescription.surfaces)
+    stop = prescription.stop_index
+    z_vertex = prescription.vertex_z
+    last = nsurf - 1
+
+    system = _chain(refr, trans, 0, last)  # before surface 1 -> after last surface (both in air)
+    a, c = system[0, 0], system[1, 0]
+    power = -c
+    efl = 1.0 / _nonzero(power)
+    bfl = -a / _nonzero(c)
+
+    if prescription.aperture.kind == "epd":
+        epd = float(prescription.aperture.value)
+    else:
+        epd = abs(efl) / float(prescription.aperture.value)
+    f_number = abs(efl) / epd
+
+    # Entrance pupil: object-space ray (y1, u1) at surface 1 that crosses the stop's axis point.
+    # y_stop = A y1 + B u1 = 0, and the ray meets the axis at z = -y1/u1 = B/A.
+    front = _chain(refr, trans, 0, stop, include_last_refraction=False)
+    entrance_pupil_z = front[0, 1] / _nonzero(front[0, 0])
+    stop_semi = abs(front[0, 0] * epd / 2.0)  # parallel marginal ray at height epd/2
+
+    # Exit pupil: from the stop's vertex plane (medium before the stop's refraction) to image space.
+    back = _chain(refr, trans, stop, last)
+    exit_pupil_z = z_vertex[last] - back[0, 1] / _nonzero(back[1, 1])
+    # Lateral magnification of the stop's image: det / D, and det = 1 in (y, n u) coordinates.
+    magnification = 1.0 / _nonzero(back[1, 1])
+    exit_pupil_diameter = abs(2.0 * stop_semi * magnification)
+
+    return Paraxial(
+        efl=float(efl), bfl=float(bfl), epd=float(epd), f_number=float(f_number),
+        entrance_pupil_z=float(entrance_pupil_z), exit_pupil_z=float(exit_pupil_z),
+        exit_pupil_diameter=_finite(exit_pupil_diameter), stop_semi_diameter=float(stop_semi),
+        image_z=float(z_vertex[last] + bfl), wavelength_um=wl,
+    )
+
+
+def marginal_heights(prescription: Prescription, wavelength_um: float | None = None) -> np.ndarray:
+    """Paraxial marginal-ray heights (S,) at every surface for the full entrance pupil."""
+    wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
+    refr, trans = surface_matrices(prescription, wl)
+    v = np.array([paraxial(prescription, wl).epd / 2.0, 0.0])
+    out = []
+    for i in range(len(prescription.surfaces)):
+        if i > 0:
+            v = trans[i - 1] @ v
+        out.append(v[0])
+        v = refr[i] @ v
+    return np.array(out)
+
+
+def _nonzero(x: float) -> float:
+    """Keep an afocal system's zero power from turning into a division error: tiny, same sign."""
+    return x if abs(x) > _TINY else math.copysign(_TINY, x if x != 0 else 1.0)
+
+
+def _finite(x: float) -> float:
+    return float(x) if math.isfinite(x) else 1e300
+
+
+__all__ = ["Paraxial", "paraxial", "marginal_heights", "indices", "surface_matrices"]

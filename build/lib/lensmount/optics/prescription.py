@@ -1,0 +1,152 @@
+"""The lens model: interfaces and the gaps between them (as optiland and rayoptics do).
+
+Lengths in mm, wavelengths in µm. Surface 1 is the first surface after the object;
+its vertex sits at z = 0 and light travels +z. The object is at infinity (the sun);
+the image plane sits `surfaces[-1].thickness` behind the last surface. Paraxial
+and derived quantities are computed (lensmount.optics.paraxial), never stored here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+AIR = "AIR"
+
+
+@dataclass(frozen=True)
+class Surface:
+    """One optical interface and the gap after it.
+
+    Args:
+        radius: vertex radius of curvature in mm; `math.inf` for a plane.
+        thickness: axial distance to the next surface (or to the image plane
+            after the last surface), mm.
+        material: medium after the surface: `AIR`, a catalogue glass
+            (`N-BK7`, `SCHOTT:N-BK7`) or a model glass `"1.5168/64.17"` (n_d/V_d).
+        conic: conic constant k (0 sphere, -1 paraboloid).
+        aspheric: even-asphere coefficients (A4, A6, A8, ...) of r^4, r^6, ... in mm units.
+        clear_semi_diameter: semi-diameter the light uses, mm; None = computed
+            from the real-ray trace (lensmount.optics.apertures).
+        mechanical_semi_diameter: outer semi-diameter of the glass, mm; None =
+            clear semi-diameter plus the mount's edge allowance.
+        is_stop: this surface is the aperture stop.
+        coating: coating name (`perfect-ar`, `uncoated`, `mgf2-quarter-wave`, `R=0.01`) or None.
+    """
+
+    radius: float = math.inf
+    thickness: float = 0.0
+    material: str = AIR
+    conic: float = 0.0
+    aspheric: tuple[float, ...] = ()
+    clear_semi_diameter: float | None = None
+    mechanical_semi_diameter: float | None = None
+    is_stop: bool = False
+    coating: str | None = None
+
+    @property
+    def curvature(self) -> float:
+        return 0.0 if math.isinf(self.radius) else 1.0 / self.radius
+
+    @property
+    def is_plane(self) -> bool:
+        return math.isinf(self.radius) and not any(self.aspheric)
+
+    @property
+    def is_air_after(self) -> bool:
+        return self.material.upper() == AIR
+
+
+@dataclass(frozen=True)
+class Aperture:
+    """System aperture: entrance pupil diameter (mm) or image-space f-number."""
+
+    kind: Literal["epd", "fno"]
+    value: float
+
+
+@dataclass(frozen=True)
+class Prescription:
+    """A sequential lens, object at infinity.
+
+    Args:
+        surfaces: surfaces 1..N in order from the object (object and image excluded).
+        wavelengths_um: wavelengths in µm.
+        wavelength_weights: relative weights, same length.
+        primary_wavelength: index into `wavelengths_um` of the design wavelength.
+        field_angles_deg: field angles in degrees (0 first), measured in the y-z plane.
+        aperture: entrance pupil diameter or f-number.
+        name: a human name for reports.
+    """
+
+    surfaces: tuple[Surface, ...]
+    aperture: Aperture
+    wavelengths_um: tuple[float, ...] = (0.5875618,)
+    wavelength_weights: tuple[float, ...] = (1.0,)
+    primary_wavelength: int = 0
+    field_angles_deg: tuple[float, ...] = (0.0,)
+    name: str = "lens"
+
+    @property
+    def primary_wavelength_um(self) -> float:
+        return self.wavelengths_um[self.primary_wavelength]
+
+    @property
+    def stop_index(self) -> int:
+        """0-based index of the stop surface in `surfaces`."""
+        for i, s in enumerate(self.surfaces):
+            if s.is_stop:
+                return i
+        raise ValueError("prescription has no stop surface")
+
+    @property
+    def vertex_z(self) -> tuple[float, ...]:
+        """z of every surface vertex, surface 1 at z = 0."""
+        z, out = 0.0, []
+        for s in self.surfaces:
+            out.append(z)
+            z += s.thickness
+        return tuple(out)
+
+    @property
+    def image_z(self) -> float:
+        return sum(s.thickness for s in self.surfaces)
+
+    @property
+    def max_field_deg(self) -> float:
+        return max(abs(f) for f in self.field_angles_deg)
+
+    def material_before(self, i: int) -> str:
+        """Medium in front of surface i (0-based): air before surface 1."""
+        return AIR if i == 0 else self.surfaces[i - 1].material
+
+    def lens_groups(self) -> list[tuple[int, ...]]:
+        """Runs of surfaces bounding glass: (first, ..., last) 0-based indices.
+
+        A singlet is (i, i+1); a cemented doublet (i, i+1, i+2). The surfaces inside
+        a run with glass on both sides are cemented interfaces.
+        """
+        groups, current = [], []
+        for i, s in enumerate(self.surfaces):
+            if not s.is_air_after:
+                if not current:
+                    current = [i]
+                current.append(i + 1)
+            elif current:
+                groups.append(tuple(current))
+                current = []
+        if current:
+            groups.append(tuple(current))
+        return groups
+
+    def with_surfaces(self, surfaces) -> "Prescription":
+        return replace(self, surfaces=tuple(surfaces))
+
+    def with_clear_semi_diameters(self, semi_diameters) -> "Prescription":
+        return self.with_surfaces(
+            replace(s, clear_semi_diameter=float(h)) for s, h in zip(self.surfaces, semi_diameters)
+        )
+
+
+__all__ = ["AIR", "Surface", "Aperture", "Prescription"]

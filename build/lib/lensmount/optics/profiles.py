@@ -1,0 +1,129 @@
+"""Surface profiles: sag, normal and ray intersection, vectorised, float64.
+
+One `Profile` per optical surface in its local frame: vertex at the origin, axis +z.
+The same code serves the sequential real-ray trace and the non-sequential tracer's
+analytic refinement, so both agree to rounding.
+
+    sag(r) = c r^2 / (1 + sqrt(1 - (1+k) c^2 r^2)) + sum_i A_(2i+4) r^(2i+4)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+_NEWTON_STEPS = 30
+_NEWTON_TOL = 1e-12  # mm
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Rotationally symmetric surface: curvature c (1/mm), conic k, even-asphere terms.
+
+    Array arguments are shaped (n,) for radii and (n, 3) for points/directions.
+    """
+
+    curvature: float = 0.0
+    conic: float = 0.0
+    aspheric: tuple[float, ...] = ()
+
+    @classmethod
+    def of(cls, surface) -> "Profile":
+        return cls(surface.curvature, surface.conic, tuple(surface.aspheric))
+
+    @property
+    def is_plane(self) -> bool:
+        return self.curvature == 0.0 and not any(self.aspheric)
+
+    def max_radius(self) -> float:
+        """Largest r where the conic part is defined (inf for planes and hyperboloids)."""
+        q = (1.0 + self.conic) * self.curvature**2
+        return np.inf if q <= 0 else 1.0 / np.sqrt(q)
+
+    def sag(self, r2: np.ndarray) -> np.ndarray:
+        """Sag z at squared radius r2; NaN-free: beyond the conic's edge it returns inf."""
+        r2 = np.asarray(r2, dtype=np.float64)
+        c, k = self.curvature, self.conic
+        arg = 1.0 - (1.0 + k) * c * c * r2
+        ok = arg >= 0.0
+        z = np.where(ok, c * r2 / (1.0 + np.sqrt(np.where(ok, arg, 1.0))), np.inf)
+        rn = r2 * r2
+        for a in self.aspheric:
+            z = z + a * rn
+            rn = rn * r2
+        return z
+
+    def slope(self, r2: np.ndarray) -> np.ndarray:
+        """dz/dr divided by r (finite at r = 0)."""
+        r2 = np.asarray(r2, dtype=np.float64)
+        c, k = self.curvature, self.conic
+        arg = np.maximum(1.0 - (1.0 + k) * c * c * r2, 1e-300)
+        g = c / np.sqrt(arg)
+        rn = r2
+        for i, a in enumerate(self.aspheric):
+            g = g + (2 * i + 4) * a * rn
+            rn = rn * r2
+        return g
+
+    def normal(self, p: np.ndarray) -> np.ndarray:
+        """Unit normal at points p (n, 3) on the surface, oriented toward +z."""
+        p = np.asarray(p, dtype=np.float64)
+        g = self.slope(p[:, 0] ** 2 + p[:, 1] ** 2)
+        n = np.stack([-g * p[:, 0], -g * p[:, 1], np.ones(len(p))], axis=1)
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Ray parameter t of the hit with the sheet through the vertex.
+
+        o, d: (n, 3) origins and unit directions in the local frame. Returns t (n,),
+        `inf` where the ray misses (no real root, or the root lies on the far sheet
+        of a sphere/conic). Negative t means the surface is behind the origin.
+        """
+        o = np.asarray(o, dtype=np.float64)
+        d = np.asarray(d, dtype=np.float64)
+        t = self._intersect_conic(o, d)
+        if any(self.aspheric):
+            t = self._newton(o, d, np.where(np.isfinite(t), t, -o[:, 2] / _safe(d[:, 2])))
+        return t
+
+    def _intersect_conic(self, o, d):
+        c, k1 = self.curvature, 1.0 + self.conic
+        a = c * (d[:, 0] ** 2 + d[:, 1] ** 2 + k1 * d[:, 2] ** 2)
+        b = c * (o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1] + k1 * o[:, 2] * d[:, 2]) - d[:, 2]
+        cc = c * (o[:, 0] ** 2 + o[:, 1] ** 2 + k1 * o[:, 2] ** 2) - 2.0 * o[:, 2]
+        disc = b * b - a * cc
+        ok = disc >= 0.0
+        root = np.sqrt(np.where(ok, disc, 0.0))
+        # -C / (B + sign(B) sqrt(disc)) is the vertex-sheet root and stays exact as c -> 0.
+        den = b + np.where(b >= 0.0, root, -root)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(ok & (den != 0.0), -cc / np.where(den != 0.0, den, 1.0), np.inf)
+        z = o[:, 2] + t * d[:, 2]
+        on_vertex_sheet = k1 * c * z <= 1.0 + 1e-12
+        return np.where(ok & on_vertex_sheet & np.isfinite(t), t, np.inf)
+
+    def _newton(self, o, d, t):
+        t = t.copy()
+        live = np.isfinite(t)
+        for _ in range(_NEWTON_STEPS):
+            if not live.any():
+                break
+            p = o[live] + t[live, None] * d[live]
+            r2 = p[:, 0] ** 2 + p[:, 1] ** 2
+            f = p[:, 2] - self.sag(r2)
+            g = self.slope(r2)
+            df = d[live, 2] - g * (p[:, 0] * d[live, 0] + p[:, 1] * d[live, 1])
+            step = np.where(np.isfinite(f) & (np.abs(df) > 1e-15), f / _safe(df), np.inf)
+            idx = np.flatnonzero(live)
+            t[idx] = t[idx] - step
+            done = np.abs(step) < _NEWTON_TOL
+            bad = ~np.isfinite(t[idx])
+            t[idx[bad]] = np.inf
+            live[idx[done | bad]] = False
+        t[live] = np.inf  # did not converge: treat as a miss rather than return a wrong point
+        return t
+
+
+def _safe(x):
+    return np.where(np.abs(x) > 1e-300, x, 1e-300)

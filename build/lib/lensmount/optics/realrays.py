@@ -1,0 +1,310 @@
+"""Sequential real-ray trace through a prescription, vectorised over ray batches (float64).
+
+Every surface runs the same short pipeline (as optiland does):
+localise -> intersect (`Profile.intersect`) -> clip at the clear semi-diameter ->
+refract (vector Snell) -> record. A ray that misses a surface, falls outside its
+clear aperture, suffers total internal reflection or cannot reach the image
+plane is *vignetted*: it is marked, keeps its last valid point and direction
+(so no NaN ever appears) and is carried along without further effect.
+
+Ray aiming (`aim`): the object is at infinity, so a field is a direction. Rays are
+launched on the plane z = 0 (surface 1's vertex plane; intersections with negative
+ray parameter are fine in a sequential trace) and their launch points are solved
+by Newton's method so that each ray crosses the *stop* at the requested
+normalised pupil coordinate times the stop semi-diameter (real-ray aiming, as
+Zemax's "ray aiming: real"). The stop semi-diameter is the paraxial marginal-ray
+height at the stop (Zemax's rule), so real on-axis marginal rays enter at EPD/2
+only up to the spherical aberration of the lenses in front of the stop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.optics.paraxial import indices, paraxial
+from lensmount.optics.prescription import Prescription
+from lensmount.optics.profiles import Profile
+
+CLIP_REL_TOL = 1e-9  # a ray exactly on an automatic clear aperture passes
+_AIM_STEPS = 12
+_AIM_TOL = 1e-10  # mm at the stop
+_FD_STEP = 1e-4  # mm, finite-difference step for the aiming Jacobian
+
+
+@dataclass
+class RealRays:
+    """The result of a sequential trace of N rays through S surfaces.
+
+    points : (S+1, N, 3) float64, mm, assembly frame; [i] the hit on surface i
+        (0-based), [S] the hit on the image plane.
+    directions : (S+1, N, 3) float64 unit vectors; [i] after refraction at surface i,
+        [S] equals [S-1].
+    vignetted : (N,) bool.
+    vignetted_at : (N,) int, 0-based surface where the ray stopped, S for the image
+        plane, -1 if it arrived.
+    origins, start_directions : (N, 3) the rays as launched.
+    wavelength_um : float.
+    """
+
+    points: np.ndarray
+    directions: np.ndarray
+    vignetted: np.ndarray
+    vignetted_at: np.ndarray
+    origins: np.ndarray
+    start_directions: np.ndarray
+    wavelength_um: float
+
+    @property
+    def intensity(self) -> np.ndarray:
+        """(N,) 1 for rays that arrive, 0 for vignetted ones."""
+        return np.where(self.vignetted, 0.0, 1.0)
+
+    @property
+    def image_points(self) -> np.ndarray:
+        """(N, 3) hits on the image plane (frozen last point for vignetted rays)."""
+        return self.points[-1]
+
+    def heights(self) -> np.ndarray:
+        """(S+1, N) radial distance from the axis of every recorded point."""
+        return np.hypot(self.points[..., 0], self.points[..., 1])
+
+
+def trace(prescription: Prescription, origins, directions, wavelength_um: float | None = None, *,
+          clip: bool = True, n_surfaces: int | None = None, image_z: float | None = None) -> RealRays:
+    """Trace rays sequentially through the surfaces and onto the image plane.
+
+    Args:
+        prescription: the lens.
+        origins: (N, 3) ray start points, mm, assembly frame (in front of surface 1's
+            vertex plane, or on it).
+        directions: (N, 3) directions (normalised here), in the object-space medium (air).
+        wavelength_um: defaults to the primary wavelength.
+        clip: vignette rays outside each surface's clear semi-diameter (surfaces
+            without one never clip). Defaults to True.
+        n_surfaces: trace only the first n surfaces (then `points` has n+1 entries, the
+            last being the image-plane hit of the partly traced rays). Defaults to all.
+        image_z: image plane z, defaults to `prescription.image_z`.
+    """
+    wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
+    o = np.array(origins, dtype=np.float64, ndmin=2).reshape(-1, 3)
+    d = np.array(directions, dtype=np.float64, ndmin=2).reshape(-1, 3)
+    # Lanes with a non-finite or zero-length start are dead from the outset (no NaN downstream).
+    bad = ~(np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1)) | ~(np.abs(d).sum(axis=1) > 0.0)
+    o = np.where(bad[:, None], 0.0, o)
+    d = np.where(bad[:, None], [0.0, 0.0, 1.0], d)
+    d = d / _safe_norm(d)[:, None]
+    n_rays = len(o)
+    surfaces = prescription.surfaces[: len(prescription.surfaces) if n_surfaces is None else n_surfaces]
+    nsurf = len(surfaces)
+    n = indices(prescription, wl)
+    z_vertex = prescription.vertex_z
+
+    points = np.empty((nsurf + 1, n_rays, 3))
+    dirs = np.empty((nsurf + 1, n_rays, 3))
+    alive = ~bad
+    stopped_at = np.where(bad, 0, -1).astype(np.int64)
+    p, cur = o.copy(), d.copy()
+
+    for i, surface in enumerate(surfaces):
+        profile = Profile.of(surface)
+        # localise
+        local = p - np.array([0.0, 0.0, z_vertex[i]])
+        # intersect
+        t = profile.intersect(local, cur)
+        hit_ok = np.isfinite(t)
+        t = np.where(hit_ok, t, 0.0)
+        q = local + t[:, None] * cur
+        # clip
+        ok = alive & hit_ok
+        if clip and surface.clear_semi_diameter is not None:
+            limit = surface.clear_semi_diameter * (1.0 + CLIP_REL_TOL) + CLIP_REL_TOL
+            ok &= q[:, 0] ** 2 + q[:, 1] ** 2 <= limit * limit
+        # refract
+        new_dir, tir = refract(cur, profile.normal(q), n[i], n[i + 1])
+        ok &= ~tir
+        # record (vignetted lanes keep their last valid point and direction)
+        newly = alive & ~ok
+        stopped_at[newly] = i
+        alive = ok
+        q_global = q + np.array([0.0, 0.0, z_vertex[i]])
+        p = np.where(alive[:, None], q_global, p)
+        cur = np.where(alive[:, None], new_dir, cur)
+        points[i], dirs[i] = p, cur
+
+    # image plane
+    z_img = prescription.image_z if image_z is None else float(image_z)
+    forward = cur[:, 2] > 1e-12
+    t = np.where(forward, (z_img - p[:, 2]) / np.where(forward, cur[:, 2], 1.0), 0.0)
+    ok = alive & forward
+    stopped_at[alive & ~ok] = nsurf
+    alive = ok
+    points[nsurf] = np.where(alive[:, None], p + t[:, None] * cur, p)
+    dirs[nsurf] = cur
+    return RealRays(points, dirs, ~alive, stopped_at, o, d, wl)
+
+
+def refract(d: np.ndarray, normal: np.ndarray, n1, n2) -> tuple[np.ndarray, np.ndarray]:
+    """Vector Snell's law.
+
+    d, normal: (N, 3) unit vectors (the normal's sign does not matter). n1, n2:
+    indices before and after (scalars or (N,)). Returns (new directions (N, 3),
+    tir (N,) bool); where tir is True the returned direction is the incoming one.
+    """
+    cos_i = np.einsum("ij,ij->i", d, normal)
+    nn = np.where(cos_i[:, None] < 0.0, -normal, normal)  # orient the normal along the ray
+    cos_i = np.abs(cos_i)
+    mu = np.asarray(n1, dtype=np.float64) / np.asarray(n2, dtype=np.float64)
+    k = 1.0 - mu * mu * (1.0 - cos_i * cos_i)
+    tir = k < 0.0
+    out = mu * d + (np.sqrt(np.maximum(k, 0.0)) - mu * cos_i)[:, None] * nn
+    out = out / _safe_norm(out)[:, None]
+    return np.where(tir[:, None], d, out), tir
+
+
+# ----------------------------------------------------------------------------- aiming
+
+
+def field_direction(field_deg) -> np.ndarray:
+    """(F, 3) unit directions of collimated beams tilted by field angles (deg) in the y-z plane."""
+    a = np.radians(np.atleast_1d(np.asarray(field_deg, dtype=np.float64)))
+    return np.stack([np.zeros_like(a), np.sin(a), np.cos(a)], axis=1)
+
+
+def stop_semi_diameter(prescription: Prescription, wavelength_um: float | None = None) -> float:
+    """Stop semi-diameter: the paraxial marginal-ray height at the stop for the entrance
+    pupil diameter (Zemax's rule with ray aiming on: the aperture sets the stop size
+    paraxially; real rays are then aimed to fill it)."""
+    return paraxial(prescription, wavelength_um).stop_semi_diameter
+
+
+def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | None = None,
+        stop_radius: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Launch rays so that they cross the stop at pupil_xy · stop semi-diameter.
+
+    Args:
+        field_deg: (F,) field angles, degrees, in the y-z plane.
+        pupil_xy: (P, 2) normalised pupil coordinates (unit disc = full aperture).
+        stop_radius: stop semi-diameter, mm; defaults to `stop_semi_diameter` at the
+            primary wavelength (the diaphragm is one size for every colour).
+    Returns:
+        origins (F·P, 3) on the plane z = 0 and directions (F·P, 3), field-major
+        (ray f·P + p is field f, pupil point p). Rays the solver cannot place (they
+        miss a surface before the stop) keep their paraxially aimed start.
+    """
+    wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
+    fields = np.atleast_1d(np.asarray(field_deg, dtype=np.float64))
+    pupil = np.asarray(pupil_xy, dtype=np.float64).reshape(-1, 2)
+    n_f, n_p = len(fields), len(pupil)
+    d = np.repeat(field_direction(fields), n_p, axis=0)
+    par = paraxial(prescription, wl)
+    stop = prescription.stop_index
+    r_stop = stop_semi_diameter(prescription) if stop_radius is None else float(stop_radius)
+    target = np.tile(pupil * r_stop, (n_f, 1))
+
+    # Paraxial start: through the entrance pupil point, back-projected onto z = 0.
+    ep = np.tile(pupil * par.epd / 2.0, (n_f, 1))
+    ep3 = np.column_stack([ep, np.full(len(ep), par.entrance_pupil_z)])
+    start = ep3 - d * (par.entrance_pupil_z / d[:, 2])[:, None]
+    xy = start[:, :2].copy()
+
+    def at_stop(xy_):
+        o = np.column_stack([xy_, np.zeros(len(xy_))])
+        r = trace(prescription, o, d, wl, clip=False, n_surfaces=stop + 1)
+        ok = (r.vignetted_at == -1) | (r.vignetted_at > stop)
+        return r.points[stop, :, :2], ok
+
+    solved = np.zeros(len(xy), bool)
+    for _ in range(_AIM_STEPS):
+        s0, ok0 = at_stop(xy)
+        res = s0 - target
+        solved = ok0 & (np.hypot(res[:, 0], res[:, 1]) < _AIM_TOL)
+        todo = ok0 & ~solved
+        if not todo.any():
+            break
+        sx, okx = at_stop(xy + [_FD_STEP, 0.0])
+        sy, oky = at_stop(xy + [0.0, _FD_STEP])
+        j11, j21 = (sx[:, 0] - s0[:, 0]) / _FD_STEP, (sx[:, 1] - s0[:, 1]) / _FD_STEP
+        j12, j22 = (sy[:, 0] - s0[:, 0]) / _FD_STEP, (sy[:, 1] - s0[:, 1]) / _FD_STEP
+        det = j11 * j22 - j12 * j21
+        good = todo & okx & oky & (np.abs(det) > 1e-12)
+        safe_det = np.where(good, det, 1.0)
+        step_x = (j22 * res[:, 0] - j12 * res[:, 1]) / safe_det
+        step_y = (-j21 * res[:, 0] + j11 * res[:, 1]) / safe_det
+        xy = np.where(good[:, None], xy - np.column_stack([step_x, step_y]), xy)
+    origins = np.column_stack([xy, np.zeros(len(xy))])
+    return origins, d
+
+
+def pupil_rings(rings: int, spokes: int, center: bool = True, half: bool = False) -> np.ndarray:
+    """(P, 2) normalised pupil points: rings at radii k/rings (k = 1..rings), `spokes` azimuths each.
+
+    half=True keeps the x >= 0 half (spokes/2 + 1 azimuths from -90 to +90 deg, both ends
+    included): enough for meridional fields, whose beams are mirror-symmetric in x.
+    """
+    if half:
+        phi = np.linspace(-0.5 * np.pi, 0.5 * np.pi, spokes // 2 + 1)
+    else:
+        phi = 2.0 * np.pi * np.arange(spokes) / spokes
+    pts = [np.zeros((1, 2))] if center else []
+    for k in range(1, rings + 1):
+        rho = k / rings
+        pts.append(np.column_stack([rho * np.cos(phi), rho * np.sin(phi)]))
+    return np.concatenate(pts)
+
+
+def chief_ray(prescription: Prescription, field_deg, wavelength_um: float | None = None, **kw) -> RealRays:
+    """Rays through the stop centre, one per field angle (N = F)."""
+    o, d = aim(prescription, field_deg, [[0.0, 0.0]], wavelength_um)
+    return trace(prescription, o, d, wavelength_um, **kw)
+
+
+def marginal_ray(prescription: Prescription, field_deg=0.0, wavelength_um: float | None = None,
+                 pupil_y: float = 1.0, **kw) -> RealRays:
+    """Rays through the stop edge at normalised pupil y = `pupil_y` (upper rim), one per field."""
+    o, d = aim(prescription, field_deg, [[0.0, pupil_y]], wavelength_um)
+    return trace(prescription, o, d, wavelength_um, **kw)
+
+
+@dataclass
+class Spot:
+    """Spot diagram data for one field and wavelength.
+
+    x, y : (M,) image-plane coordinates (mm) of the rays that arrived.
+    chief_x, chief_y : chief ray at the image plane.
+    rms_radius : RMS distance from the centroid, mm.
+    transmitted : fraction of the launched rays that arrived.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    chief_x: float
+    chief_y: float
+    rms_radius: float
+    transmitted: float
+
+
+def spot(prescription: Prescription, field_deg: float, wavelength_um: float | None = None,
+         rings: int = 8, spokes: int = 24, image_z: float | None = None) -> Spot:
+    """Spot diagram on the image plane for one field (polar pupil grid, rings x spokes)."""
+    pupil = pupil_rings(rings, spokes)
+    o, d = aim(prescription, [field_deg], pupil, wavelength_um)
+    r = trace(prescription, o, d, wavelength_um, image_z=image_z)
+    arrived = ~r.vignetted
+    x, y = r.image_points[arrived, 0], r.image_points[arrived, 1]
+    chief = r.image_points[0]  # pupil point 0 is the centre
+    if len(x):
+        rms = float(np.sqrt(np.mean((x - x.mean()) ** 2 + (y - y.mean()) ** 2)))
+    else:
+        rms = 0.0
+    return Spot(x, y, float(chief[0]), float(chief[1]), rms, float(arrived.mean()))
+
+
+def _safe_norm(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1)
+    return np.where(n > 0.0, n, 1.0)
+
+
+__all__ = ["RealRays", "trace", "refract", "aim", "field_direction", "stop_semi_diameter",
+           "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]

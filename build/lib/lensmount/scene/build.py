@@ -1,0 +1,176 @@
+"""`build_scene(prescription, mesh, spec) -> Scene`: join the lens, the tagged mesh and the scene file.
+
+- analytic optical surfaces from the prescription (media per wavelength from the glass
+  catalogue, coatings: scene per-surface > lens file > scene default);
+- scene objects (disk, rectangle, STL/STEP mesh) appended to the mesh with their finish;
+- one BSDF per face tag from the finish library and the assignment rules;
+- the source's emission disc covering the front opening, outside the assembly;
+- the detector at the image plane unless the scene file moves it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.errors import InputError
+from lensmount.optics.glass import refractive_index
+from lensmount.optics.prescription import Prescription
+from lensmount.optics.profiles import Profile
+from lensmount.scene import primitives
+from lensmount.scene.finishes import finish_library, finish_of
+from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene
+from lensmount.trace.detector import Detector
+from lensmount.trace.sources import CollimatedSource, SunSource, emission_disc, source_direction
+
+
+def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
+    """Analytic surfaces of a prescription; coating_of(i, lens_coating) -> Coating (default: lens file
+    coating, else perfect-ar)."""
+    from lensmount.trace.interfaces import parse_coating
+
+    coating_of = coating_of or (lambda i, c: parse_coating(c))
+    zs = prescription.vertex_z
+    out = []
+    for i, s in enumerate(prescription.surfaces):
+        n_before = refractive_index(prescription.material_before(i), wavelengths_um)
+        n_after = refractive_index(s.material, wavelengths_um)
+        clear = s.clear_semi_diameter if s.clear_semi_diameter is not None else math.inf
+        mech = s.mechanical_semi_diameter if s.mechanical_semi_diameter is not None else clear
+        out.append(OpticalSurface(i, float(zs[i]), Profile.of(s), float(clear), np.atleast_1d(n_before),
+                                  np.atleast_1d(n_after), coating_of(i, s.coating), float(mech)))
+    return out
+
+
+def front_opening(prescription: Prescription, mesh: TaggedMesh) -> FrontOpening:
+    """The front aperture light enters by: the hood mouth if there is a hood, else the front of the
+    assembly; its radius covers the front ring of the mesh and surface 1's semi-diameters."""
+    v = mesh.vertices
+    s1 = prescription.surfaces[0]
+    radii = [x for x in (s1.mechanical_semi_diameter, s1.clear_semi_diameter) if x is not None]
+    if prescription.aperture.kind == "epd":
+        radii.append(0.5 * prescription.aperture.value)
+    if len(v) == 0:
+        return FrontOpening(0.0, max(radii + [1.0]))
+    tags = mesh.tags
+    hood = [k for k, t in enumerate(mesh.tag_table) if t.kind == "hood"]
+    if hood:
+        vid = np.unique(mesh.triangles[np.isin(tags, hood)])
+        v = v[vid]
+    z0 = float(v[:, 2].min())
+    extent = float(np.ptp(mesh.vertices, axis=0).max()) or 1.0
+    near = v[v[:, 2] <= z0 + 0.01 * extent]
+    radii.append(float(np.hypot(near[:, 0], near[:, 1]).max()))
+    return FrontOpening(min(z0, 0.0), max(radii))
+
+
+def object_meshes(spec) -> list[TaggedMesh]:
+    """The scene file's extra objects as tagged meshes (kind and role 'object', part = name)."""
+    out = []
+    for k, o in enumerate(spec.objects):
+        if o.type == "disk":
+            m = primitives.disk(o.centre_mm, o.radius_mm, tilt_x_deg=o.tilt_deg[0], tilt_y_deg=o.tilt_deg[1],
+                                part=o.name, finish=o.finish)
+        elif o.type == "rectangle":
+            m = primitives.rectangle(o.centre_mm, o.width_mm, o.height_mm, tilt_x_deg=o.tilt_deg[0],
+                                     tilt_y_deg=o.tilt_deg[1], part=o.name, finish=o.finish)
+        else:
+            m = _load_mesh_file(Path(spec.base_dir) / o.path, o, field=f"objects.{k}.path")
+        out.append(m)
+    return out
+
+
+def _load_mesh_file(path: Path, o, field: str) -> TaggedMesh:
+    if not path.exists():
+        raise InputError(f"mesh file '{path}' not found", field=field, valid="an existing .stl/.step file")
+    if path.suffix.lower() == ".stl":
+        import trimesh
+
+        m = trimesh.load(path, force="mesh")
+        v, t = np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+    else:
+        import cadquery as cq
+
+        shape = cq.importers.importStep(str(path)).val()
+        verts, tris = shape.tessellate(0.01, 0.1)
+        v = np.array([[p.x, p.y, p.z] for p in verts], float)
+        t = np.array(tris, np.int64)
+    if len(t) == 0:
+        raise InputError(f"mesh file '{path}' holds no triangles", field=field, valid="a closed solid")
+    rot = primitives.rotation(*o.tilt_deg)
+    v = v @ rot.T + np.asarray(o.centre_mm, float)
+    return TaggedMesh(v, t, np.zeros(len(t), np.int32), [FaceTag(o.name, "object", "object", o.finish)])
+
+
+def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_factory=None) -> Scene:
+    """A Scene from the lens, the mount's tagged mesh and a validated SceneSpec.
+
+    bsdf_factory(model, **params) -> BSDF defaults to `lensmount.trace.bsdf.make_bsdf`.
+    """
+    if bsdf_factory is None:
+        from lensmount.trace.bsdf import make_bsdf as bsdf_factory
+    wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
+    mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
+    library = finish_library(spec.finishes)
+    # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
+    assign = {f"part:{o.name}": o.finish for o in spec.objects} | dict(spec.assign)
+    finishes, bsdfs, cache = [], [], {}
+    for tag in mesh.tag_table:
+        name = finish_of(tag, assign, library)
+        finishes.append(name or "")
+        if name is None:
+            bsdfs.append(None)
+            continue
+        if name not in cache:
+            params = dict(library[name])
+            cache[name] = bsdf_factory(params.pop("model"), **params)
+        bsdfs.append(cache[name])
+
+    optical = optical_surfaces(prescription, wavelengths,
+                               lambda i, c: spec.coating_of_surface(i, c))
+    opening = front_opening(prescription, mesh)
+    d = spec.detector
+    z_det = float(prescription.image_z if d.z_mm is None else d.z_mm)
+    if d.spectral_weight is not None and len(d.spectral_weight) != len(wavelengths):
+        raise InputError(f"spectral_weight has {len(d.spectral_weight)} values for {len(wavelengths)} wavelengths",
+                         field="detector.spectral_weight", valid=f"{len(wavelengths)} non-negative numbers")
+    detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight)
+    source = make_source(spec.source, opening, mesh, detector, tuple(prescription.wavelength_weights))
+    try:
+        from lensmount.optics.paraxial import paraxial
+
+        epd = paraxial(prescription).epd
+    except Exception:  # an afocal or odd lens must not stop a scene: fall back to the file's EPD
+        epd = prescription.aperture.value if prescription.aperture.kind == "epd" else 0.0
+    e = spec.effects
+    return Scene(mesh=mesh, optical=optical, bsdf_of_tag=bsdfs, source=source, detector=detector,
+                 wavelengths_um=wavelengths, effects=Effects(e.scatter, e.ghosts, e.direct),
+                 front_opening=opening, entrance_pupil_area_mm2=math.pi * (0.5 * epd) ** 2,
+                 finish_of_tag=finishes, description=spec.description)
+
+
+def clear_distance(mesh: TaggedMesh, detector: Detector, opening: FrontOpening) -> float:
+    """A distance from the opening's centre beyond which nothing of the assembly lies."""
+    pts = [np.array([[0.0, 0.0, detector.z]]), np.array([[0.0, 0.0, opening.z]])]
+    if len(mesh.vertices):
+        pts.append(mesh.vertices)
+    p = np.vstack(pts)
+    return float(np.linalg.norm(p - np.array([0.0, 0.0, opening.z]), axis=1).max()
+                 + 0.5 * math.hypot(detector.width, detector.height) + 1.0)
+
+
+def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector, weights=(1.0,)):
+    """SunSource or CollimatedSource from a SourceSpec, with its emission disc placed outside the assembly."""
+    d = source_direction(src.off_axis_deg, src.azimuth_deg)
+    half = 0.5 * math.radians(src.angular_diameter_deg) if src.type == "sun" else 0.0
+    disc = emission_disc(d, opening.z, opening.radius, clear_distance(mesh, detector, opening), half)
+    if src.type == "sun":
+        return SunSource(src.off_axis_deg, src.azimuth_deg, disc, src.angular_diameter_deg, src.limb_darkening,
+                         tuple(weights))
+    return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
+
+
+__all__ = ["build_scene", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]

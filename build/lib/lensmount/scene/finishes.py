@@ -1,0 +1,68 @@
+"""Finishes: named surface treatments mapped to BSDF models, and the rules that assign them to faces.
+
+Built-in library (a scene's `[finishes]` table adds to or overrides it):
+
+| finish           | model                                   |
+|------------------|-----------------------------------------|
+| `absorber`       | absorber (ends every path)              |
+| `black-anodised` | lambertian, reflectance 0.05            |
+| `ground-glass`   | lambertian, reflectance 0.10            |
+| `mirror`         | mirror, reflectance 1                   |
+
+Assignment (`[assign]`), most specific wins:
+`part:NAME` > `role:ROLE` > `kind:KIND` > `finish:NAME` (the finish the mount file gave the face)
+> `"*"`. A face matched by no rule keeps the finish its mount file gave it if that finish is
+defined, else it absorbs. Optical faces are never assigned a finish: the tracer refracts there.
+"""
+
+from __future__ import annotations
+
+from lensmount.cad.mesh import FaceTag
+from lensmount.errors import InputError
+
+BUILTIN_FINISHES: dict[str, dict] = {
+    "absorber": {"model": "absorber"},
+    "black-anodised": {"model": "lambertian", "reflectance": 0.05},
+    "ground-glass": {"model": "lambertian", "reflectance": 0.10},
+    "mirror": {"model": "mirror", "reflectance": 1.0},
+}
+
+_PRIORITY = ("part", "role", "kind", "finish")
+RULE_FORMS = '"*", "part:NAME", "role:ROLE", "kind:KIND" or "finish:NAME"'
+
+
+def finish_library(overrides: dict[str, dict] | None = None) -> dict[str, dict]:
+    """The built-in finishes updated with the scene's definitions (name -> {model, params...})."""
+    lib = {k: dict(v) for k, v in BUILTIN_FINISHES.items()}
+    for name, spec in (overrides or {}).items():
+        lib[name] = dict(spec)
+    return lib
+
+
+def check_rules(assign: dict[str, str], library: dict[str, dict], *, file: str | None = None) -> None:
+    """InputError for a malformed rule key or a rule naming an undefined finish."""
+    for key, finish in assign.items():
+        if key != "*":
+            prefix, _, value = key.partition(":")
+            if prefix not in _PRIORITY or not value:
+                raise InputError(f"assignment rule '{key}' is not understood", file=file, field=f"assign.{key}",
+                                 valid=RULE_FORMS)
+        if finish not in library:
+            raise InputError(f"assignment '{key}' names undefined finish '{finish}'", file=file,
+                             field=f"assign.{key}", valid=", ".join(sorted(library)))
+
+
+def finish_of(tag: FaceTag, assign: dict[str, str], library: dict[str, dict]) -> str | None:
+    """The finish name for a face tag; None for optical faces."""
+    if tag.role == "optical":
+        return None
+    for prefix in _PRIORITY:
+        key = f"{prefix}:{getattr(tag, prefix)}"
+        if key in assign:
+            return assign[key]
+    if "*" in assign:
+        return assign["*"]
+    return tag.finish if tag.finish in library else "absorber"
+
+
+__all__ = ["BUILTIN_FINISHES", "finish_library", "check_rules", "finish_of"]

@@ -1,0 +1,139 @@
+"""Lens element: a solid of revolution bounded by its two optical faces, the ground
+cylindrical edge and (optionally) protective chamfers of size b: from the surface at
+radius R - b straight to the edge cylinder, b inside the surface's own edge height
+(45° on a flat face).
+
+Spherical faces are exact arcs (so the STEP face is a true sphere), planes are
+lines, conics and aspheres a spline through sag samples. Cemented interfaces get
+no chamfer: both elements of a cemented group end on the same radius there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.optics.profiles import Profile
+from lensmount.templates.profile import RevolvedPart, Segment
+
+_SPLINE_POINTS = 41
+
+
+@dataclass(frozen=True)
+class OpticalFace:
+    """One optical surface placed on the axis.
+
+    Args:
+        index: 0-based prescription surface index.
+        z_vertex: vertex z, mm (assembly frame).
+        curvature: 1/mm. conic: k. aspheric: (A4, A6, ...).
+    """
+
+    index: int
+    z_vertex: float
+    curvature: float = 0.0
+    conic: float = 0.0
+    aspheric: tuple[float, ...] = ()
+
+    @property
+    def profile(self) -> Profile:
+        return Profile(self.curvature, self.conic, tuple(self.aspheric))
+
+    def z(self, r) -> np.ndarray:
+        """z of the surface at radius r (array), mm."""
+        r = np.asarray(r, dtype=np.float64)
+        return self.z_vertex + self.profile.sag(r * r)
+
+    def segment(self, r_end: float, reverse: bool = False) -> Segment:
+        """The face's profile from the axis to r_end (or back when reverse)."""
+        prof = self.profile
+        if prof.is_plane or (abs(self.curvature) < 1e-9 and not any(self.aspheric)):
+            pts = [(0.0, self.z_vertex), (r_end, float(self.z(r_end)))]
+            kind = "line"
+        elif self.conic == 0.0 and not any(self.aspheric):
+            rm = 0.5 * r_end
+            pts = [(0.0, self.z_vertex), (rm, float(self.z(rm))), (r_end, float(self.z(r_end)))]
+            kind = "arc"
+        else:
+            rs = np.linspace(0.0, r_end, _SPLINE_POINTS)
+            pts = list(zip(rs.tolist(), self.z(rs).tolist()))
+            kind = "spline"
+        if reverse:
+            pts = pts[::-1]
+        return Segment(kind, tuple((float(a), float(b)) for a, b in pts), "optical", self.index)
+
+
+@dataclass
+class LensElement(RevolvedPart):
+    """A lens element.
+
+    Args:
+        front: object-side optical face.
+        back: image-side optical face.
+        outer_radius: mechanical semi-diameter (radius of the ground edge), mm.
+        front_chamfer: chamfer size at the front edge, mm (0 = sharp; 0 at cemented faces).
+        back_chamfer: chamfer size at the back edge, mm.
+    """
+
+    front: OpticalFace
+    back: OpticalFace
+    outer_radius: float
+    front_chamfer: float = 0.0
+    back_chamfer: float = 0.0
+
+    def edge_z(self) -> tuple[float, float]:
+        """z range of the ground cylindrical edge (front end, back end)."""
+        R = self.outer_radius
+        return (float(self.front.z(R)) + self.front_chamfer, float(self.back.z(R)) - self.back_chamfer)
+
+    def front_z(self, r) -> np.ndarray:
+        """z of the glass's object-side boundary at radius r <= outer_radius (chamfer included)."""
+        r = np.asarray(r, dtype=np.float64)
+        R, b = self.outer_radius, self.front_chamfer
+        z = self.front.z(np.minimum(r, R - b))
+        if b > 0:  # the chamfer: straight from (R - b, surface) to (R, edge start)
+            z0, z1 = float(self.front.z(R - b)), self.edge_z()[0]
+            z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
+        return z
+
+    def back_z(self, r) -> np.ndarray:
+        """z of the glass's image-side boundary at radius r <= outer_radius."""
+        r = np.asarray(r, dtype=np.float64)
+        R, b = self.outer_radius, self.back_chamfer
+        z = self.back.z(np.minimum(r, R - b))
+        if b > 0:
+            z0, z1 = float(self.back.z(R - b)), self.edge_z()[1]
+            z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
+        return z
+
+    def center_thickness(self) -> float:
+        return self.back.z_vertex - self.front.z_vertex
+
+    def edge_thickness(self) -> float:
+        a, b = self.edge_z()
+        return b - a
+
+    def segments(self) -> list[Segment]:
+        R, bf, bb = self.outer_radius, self.front_chamfer, self.back_chamfer
+        segs = [self.front.segment(R - bf)]
+        zf_edge, zb_edge = self.edge_z()
+        p = segs[-1].end
+        if bf > 0:
+            segs.append(Segment("line", (p, (R, zf_edge)), "bevel"))
+        segs.append(Segment("line", ((R, zf_edge), (R, zb_edge)), "lens-edge"))
+        back = self.back.segment(R - bb, reverse=True)
+        if bb > 0:
+            segs.append(Segment("line", ((R, zb_edge), back.start), "bevel"))
+        segs.append(back)
+        segs.append(Segment("line", (back.end, segs[0].start), "mount"))  # on the axis: no face
+        return segs
+
+    def params(self) -> dict:
+        d = super().params()
+        d["front"]["aspheric"] = list(d["front"]["aspheric"])
+        d["back"]["aspheric"] = list(d["back"]["aspheric"])
+        return d
+
+
+__all__ = ["OpticalFace", "LensElement"]

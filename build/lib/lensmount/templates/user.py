@@ -1,0 +1,72 @@
+"""User templates: a design's own Python file builds any part kind.
+
+mount.toml names the file per part kind:
+
+    [templates]
+    hood = "templates/my_hood.py"
+
+The file defines `make_part(name: str, params: dict)` and returns a build123d
+`Part`/`Solid`/`Compound`, or a CadQuery `Workplane` or `Shape`. `params` are the
+built-in template's parameters for that part (placement included: the result must
+sit in the assembly frame, optical axis +z). Both libraries sit on OCP, so the
+result is converted through its OCP shape. Faces that lie on the built-in
+template's profile keep its roles; other faces are tagged `mount`.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import hashlib
+from pathlib import Path
+
+from lensmount.errors import InputError
+
+
+def load_template(path: Path, kind: str):
+    """The `make_part` function of a user template file."""
+    if not path.is_file():
+        raise InputError(f"user template for '{kind}' not found", file=str(path), field=f"templates.{kind}",
+                         valid="a path, relative to the design folder, of a .py file defining make_part(name, params)")
+    digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
+    spec = importlib.util.spec_from_file_location(f"lensmount_user_{kind}_{digest}", path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # the user's code: report it as their input
+        raise InputError(f"user template failed to load: {exc!r}", file=str(path), field=f"templates.{kind}",
+                         valid="a Python file that imports and defines make_part(name, params)") from None
+    fn = getattr(module, "make_part", None)
+    if not callable(fn):
+        raise InputError("user template defines no make_part(name, params)", file=str(path),
+                         field=f"templates.{kind}", valid="a function make_part(name: str, params: dict)")
+    return fn
+
+
+def to_solid(obj, path: Path, kind: str):
+    """Convert a build123d or CadQuery result to one build123d Solid (via OCP)."""
+    from build123d import Compound, Shape
+
+    wrapped = None
+    if hasattr(obj, "vals") and hasattr(obj, "val"):  # cadquery Workplane
+        vals = [v for v in obj.vals() if hasattr(v, "wrapped")]
+        if len(vals) == 1:
+            wrapped = vals[0].wrapped
+        elif vals:
+            import cadquery as cq
+            wrapped = cq.Compound.makeCompound(vals).wrapped
+    elif hasattr(obj, "wrapped"):  # build123d Shape or cadquery Shape
+        wrapped = obj.wrapped
+    if wrapped is None:
+        raise InputError(f"user template returned {type(obj).__name__}", file=str(path), field=f"templates.{kind}",
+                         valid="a build123d Part/Solid or a CadQuery Workplane/Shape")
+    shape = Shape.cast(wrapped)
+    solids = shape.solids()
+    if len(solids) == 1:
+        return solids[0]
+    if not solids:
+        raise InputError("user template returned no solid", file=str(path), field=f"templates.{kind}",
+                         valid="a closed solid")
+    return Compound(solids)
+
+
+__all__ = ["load_template", "to_solid"]

@@ -1,0 +1,39 @@
+"""Absorber: a perfectly black surface. It reflects nothing; paths end on it.
+
+| parameter | meaning |
+|-----------|---------|
+| (none)    |         |
+
+Scene file: ``"*" = "absorber"`` or ``{ model = "absorber" }``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lensmount.trace.bsdf.base import BSDF, as_rows, reject_unknown
+
+
+class Absorber(BSDF):
+    """f = 0 everywhere; `sample` returns dead lanes (weight 0, pdf 0, wo = n)."""
+
+    name = "absorber"
+    tis = 0.0
+    is_black = True
+
+    def __init__(self, **params):
+        reject_unknown("absorber", params, ())
+
+    def eval(self, wi, wo, n):
+        return np.zeros(len(as_rows(wi)))
+
+    def sample(self, wi, n, u):
+        n = as_rows(n, "n")
+        zeros = np.zeros(len(n))
+        return n.copy(), zeros, zeros.copy()
+
+    def pdf(self, wi, wo, n):
+        return np.zeros(len(as_rows(wi)))
+
+    def albedo(self, wi, n):
+        return np.zeros(len(as_rows(wi)))

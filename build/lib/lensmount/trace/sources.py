@@ -1,0 +1,160 @@
+"""Light sources: the sun (a 0.53° disc) and a collimated point source, both at infinity.
+
+Direction convention: `off_axis_deg` θ from the +z axis, `azimuth_deg` φ the direction of the
+tilt in the object space: φ = 90° puts the source toward +y, so its light travels toward −y:
+
+    d = (−sin θ cos φ, −sin θ sin φ, cos θ).
+
+θ > 90° puts the source behind the lens (d_z < 0).
+
+Flux bookkeeping (what makes results independent of the emission disc): photons start
+uniformly on a disc of area A_S normal to the central direction, placed outside the
+assembly and covering its front opening; a source of irradiance E_sun sends E_sun · A_S
+through that disc, so each of N photons carries Φ = A_S / N in units of E_sun · mm². Any
+larger disc gives the same detector irradiance (more photons simply miss).
+
+Sun directions: uniform over the solar disc of angular radius α (cos-weighting across
+0.27° is 1 − 1e-5, ignored) or, with `limb_darkening`, weighted by the standard linear law
+I(μ)/I(1) = 1 − u (1 − μ), u = 0.6, μ = cos of the angle from the disc centre seen on the sun.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.trace.rays import RayBatch
+
+LIMB_DARKENING_U = 0.6
+SUN_ANGULAR_DIAMETER_DEG = 0.53
+
+
+def source_direction(off_axis_deg: float, azimuth_deg: float) -> np.ndarray:
+    """Unit propagation direction (3,) of light from a source at (θ, φ)."""
+    th, ph = math.radians(off_axis_deg), math.radians(azimuth_deg)
+    return np.array([-math.sin(th) * math.cos(ph), -math.sin(th) * math.sin(ph), math.cos(th)])
+
+
+def orthonormal_basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (3,) spanning the plane normal to unit d (3,)."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(d, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(d, e1)
+
+
+@dataclass(frozen=True)
+class EmissionDisc:
+    """Where photons start: centre (3,) mm, radius mm, normal = the source's central direction."""
+
+    centre: tuple[float, float, float]
+    radius: float
+
+    @property
+    def area(self) -> float:
+        return math.pi * self.radius**2
+
+
+def emission_disc(direction: np.ndarray, opening_z: float, opening_radius: float, clear_distance: float,
+                  half_angle_rad: float = 0.0, margin: float = 0.02) -> EmissionDisc:
+    """A disc normal to `direction` that covers the circular front opening (radius at z on the axis).
+
+    It is set back by `clear_distance` (beyond the assembly's bounding sphere) against the light,
+    and widened for the source's angular radius and a small margin, so every ray that can reach
+    the opening from the source starts on it.
+    """
+    centre = np.array([0.0, 0.0, opening_z]) - clear_distance * np.asarray(direction)
+    radius = opening_radius * (1.0 + margin) + clear_distance * math.tan(half_angle_rad) + 1e-3
+    return EmissionDisc(tuple(float(x) for x in centre), float(radius))
+
+
+@dataclass(frozen=True)
+class SunSource:
+    """The sun: angular disc of `angular_diameter_deg`, at (off_axis_deg, azimuth_deg).
+
+    wavelength_weights (W,) are the source's relative spectral weights over the scene's
+    wavelengths (photon wavelengths are drawn in proportion).
+    """
+
+    off_axis_deg: float
+    azimuth_deg: float
+    disc: EmissionDisc
+    angular_diameter_deg: float = SUN_ANGULAR_DIAMETER_DEG
+    limb_darkening: bool = False
+    wavelength_weights: tuple[float, ...] = (1.0,)
+
+    @property
+    def direction(self) -> np.ndarray:
+        return source_direction(self.off_axis_deg, self.azimuth_deg)
+
+    @property
+    def half_angle_rad(self) -> float:
+        return 0.5 * math.radians(self.angular_diameter_deg)
+
+    def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]:
+        """n photons: (RayBatch with weight = flux per photon, flux per photon [E_sun·mm²])."""
+        return _emit(self, n, rng, self.half_angle_rad, self.limb_darkening)
+
+
+@dataclass(frozen=True)
+class CollimatedSource:
+    """A point source at infinity (a perfectly collimated beam), for PST sweeps."""
+
+    off_axis_deg: float
+    azimuth_deg: float
+    disc: EmissionDisc
+    wavelength_weights: tuple[float, ...] = (1.0,)
+
+    @property
+    def direction(self) -> np.ndarray:
+        return source_direction(self.off_axis_deg, self.azimuth_deg)
+
+    @property
+    def half_angle_rad(self) -> float:
+        return 0.0
+
+    def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]:
+        return _emit(self, n, rng, 0.0, False)
+
+
+def _emit(source, n: int, rng: np.random.Generator, alpha: float, limb: bool) -> tuple[RayBatch, float]:
+    d0 = source.direction
+    e1, e2 = orthonormal_basis(d0)
+    u = rng.random((n, 4))
+    # Position: uniform on the disc.
+    r = source.disc.radius * np.sqrt(u[:, 0])
+    phi = 2.0 * np.pi * u[:, 1]
+    origin = (np.asarray(source.disc.centre)[None, :] + (r * np.cos(phi))[:, None] * e1
+              + (r * np.sin(phi))[:, None] * e2)
+    # Direction: inside the source's cone of half-angle alpha.
+    if alpha > 0.0:
+        rho = _disc_radius_fraction(u[:, 2], limb) * alpha  # small angle: uniform disc in angle space
+        psi = 2.0 * np.pi * u[:, 3]
+        direction = (np.cos(rho)[:, None] * d0 + (np.sin(rho) * np.cos(psi))[:, None] * e1
+                     + (np.sin(rho) * np.sin(psi))[:, None] * e2)
+    else:
+        direction = np.broadcast_to(d0, (n, 3)).copy()
+    w = np.asarray(source.wavelength_weights, np.float64)
+    wavelength = rng.choice(len(w), size=n, p=w / w.sum()) if len(w) > 1 else np.zeros(n, np.int32)
+    flux = source.disc.area / max(n, 1)
+    return RayBatch.make(origin, direction, weight=np.full(n, flux), wavelength=wavelength), flux
+
+
+_GRID = np.linspace(0.0, 1.0, 2049)
+
+
+def _disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
+    """Radius on the unit solar disc for uniforms u: uniform area, or limb-darkened brightness."""
+    if not limb:
+        return np.sqrt(u)
+    # pdf(s) ∝ s (1 − U (1 − sqrt(1 − s²))) on s in [0, 1]; inverse CDF by table (vectorised).
+    s = _GRID
+    dens = s * (1.0 - LIMB_DARKENING_U * (1.0 - np.sqrt(np.maximum(0.0, 1.0 - s * s))))
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(s))])
+    return np.interp(u, cdf / cdf[-1], s)
+
+
+__all__ = ["SunSource", "CollimatedSource", "EmissionDisc", "emission_disc", "source_direction",
+           "orthonormal_basis"]

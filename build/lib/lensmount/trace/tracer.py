@@ -1,0 +1,491 @@
+"""The non-sequential tracer: one Embree scene, batched queries, float64 refinement.
+
+    tracer = Tracer(scene)
+    hits = tracer.intersect(rays)            # nearest surface (mesh or detector), refined
+    events = tracer.next_event(rays, rng)    # through the glass to a mechanical face, the detector, or out
+
+How a query stays exact although Embree is float32 (the tracer's three rules):
+
+1. *Centred float32.* Embree gets vertices minus the assembly's bounding-box centre; rays are
+   launched in that frame. Embree only answers "which triangle, roughly where".
+2. *Float64 truth.* Every Embree hit is re-intersected in float64 with its own primitive: the
+   analytic `Profile` of the surface for optical faces (the point and normal are the
+   analytic ones: the mesh plus refinement is as exact as a sequential trace), the
+   triangle's float64 plane for mechanical faces. The ray's line (origin, direction) is never
+   moved sideways; every event point lies on it.
+3. *Fake hits are skipped, not offset away.* A hit whose float64 distance is not beyond
+   `t_min` (the surface the ray just left, seen again through float32 rounding), or an optical
+   facet whose analytic surface has no crossing near it (a refined point is not on the
+   tessellated facet, so the facets of the surface just crossed lie a chord's sag ahead), is
+   skipped and the query relaunched just beyond it. A ray leaving a surface is probed from
+   `eps` off that surface along its normal, on the side it leaves by (a scale-aware offset,
+   2e-6 of the assembly size: 1 µm for a 500 mm lens), so it never re-hits it, and the probe
+   stays inside the neighbouring faces at a concave corner (no leak). eps is far less than
+   a 50 µm knife edge, so thin parts are hit from both sides. The probe only finds the
+   triangle: the hit is computed on the ray's own float64 line.
+
+Media come from the prescription (n_before / n_after of surface i by the sign of d·n), never
+from which solid was hit, so cemented interfaces (two coincident facet sets, one surface index)
+need no per-ray medium state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.trace.interfaces import reflect, reflectance, refract
+from lensmount.trace.rays import RayBatch
+
+GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind (same codes as integrators.tracing)
+
+_MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
+_MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
+_EPS_REL = 2e-6          # launch offset, relative to the assembly size
+_TMIN_REL = 1e-10        # float64 self-hit threshold, relative to the assembly size
+_EMBREE_MISS = 1e30
+
+
+@dataclass
+class Hits:
+    """Nearest hit of N rays.
+
+    t : (N,) float64 distance along the ray (inf = nothing)
+    point : (N, 3) float64 hit points (the origin where nothing was hit)
+    normal : (N, 3) unit normal: analytic and oriented +z for optical faces, the triangle's
+        outward normal for mechanical faces, (0, 0, -1) on the detector
+    prim : (N,) int64 triangle index, -1 for detector or miss
+    tag : (N,) int32 mesh tag, -1 for detector or miss
+    surface : (N,) int32 index into `scene.optical` for optical faces, else -1
+    detector : (N,) bool, the detector rectangle is the nearest
+    detector_front : (N,) bool, it was hit from the lens side (direction z > 0)
+    lost : (N,) bool, the query could not be resolved (numerical guard; treat as absorbed)
+    """
+
+    t: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    prim: np.ndarray
+    tag: np.ndarray
+    surface: np.ndarray
+    detector: np.ndarray
+    detector_front: np.ndarray
+    lost: np.ndarray
+
+
+@dataclass
+class Events:
+    """Where each of N rays ended one `next_event` call.
+
+    kind : (N,) int8: GONE (escaped, absorbed by the detector's back, lost or dead on input),
+        FACE (a mechanical face: scatter or absorb there), DETECTOR (front of the detector)
+    position : (N, 3) event point (the last point on the ray for GONE)
+    direction : (N, 3) unit travel direction arriving at the event (wi = -direction)
+    normal : (N, 3) unit face normal on the side the ray came from (FACE; (0,0,-1) on DETECTOR)
+    tag : (N,) int32 mesh tag for FACE, else -1
+    prim : (N,) int64 triangle for FACE, else -1
+    pixel : (N,) int64 flat detector pixel for DETECTOR, else -1
+    weight : (N,) throughput after the optics (Fresnel transmittance when ghosts are off)
+    wavelength, id : (N,) carried through
+    lost : (N,) bool, ended by a numerical guard (its weight is the lost flux)
+    reflections : (N,) int32 Fresnel (ghost) reflections during this call (TIR not counted)
+    """
+
+    kind: np.ndarray
+    position: np.ndarray
+    direction: np.ndarray
+    normal: np.ndarray
+    tag: np.ndarray
+    prim: np.ndarray
+    pixel: np.ndarray
+    weight: np.ndarray
+    wavelength: np.ndarray
+    id: np.ndarray
+    lost: np.ndarray
+    reflections: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+
+class Tracer:
+    """Intersection and optical interfaces for one Scene (see the module docstring).
+
+    Attributes: centre (3,) Embree frame origin; extent (mm, largest bounding-box side);
+    eps (launch offset, mm); t_min (float64 self-hit threshold, mm).
+    """
+
+    def __init__(self, scene):
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+
+        self.scene = scene
+        self.embree_rays = 0  # rays sent to Embree so far (probes and relaunches), for benchmarks
+        mesh = scene.mesh
+        if not np.all(np.isfinite(mesh.vertices)):
+            raise ValueError("the scene's mesh has non-finite vertices (a tessellation bug upstream)")
+        # The frame and the offsets follow the mesh alone (the detector is analytic): float32
+        # keeps ~7 digits of the largest centred coordinate.
+        pts = mesh.vertices if len(mesh.vertices) else np.zeros((1, 3))
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        self.centre = 0.5 * (lo + hi)
+        self.extent = float(max(np.max(hi - lo), 1e-6))
+        self.eps = _EPS_REL * self.extent
+        self.t_min = _TMIN_REL * self.extent
+
+        tri = mesh.triangles
+        self._has_mesh = len(tri) > 0
+        if self._has_mesh:
+            self._embree = rtcs.EmbreeScene()
+            v32 = (mesh.vertices - self.centre).astype(np.float32)
+            TriangleMesh(self._embree, v32, tri.astype(np.int32))
+        # Float64 triangle planes (for mechanical refinement).
+        v0 = mesh.vertices[tri[:, 0]] if self._has_mesh else np.zeros((0, 3))
+        nrm = (np.cross(mesh.vertices[tri[:, 1]] - v0, mesh.vertices[tri[:, 2]] - v0)
+               if self._has_mesh else np.zeros((0, 3)))
+        length = np.linalg.norm(nrm, axis=1, keepdims=True)
+        self._tri_v0 = v0
+        self._tri_n = np.where(length > 0, nrm / np.where(length > 0, length, 1.0), 0.0)
+        self._tri_tag = mesh.tags.astype(np.int32)
+
+        # Optical surfaces: tag -> position in scene.optical.
+        pos_of_surface = {s.index: k for k, s in enumerate(scene.optical)}
+        tag_surface = np.array([pos_of_surface.get(t.surface, -1) if t.role == "optical" else -1
+                                for t in mesh.tag_table] or [-1], np.int32)
+        self._tri_surface = tag_surface[self._tri_tag] if self._has_mesh else np.zeros(0, np.int32)
+        self._profiles = [s.profile for s in scene.optical]
+        self._z_vertex = np.array([s.z_vertex for s in scene.optical] or [0.0])
+        w = len(scene.wavelengths_um)
+        self._n_before = np.array([np.broadcast_to(s.n_before, (w,)) for s in scene.optical] or [np.ones(w)])
+        self._n_after = np.array([np.broadcast_to(s.n_after, (w,)) for s in scene.optical] or [np.ones(w)])
+        self._wavelengths = np.asarray(scene.wavelengths_um, np.float64)
+        self._tolerance = self._facet_tolerance()
+
+    # ------------------------------------------------------------------ intersection
+
+    def _facet_tolerance(self) -> np.ndarray:
+        """Per optical surface: how far its facets may lie from the analytic surface (mm), padded."""
+        tol = np.full(max(len(self._profiles), 1), 0.0)
+        if self._has_mesh:
+            mesh = self.scene.mesh
+            c = mesh.vertices[mesh.triangles].mean(axis=1)
+            for k, prof in enumerate(self._profiles):
+                sel = self._tri_surface == k
+                if sel.any():
+                    r2 = c[sel, 0] ** 2 + c[sel, 1] ** 2
+                    dev = np.abs(c[sel, 2] - self._z_vertex[k] - prof.sag(r2))
+                    dev = dev[np.isfinite(dev)]
+                    tol[k] = float(dev.max()) if dev.size else 0.0
+        return 4.0 * tol + 100.0 * self.eps
+
+    def _embree_query(self, start: np.ndarray, d: np.ndarray):
+        self.embree_rays += len(start)
+        res = self._embree.run((start - self.centre).astype(np.float32), d.astype(np.float32),
+                               query="INTERSECT", output=1)
+        prim = res["primID"].astype(np.int64)
+        t = res["tfar"].astype(np.float64)
+        return np.where((prim >= 0) & (t < _EMBREE_MISS), prim, -1), t
+
+    def _optical_root(self, k: int, o: np.ndarray, d: np.ndarray, t_guess: np.ndarray) -> np.ndarray:
+        """Float64 crossing of rays (n,) with optical surface k nearest to the facet hit t_guess.
+
+        Both roots of the conic are candidates (a ray can cross a strongly curved surface twice,
+        e.g. after a reflection); only those on the vertex sheet, beyond t_min and consistent
+        with the facet hit are kept. Aspheres: Newton from the facet hit. inf = not a real hit.
+        """
+        prof = self._profiles[k]
+        ol = o - np.array([0.0, 0.0, self._z_vertex[k]])
+        c, k1 = prof.curvature, 1.0 + prof.conic
+        if any(prof.aspheric):
+            cands = [_newton_asphere(prof, ol, d, t_guess)]
+        else:
+            a = c * (d[:, 0] ** 2 + d[:, 1] ** 2 + k1 * d[:, 2] ** 2)
+            b = c * (ol[:, 0] * d[:, 0] + ol[:, 1] * d[:, 1] + k1 * ol[:, 2] * d[:, 2]) - d[:, 2]
+            cc = c * (ol[:, 0] ** 2 + ol[:, 1] ** 2 + k1 * ol[:, 2] ** 2) - 2.0 * ol[:, 2]
+            disc = b * b - a * cc
+            ok = disc >= 0.0
+            q = b + np.where(b >= 0.0, 1.0, -1.0) * np.sqrt(np.where(ok, disc, 0.0))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t1 = np.where(ok & (q != 0.0), -cc / np.where(q != 0.0, q, 1.0), np.inf)
+                t2 = np.where(ok & (a != 0.0), -q / np.where(a != 0.0, a, 1.0), np.inf)
+            cands = [t1, t2]
+        best = np.full(len(o), np.inf)
+        for t in cands:
+            t = np.where(np.isfinite(t), t, np.inf)
+            z = ol[:, 2] + np.where(np.isfinite(t), t, 0.0) * d[:, 2]
+            good = np.isfinite(t) & (t > self.t_min) & (k1 * c * z <= 1.0 + 1e-12)
+            closer = good & (np.abs(t - t_guess) < np.abs(best - t_guess))
+            best = np.where(closer, t, best)
+        return best
+
+    def _mechanical_hit(self, prim, o, d, probe, te, n_start, rows):
+        """Float64 hit of rays (m,) with mechanical triangles `prim`: (t, normal, point).
+
+        t is the crossing of the ray's line with the triangle's plane; inf marks a fake hit (the
+        face the ray leaves, or a coplanar neighbour of it). Exactly at a concave corner a ray
+        may leave one face straight into the next (t ≈ 0 on a face not parallel to the one it
+        starts on): that is a real hit at t = 0. The point is kept inside the triangle: where
+        float32 chose a triangle the float64 line only grazes past (seams, grazing incidence),
+        the point is the probe's hit moved into the triangle, so no event ever lands outside
+        a closed enclosure (the leak a seam would otherwise open).
+        """
+        tn = self._tri_n[prim]
+        v0 = self._tri_v0[prim]
+        den = np.einsum("ij,ij->i", tn, d)
+        num = np.einsum("ij,ij->i", tn, v0 - o)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(np.abs(den) > 1e-15, num / np.where(np.abs(den) > 1e-15, den, 1.0), np.inf)
+        t = np.where(np.isfinite(t), t, np.inf)
+        real = t > self.t_min
+        if n_start is not None:
+            ns = n_start[rows]
+            other_face = (np.abs(np.einsum("ij,ij->i", ns, tn)) < 1.0 - 1e-9) & (np.abs(ns).sum(axis=1) > 0)
+            corner = other_face & (t <= self.t_min) & (t > -1e3 * self.t_min)
+            t = np.where(corner, np.maximum(t, 0.0), t)
+            real |= corner
+        t = np.where(real, t, np.inf)
+        point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+        inside, clamped = self._into_triangle(prim, point, probe + (te - np.einsum("ij,ij->i", probe - o, d))[:, None] * d)
+        point = np.where(inside[:, None], point, clamped)
+        t = np.where(inside | ~np.isfinite(t), t, np.maximum(np.einsum("ij,ij->i", point - o, d), 0.0))
+        return t, tn, point
+
+    def _into_triangle(self, prim, point, fallback):
+        """(inside (m,) bool, fallback projected onto the triangle's plane and clipped into it (m, 3))."""
+        tri = self.scene.mesh.triangles[prim]
+        v = self.scene.mesh.vertices
+        a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+
+        def bary(x):
+            v0, v1, v2 = b - a, c - a, x - a
+            d00 = np.einsum("ij,ij->i", v0, v0)
+            d01 = np.einsum("ij,ij->i", v0, v1)
+            d11 = np.einsum("ij,ij->i", v1, v1)
+            d20 = np.einsum("ij,ij->i", v2, v0)
+            d21 = np.einsum("ij,ij->i", v2, v1)
+            den = d00 * d11 - d01 * d01
+            den = np.where(np.abs(den) > 1e-300, den, 1e-300)
+            l1 = (d11 * d20 - d01 * d21) / den
+            l2 = (d00 * d21 - d01 * d20) / den
+            return np.column_stack([1.0 - l1 - l2, l1, l2])
+
+        lam = bary(np.where(np.isfinite(point), point, a))
+        inside = np.all(lam >= -1e-9, axis=1)
+        lf = np.clip(bary(np.where(np.isfinite(fallback), fallback, a)), 0.0, None)
+        lf = lf / np.maximum(lf.sum(axis=1, keepdims=True), 1e-300)
+        return inside, lf[:, :1] * a + lf[:, 1:2] * b + lf[:, 2:] * c
+
+    def _nearest(self, o: np.ndarray, d: np.ndarray, n_start: np.ndarray | None = None) -> Hits:
+        """Nearest refined hit for rays (n, 3) in float64 (see the module docstring).
+
+        n_start (n, 3): normal of the surface each ray starts on (zeros for rays in free space).
+        The Embree probe then starts `eps` off that surface on the side the ray leaves by, so
+        float32 rounding can never put it behind the surface it leaves; the hit itself is
+        computed on the ray's own line in float64.
+        """
+        n = len(o)
+        t_hit = np.full(n, np.inf)
+        prim = np.full(n, -1, np.int64)
+        normal = np.zeros((n, 3))
+        lost = np.zeros(n, bool)
+        if self._has_mesh and n:
+            probe = o.copy()
+            if n_start is not None:
+                side = np.where(np.einsum("ij,ij->i", n_start, d) >= 0.0, 1.0, -1.0)
+                probe = probe + (self.eps * side)[:, None] * n_start
+            todo = np.arange(n)
+            mech_point = np.full((n, 3), np.nan)  # mechanical hit points (inside their triangle)
+            for round_ in range(_MAX_SKIPS):
+                if todo.size == 0:
+                    break
+                oo, dd = o[todo], d[todo]
+                p, te = self._embree_query(probe[todo], dd)
+                te = te + np.einsum("ij,ij->i", probe[todo] - oo, dd)  # distance along the ray's own line
+                hit = p >= 0
+                t64 = np.full(len(todo), np.inf)
+                nn = np.zeros((len(todo), 3))
+                surf = np.where(hit, self._tri_surface[np.where(hit, p, 0)], -1)
+                # Mechanical faces: the float64 plane of the triangle.
+                mech = hit & (surf < 0)
+                if mech.any():
+                    t64[mech], nn[mech], pt = self._mechanical_hit(p[mech], oo[mech], dd[mech], probe[todo[mech]],
+                                                                   te[mech], n_start, todo[mech])
+                    mech_point[todo[mech]] = pt
+                # Optical faces: the analytic surface, point and normal.
+                for k in np.unique(surf[hit & (surf >= 0)]):
+                    sel = hit & (surf == k)
+                    ta = self._optical_root(int(k), oo[sel], dd[sel], te[sel])
+                    pl = oo[sel] + np.where(np.isfinite(ta), ta, 0.0)[:, None] * dd[sel]
+                    pl[:, 2] -= self._z_vertex[k]
+                    nk = self._profiles[k].normal(pl)
+                    cos = np.abs(np.einsum("ij,ij->i", nk, dd[sel]))
+                    near = np.abs(ta - te[sel]) * np.maximum(cos, 1e-3) <= self._tolerance[k]
+                    t64[sel] = np.where(np.isfinite(ta) & near, ta, np.inf)
+                    nn[sel] = nk
+                done = ~hit | np.isfinite(t64)
+                idx = todo[done & hit]
+                t_hit[idx] = t64[done & hit]
+                prim[idx] = p[done & hit]
+                normal[idx] = nn[done & hit]
+                # Fake hit: probe again from just beyond that facet (the probe steps eps past the
+                # facet's plane; the ray's line is unchanged), further each time it repeats.
+                again = ~done
+                if again.any():
+                    ia = todo[again]
+                    tn = self._tri_n[p[again]]
+                    side = np.where(np.einsum("ij,ij->i", tn, dd[again]) >= 0.0, 1.0, -1.0)
+                    grow = self.eps * (2.0 ** max(0, round_ - 8))
+                    probe[ia] = o[ia] + te[again, None] * dd[again] + (grow * side)[:, None] * tn \
+                        + (probe[ia] - o[ia] - np.einsum("ij,ij->i", probe[ia] - o[ia], dd[again])[:, None] * dd[again])
+                todo = todo[again]
+            lost[todo] = True
+        # The detector rectangle, analytic, merged with the mesh hit: nearest wins.
+        t_det, front = self.scene.detector.intersect(o, d, self.t_min)
+        on_det = t_det < t_hit
+        t = np.where(on_det, t_det, t_hit)
+        lost &= ~on_det
+        prim = np.where(on_det, -1, prim)
+        tag = np.where(prim >= 0, self._tri_tag[np.maximum(prim, 0)] if self._has_mesh else -1, -1).astype(np.int32)
+        surface = np.where(prim >= 0, self._tri_surface[np.maximum(prim, 0)] if self._has_mesh else -1, -1)
+        normal = np.where(on_det[:, None], np.array([0.0, 0.0, -1.0]), normal)
+        point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+        if self._has_mesh and n:
+            snap = ~on_det & (prim >= 0) & (surface < 0) & np.all(np.isfinite(mech_point), axis=1)
+            point[snap] = mech_point[snap]
+        return Hits(t, point, normal, prim, tag, surface.astype(np.int32), on_det, on_det & front, lost)
+
+    def intersect(self, rays: RayBatch, origin_normal: np.ndarray | None = None) -> Hits:
+        """Nearest hit of every ray (dead rays included; callers mask with `rays.alive`).
+
+        origin_normal (N, 3), optional: normal of the surface each ray starts on (e.g. the
+        `Events.normal` of the event it was scattered at; zeros for rays in free space).
+        """
+        return self._nearest(rays.origin, rays.direction, origin_normal)
+
+    # ------------------------------------------------------------------ events
+
+    def next_event(self, rays: RayBatch, rng: np.random.Generator | None = None,
+                   origin_normal: np.ndarray | None = None) -> Events:
+        """Carry live rays through the optics until a mechanical face, the detector, or out.
+
+        At every optical hit: media from the prescription, Snell refraction with the
+        wavelength's index, total internal reflection, and the coating's reflectance R. With
+        `effects.ghosts` off the ray transmits and its weight is multiplied by T = 1 − R; with
+        ghosts on it reflects with probability R (weight unchanged) using `rng`.
+        The input batch is not modified.
+
+        origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
+        the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
+        Without it a ray leaving a face is still correct (its self-hit is rejected in float64),
+        but at a concave corner a ray leaving within ~1 µm of the edge could slip past the
+        neighbouring face.
+        """
+        n = len(rays)
+        o = rays.origin.copy()
+        d = rays.direction.copy()
+        w = np.where(rays.alive, rays.weight, 0.0)
+        wl = rays.wavelength.astype(np.int64)
+        kind = np.full(n, GONE, np.int8)
+        normal = np.zeros((n, 3))
+        tag = np.full(n, -1, np.int32)
+        prim = np.full(n, -1, np.int64)
+        reflections = np.zeros(n, np.int32)
+        ghosts = bool(self.scene.effects.ghosts)
+        start_n = np.zeros((n, 3)) if origin_normal is None else np.where(
+            np.isfinite(origin_normal), np.asarray(origin_normal, np.float64), 0.0)
+        valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
+        valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
+        lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
+        work = np.flatnonzero(rays.alive & (w > 0) & valid)
+        for _ in range(_MAX_OPTICAL):
+            if work.size == 0:
+                break
+            h = self._nearest(o[work], d[work], start_n[work])
+            o[work] = h.point
+            lost[work[h.lost]] = True
+            det = h.detector & h.detector_front
+            kind[work[det]] = DETECTOR
+            normal[work[det]] = (0.0, 0.0, -1.0)
+            face = (h.prim >= 0) & (h.surface < 0) & np.isfinite(h.t)
+            fi = work[face]
+            kind[fi] = FACE
+            tag[fi] = h.tag[face]
+            prim[fi] = h.prim[face]
+            side = np.where(np.einsum("ij,ij->i", h.normal[face], d[fi]) > 0.0, -1.0, 1.0)
+            normal[fi] = h.normal[face] * side[:, None]
+            glass = (h.prim >= 0) & (h.surface >= 0) & np.isfinite(h.t)
+            gi = work[glass]
+            if gi.size:
+                d[gi], w[gi], refl = self._interface(h.surface[glass], h.point[glass], d[gi], w[gi], wl[gi],
+                                                     ghosts, rng)
+                reflections[gi] += refl
+                start_n[gi] = h.normal[glass]
+                bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
+                lost[gi[bad]] = True
+                gi = gi[~bad]
+            work = gi
+        lost[work] = True  # still bouncing inside the glass after _MAX_OPTICAL interfaces
+        kind[lost] = GONE
+        pixel = np.full(n, -1, np.int64)
+        on = kind == DETECTOR
+        pixel[on] = self.scene.detector.pixel_of(o[on])
+        o = np.where(np.isfinite(o), o, 0.0)
+        d = np.where(np.all(np.isfinite(d), axis=1, keepdims=True), d, 0.0)
+        w = np.where(np.isfinite(w) & rays.alive, w, 0.0)
+        return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
+                      reflections)
+
+    def _interface(self, surf, p, d, w, wl, ghosts: bool, rng):
+        """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical)."""
+        local = p - np.column_stack([np.zeros(len(p)), np.zeros(len(p)), self._z_vertex[surf]])
+        nrm = np.empty_like(p)
+        r = np.empty(len(p))
+        for k in np.unique(surf):
+            sel = surf == k
+            nrm[sel] = self._profiles[k].normal(local[sel])
+        cos_dn = np.einsum("ij,ij->i", d, nrm)
+        forward = cos_dn >= 0.0
+        n1 = np.where(forward, self._n_before[surf, wl], self._n_after[surf, wl])
+        n2 = np.where(forward, self._n_after[surf, wl], self._n_before[surf, wl])
+        t_dir, tir, cos_i, _ = refract(d, nrm, n1 / n2)
+        for k in np.unique(surf):
+            sel = surf == k
+            r[sel] = reflectance(n1[sel], n2[sel], cos_i[sel], self.scene.optical[k].coating,
+                                 self._wavelengths[wl[sel]])
+        r = np.where(tir, 1.0, np.clip(r, 0.0, 1.0))
+        mirror = reflect(d, nrm)
+        if ghosts:
+            u = rng.random(len(p)) if rng is not None else np.ones(len(p))
+            bounce = tir | (u < r)
+            new_d = np.where(bounce[:, None], mirror, t_dir)
+            refl = (bounce & ~tir).astype(np.int32)
+        else:
+            new_d = t_dir  # the TIR lanes already hold the mirror direction
+            w = w * np.where(tir, 1.0, 1.0 - r)
+            refl = np.zeros(len(p), np.int32)
+        return new_d, w, refl
+
+
+def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
+    """Ray parameter of the crossing with an aspheric profile near t0 (n,), by Newton on
+    f(t) = z(t) − sag(r(t)); inf where it does not converge (treated as a fake hit)."""
+    t = np.where(np.isfinite(t0), t0, 0.0).astype(np.float64)
+    ok = np.isfinite(t0)
+    for _ in range(steps):
+        p = o + t[:, None] * d
+        r2 = p[:, 0] ** 2 + p[:, 1] ** 2
+        f = p[:, 2] - prof.sag(r2)
+        df = d[:, 2] - prof.slope(r2) * (p[:, 0] * d[:, 0] + p[:, 1] * d[:, 1])
+        good = np.isfinite(f) & np.isfinite(df) & (np.abs(df) > 1e-12)
+        step = np.where(good, f / np.where(good, df, 1.0), 0.0)
+        ok &= good
+        t = t - step
+        if np.all(np.abs(step[ok]) < tol):
+            break
+    p = o + t[:, None] * d
+    resid = np.abs(p[:, 2] - prof.sag(p[:, 0] ** 2 + p[:, 1] ** 2))
+    return np.where(ok & np.isfinite(resid) & (resid < 1e-9), t, np.inf)
+
+
+__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR"]
