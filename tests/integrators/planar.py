@@ -15,6 +15,8 @@ import numpy as np
 
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.integrators.tracing import DETECTOR, FACE, GONE, Step
+from lensmount.scene.scene import Effects
+from lensmount.trace.detector import Detector  # noqa: F401  (re-exported for the tests)
 from lensmount.trace.rays import RayBatch
 
 
@@ -26,15 +28,6 @@ class Face:
     half: tuple            # (hu, hv) half sizes, or (radius, 0) for a disc
     part: str
     disc: bool = False
-
-
-@dataclass
-class Detector:
-    width: float
-    height: float
-    nx: int
-    ny: int
-    z: float
 
 
 @dataclass
@@ -65,7 +58,7 @@ class PlanarScene:
     detector: Detector
     source: Collimated
     wavelengths_um: tuple = (0.5876,)
-    effects: dict = field(default_factory=lambda: {"scatter": True})
+    effects: Effects = field(default_factory=Effects)
     optical: list = field(default_factory=list)
 
     def __post_init__(self):

@@ -1,7 +1,6 @@
 """`lensmount simulate`: bad input is one paragraph and exit code 2; same seed, same summary (slow)."""
 
 import json
-import sys
 from pathlib import Path
 
 import pytest

@@ -33,7 +33,7 @@ import numpy as np
 from lensmount.integrators.estimate import PassEstimate
 from lensmount.integrators.photon_gather import Gatherer, PhotonHits
 from lensmount.integrators.radius import FaceBoundaries, radius_caps
-from lensmount.integrators.tracing import DETECTOR, FACE, detector_geometry, next_step
+from lensmount.integrators.tracing import DETECTOR, FACE, next_step
 from lensmount.integrators.view_map import build_view_map
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import stream
@@ -81,14 +81,7 @@ def part_names(scene) -> list[str]:
 
 
 def _effect(scene, name: str) -> bool:
-    eff = getattr(scene, "effects", None)
-    if eff is None:
-        return False
-    if isinstance(eff, dict):
-        return bool(eff.get(name, False))
-    if isinstance(eff, (set, list, tuple, frozenset)):
-        return name in eff
-    return bool(getattr(eff, name, False))
+    return bool(getattr(scene.effects, name))
 
 
 def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, radius_scale: float, *,
@@ -96,7 +89,7 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
                        glossy_threshold_deg: float = GLOSSY_THRESHOLD_DEG, max_bounces: int = MAX_BOUNCES,
                        rr_level: float = RR_LEVEL) -> PassEstimate:
     """One complete, independent pass. Returns the pass's image (ny, nx) of E/E_sun."""
-    det = detector_geometry(scene)
+    det = scene.detector
     half_widths, boundaries, part_of_tag, parts = _scene_tables(scene)
     names = part_names(scene)
     n_parts = len(names)
@@ -120,10 +113,11 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
     reflections = np.zeros(len(rays), np.int64)  # Fresnel reflections so far (ghost paths)
     last_broad = np.zeros(len(rays), bool)
     lost = 0.0
+    leaving = None  # normals of the faces the photons leave (None: fresh from the source)
     for _bounce in range(max_bounces):
         if len(rays) == 0:
             break
-        step = next_step(tracer, rays, rng)
+        step = next_step(tracer, rays, rng, origin_normal=leaving)
         if step.lost is not None and step.lost.any():
             lost += float(np.sum(rays.weight[step.lost & rays.alive]))
         # Photons at the detector: counted here only if their last vertex was narrow/specular.
@@ -165,6 +159,7 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
         reflections = reflections[f]
         rays = RayBatch(origin=step.position[f].copy(), direction=wo, weight=weight, wavelength=step.wavelength[f].copy(),
                         alive=np.ones(len(f), bool), id=step.id[f].copy())
+        leaving = step.normal[f]
     else:  # bounce limit: what is still travelling is the ledger's lost flux
         lost += float(rays.weight[rays.alive].sum()) if len(rays) else 0.0
 

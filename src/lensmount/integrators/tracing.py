@@ -44,11 +44,15 @@ class Step:
     reflections: np.ndarray | None = None
 
 
-def next_step(tracer, rays: RayBatch, rng: np.random.Generator) -> Step:
-    """Advance every live ray to its next mechanical face, the detector, or out."""
+def next_step(tracer, rays: RayBatch, rng: np.random.Generator, origin_normal: np.ndarray | None = None) -> Step:
+    """Advance every live ray to its next mechanical face, the detector, or out.
+
+    origin_normal (N, 3): normal of the face each ray leaves (rays scattered at a face);
+    the tracer needs it to keep rays leaving near a concave corner from slipping through.
+    """
     if hasattr(tracer, "next_step"):  # tracers that already speak `Step` (the test scenes' planar tracer)
         return tracer.next_step(rays, rng)
-    ev = tracer.next_event(rays, rng)
+    ev = tracer.next_event(rays, rng, origin_normal=origin_normal)
     return from_events(ev, rays)
 
 
@@ -57,39 +61,3 @@ def from_events(ev, rays: RayBatch) -> Step:
     return Step(kind=np.asarray(ev.kind, np.int8), position=ev.position, direction=ev.direction, normal=ev.normal,
                 tag=np.asarray(ev.tag, np.int32), weight=ev.weight, wavelength=np.asarray(ev.wavelength, np.int32),
                 id=ev.id, lost=getattr(ev, "lost", None), reflections=getattr(ev, "reflections", None))
-
-
-@dataclass(frozen=True)
-class DetectorGeometry:
-    """The detector plane: centred on the axis at z, (nx, ny) pixels, row 0 at −y."""
-
-    width: float
-    height: float
-    nx: int
-    ny: int
-    z: float
-
-    @property
-    def pixel_area(self) -> float:
-        return (self.width / self.nx) * (self.height / self.ny)
-
-    def pixel_centres_and_points(self, pixel: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """(N, 3) points uniform in the given flat pixels (row-major (ny, nx)), u (N, 2)."""
-        iy, ix = np.divmod(pixel, self.nx)
-        x = -0.5 * self.width + (ix + u[:, 0]) * (self.width / self.nx)
-        y = -0.5 * self.height + (iy + u[:, 1]) * (self.height / self.ny)
-        return np.column_stack([x, y, np.full(len(pixel), self.z)])
-
-    def pixel_of(self, points: np.ndarray) -> np.ndarray:
-        """(N,) flat pixel index, −1 outside the detector."""
-        fx = (points[:, 0] + 0.5 * self.width) / (self.width / self.nx)
-        fy = (points[:, 1] + 0.5 * self.height) / (self.height / self.ny)
-        ok = (fx >= 0) & (fx < self.nx) & (fy >= 0) & (fy < self.ny) & np.isfinite(fx) & np.isfinite(fy)
-        ix = np.where(ok, np.floor(np.where(ok, fx, 0)), 0).astype(np.int64)
-        iy = np.where(ok, np.floor(np.where(ok, fy, 0)), 0).astype(np.int64)
-        return np.where(ok, iy * self.nx + ix, -1)
-
-
-def detector_geometry(scene) -> DetectorGeometry:
-    d = scene.detector
-    return DetectorGeometry(float(d.width), float(d.height), int(d.nx), int(d.ny), float(d.z))

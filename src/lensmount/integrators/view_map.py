@@ -24,11 +24,12 @@ import numpy as np
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.photon_gather import HitPoints
 from lensmount.integrators.radius import initial_radii
-from lensmount.integrators.tracing import FACE, DetectorGeometry, next_step
+from lensmount.integrators.tracing import FACE, next_step
+from lensmount.trace.detector import Detector
 from lensmount.trace.rays import RayBatch
 
 
-def exit_disc(scene, det: DetectorGeometry, margin: float = 0.05) -> ExitDisc | None:
+def exit_disc(scene, det: Detector, margin: float = 0.05) -> ExitDisc | None:
     """Disc covering the optical surface nearest the detector, in the plane of its point nearest
     the detector, radius = clear semi-diameter · (1 + margin) + 0.5 mm. None without optics."""
     optical = list(getattr(scene, "optical", []) or [])
@@ -49,7 +50,7 @@ def exit_disc(scene, det: DetectorGeometry, margin: float = 0.05) -> ExitDisc | 
     return ExitDisc(z=float(z), radius=h * (1.0 + margin) + 0.5, facing=facing)
 
 
-def stop_rim_target(scene, det: DetectorGeometry, broad: np.ndarray, rel_width: float = 0.02) -> ExitDisc | None:
+def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 0.02) -> ExitDisc | None:
     """Annulus around the paraxial exit pupil's rim: the diaphragm edge seen from the detector.
 
     Only when a broad scatterer has role `diaphragm-edge` (case 1): rays aimed at the image
@@ -86,7 +87,7 @@ def stop_rim_target(scene, det: DetectorGeometry, broad: np.ndarray, rel_width: 
                     facing=-1.0 if det.z > z_xp else 1.0)
 
 
-def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generator, *, broad: np.ndarray,
+def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    mixture_c: float = 0.9) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
@@ -100,7 +101,7 @@ def build_view_map(scene, tracer, det: DetectorGeometry, rng: np.random.Generato
     pixel = np.repeat(np.arange(n_pix, dtype=np.int64), s)
     n = len(pixel)
     u = rng.random((n, 6))
-    x = det.pixel_centres_and_points(pixel, u[:, 0:2])
+    x = det.sample_points(pixel, u[:, 0:2])
     disc = exit_disc(scene, det)
     if disc is None:  # no optics: the hemisphere alone (still unbiased)
         targets, weights = [ExitDisc(z=det.z - 1.0, radius=1.0)], [0.0]
