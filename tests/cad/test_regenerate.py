@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from lensmount.cad.mesh import KINDS, ROLES, TaggedMesh
+from lensmount.cad.mesh import KINDS, ROLES
 
 REQUIRED = ["barrel", "diaphragm", "hood", "housing", "retainer-1", "spacer-1", "spacer-2", "spacer-3",
             "spacer-4", "vane-1", "vane-2", "vane-3"] + [f"lens-{i}" for i in range(1, 7)]

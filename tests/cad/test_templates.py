@@ -58,7 +58,7 @@ def test_spacer_tube_volume():
 
 
 def test_lens_tags_lie_on_the_analytic_surfaces():
-    rho1, rho2, a, t = 60.0, -90.0, 18.0, 9.0
+    rho1, rho2, a = 60.0, -90.0, 18.0
     front, back = OpticalFace(4, 100.0, 1 / rho1), OpticalFace(5, 109.0, 1 / rho2)
     el = LensElement(front, back, a, 0.4, 0.4)
     solid = el.build()

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from lensmount.cad.mesh import TaggedMesh
 from lensmount.design.scene import scene_from_dict
 from lensmount.optics.prescription import Aperture, Prescription, Surface
