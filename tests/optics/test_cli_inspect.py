@@ -68,7 +68,7 @@ def test_table_output_and_toml_conversion(examples, tmp_path):
 
 BAD_CASES = {
     "missing file": (None, "file not found"),
-    "malformed toml": (("thickness = 6.0", "thickness = = 6.0"), "malformed TOML"),
+    "malformed toml": (("thickness = 6.0", "thickness = = 6.0"), "not valid TOML"),
     "unknown glass": (('"N-BK7"', '"N-BK7-NOPE"'), "unknown glass"),
     "negative glass thickness": (("thickness = 6.0", "thickness = -6.0"), "glass thickness"),
     "radius smaller than semi-diameter": (("radius = 50.0", "radius = 50.0\nclear_semi_diameter = 55.0"),

@@ -7,13 +7,12 @@ angles in degrees (as everywhere in files).
 
 from __future__ import annotations
 
-import re
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from lensmount.validation import keys_at, parse_toml
 from lensmount.errors import InputError
 
 SeatStyle = Literal["spacer", "shoulder", "retainer"]
@@ -170,7 +169,7 @@ def parse_mount(data: dict, file: str | None = None) -> MountSpec:
         field = _field_path(err["loc"])
         if err["type"] == "extra_forbidden":
             raise InputError(f"unknown key '{field}'", file=file, field=field,
-                             valid="the keys documented in docs/mount-toml.md") from None
+                             valid=", ".join(keys_at(MountSpec, err["loc"])) or "see docs/mount-toml.md") from None
         valid = {
             "greater_than": f"a number > {err.get('ctx', {}).get('gt')}",
             "greater_than_equal": f"a number >= {err.get('ctx', {}).get('ge')}",
@@ -189,17 +188,7 @@ def load_mount(path: str | Path) -> MountSpec:
     except OSError as exc:
         raise InputError(f"cannot read the mount file ({exc.strerror})", file=str(path),
                          valid="a readable mount.toml") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        line = getattr(exc, "lineno", None)
-        if line is None:  # Python 3.11: only the message says where
-            m = re.search(r"at line (\d+)", str(exc))
-            line = int(m.group(1)) if m else None
-        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
-        raise InputError(f"not valid TOML: {message}", file=str(path), line=line,
-                         valid="TOML syntax (https://toml.io)") from None
-    return parse_mount(data, file=str(path))
+    return parse_mount(parse_toml(text, str(path)), file=str(path))
 
 
 __all__ = ["MountSpec", "load_mount", "parse_mount", "SeatStyle", "ContactStyle"]

@@ -51,13 +51,12 @@ target_rel_error = 0.05
 
 from __future__ import annotations
 
-import re
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from lensmount.validation import keys_at, parse_toml
 from lensmount.errors import InputError
 from lensmount.scene.finishes import check_rules, finish_library
 from lensmount.trace.interfaces import parse_coating
@@ -175,21 +174,17 @@ def load_scene(path: str | Path) -> SceneSpec:
     """Read and validate a scene file; every problem is an InputError naming the file and field."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
-    except tomllib.TOMLDecodeError as exc:
-        line = getattr(exc, "lineno", None)  # Python >= 3.14; older versions only say it in the text
-        m = re.search(r"at line (\d+)", str(exc))
-        line = line if line is not None else (int(m.group(1)) if m else None)
-        raise InputError(f"not valid TOML ({exc})", file=str(path), line=line) from None
+    data = parse_toml(text, str(path))
     return scene_from_dict(data, file=str(path), base_dir=str(path.parent))
 
 
 def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".") -> SceneSpec:
     """Validate a parsed scene table (also what tests and scripts use)."""
     if "base_dir" in data:
-        raise InputError("unknown key", file=file, field="base_dir", valid=_TOP_KEYS)
+        raise InputError("unknown key", file=file, field="base_dir", valid=_valid_keys(("base_dir",)))
     try:
         spec = SceneSpec(**data, base_dir=base_dir)
     except ValidationError as exc:
@@ -197,7 +192,7 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".")
         where = ".".join(str(x) for x in err["loc"])
         if err["type"] == "extra_forbidden":
             raise InputError("unknown key", file=file, field=where, valid=_valid_keys(err["loc"])) from None
-        raise InputError(err["msg"], file=file, field=where or None, valid=_valid_keys(err["loc"][:-1])) from None
+        raise InputError(err["msg"], file=file, field=where or None, valid=_valid_keys(err["loc"])) from None
     except InputError as exc:
         raise exc.located(file) if file else exc
     library = finish_library(spec.finishes)
@@ -223,18 +218,9 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".")
     return spec
 
 
-_TOP_KEYS = "description, source, detector, effects, coatings, finishes, assign, objects, run"
-
-
 def _valid_keys(loc) -> str:
-    models = {"source": SourceSpec, "detector": DetectorSpec, "effects": EffectsSpec, "run": RunSpec,
-              "objects": ObjectSpec}
-    if not loc:
-        return _TOP_KEYS
-    model = models.get(str(loc[0]))
-    if model is None:
-        return _TOP_KEYS if len(loc) <= 1 else ""
-    return ", ".join(k for k in model.model_fields)
+    """The keys allowed in the table where the error is."""
+    return ", ".join(keys_at(SceneSpec, tuple(loc)))
 
 
 __all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "RunSpec", "ObjectSpec", "load_scene",

@@ -39,13 +39,10 @@ from typing import Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lensmount.atomic import write_text
+from lensmount.validation import parse_toml
 from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 _INF_WORDS = ("inf", "+inf", "infinity", "+infinity", "-inf", "-infinity", "plane", "flat")
 
@@ -186,12 +183,7 @@ _VALID = {
 
 def parse_lens_toml(text: str, file: str = "lens.toml") -> tuple[Prescription, float]:
     """Parse lens.toml text. Returns (prescription, clear-aperture margin in mm)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"line (\d+)", str(exc))
-        raise InputError(f"malformed TOML: {exc}", file=file, line=int(m.group(1)) if m else None,
-                         valid="TOML syntax (https://toml.io), e.g. key = value, [[surface]] tables") from None
+    data = parse_toml(text, file, valid="TOML syntax (https://toml.io), e.g. key = value, [[surface]] tables")
     try:
         model = LensFile.model_validate(data)
     except ValidationError as exc:
