@@ -96,3 +96,25 @@ def test_a_hit_point_just_outside_a_strip_keeps_the_strip_area():
     ys = np.linspace(0.0, 0.05, 2001)
     expected = np.trapezoid(2 * np.sqrt(r * r - (ys + 0.006) ** 2), ys)
     assert area[0] == pytest.approx(expected, rel=1e-3)
+
+
+def _annulus(r_in, r_out, seg):
+    """Flat annulus in z = 0 with `seg` segments per rim (as the CAD tessellation makes them)."""
+    phi = np.linspace(0.0, 2 * np.pi, seg, endpoint=False)
+    inner = np.column_stack([r_in * np.cos(phi), r_in * np.sin(phi), np.zeros(seg)])
+    outer = np.column_stack([r_out * np.cos(phi), r_out * np.sin(phi), np.zeros(seg)])
+    i = np.arange(seg)
+    j = (i + 1) % seg
+    tri = np.concatenate([np.column_stack([i, seg + i, seg + j]), np.column_stack([i, seg + j, j])])
+    return np.vstack([inner, outer]), tri
+
+
+def test_a_disc_wholly_on_a_coarse_annulus_keeps_its_whole_area():
+    """Regression (review): with 240 segments per rim the 24 nearest segments all lie on one
+    rim; the centre must still be recognised as on the face, so A = π r² (it was π r²/4)."""
+    v, tri = _annulus(20.31, 28.98, 240)
+    fb = FaceBoundaries(v, tri, np.zeros(len(tri), np.int32), 1)
+    rho = np.array([21.0, 21.865, 23.0, 24.6, 26.5, 28.0])
+    pos = np.column_stack([rho, np.zeros(len(rho)), np.zeros(len(rho))])
+    area = fb.inside_area(pos, np.tile([0, 0, 1.0], (len(rho), 1)), np.zeros(len(rho), np.int32), np.full(len(rho), 0.5))
+    np.testing.assert_allclose(area, np.pi * 0.25, rtol=1e-9)

@@ -97,22 +97,31 @@ def _weld(vertices: np.ndarray, triangles: np.ndarray, tol: float = 1e-6) -> np.
     return inverse.reshape(-1)[np.asarray(triangles, np.int64)]
 
 
-def boundary_segments(vertices, triangles, tags):
-    """Boundary edges of every tagged face: (a (B, 3), b (B, 3), tag (B,)).
+def boundary_segments(vertices, triangles, tags, with_inward: bool = False):
+    """Boundary edges of every tagged face: (a (B, 3), b (B, 3), tag (B,)[, inward (B, 3)]).
 
     An edge is on the boundary when exactly one triangle of its own tag uses it (after
-    welding coincident vertices, so a triangle soup still has interior edges)."""
+    welding coincident vertices, so a triangle soup still has interior edges). `inward`
+    is the unit vector in that triangle's plane, perpendicular to the edge, into the face."""
     v = np.asarray(vertices, np.float64)
     tri = np.asarray(triangles, np.int64)
     welded = _weld(v, tri)
     e_w = np.concatenate([welded[:, [0, 1]], welded[:, [1, 2]], welded[:, [2, 0]]])
     e_v = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    third = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
     et = np.concatenate([tags, tags, tags]).astype(np.int64)
     e_w = np.sort(e_w, axis=1)
     keys = np.stack([et, e_w[:, 0], e_w[:, 1]], axis=1)
     _, first, inverse, counts = np.unique(keys, axis=0, return_index=True, return_inverse=True, return_counts=True)
     once = counts[inverse.reshape(-1)] == 1
-    return v[e_v[once, 0]], v[e_v[once, 1]], et[once]
+    a, b = v[e_v[once, 0]], v[e_v[once, 1]]
+    if not with_inward:
+        return a, b, et[once]
+    ab = b - a
+    ac = v[third[once]] - a
+    inward = ac - (np.einsum("ij,ij->i", ac, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))[:, None] * ab
+    inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
+    return a, b, et[once], inward
 
 
 def _cap(d: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -125,24 +134,30 @@ class FaceBoundaries:
     """Boundary segments of every face, indexed by tag, for the on-face gather area."""
 
     def __init__(self, vertices, triangles, tags, n_tags: int, k: int = 24):
-        a, b, t = boundary_segments(vertices, triangles, tags)
+        a, b, t, inward = boundary_segments(vertices, triangles, tags, with_inward=True)
         hw = face_half_widths(vertices, triangles, tags, n_tags)
         self.half_width = {int(k): float(hw[k]) for k in range(n_tags) if np.isfinite(hw[k])}
         self.k = k
-        self.by_tag: dict[int, tuple[np.ndarray, np.ndarray, cKDTree]] = {}
+        self.by_tag: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, cKDTree]] = {}
         for tag in np.unique(t):
             m = t == tag
             aa, bb = a[m], b[m]
-            self.by_tag[int(tag)] = (aa, bb, cKDTree(0.5 * (aa + bb)))
+            self.by_tag[int(tag)] = (aa, bb, inward[m], cKDTree(0.5 * (aa + bb)))
 
     def inside_area(self, position: np.ndarray, normal: np.ndarray, tag: np.ndarray, radius: np.ndarray) -> np.ndarray:
-        """(H,) area of the disc (centre, radius, in the plane normal to `normal`) that lies on the face."""
+        """(H,) area of the disc (centre, radius, in the plane normal to `normal`) that lies on the face.
+
+        The nearest boundary segment says, by its inward direction, whether the centre is on
+        the face (the usual case) or a few µm off it (float32 grazing hits on a thin face).
+        On the face: π r² minus the caps beyond the nearest boundary and the nearest one on
+        the opposite side. Off it: the band between the nearest boundary and the far one.
+        """
         area = np.pi * radius**2
         for t in np.unique(tag):
             if int(t) not in self.by_tag:
                 continue
             idx = np.flatnonzero(tag == t)
-            a, b, tree = self.by_tag[int(t)]
+            a, b, inward, tree = self.by_tag[int(t)]
             k = min(self.k, len(a))
             _, cand = tree.query(position[idx], k=k)
             cand = cand.reshape(len(idx), k)
@@ -151,8 +166,7 @@ class FaceBoundaries:
             ab = sb - sa
             s = np.clip(np.einsum("hkj,hkj->hk", p - sa, ab) / np.maximum(np.einsum("hkj,hkj->hk", ab, ab), 1e-300),
                         0.0, 1.0)
-            foot = sa + s[..., None] * ab
-            v = foot - p
+            v = sa + s[..., None] * ab - p
             nrm = normal[idx][:, None, :]
             v = v - np.einsum("hkj,hkj->hk", v, nrm)[..., None] * nrm  # in the tangent plane
             d = np.linalg.norm(v, axis=2)
@@ -160,19 +174,21 @@ class FaceBoundaries:
             rows = np.arange(len(idx))
             d1 = d[rows, near]
             u1 = v[rows, near] / np.maximum(d1, 1e-300)[:, None]
-            opposite = np.einsum("hkj,hj->hk", v, u1) < 0
-            d2 = np.where(opposite, d, np.inf).min(axis=1)
+            on_face = np.einsum("hj,hj->h", -v[rows, near], inward[cand[rows, near]]) >= 0.0
+            beyond = np.einsum("hkj,hj->hk", v, u1) < 0  # segments on the other side of the centre
+            d2 = np.where(beyond, d, np.inf).min(axis=1)
             r = radius[idx]
-            inside = np.pi * r * r - _cap(d1, r) - np.where(np.isfinite(d2), _cap(np.where(np.isfinite(d2), d2, r), r), 0.0)
-            # A hit point a few µm OUTSIDE a thin face (float32 grazing hits on a facet's plane):
-            # both boundary lines lie on one side; the face is the band between them.
-            far = np.where(~opposite & (d > d1[:, None] + self.half_width.get(int(t), np.inf)), d, np.inf).min(axis=1)
-            outside = ~np.isfinite(d2) & np.isfinite(far)
-            inside = np.where(outside, _cap(d1, r) - _cap(np.where(outside, far, r), r), inside)
-            d2 = np.where(outside, far - d1, d2)
-            # Floor against rounding only: a point on a strip of width w = d1 + d2 always keeps at
-            # least min(π r²/2, r w) of its disc; half of that is never above the true area.
-            width = d1 + np.where(np.isfinite(d2), d2, r)
+            d2r = np.where(np.isfinite(d2), d2, r)  # a cap at distance >= r is empty
+            inside = np.pi * r * r - _cap(d1, r) - _cap(d2r, r)
+            # Off the face: the face is the band from the nearest boundary to the far one.
+            # (Segments closer than d1 + half width are the near boundary's own neighbours.)
+            hw = self.half_width.get(int(t), np.inf)
+            far = np.where(~beyond & (d > d1[:, None] + hw), d, np.inf).min(axis=1)
+            band = _cap(d1, r) - _cap(np.where(np.isfinite(far), far, r), r)
+            inside = np.where(on_face, inside, band)
+            # Floor against rounding only: a point on a strip of width w keeps at least
+            # min(π r²/2, r w) of its disc; half of that is never above the true area.
+            width = np.where(on_face, d1 + d2r, np.where(np.isfinite(far), far - d1, r))
             floor = 0.5 * np.minimum(0.5 * np.pi * r * r, r * width)
             area[idx] = np.maximum(inside, np.maximum(floor, 1e-12 * np.pi * r * r))
         return area
