@@ -94,3 +94,18 @@ def test_checkpoint_round_trip_is_exact(tmp_path):
     back.add(p, 5)
     assert back.flux == acc.flux and back.flux_std_error == acc.flux_std_error
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_drift_p_value_is_calibrated_for_few_identical_passes():
+    """Review finding: with 4 to 8 independent identical passes |z| > 2 far more often than 5 %;
+    the Welch p-value keeps false alarms near its nominal rate."""
+    rng = np.random.default_rng(11)
+    for n in (4, 8):
+        alarms = 0
+        trials = 400
+        for _ in range(trials):
+            acc = Accumulator.empty((1, 1), ["a"], 1.0)
+            for value in rng.normal(1.0, 0.1, n):
+                acc.add(PassEstimate(np.array([[value]]), np.array([[[value]]]), ["a"], 1.0, 1))
+            alarms += acc.drift().p < 0.05
+        assert alarms / trials < 0.09, (n, alarms / trials)

@@ -33,10 +33,14 @@ class Drift:
 
     relative : (second − first) / overall mean (0 when the mean is 0)
     z : the difference over its own standard error (0 when that is 0 or n < 4)
+    p : two-sided p-value of Welch's t-test on the two halves (1 when undefined). With
+        few passes z is far from normal (|z| > 2 happens 17 % of the time at n = 4),
+        so judge significance by p, not by z.
     """
 
     relative: float
     z: float
+    p: float = 1.0
 
 
 @dataclass
@@ -155,7 +159,7 @@ class Accumulator:
         """First-half vs second-half means of the total flux (the radius bias indicator)."""
         f = np.asarray(self.pass_flux)
         if len(f) < 4:
-            return Drift(0.0, 0.0)
+            return Drift(0.0, 0.0, 1.0)
         h = len(f) // 2
         a, b = f[:h], f[h:]
         diff = float(b.mean() - a.mean())
@@ -163,7 +167,13 @@ class Accumulator:
         rel = diff / mean if mean != 0 else 0.0
         se = math.hypot(_std_error(a), _std_error(b))
         z = diff / se if se > 0 and math.isfinite(se) else 0.0
-        return Drift(rel, z)
+        p = 1.0
+        if se > 0 and math.isfinite(se):
+            from scipy.stats import ttest_ind
+
+            p = float(ttest_ind(b, a, equal_var=False).pvalue)
+            p = p if math.isfinite(p) else 1.0
+        return Drift(rel, z, p)
 
     # -- checkpoint ------------------------------------------------------------------------
 

@@ -42,6 +42,7 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
         "stray_fraction_drift": finite_or_none(drift.relative),
         "stray_fraction_drift_z": finite_or_none(drift.z),
+        "stray_fraction_drift_p": finite_or_none(drift.p),
         "mean_irradiance": finite_or_none(float(image.mean()) if image.size else 0.0),
         "peak_irradiance": finite_or_none(float(image.max()) if image.size else 0.0),
         "lost_flux": finite_or_none(acc.lost_flux / max(acc.n, 1)),

@@ -65,7 +65,7 @@ def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Run seed (default: the scene's [run] seed)."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Run seed, >= 0 (default: the scene's [run] seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/<scene name>)."),
     photons: Optional[int] = typer.Option(None, "--photons", help="Stop after this many photons in total."),
     time_s: Optional[float] = typer.Option(None, "--time", help="Stop after this many seconds."),
@@ -213,7 +213,8 @@ def print_summary(summary: dict, paths: dict) -> None:
     table.add_row("relative error", f"{100 * rel:.2f} %" if rel is not None else "—")
     drift = summary.get("stray_fraction_drift")
     if drift is not None:
-        table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} % (z = {summary.get('stray_fraction_drift_z') or 0:.1f})")
+        p = summary.get("stray_fraction_drift_p")
+        table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} %" + (f" (p = {p:.2f})" if p is not None else ""))
     table.add_row("peak irradiance / E_sun", f"{summary['peak_irradiance']:.4g}")
     table.add_row("effects", ", ".join(summary["effects"]) + (f" (skipped: {', '.join(summary['effects_skipped'])})"
                                                                if summary["effects_skipped"] else ""))

@@ -111,7 +111,7 @@ class EffectsSpec(_Strict):
 class RunSpec(_Strict):
     photons: int = Field(default=1_000_000, ge=1)
     passes: int = Field(default=32, ge=1)
-    seed: int = 1
+    seed: int = Field(default=1, ge=0)
     target_rel_error: float | None = Field(default=None, gt=0.0)
 
 

@@ -13,5 +13,7 @@ import numpy as np
 
 def stream(seed: int, purpose: str, index: int = 0) -> np.random.Generator:
     """An independent generator for (run seed, purpose, index); `purpose` names the use ("photons", "view-map")."""
-    key = [int(seed) & 0xFFFFFFFF, zlib.crc32(purpose.encode()), int(index)]
+    if int(seed) < 0 or int(index) < 0:
+        raise ValueError(f"seed and index must be >= 0, got seed={seed}, index={index}")
+    key = [int(seed), zlib.crc32(purpose.encode()), int(index)]
     return np.random.Generator(np.random.Philox(np.random.SeedSequence(key)))
