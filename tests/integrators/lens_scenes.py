@@ -148,3 +148,30 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
                  source=SunSource(off_axis_deg, 90.0, disc),
                  detector=Detector(detector_mm, detector_mm, *pixels, z_img), wavelengths_um=wl,
                  effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h)
+
+
+def glass_rim(off_axis_deg=20.0, *, material="N-BK7", barrel_gap=0.2, pixels=(16, 16), detector_mm=80.0):
+    """f/4 singlet whose ground rim scatters (Lambertian 0.5) inside a black barrel: much of the
+    rim's light is scattered from INSIDE the glass (the n² case of the review)."""
+    from lensmount.scene.build import solid_index_of_tag
+
+    h = 12.5
+    lens = Prescription((Surface(51.68, 6.0, material, is_stop=True, clear_semi_diameter=h, mechanical_semi_diameter=h),
+                         Surface(math.inf, 96.0, "AIR", clear_semi_diameter=h, mechanical_semi_diameter=h)),
+                        Aperture("epd", 2 * h), (0.5875618,), (1.0,), 0, (0.0,), "singlet")
+    z_img = lens.image_z
+    mesh = TaggedMesh.concatenate([
+        primitives.lens_elements(lens, [h, h], rings=24, segments=128, finish="x"),
+        barrel(-30.0, z_img + 2.0, h + barrel_gap, h + barrel_gap + 3.0, segments=128),
+    ])
+    wl = np.array(lens.wavelengths_um)
+    rim, black = make_bsdf("lambertian", reflectance=0.5), make_bsdf("absorber")
+    bsdfs = [None if t.role == "optical" else (rim if t.role == "lens-edge" else black) for t in mesh.tag_table]
+    d = source_direction(off_axis_deg, 90.0)
+    disc = EmissionDisc(tuple(float(x) for x in np.array([0.0, 0.0, -30.0]) - 500.0 * d),
+                        h + barrel_gap + 4.0 + 500 * 0.005)
+    coating = parse_coating("perfect-ar")
+    return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
+                 source=SunSource(off_axis_deg, 90.0, disc), detector=Detector(detector_mm, detector_mm, *pixels, z_img),
+                 wavelengths_um=wl, effects=Effects(True, False, False), entrance_pupil_area_mm2=math.pi * h * h,
+                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))

@@ -39,12 +39,12 @@ from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import stream
 
 GLOSSY_THRESHOLD_DEG = 15.0  # lobes narrower than this (HWHM) are followed by photons, not gathered
-MAX_BOUNCES = 64
+MAX_BOUNCES = 64  # scattering events per photon; what survives them is lost_flux
 RR_LEVEL = 1e-3  # Russian roulette starts when throughput < RR_LEVEL · initial flux
 # Channels of light with no scattering vertex, named as the forward estimator names them.
 DIRECT, GHOSTS = "direct", "ghosts"
 
-_CACHE: dict[int, tuple] = {}
+_CACHE: dict[tuple, tuple] = {}
 
 
 def classify(bsdf_of_tag, threshold_deg: float = GLOSSY_THRESHOLD_DEG):
@@ -62,7 +62,7 @@ def classify(bsdf_of_tag, threshold_deg: float = GLOSSY_THRESHOLD_DEG):
 
 def _scene_tables(scene):
     """Per-scene constants (face widths, part table), computed once per process."""
-    key = id(scene)
+    key = (id(scene), id(scene.mesh))  # the entry holds the scene, so the ids stay unique
     if key not in _CACHE:
         m = scene.mesh
         n_tags = len(m.tag_table)
@@ -97,12 +97,15 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
     shape = (det.ny, det.nx)
     n_pix = det.nx * det.ny
     broad, scatters = classify(scene.bsdf_of_tag, glossy_threshold_deg)
+    if not _effect(scene, "scatter"):  # every mechanical face absorbs, as in the forward estimator
+        broad[:] = False
+        scatters[:] = False
     spectral = _spectral_weight(scene)
 
     # Phase 1: the view map.
     hits = build_view_map(scene, tracer, det, stream(seed, "view-map", pass_index), broad=broad,
                           half_widths=half_widths, radius_scale=radius_scale, boundaries=boundaries,
-                          samples_per_pixel=samples_per_pixel, mixture_c=mixture_c)
+                          samples_per_pixel=samples_per_pixel, mixture_c=mixture_c, pilot_seed=seed)
     gatherer = Gatherer(hits, scene.bsdf_of_tag)
 
     # Phase 2: photons.

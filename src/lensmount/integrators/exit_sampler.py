@@ -5,11 +5,15 @@ optical surface (a cone of a few degrees at f/7), the rest from the housing. We 
 ω from a mixture: with probability c_k through a uniform point q on target k — the
 disc D covering the last optical surface, and optionally a thin annulus around the
 exit pupil's rim (the stop edge seen through the rear optics, where the 50 µm
-diaphragm edge lies) — otherwise cosine-weighted over the hemisphere facing the lens.
-The estimator of E = ∫ L cos θ dω is w · L(ω) with
+diaphragm edge lies) or the pilot-learned band there (`targets.LearnedRim`, whose
+density depends on x and the wavelength) — otherwise cosine-weighted over the
+hemisphere facing the lens. The estimator of E = ∫ L cos θ dω is w · L(ω) with
 
-    w = cos θ / p(ω),   p(ω) = Σ_k c_k |q_k − x|² / (A_k cos θ_q) · [ω crosses target k]
+    w = cos θ / p(ω),   p(ω) = Σ_k c_k p_k(q_k | x, λ) |q_k − x|² / cos θ_q
                                + (1 − Σ c_k) cos θ / π
+
+p_k the target's density per unit area at the point q_k where ω crosses its plane
+(1/A_k on a uniform disc or annulus, 0 outside).
 
 Targets and detector are normal to the axis, so cos θ_q = cos θ. The hemisphere part
 keeps it unbiased whatever lies outside the targets; the targets only move samples
@@ -40,9 +44,25 @@ class ExitDisc:
     def area(self) -> float:
         return math.pi * (self.radius**2 - self.r_inner**2)
 
+    def area_pdf(self, x: np.ndarray, q: np.ndarray, wavelength: np.ndarray | None = None) -> np.ndarray:
+        """(N,) density per unit area of the target's points q (N,3) on its plane (x unused: uniform)."""
+        r2 = q[:, 0] ** 2 + q[:, 1] ** 2
+        return np.where((r2 <= self.radius**2) & (r2 >= self.r_inner**2), 1.0 / self.area, 0.0)
 
-def mixture_pdf(x: np.ndarray, omega: np.ndarray, targets, weights) -> np.ndarray:
-    """(N,) solid-angle pdf at directions omega (N,3) from points x (N,3); facing from targets[0]."""
+    def sample_points(self, x: np.ndarray, u: np.ndarray, wavelength: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) points uniform in area on the disc / annulus; u (N, 2) uniform numbers."""
+        rq = np.sqrt(self.r_inner**2 + u[:, 0] * (self.radius**2 - self.r_inner**2))
+        phi = 2.0 * math.pi * u[:, 1]
+        return np.stack([rq * np.cos(phi), rq * np.sin(phi), np.full(len(u), self.z)], axis=1)
+
+
+def mixture_pdf(x: np.ndarray, omega: np.ndarray, targets, weights, wavelength: np.ndarray | None = None) -> np.ndarray:
+    """(N,) solid-angle pdf at directions omega (N,3) from points x (N,3); facing from targets[0].
+
+    A target is anything with `z`, `area_pdf(x, q, wavelength)` and `sample_points(x, u, wavelength)`
+    (ExitDisc; `targets.LearnedRim`, whose density depends on x and on the wavelength index (N,)).
+    Every target's density is evaluated for every ω, whichever target drew it: that keeps w exact.
+    """
     targets, weights = _as_lists(targets, weights)
     facing = targets[0].facing
     cos = omega[:, 2] * facing
@@ -54,9 +74,9 @@ def mixture_pdf(x: np.ndarray, omega: np.ndarray, targets, weights) -> np.ndarra
             continue
         t = (tgt.z - x[:, 2]) / np.where(ok, omega[:, 2], 1.0)
         q = x + t[:, None] * omega
-        r2 = q[:, 0] ** 2 + q[:, 1] ** 2
-        inside = ok & (t > 0) & (r2 <= tgt.radius**2) & (r2 >= tgt.r_inner**2)
-        pdf = pdf + c * np.where(inside, t * t / (tgt.area * cos_safe), 0.0)  # |q − x| = t for a unit ω
+        inside = ok & (t > 0)
+        dens = np.where(inside, tgt.area_pdf(x, q, wavelength), 0.0)
+        pdf = pdf + c * np.where(inside, dens * t * t / cos_safe, 0.0)  # |q − x| = t for a unit ω
     return pdf
 
 
@@ -66,11 +86,12 @@ def _as_lists(targets, weights):
     return list(targets), [float(c) for c in weights]
 
 
-def sample_toward_exit(x: np.ndarray, u: np.ndarray, targets, weights=0.9):
+def sample_toward_exit(x: np.ndarray, u: np.ndarray, targets, weights=0.9, wavelength: np.ndarray | None = None):
     """Directions from detector points toward the optics, and their weights.
 
     x : (N, 3) points on the detector; u : (N, 3) uniform numbers in [0, 1).
-    targets : an ExitDisc or a list of them; weights : their probabilities c_k (sum ≤ 1).
+    targets : an ExitDisc (or any target, see `mixture_pdf`) or a list of them;
+    weights : their probabilities c_k (sum ≤ 1); wavelength : (N,) index, for targets that use it.
     Returns (omega (N, 3) unit, weight (N,) = cos θ / p(ω)); weight 0 where cos θ ≤ 0.
     """
     targets, weights = _as_lists(targets, weights)
@@ -89,12 +110,11 @@ def sample_toward_exit(x: np.ndarray, u: np.ndarray, targets, weights=0.9):
         edge += c
         if not use.any():
             continue
-        # q uniform in area on the disc / annulus.
-        rq = np.sqrt(tgt.r_inner**2 + u[use, 1] * (tgt.radius**2 - tgt.r_inner**2))
-        q = np.stack([rq * np.cos(phi[use]), rq * np.sin(phi[use]), np.full(use.sum(), tgt.z)], axis=1)
+        wl = None if wavelength is None else np.asarray(wavelength)[use]
+        q = tgt.sample_points(x[use], u[use, 1:3], wl)
         to_q = q - x[use]
         omega[use] = to_q / np.maximum(np.linalg.norm(to_q, axis=1, keepdims=True), 1e-300)
-    pdf = mixture_pdf(x, omega, targets, weights)
+    pdf = mixture_pdf(x, omega, targets, weights, wavelength)
     cos = omega[:, 2] * facing
     good = (cos > 0) & (pdf > 0)
     weight = np.where(good, np.where(good, cos, 0.0) / np.where(good, pdf, 1.0), 0.0)

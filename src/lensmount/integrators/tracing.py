@@ -30,6 +30,7 @@ class Step:
     wavelength, id : (N,) carried through
     lost : (N,) bool, ended by a numerical guard of the tracer (weight = lost flux)
     reflections : (N,) Fresnel (ghost) reflections during this step, or None
+    prim : (N,) triangle index for FACE (else -1), or None when the tracer has no mesh
     """
 
     kind: np.ndarray
@@ -42,6 +43,7 @@ class Step:
     id: np.ndarray
     lost: np.ndarray | None = None
     reflections: np.ndarray | None = None
+    prim: np.ndarray | None = None
 
 
 def next_step(tracer, rays: RayBatch, rng: np.random.Generator, origin_normal: np.ndarray | None = None) -> Step:
@@ -60,4 +62,4 @@ def from_events(ev, rays: RayBatch) -> Step:
     """`trace.tracer.Events` → Step (the tracer uses the same kind codes)."""
     return Step(kind=np.asarray(ev.kind, np.int8), position=ev.position, direction=ev.direction, normal=ev.normal,
                 tag=np.asarray(ev.tag, np.int32), weight=ev.weight, wavelength=np.asarray(ev.wavelength, np.int32),
-                id=ev.id, lost=getattr(ev, "lost", None), reflections=getattr(ev, "reflections", None))
+                id=ev.id, lost=ev.lost, reflections=ev.reflections, prim=ev.prim)

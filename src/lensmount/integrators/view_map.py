@@ -1,7 +1,8 @@
 """Stage 1: backward samples from every pixel → the pass's view map (hit points).
 
 For each pixel, `samples_per_pixel` points x uniform in the pixel and directions ω
-from the exit-disc mixture (`exit_sampler`), weight w = cos θ / p(ω). The ray is
+from the exit-disc mixture (`exit_sampler`; with a scattering diaphragm edge, the
+pilot-learned edge band of `targets.py`), weight w = cos θ / p(ω). The ray is
 traced back through the optics by the tracer (refraction; a Fresnel branch only if
 the scene has ghosts on). Where it first meets a mechanical face:
 
@@ -24,9 +25,39 @@ import numpy as np
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.photon_gather import HitPoints
 from lensmount.integrators.radius import initial_radii
+from lensmount.integrators.targets import edge_tags, learned_rim
+from lensmount.integrators.media import air_radiance_factor
 from lensmount.integrators.tracing import FACE, next_step
 from lensmount.trace.detector import Detector
 from lensmount.trace.rays import RayBatch
+
+
+LEARNED_DISC_SHARE = 0.25  # of c, for the disc when the learned edge target takes the rest
+RADIUS_SUBSAMPLE = 128  # on learned-target faces r_0 is the k-th neighbour among ≤ this many hit points
+MAX_EDGE_HITS = 16_000  # per pass on learned-target faces; beyond, kept with probability p (τ / p)
+
+
+def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: float = 1e-4, cap_mm: float = 5.0):
+    """r_0 on the learned target's faces as if they had ≤ RADIUS_SUBSAMPLE hit points (a copy; others kept).
+
+    Why: the learned band puts ~10⁵ hit points on the edge; the k-th-neighbour rule would then
+    shrink r_0 to ~15 µm, where a hit point gathers almost no photon and the image stays
+    speckle. Measuring the k-th neighbour in a fixed, deterministic subsample (every m-th hit
+    point) keeps r_0 at the scale the paraxial rim's few hundred hit points gave (~1 mm).
+    """
+    from scipy.spatial import cKDTree
+
+    r = radius.copy()
+    for t in faces:
+        idx = np.flatnonzero(tag == t)
+        if len(idx) <= RADIUS_SUBSAMPLE:
+            continue
+        m = -(-len(idx) // RADIUS_SUBSAMPLE)
+        sub = position[idx[::m]]
+        d, _ = cKDTree(sub).query(position[idx], k=min(k + 1, len(sub)))
+        limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
+        r[idx] = np.clip(d[:, -1], min(floor_mm, limit), limit)
+    return r
 
 
 def exit_disc(scene, det: Detector, margin: float = 0.05) -> ExitDisc | None:
@@ -89,12 +120,14 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
 
 def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
-                   mixture_c: float = 0.9) -> HitPoints:
+                   mixture_c: float = 0.9, pilot_seed: int | None = None) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     broad : (n_tags,) bool, tags where hit points are made
     half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
     boundaries : FaceBoundaries for the on-face gather area (None: π r²)
+    pilot_seed : run seed for the learned edge target (`targets.learned_rim`, computed once per
+        (scene, tracer, seed)); None: the paraxial rim annulus instead (the estimate is the same).
     """
     n_pix = det.nx * det.ny
     s = int(samples_per_pixel)
@@ -102,17 +135,22 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
     n = len(pixel)
     u = rng.random((n, 6))
     x = det.sample_points(pixel, u[:, 0:2])
+    n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
+    wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)  # drawn first: the learned target depends on it
     disc = exit_disc(scene, det)
+    learned = None
     if disc is None:  # no optics: the hemisphere alone (still unbiased)
         targets, weights = [ExitDisc(z=det.z - 1.0, radius=1.0)], [0.0]
     else:
         targets, weights = [disc], [mixture_c]
         rim = stop_rim_target(scene, det, broad)
         if rim is not None and rim.facing == disc.facing:
-            targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
-    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights)
-    n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
-    wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
+            learned = None if pilot_seed is None else learned_rim(scene, tracer, det, broad, pilot_seed, rim)
+            if learned is not None:  # the edge's real window: replaces the paraxial annulus
+                targets, weights = [disc, learned], [mixture_c * LEARNED_DISC_SHARE, mixture_c * (1 - LEARNED_DISC_SHARE)]
+            else:
+                targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
+    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
     response = getattr(scene.detector, "spectral_weight", None)
     if response is not None:  # the detector's spectral response weights each sample's wavelength
         w = w * np.asarray(response, np.float64)[wl]
@@ -127,10 +165,23 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
     ok &= (step.weight > 0) & np.isfinite(step.weight)
     if not ok.any():
         return HitPoints.empty()
+    tau = step.weight
+    if learned is not None:  # Russian roulette on the edge's hit points: their cost (area, gather) is per point
+        on_edge = ok & np.isin(tag, edge_tags(scene, broad))
+        keep_p = min(1.0, MAX_EDGE_HITS / max(int(on_edge.sum()), 1))
+        if keep_p < 1.0:
+            ok &= ~on_edge | (rng.random(len(ok)) < keep_p)
+            tau = np.where(on_edge, tau / keep_p, tau)
     pos, nrm, tg = step.position[ok], step.normal[ok], tag[ok]
-    radius = initial_radii(pos, tg, half_widths) * float(radius_scale)
+    radius = initial_radii(pos, tg, half_widths)
+    if learned is not None:
+        radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius)
+    radius = radius * float(radius_scale)
     area = boundaries.inside_area(pos, nrm, tg, radius) if boundaries is not None else None
-    return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=step.weight[ok],
+    # A lens edge seen from inside the glass: the detector gets that radiance / n².
+    tau = tau[ok] * air_radiance_factor(scene, step.direction[ok], tg, None if step.prim is None else step.prim[ok],
+                                        step.wavelength[ok])
+    return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=tau,
                      pixel=step.id[ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area)
 

@@ -149,7 +149,24 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     return Scene(mesh=mesh, optical=optical, bsdf_of_tag=bsdfs, source=source, detector=detector,
                  wavelengths_um=wavelengths, effects=Effects(e.scatter, e.ghosts, e.direct),
                  front_opening=opening, entrance_pupil_area_mm2=math.pi * (0.5 * epd) ** 2,
-                 finish_of_tag=finishes, description=spec.description)
+                 finish_of_tag=finishes, description=spec.description,
+                 solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths))
+
+
+def solid_index_of_tag(prescription: Prescription, mesh: TaggedMesh, wavelengths_um: np.ndarray) -> np.ndarray:
+    """(n_tags, W) index inside the solid each tag bounds: a lens part's glass, 1 elsewhere.
+
+    A lens part's glass is the material after its first optical surface (cemented
+    elements included: each element's front face is its own)."""
+    front: dict[str, int] = {}
+    for t in mesh.tag_table:
+        if t.kind == "lens" and t.role == "optical" and t.surface >= 0:
+            front[t.part] = min(front.get(t.part, t.surface), t.surface)
+    out = np.ones((len(mesh.tag_table), len(wavelengths_um)))
+    for k, t in enumerate(mesh.tag_table):
+        if t.part in front:
+            out[k] = refractive_index(prescription.surfaces[front[t.part]].material, wavelengths_um)
+    return out
 
 
 def clear_distance(mesh: TaggedMesh, detector: Detector, opening: FrontOpening) -> float:
@@ -173,4 +190,4 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]
+__all__ = ["build_scene", "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]

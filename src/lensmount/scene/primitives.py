@@ -126,7 +126,7 @@ def lens_element(prescription: Prescription, first: int, last: int, semi_diamete
 
     Cemented interfaces inside (first < i < last) are included as internal optical faces, so the
     tracer sees each surface once per crossing. Optical triangles carry `surface = i`; the rim is
-    tagged `lens-edge`.
+    tagged `lens-edge`. Outer faces wind counter-clockwise seen from outside (the TaggedMesh rule).
     """
     zs = prescription.vertex_z
     meshes = []
@@ -134,6 +134,8 @@ def lens_element(prescription: Prescription, first: int, last: int, semi_diamete
     for i in range(first, last + 1):
         prof = Profile.of(prescription.surfaces[i])
         v, t = _cap(prof, zs[i], semi_diameter, rings, segments)
+        if i == first:  # caps face +z; the front one must face the object side to point out of the glass
+            t = t[:, ::-1]
         meshes.append(TaggedMesh(v, t, np.zeros(len(t), np.int32),
                                  [FaceTag(part, "lens", "optical", "polished", surface=i, face=i - first)]))
         rims.append(v[1 + (rings - 1) * segments:])
@@ -142,7 +144,7 @@ def lens_element(prescription: Prescription, first: int, last: int, semi_diamete
     i = np.arange(segments)
     j = (i + 1) % segments
     v = np.vstack([a, b])
-    t = np.vstack([np.column_stack([i, segments + i, segments + j]), np.column_stack([i, segments + j, j])])
+    t = np.vstack([np.column_stack([i, segments + j, segments + i]), np.column_stack([i, j, segments + j])])
     meshes.append(TaggedMesh(v, t, np.zeros(len(t), np.int32),
                              [FaceTag(part, "lens", "lens-edge", finish, face=last - first + 1)]))
     return TaggedMesh.concatenate(meshes)

@@ -80,6 +80,8 @@ class Scene:
     entrance_pupil_area_mm2: π (EPD/2)², for the stray fraction (addition).
     finish_of_tag: finish name per tag, for reports (addition).
     description: the scene file's description (addition).
+    solid_index_of_tag: (n_tags, W) refractive index inside the solid each tag bounds (a lens
+        part's glass; 1 for mechanical parts), so a scatter seen from inside glass is known.
     """
 
     mesh: TaggedMesh
@@ -93,6 +95,7 @@ class Scene:
     entrance_pupil_area_mm2: float = 0.0
     finish_of_tag: list[str] = field(default_factory=list)
     description: str = ""
+    solid_index_of_tag: np.ndarray | None = None
 
     @property
     def part_names(self) -> list[str]:
