@@ -1,1 +1,0 @@
-"""Design folder loading: lens, mount and scene files to validated inputs."""
