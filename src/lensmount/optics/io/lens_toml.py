@@ -39,7 +39,7 @@ from typing import Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lensmount.atomic import write_text
-from lensmount.validation import parse_toml
+from lensmount.validation import keys_at, parse_toml
 from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
@@ -224,19 +224,13 @@ def _input_error(exc: ValidationError, text: str, file: str) -> InputError:
     field, surface_no, last = _field_path(err["loc"])
     line = _line_of(text, surface_no, last)
     if err["type"] == "extra_forbidden":
-        owner = SurfaceModel if surface_no is not None else _owner_model(err["loc"])
-        valid = "known keys: " + ", ".join(owner.model_fields)
+        valid = "known keys: " + ", ".join(keys_at(LensFile, err["loc"]))
         return InputError(f"unknown key '{last}'", file=file, field=field, line=line, valid=valid)
     if err["type"] == "missing":
         return InputError(f"required key '{last}' is missing", file=file, field=field, line=line,
                           valid=_VALID.get(last or "", "see docs/lens-toml.md"))
     msg = err["msg"].removeprefix("Value error, ")
     return InputError(msg, file=file, field=field, line=line, valid=_VALID.get(last or "", "see docs/lens-toml.md"))
-
-
-def _owner_model(loc):
-    models = {"aperture": ApertureModel, "wavelengths": WavelengthsModel, "field": FieldModel}
-    return models.get(loc[0], LensFile) if len(loc) > 1 else LensFile
 
 
 def line_of_field(text: str, field: str) -> int | None:
