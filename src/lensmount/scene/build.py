@@ -92,11 +92,10 @@ def _load_mesh_file(path: Path, o, field: str) -> TaggedMesh:
         m = trimesh.load(path, force="mesh")
         v, t = np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
     else:
-        import cadquery as cq
+        from build123d import import_step
 
-        shape = cq.importers.importStep(str(path)).val()
-        verts, tris = shape.tessellate(0.01, 0.1)
-        v = np.array([[p.x, p.y, p.z] for p in verts], float)
+        verts, tris = import_step(str(path)).tessellate(0.01, 0.1)
+        v = np.array([[p.X, p.Y, p.Z] for p in verts], float)
         t = np.array(tris, np.int64)
     if len(t) == 0:
         raise InputError(f"mesh file '{path}' holds no triangles", field=field, valid="a closed solid")

@@ -51,9 +51,8 @@ def to_solid(obj, path: Path, kind: str):
         vals = [v for v in obj.vals() if hasattr(v, "wrapped")]
         if len(vals) == 1:
             wrapped = vals[0].wrapped
-        elif vals:
-            import cadquery as cq
-            wrapped = cq.Compound.makeCompound(vals).wrapped
+        elif vals:  # build123d makes the compound, so the runtime needs no CadQuery of its own
+            wrapped = Compound([Shape.cast(v.wrapped) for v in vals]).wrapped
     elif hasattr(obj, "wrapped"):  # build123d Shape or cadquery Shape
         wrapped = obj.wrapped
     if wrapped is None:
