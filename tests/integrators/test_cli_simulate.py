@@ -1,7 +1,11 @@
-"""`lensmount simulate`: bad input is one paragraph and exit code 2; same seed, same summary (slow)."""
+"""`lensmount simulate`: bad input is one paragraph and exit code 2 with nothing written; same seed, same summary (slow)."""
 
 import json
+import os
+import shutil
 from pathlib import Path
+
+import numpy as np
 
 import pytest
 from typer.testing import CliRunner
@@ -17,11 +21,64 @@ SCENE = DESIGN / "scenes" / "case1-diaphragm-edge.toml"
     (["--alpha", "1.5"], "--alpha"),
     (["--target-rel-error", "0"], "--target-rel-error"),
     (["--photons", "0"], "--photons"),
+    (["--time", "-1"], "--time"),
+    (["--time", "0"], "--time"),
+    (["--workers", "-1"], "--workers"),
+    (["--seed", "-3"], "--seed"),
 ])
 def test_bad_options_are_input_errors(tmp_path, args, needle):
-    result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(tmp_path)] + args)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(out)] + args)
     assert result.exit_code == 2, result.output
     assert needle in result.output and "Traceback" not in result.output
+    assert not out.exists()
+
+
+def _design_copy(tmp_path) -> Path:
+    design = tmp_path / "design"
+    shutil.copytree(DESIGN, design, ignore=shutil.ignore_patterns("build", ".lensmount"))
+    return design
+
+
+def _read_only_folder(tmp_path) -> Path:
+    """A folder this process cannot write: mode 0555, or /sys for root (permissions do not bind root)."""
+    if os.geteuid() == 0:
+        return Path("/sys")
+    ro = tmp_path / "read-only"
+    ro.mkdir()
+    ro.chmod(0o555)
+    return ro
+
+
+def test_read_only_output_is_refused_before_the_build(tmp_path):
+    design = _design_copy(tmp_path)
+    out = _read_only_folder(tmp_path)
+    result = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / SCENE.name),
+                                      "--out", str(out), "--passes", "1"])
+    assert result.exit_code == 2, result.output
+    assert "--out" in result.output and str(out) in result.output and "Traceback" not in result.output
+    assert not (design / "build").exists()  # refused before the mount was built
+    assert not (design / ".lensmount").exists()
+
+
+def test_resume_mismatch_names_what_the_checkpoint_holds(tmp_path):
+    from lensmount.analysis.passes import Accumulator
+
+    design = _design_copy(tmp_path)
+    out = tmp_path / "out"
+    acc = Accumulator.empty((2, 2), ["barrel"], 1.0)
+    acc.save(out / "checkpoint.npz", seed=3, method="forward", input_hash="0123abcd")
+    before = (out / "checkpoint.npz").read_bytes()
+    result = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / SCENE.name),
+                                      "--out", str(out), "--resume", "--seed", "5"])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "seed 3" in text and "method forward" in text and "input_hash 0123abcd" in text  # what it holds
+    assert "seed 5" in text and "method bidirectional" in text  # what was asked
+    assert "field 'seed'" in text
+    assert sorted(p.name for p in out.iterdir()) == ["checkpoint.npz"]
+    assert (out / "checkpoint.npz").read_bytes() == before
+    assert not (design / "build").exists()
 
 
 def test_resume_without_checkpoint_is_an_input_error(tmp_path):
@@ -32,13 +89,16 @@ def test_resume_without_checkpoint_is_an_input_error(tmp_path):
 
 @pytest.mark.slow
 def test_same_seed_same_summary_any_workers(tmp_path):
+    design = _design_copy(tmp_path)
+
     def run(out, workers):
-        result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(out),
+        result = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / SCENE.name),
+                                          "--out", str(out),
                                           "--passes", "3", "--photons-per-pass", "20000", "--seed", "4",
                                           "--workers", str(workers)])
         assert result.exit_code == 0, result.output
         s = json.loads((out / "summary.json").read_text())
-        for volatile in ("time_s", "workers", "design", "scene"):
+        for volatile in ("time_s", "workers", "provenance"):
             s.pop(volatile)
         return s
 

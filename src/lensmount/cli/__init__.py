@@ -1,6 +1,7 @@
-"""The `lensmount` command: init · inspect · regenerate · simulate.
+"""The `lensmount` command: init · inspect · regenerate · simulate · compare · history.
 
-Each command group lives in its own module and registers itself on `app`. This
+Each command group lives in its own module and registers itself on `app`; each
+parses its options, calls lensmount.loop (or the layer it fronts) and prints. This
 module only turns user errors into one paragraph on stderr with exit code 2.
 """
 
@@ -22,27 +23,22 @@ app = typer.Typer(
 )
 
 
-
 @app.callback()
 def _root() -> None:
     """regenerate → simulate → compare: the stray-light loop for lens mounts."""
-
-
-# Modules that define commands; each does `@app.command()` at import.
-COMMAND_MODULES = ("inspect", "regenerate", "simulate")
-
-for _name in COMMAND_MODULES:
-    try:
-        importlib.import_module(f"lensmount.cli.{_name}")
-    except ModuleNotFoundError as exc:  # a command group not built yet
-        if exc.name != f"lensmount.cli.{_name}":
-            raise
 
 
 def fail(error: InputError) -> None:
     """Print a user error as one paragraph and exit 2."""
     typer.echo(f"error: {error.paragraph()}", err=True)
     raise typer.Exit(code=2)
+
+
+# Modules that define commands; each does `@app.command()` at import.
+COMMAND_MODULES = ("inspect", "regenerate", "simulate")
+
+for _name in COMMAND_MODULES:
+    importlib.import_module(f"lensmount.cli.{_name}")
 
 
 def main() -> None:

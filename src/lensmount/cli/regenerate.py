@@ -11,8 +11,9 @@ from typing import Optional
 
 import typer
 
-from lensmount.cli import app  # defined before lensmount.cli imports this module
+from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
 from lensmount.errors import InputError
+from lensmount.loop import RegenerateOptions, regenerate as run
 
 EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml")
 
@@ -20,11 +21,6 @@ EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml")
 def examples_root() -> Path:
     """The examples shipped inside the package (the repo's top-level `examples` links here)."""
     return Path(__file__).resolve().parent.parent / "examples"
-
-
-def _fail(error: InputError) -> None:
-    typer.echo(f"error: {error.paragraph()}", err=True)
-    raise typer.Exit(code=2)
 
 
 @app.command()
@@ -42,14 +38,13 @@ def regenerate(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from lensmount.cad import regenerate as run
-
     console = Console(stderr=True)
     tess = {k: v for k, v in (("linear_tolerance_mm", linear_tolerance),
                               ("angular_tolerance_deg", angular_tolerance)) if v is not None}
+    options = RegenerateOptions(design, out, use_cache=not no_cache, tessellation=tess)
     try:
         if quiet:
-            manifest = run(design, out, progress=None, use_cache=not no_cache, tessellation=tess)
+            result = run(options)
         else:
             with Progress(TextColumn("{task.description:<14}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                           TimeElapsedColumn(), console=console, transient=False) as bar:
@@ -60,11 +55,10 @@ def regenerate(
                         tasks[step] = bar.add_task(step, total=total)
                     bar.update(tasks[step], completed=done, total=total)
 
-                manifest = run(design, out, progress=progress, use_cache=not no_cache, tessellation=tess)
+                result = run(options, progress)
     except InputError as error:
-        _fail(error)
-    target = Path(out) if out is not None else Path(design) / "build"
-    tri = sum(p.triangles for p in manifest.parts)
+        fail(error)
+    manifest, target, tri = result.manifest, result.folder, result.triangles
     how = "from the cache (inputs unchanged)" if manifest.cached else "built"
     typer.echo(f"{target}: {len(manifest.parts)} parts, {tri} triangles, {how}; input hash {manifest.input_hash[:12]}")
     for note in manifest.notes:
@@ -89,7 +83,7 @@ def init(
             raise InputError("the folder exists and is not empty", file=str(directory),
                              valid="a new or empty folder, or --force")
     except InputError as error:
-        _fail(error)
+        fail(error)
     directory.mkdir(parents=True, exist_ok=True)
     for name in EXAMPLE_FILES:
         if (src / name).is_file():

@@ -1,63 +1,100 @@
-"""`lensmount simulate DESIGN --scene SCENE`: regenerate (cached) → scene → passes → results.
+"""`lensmount simulate DESIGN --scene SCENE`: parses, calls lensmount.loop.simulate, prints.
 
-Parses, calls, prints — the physics lives in lensmount.integrators, the loop in
-lensmount.runner, the files in lensmount.results.
+While it runs it shows the current stray fraction with its error, the error trend
+and an ETA to the target: a rich progress bar on a terminal, one plain line per
+pass when stdout is a file or a pipe (logs stay readable).
 """
 
 from __future__ import annotations
 
-import hashlib
-import math
-import signal
+import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
 
-from lensmount.cli import app
+from lensmount.cli import app, fail
 from lensmount.errors import InputError
-
-METHODS = ("bidirectional", "forward")
-
-
-def _load_prescription(design_dir: Path):
-    """The lens of a design folder (through design.folder when present, else design.lens)."""
-    try:
-        from lensmount.design.folder import load_design
-    except ImportError:
-        load_design = None
-    if load_design is not None:
-        design = load_design(design_dir)
-        for name in ("prescription", "lens"):
-            if hasattr(design, name):
-                return getattr(design, name)
-    from lensmount.design.lens import load_lens
-
-    for name in ("lens.toml", "lens.zmx"):
-        if (design_dir / name).exists():
-            return load_lens(design_dir / name)
-    raise InputError("no lens file in the design folder", file=str(design_dir), valid="lens.toml or lens.zmx")
+from lensmount.loop import Observer, PassStatus, SimulateOptions, simulate as run_simulation
+from lensmount.loop.progress import next_halving_s
 
 
-def _load_mesh(design_dir: Path, cache_dir: Path):
-    """The mount's tagged mesh, regenerated only when the design changed (cad.regenerate caches)."""
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "—"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
-    manifest = regenerate(design_dir, cache_dir)
-    return TaggedMesh.load(Path(cache_dir) / getattr(manifest, "mesh", "mesh.npz"))
+
+def describe(s: PassStatus) -> str:
+    """One line: passes, photons, value ± error, relative error, its trend, ETA."""
+    value = f"{s.value:.4g}" + (f" ± {s.std_error:.2g}" if s.std_error is not None else "")
+    rel = f"{100 * s.rel_error:.2f} %" if s.rel_error < float("inf") else "—"
+    text = f"pass {s.passes} · {s.photons:,} photons · {s.elapsed_s:.0f} s · stray fraction {value} · rel. error {rel}"
+    if s.error_slope is not None:
+        text += f" (∝ t^{s.error_slope:+.2f})"
+    if s.target_rel_error is not None:
+        text += f" · target {100 * s.target_rel_error:g} % in ~{_duration(s.eta_s)}"
+    return text
 
 
-def input_hash(design_dir: Path, scene_path: Path, **params) -> str:
-    """sha256 over the design files, the scene file and the run parameters that change results."""
-    h = hashlib.sha256()
-    files = sorted(p for p in design_dir.iterdir() if p.is_file() and p.suffix in (".toml", ".zmx", ".json"))
-    for p in files + [scene_path]:
-        h.update(p.name.encode())
-        h.update(p.read_bytes())
-    for k in sorted(params):
-        h.update(f"{k}={params[k]!r}".encode())
-    return h.hexdigest()[:16]
+class TerminalObserver(Observer):
+    """Stages and passes on stderr: rich on a terminal, one line per event otherwise."""
+
+    def __init__(self, live: bool):
+        from rich.console import Console
+
+        self.live = live
+        self.console = Console(stderr=True)
+        self.bar = None
+        self.tasks: dict[str, int] = {}
+
+    def stage(self, text: str) -> None:
+        self._close()
+        if self.live:
+            self.console.print(f"[bold]·[/bold] {text}")
+        else:
+            typer.echo(text, err=True)
+
+    def build_step(self, step: str, done: int, total: int) -> None:
+        if not self.live:
+            if done == total:
+                typer.echo(f"  CAD {step}: done", err=True)
+            return
+        bar = self._bar()
+        if step not in self.tasks:
+            self.tasks[step] = bar.add_task(f"CAD {step}", total=total, info="")
+        bar.update(self.tasks[step], completed=done, total=total)
+
+    def pass_done(self, s: PassStatus) -> None:
+        if not self.live:
+            typer.echo(describe(s), err=True)
+            return
+        bar = self._bar()
+        if "passes" not in self.tasks:
+            self.tasks["passes"] = bar.add_task("passes", total=s.max_passes, info="")
+        bar.update(self.tasks["passes"], completed=s.passes, total=s.max_passes, info=describe(s).split(" · ", 1)[1])
+
+    def _bar(self):
+        if self.bar is None:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.bar = Progress(TextColumn("{task.description:<16}"), BarColumn(bar_width=24),
+                                TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=self.console)
+            self.bar.start()
+        return self.bar
+
+    def _close(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+            self.bar = None
+            self.tasks = {}
+
+    def close(self) -> None:
+        self._close()
 
 
 @app.command()
@@ -65,132 +102,46 @@ def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
-    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Run seed, >= 0 (default: the scene's [run] seed)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Run seed, >= 0 (default: the scene's [run] seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/<scene name>)."),
     photons: Optional[int] = typer.Option(None, "--photons", help="Stop after this many photons in total."),
-    time_s: Optional[float] = typer.Option(None, "--time", help="Stop after this many seconds."),
+    time_s: Optional[float] = typer.Option(None, "--time", help="Stop after this many seconds (> 0)."),
     target_rel_error: Optional[float] = typer.Option(None, "--target-rel-error",
-                                                     help="Stop when the total stray flux has this relative error."),
+                                                     help="Stop when the stray fraction has this relative error."),
     passes: Optional[int] = typer.Option(None, "--passes", help="At most this many passes."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
                                                    help="Photons per pass (default: the scene's [run] photons)."),
     samples_per_pixel: int = typer.Option(1, "--samples-per-pixel", help="Backward samples per pixel per pass."),
     alpha: float = typer.Option(0.7, "--alpha", help="Radius shrink parameter, 0 < alpha < 1."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
-    resume: bool = typer.Option(False, "--resume", help="Continue from DIR/checkpoint.npz."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz."),
+    geometry: Optional[Path] = typer.Option(None, "--geometry",
+                                            help="Regenerate's output folder to reuse (default DESIGN/build)."),
+    store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/runs.sqlite, "
+                                                               "or $LENSMOUNT_STORE)."),
+    no_record: bool = typer.Option(False, "--no-record", help="Do not add this run to the results store."),
 ) -> None:
-    """Simulate the stray light on the detector and write irradiance.exr, preview.png, summary.json."""
-    from lensmount.cli import fail
+    """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
+    The mount geometry comes from DESIGN/build (what `lensmount regenerate DESIGN` writes),
+    rebuilt only when the design changed. Progress goes to stderr.
+    """
+    options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
+                              photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
+                              not no_record, list(sys.argv))
+    observer = TerminalObserver(live=sys.stderr.isatty())
     try:
-        _simulate(design, scene, method, seed, out, photons, time_s, target_rel_error, passes, photons_per_pass,
-                  samples_per_pixel, alpha, workers, resume)
+        result = run_simulation(options, observer)
     except InputError as error:
+        observer.close()
         fail(error)
-
-
-def _simulate(design, scene, method, seed, out, photons, time_s, target_rel_error, passes, photons_per_pass,
-              samples_per_pixel, alpha, workers, resume) -> None:
-    from lensmount.analysis.metrics import aperture_flux_normalised
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.analysis.summary import build_summary
-    from lensmount.design.scene import load_scene
-    from lensmount.integrators.bidirectional import part_names
-    from lensmount.results import write_run
-    from lensmount.runner import PassJob, Runner, Stopping, default_workers
-    from lensmount.scene.build import build_scene
-
-    if method not in METHODS:
-        raise InputError(f"unknown method '{method}'", field="--method", valid=" | ".join(METHODS))
-    if not 0.0 < alpha < 1.0:
-        raise InputError(f"alpha = {alpha:g} is out of range", field="--alpha", valid="0 < alpha < 1")
-    for name, value in (("--photons", photons), ("--passes", passes), ("--photons-per-pass", photons_per_pass)):
-        if value is not None and value < 1:
-            raise InputError(f"{name} must be at least 1, got {value}", field=name, valid="a positive integer")
-    if target_rel_error is not None and not target_rel_error > 0:
-        raise InputError("the target relative error must be positive", field="--target-rel-error",
-                         valid="a number > 0, e.g. 0.05")
-    if samples_per_pixel < 1:
-        raise InputError("need at least one sample per pixel", field="--samples-per-pixel", valid="an integer ≥ 1")
-    design = Path(design)
-    if not design.is_dir():
-        raise InputError("design folder not found", file=str(design), valid="a folder with lens.toml and mount.toml")
-
-    out = Path(out) if out is not None else Path("out") / Path(scene).stem
-    checkpoint = out / "checkpoint.npz"
-    if resume and not checkpoint.exists():
-        raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
-    spec = load_scene(scene)
-    seed = spec.run.seed if seed is None else seed
-    per_pass = photons_per_pass or spec.run.photons
-    prescription = _load_prescription(design)
-    mesh = _load_mesh(design, out / "geometry")
-    sc = build_scene(prescription, mesh, spec)
-
-    if not any(v is not None for v in (photons, time_s, target_rel_error, passes)):
-        target_rel_error = spec.run.target_rel_error
-        passes = spec.run.passes if target_rel_error is None else None
-    stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target_rel_error,
-                        max_passes=passes or 10_000)
-
-    options = {"samples_per_pixel": samples_per_pixel} if method == "bidirectional" else {}
-    digest = input_hash(design, Path(scene), method=method, photons_per_pass=per_pass, alpha=alpha, **options)
-    names = part_names(sc) if method == "bidirectional" else None
-    acc = None
-    if resume:
-        acc, meta = Accumulator.load(checkpoint)
-        if meta.get("input_hash") != digest or int(meta.get("seed", -1)) != seed or meta.get("method") != method:
-            raise InputError("the checkpoint belongs to another run (inputs, seed or method differ)",
-                             file=str(checkpoint), valid=f"the same design, scene, method and --seed {seed}")
-    if acc is None:
-        if names is None:  # the forward estimator names its own channels: take them from one tiny pass
-            names = _forward_part_names(sc)
-        acc = Accumulator.empty((sc.detector.ny, sc.detector.nx), names, sc.detector.pixel_area)
-
-    def job(i: int) -> PassJob:
-        return PassJob(method, per_pass, seed, i, alpha, options)
-
-    effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
-    direction = getattr(sc.source, "off_axis_deg", 0.0)
-    aperture = aperture_flux_normalised(2.0 * math.sqrt(sc.entrance_pupil_area_mm2 / math.pi),
-                                        math.radians(direction))
-    n_workers = workers or default_workers()
-
-    def summary_now(runner_elapsed: float) -> dict:
-        return build_summary(acc, method=method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
-                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner_elapsed,
-                             aperture_flux_mm2=aperture, input_hash=digest,
-                             extra={"photons_per_pass": per_pass, "alpha": alpha, "workers": n_workers,
-                                    "scene": str(scene), "design": str(design)})
-
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    total = stopping.max_passes if (photons is None and time_s is None and target_rel_error is None) else None
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-                  TimeElapsedColumn(), transient=False) as bar:
-        task = bar.add_task(method, total=total, info="")
-
-        def progress(a, elapsed):
-            rel = a.rel_error()
-            err = f"{100 * rel:.2f} %" if math.isfinite(rel) else "—"
-            bar.update(task, completed=a.n, info=f"passes {a.n} · photons {a.photons:,} · rel. error {err}")
-
-        runner = Runner(sc, job, acc, workers=n_workers, checkpoint=checkpoint,
-                        checkpoint_meta={"seed": seed, "input_hash": digest, "method": method},
-                        progress=progress)
-        previous = signal.getsignal(signal.SIGINT)
-        try:
-            runner.run(stopping)
-        finally:
-            signal.signal(signal.SIGINT, previous)
-
-    det = sc.detector
-    field_r = _field_radius(prescription)
-    paths = write_run(out, acc, summary_now(runner.elapsed),
-                      extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
-                      field_radius_mm=field_r)
-    print_summary(summary_now(runner.elapsed), paths)
-    if runner.interrupted:
+    finally:
+        observer.close()
+    print_summary(result.summary, result.paths)
+    typer.echo(f"one more halving of the error: about {_duration(next_halving_s(result.summary['time_s']))} more")
+    if result.run_id is not None:
+        typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
+    if result.interrupted:
         typer.echo("interrupted: results and checkpoint written; continue with --resume", err=True)
         raise typer.Exit(code=130)
 
@@ -204,6 +155,8 @@ def print_summary(summary: dict, paths: dict) -> None:
         return f"{value:.4g} ± {error:.2g}" if error is not None else f"{value:.4g}"
 
     console = Console()
+    for warning in summary.get("warnings", []):
+        console.print(f"warning: {warning}", style="yellow")
     table = Table(title=f"{summary['method']} · {summary['passes']} passes · {summary['photons']:,} photons "
                         f"· {summary['time_s']:.1f} s", title_justify="left", show_header=False)
     table.add_column(style="bold")
@@ -235,20 +188,3 @@ def print_summary(summary: dict, paths: dict) -> None:
             by_part.add_row(f"… {len(parts) - 10} more", "", "")
         console.print(by_part)
     console.print("wrote " + ", ".join(str(p) for p in paths.values()))
-
-
-def _forward_part_names(sc) -> list[str]:
-    from lensmount.runner import _resolve, PASS_FUNCTIONS, TRACER
-
-    est = _resolve(PASS_FUNCTIONS["forward"])(sc, _resolve(TRACER)(sc), 1, 0, 0)
-    return list(est.part_names)
-
-
-def _field_radius(prescription) -> float | None:
-    """Image height of the full field, efl · tan(max field), for the preview outline."""
-    try:
-        from lensmount.optics.paraxial import paraxial
-
-        return abs(paraxial(prescription).efl) * math.tan(math.radians(prescription.max_field_deg)) or None
-    except Exception:
-        return None

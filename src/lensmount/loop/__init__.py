@@ -1,0 +1,17 @@
+"""The loop an engineer runs many times a day, as Python functions: regenerate → simulate → compare.
+
+Each takes a typed options record and returns a typed result; the CLI modules only
+parse options, call these and print. Scripts (and `report`, `converge`) call them
+directly:
+
+    from lensmount.loop import SimulateOptions, simulate
+    result = simulate(SimulateOptions(Path("mylens"), Path("mylens/scenes/case1.toml"), passes=8))
+    result.summary["stray_fraction"], result.paths["exr"]
+"""
+
+from lensmount.loop.regenerate import RegenerateOptions, RegenerateResult, regenerate
+from lensmount.loop.simulate import (Observer, PassStatus, SimulateOptions, SimulateResult, input_hash,
+                                     simulate)
+
+__all__ = ["RegenerateOptions", "RegenerateResult", "regenerate", "SimulateOptions", "SimulateResult",
+           "PassStatus", "Observer", "simulate", "input_hash"]

@@ -1,0 +1,282 @@
+"""`simulate`: design folder + scene → geometry (cached) → passes → results → store.
+
+The CLI parses options into `SimulateOptions`, calls `simulate` and prints; a script
+does the same. What happens on the way is told to an `Observer` (stages of the
+build, CAD progress, each merged pass with its current value, error and ETA).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import signal
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lensmount.errors import InputError
+from lensmount.loop.regenerate import RegenerateOptions, regenerate
+from lensmount.loop.provenance import collect
+
+METHODS = ("bidirectional", "forward")
+CHECKPOINT = "checkpoint.npz"
+
+
+@dataclass(frozen=True)
+class SimulateOptions:
+    """One simulation. Unset stopping rules fall back to the scene's [run] table.
+
+    design : design folder; scene : scene file
+    out : results folder (default out/<scene name>)
+    geometry : regenerate's output folder to reuse (default DESIGN/build, as `lensmount regenerate`)
+    store : results store (default: lensmount.store.default_path); record : add the run to it
+    argv : the command line recorded in the provenance (default sys.argv)
+    """
+
+    design: Path
+    scene: Path
+    method: str = "bidirectional"
+    seed: int | None = None
+    out: Path | None = None
+    photons: int | None = None
+    time_s: float | None = None
+    target_rel_error: float | None = None
+    passes: int | None = None
+    photons_per_pass: int | None = None
+    samples_per_pixel: int = 1
+    alpha: float = 0.7
+    workers: int = 0
+    resume: bool = False
+    geometry: Path | None = None
+    store: Path | None = None
+    record: bool = True
+    argv: list[str] | None = None
+
+
+@dataclass(frozen=True)
+class PassStatus:
+    """The run after a merged pass, as an engineer watches it.
+
+    value, std_error : stray fraction and its standard error (None before 2 passes)
+    rel_error : relative error of the total (inf when unknown)
+    error_slope : d log(rel error) / d log(time) over the run so far (≈ −0.5 when it converges as 1/√t)
+    eta_s : seconds to the target relative error at the rate so far (None without a target)
+    """
+
+    passes: int
+    photons: int
+    elapsed_s: float
+    value: float
+    std_error: float | None
+    rel_error: float
+    error_slope: float | None
+    target_rel_error: float | None
+    eta_s: float | None
+    max_passes: int | None
+
+
+class Observer:
+    """What `simulate` tells while it works; every method is optional (no-op here)."""
+
+    def stage(self, text: str) -> None:
+        """A step begins: resolving inputs, building the mount, building the scene, tracing."""
+
+    def build_step(self, step: str, done: int, total: int) -> None:
+        """CAD progress (lensmount.cad.regenerate's steps)."""
+
+    def pass_done(self, status: PassStatus) -> None:
+        """A pass was merged."""
+
+
+@dataclass
+class SimulateResult:
+    out: Path
+    summary: dict
+    paths: dict[str, Path]
+    interrupted: bool
+    run_id: int | None = None
+    store_path: Path | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+def check_options(o: SimulateOptions) -> None:
+    """Refuse bad options before anything is built or written."""
+    if o.method not in METHODS:
+        raise InputError(f"unknown method '{o.method}'", field="--method", valid=" | ".join(METHODS))
+    if not 0.0 < o.alpha < 1.0:
+        raise InputError(f"alpha = {o.alpha:g} is out of range", field="--alpha", valid="0 < alpha < 1")
+    for name, value in (("--photons", o.photons), ("--passes", o.passes), ("--photons-per-pass", o.photons_per_pass)):
+        if value is not None and value < 1:
+            raise InputError(f"{name} must be at least 1, got {value}", field=name, valid="a positive integer")
+    if o.time_s is not None and not (o.time_s > 0 and math.isfinite(o.time_s)):
+        raise InputError(f"--time must be a positive number of seconds, got {o.time_s:g}", field="--time",
+                         valid="a number of seconds > 0, e.g. --time 60")
+    if o.workers < 0:
+        raise InputError(f"--workers must not be negative, got {o.workers}", field="--workers",
+                         valid="0 (one worker per core) or a positive number of processes")
+    if o.target_rel_error is not None and not o.target_rel_error > 0:
+        raise InputError("the target relative error must be positive", field="--target-rel-error",
+                         valid="a number > 0, e.g. 0.05")
+    if o.samples_per_pixel < 1:
+        raise InputError("need at least one sample per pixel", field="--samples-per-pixel", valid="an integer ≥ 1")
+    if o.seed is not None and o.seed < 0:
+        raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
+
+
+def check_writable(folder: Path, field: str = "--out") -> None:
+    """The results folder exists (or can be made) and takes files: checked before a long build."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".lensmount-write-test.")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"cannot write results there ({exc.strerror or exc})", file=str(folder), field=field,
+                         valid="a folder you can write to (or one that can be created)") from None
+
+
+def input_hash(design_hash: str, scene_path: Path, **params) -> str:
+    """What a run's numbers depend on besides its seed: the CAD inputs (design.input_hash),
+    the scene file and the estimator's parameters. Runs with equal hashes differ only by noise."""
+    h = hashlib.sha256()
+    h.update(design_hash.encode())
+    h.update(Path(scene_path).read_bytes())
+    for k in sorted(params):
+        h.update(f"{k}={params[k]!r}".encode())
+    return h.hexdigest()[:16]
+
+
+def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
+    differ = [k for k in ("seed", "method", "input_hash") if str(meta.get(k)) != str(asked[k])]
+    if not differ:
+        return
+    held = ", ".join(f"{k} {meta.get(k)}" for k in ("seed", "method", "input_hash"))
+    wanted = ", ".join(f"{k} {asked[k]}" for k in ("seed", "method", "input_hash"))
+    raise InputError(f"the checkpoint belongs to another run ({', '.join(differ)} differ): it holds {held}; "
+                     f"this run asks for {wanted}", file=str(checkpoint), field=differ[0],
+                     valid="resume with the checkpoint's --seed and --method on unchanged inputs, "
+                           "or run without --resume into another --out")
+
+
+def simulate(options: SimulateOptions, observer: Observer | None = None) -> SimulateResult:
+    """Run one simulation end to end (see the module docstring). InputError on bad input,
+    raised before anything is built or written."""
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.design.folder import load_design
+    from lensmount.design.scene import load_scene
+
+    o, obs = options, observer or Observer()
+    check_options(o)
+    obs.stage("reading the design and the scene")
+    design = load_design(o.design)
+    scene_path = Path(o.scene)
+    spec = load_scene(scene_path)
+    out = Path(o.out) if o.out is not None else Path("out") / scene_path.stem
+    check_writable(out)
+    seed = spec.run.seed if o.seed is None else o.seed
+    per_pass = o.photons_per_pass or spec.run.photons
+    options = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
+    digest = input_hash(design.input_hash, scene_path, method=o.method, photons_per_pass=per_pass, alpha=o.alpha,
+                        **options)
+    checkpoint = out / CHECKPOINT
+    acc = None
+    if o.resume:
+        if not checkpoint.exists():
+            raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
+        acc, meta = Accumulator.load(checkpoint)
+        _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
+    provenance = collect(design, scene_path, o.argv)
+
+    geometry = Path(o.geometry) if o.geometry is not None else design.root / "build"
+    obs.stage(f"mount geometry: {geometry} (rebuilt only if the design changed)")
+    built = regenerate(RegenerateOptions(design.root, geometry), progress=obs.build_step)
+    obs.stage(f"mount geometry {'from the cache' if built.manifest.cached else 'built'}; building the scene")
+    return _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, digest, acc, provenance)
+
+
+def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, digest, acc, provenance):
+    from lensmount.analysis.metrics import aperture_flux_normalised
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.analysis.summary import build_summary
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.integrators.bidirectional import part_names
+    from lensmount.loop.progress import status_of
+    from lensmount.results import write_run
+    from lensmount.runner import PassJob, Runner, Stopping, default_workers
+    from lensmount.scene.build import build_scene
+
+    mesh = TaggedMesh.load(built.folder / built.manifest.mesh)
+    sc = build_scene(design.prescription, mesh, spec)
+    warnings: list[str] = []
+
+    photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
+    if not any(v is not None for v in (photons, time_s, target, passes)):
+        target = spec.run.target_rel_error
+        passes = spec.run.passes if target is None else None
+    stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target, max_passes=passes or 10_000)
+
+    if acc is None:
+        names = part_names(sc) if o.method == "bidirectional" else _forward_part_names(sc)
+        acc = Accumulator.empty((sc.detector.ny, sc.detector.nx), names, sc.detector.pixel_area)
+
+    def job(i: int) -> PassJob:
+        return PassJob(o.method, per_pass, seed, i, o.alpha, options)
+
+    effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
+    aperture = aperture_flux_normalised(2.0 * math.sqrt(sc.entrance_pupil_area_mm2 / math.pi),
+                                        math.radians(sc.source.off_axis_deg))
+    n_workers = o.workers or default_workers()
+    shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
+    history: list[tuple[float, float]] = []
+
+    def progress(a, elapsed):
+        obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history))
+
+    obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, {n_workers} worker(s)")
+    runner = Runner(sc, job, acc, workers=n_workers, checkpoint=out / CHECKPOINT,
+                    checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        runner.run(stopping)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+    summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
+                            effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
+                            aperture_flux_mm2=aperture, input_hash=digest,
+                            extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": n_workers,
+                                   "provenance": provenance.to_dict(), "warnings": warnings,
+                                   "geometry": str(built.folder.resolve())})
+    det = sc.detector
+    paths = write_run(out, acc, summary, extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
+                      field_radius_mm=_field_radius(design.prescription))
+    result = SimulateResult(out, summary, paths, runner.interrupted, warnings=warnings)
+    if o.record and not runner.interrupted:
+        from lensmount.store import Store, default_path
+
+        result.store_path = default_path(design.root, o.store)
+        with Store(result.store_path) as store:
+            result.run_id = store.record(summary, paths)
+    return result
+
+
+def _forward_part_names(sc) -> list[str]:
+    """The forward estimator names its own channels: take them from a one-photon pass."""
+    from lensmount.runner import PassJob, run_pass
+    from lensmount.trace.tracer import Tracer
+
+    return list(run_pass(sc, Tracer(sc), PassJob("forward", 1, 0, 0)).part_names)
+
+
+def _field_radius(prescription) -> float | None:
+    """Image height of the full field, efl · tan(max field), for the preview outline."""
+    from lensmount.optics.paraxial import paraxial
+
+    efl = abs(paraxial(prescription).efl)
+    r = efl * math.tan(math.radians(prescription.max_field_deg))
+    return r if math.isfinite(r) and r > 0 else None
+
+
+__all__ = ["SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
+           "METHODS"]

@@ -1,0 +1,188 @@
+"""The results store: one SQLite row per finished run, so `history` and `compare` can look back.
+
+One file per design folder by default (`DESIGN/.lensmount/runs.sqlite`); `--store PATH`
+or the environment variable `LENSMOUNT_STORE` points several designs at a shared one.
+Each run is one INSERT in one transaction: an interrupted writer leaves no half row.
+The database runs in WAL mode with a busy timeout, so two simulations finishing at
+the same moment both land (one waits for the other's few milliseconds).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from lensmount.errors import InputError
+
+ENV = "LENSMOUNT_STORE"
+DEFAULT_NAME = Path(".lensmount") / "runs.sqlite"
+BUSY_TIMEOUT_MS = 60_000
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    created_utc TEXT NOT NULL,
+    design_path TEXT NOT NULL,
+    design_name TEXT NOT NULL,
+    scene_name TEXT NOT NULL,
+    scene_path TEXT NOT NULL,
+    lens_sha256 TEXT NOT NULL,
+    mount_sha256 TEXT NOT NULL,
+    scene_sha256 TEXT NOT NULL,
+    input_hash TEXT NOT NULL,
+    git_commit TEXT,
+    git_dirty INTEGER,
+    git_commit_time INTEGER,
+    lensmount_version TEXT NOT NULL,
+    command_line TEXT NOT NULL,
+    method TEXT NOT NULL,
+    seed INTEGER NOT NULL,
+    passes INTEGER NOT NULL,
+    photons INTEGER NOT NULL,
+    time_s REAL NOT NULL,
+    stray_fraction REAL,
+    stray_fraction_std_error REAL,
+    stray_fraction_bias_bound REAL,
+    per_part TEXT NOT NULL,
+    warnings TEXT NOT NULL,
+    out_dir TEXT NOT NULL,
+    summary_path TEXT NOT NULL,
+    image_path TEXT NOT NULL,
+    preview_path TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS runs_by_design ON runs (design_path, scene_name);
+CREATE INDEX IF NOT EXISTS runs_by_input ON runs (input_hash);
+"""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One stored run (a row of `runs`)."""
+
+    id: int
+    created_utc: str
+    design_path: str
+    design_name: str
+    scene_name: str
+    scene_path: str
+    lens_sha256: str
+    mount_sha256: str
+    scene_sha256: str
+    input_hash: str
+    git_commit: str | None
+    git_dirty: bool | None
+    git_commit_time: int | None
+    lensmount_version: str
+    command_line: str
+    method: str
+    seed: int
+    passes: int
+    photons: int
+    time_s: float
+    stray_fraction: float | None
+    stray_fraction_std_error: float | None
+    stray_fraction_bias_bound: float | None
+    per_part: dict
+    warnings: list
+    out_dir: str
+    summary_path: str
+    image_path: str
+    preview_path: str
+
+    @classmethod
+    def from_row(cls, row: sqlite3.Row) -> "RunRecord":
+        d = dict(row)
+        d["per_part"] = json.loads(d["per_part"])
+        d["warnings"] = json.loads(d["warnings"])
+        d["git_dirty"] = None if d["git_dirty"] is None else bool(d["git_dirty"])
+        return cls(**d)
+
+
+def default_path(design_dir: str | Path, override: str | Path | None = None) -> Path:
+    """--store PATH, else $LENSMOUNT_STORE, else DESIGN/.lensmount/runs.sqlite."""
+    if override is not None:
+        return Path(override)
+    if os.environ.get(ENV):
+        return Path(os.environ[ENV])
+    return Path(design_dir).resolve() / DEFAULT_NAME
+
+
+class Store:
+    """The SQLite file of runs. Use as a context manager or call `close()`."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
+            self.db.row_factory = sqlite3.Row
+            self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+            self.db.execute("PRAGMA journal_mode = WAL")
+            self.db.executescript(_SCHEMA)
+        except (OSError, sqlite3.Error) as exc:
+            raise InputError(f"cannot open the results store ({exc})", file=str(self.path), field="--store",
+                             valid=f"a writable SQLite file path (--store PATH or ${ENV})") from None
+
+    def __enter__(self) -> "Store":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.db.close()
+
+    def record(self, summary: dict, paths: dict[str, Path]) -> int:
+        """Insert one finished run from its summary (with `provenance`) and output paths; its id."""
+        p = summary["provenance"]
+        row = {
+            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            **{k: p[k] for k in ("design_path", "design_name", "scene_name", "scene_path", "lens_sha256",
+                                 "mount_sha256", "scene_sha256", "git_commit", "git_commit_time",
+                                 "lensmount_version", "command_line")},
+            "git_dirty": None if p["git_dirty"] is None else int(p["git_dirty"]),
+            "input_hash": summary["input_hash"], "method": summary["method"], "seed": summary["seed"],
+            "passes": summary["passes"], "photons": summary["photons"], "time_s": summary["time_s"],
+            "stray_fraction": summary.get("stray_fraction"),
+            "stray_fraction_std_error": summary.get("stray_fraction_std_error"),
+            "stray_fraction_bias_bound": summary.get("stray_fraction_bias_bound"),
+            "per_part": json.dumps(summary.get("per_part", {}), sort_keys=True, allow_nan=False),
+            "warnings": json.dumps(list(summary.get("warnings", []))),
+            "out_dir": str(Path(paths["json"]).resolve().parent), "summary_path": str(Path(paths["json"]).resolve()),
+            "image_path": str(Path(paths["exr"]).resolve()), "preview_path": str(Path(paths["png"]).resolve()),
+        }
+        keys = ", ".join(row)
+        marks = ", ".join(f":{k}" for k in row)
+        # BEGIN IMMEDIATE takes the write lock up front (waiting up to the busy timeout),
+        # so the insert either commits whole or not at all.
+        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            cur = self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row)
+            self.db.execute("COMMIT")
+        except BaseException:
+            self.db.execute("ROLLBACK")
+            raise
+        return int(cur.lastrowid)
+
+    def runs(self, design_path: str | Path | None = None, scene_name: str | None = None,
+             input_hash: str | None = None) -> list[RunRecord]:
+        """Stored runs matching the filters, oldest first."""
+        where, args = [], []
+        if design_path is not None:
+            where.append("design_path = ?")
+            args.append(str(Path(design_path).resolve()))
+        if scene_name is not None:
+            where.append("scene_name = ?")
+            args.append(scene_name)
+        if input_hash is not None:
+            where.append("input_hash = ?")
+            args.append(input_hash)
+        sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
+        return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
+
+
+__all__ = ["Store", "RunRecord", "default_path", "ENV"]
