@@ -4,8 +4,10 @@ Passes are independent (pass i uses only (seed, i) and the radius scale s_i), so
 passes may run in any worker in any order; the runner adds them to the Accumulator
 strictly in pass order, which makes the result bit-identical for any `workers`.
 
-Workers are processes (`ProcessPoolExecutor`); each builds its `Tracer` once in the
-initializer, because Embree scenes do not pickle while the Scene (plain numpy) does.
+Where passes run is the executor's business (`lensmount.executor`: this process, local
+processes, or a Dask cluster); each worker builds its `Tracer` once, because Embree scenes
+do not pickle while the Scene (plain numpy) does. SIGINT and SIGTERM stop a run the same
+way: the passes merged so far are kept and the checkpoint is written.
 
 Stopping rules (any that is given; at least one pass always runs):
   photons ≥ N,   elapsed ≥ T seconds,   relative error of the total flux ≤ E
@@ -15,15 +17,17 @@ Stopping rules (any that is given; at least one pass always runs):
 
 from __future__ import annotations
 
-import importlib
+import contextlib
 import os
+import signal
+import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
+from lensmount.executor import Executor, executor_for, resolve
 from lensmount.integrators.estimate import PassEstimate
 from lensmount.integrators.radius import DEFAULT_ALPHA, radius_scale
 
@@ -32,11 +36,8 @@ PASS_FUNCTIONS = {
     "forward": "lensmount.integrators.forward:forward_pass",
 }
 TRACER = "lensmount.trace.tracer:Tracer"
-
-
-def _resolve(path: str):
-    module, _, name = path.partition(":")
-    return getattr(importlib.import_module(module), name)
+RUN_PASS = "lensmount.runner:run_pass"
+_resolve = resolve
 
 
 @dataclass
@@ -75,21 +76,6 @@ class PassJob:
     options: dict | None = None
 
 
-# --- worker side -------------------------------------------------------------------------
-
-_WORKER: dict = {}
-
-
-def _init_worker(scene, tracer_path: str = TRACER) -> None:
-    """Build the tracer once per process. Workers ignore Ctrl-C: the driver stops them and
-    keeps the passes already merged (a worker killed mid-pass would break the pool)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _WORKER["scene"] = scene
-    _WORKER["tracer"] = _resolve(tracer_path)(scene)
-
-
 def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     """One pass of the chosen method, in this process."""
     fn = _resolve(PASS_FUNCTIONS.get(job.method, job.method))
@@ -99,8 +85,29 @@ def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     return fn(scene, tracer, job.photons, job.seed, job.index, **opts)
 
 
-def _worker_pass(job: PassJob) -> tuple[int, PassEstimate]:
-    return job.index, run_pass(_WORKER["scene"], _WORKER["tracer"], job)
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what batch schedulers send) stops a run the way Ctrl-C does: checkpoint, results, exit."""
+
+
+@contextlib.contextmanager
+def _stop_on_signals():
+    """SIGINT and SIGTERM end the run cleanly, also where the shell started us with SIGINT ignored
+    (a background job of a script). Only the main thread can own signal handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise Terminated()
+
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 # --- driver side -------------------------------------------------------------------------
@@ -109,10 +116,13 @@ class Runner:
     """Runs passes into an Accumulator.
 
     Args:
-        scene: the Scene (pickled to workers).
+        scene: the Scene (sent to each worker once).
         make_job: pass index -> PassJob.
-        accumulator: where passes go (a resumed one continues after its last pass).
-        workers: processes; 1 runs in this process (tests, debugging).
+        accumulator: where passes go (a resumed one continues after its last pass, and its
+            `elapsed_s` keeps counting, so the run's time is the total over resumed parts).
+        workers: local processes; 1 runs in this process (tests, debugging). Ignored when
+            `executor` is given.
+        executor: where passes run (`lensmount.executor.executor_for`); default from `workers`.
         checkpoint: path for the Accumulator state, written every `checkpoint_every` passes
             and on stop; `checkpoint_meta` goes along (seed, input hash, method).
         progress: called after every merged pass with (accumulator, elapsed seconds).
@@ -120,93 +130,73 @@ class Runner:
     """
 
     def __init__(self, scene, make_job: Callable[[int], PassJob], accumulator: Accumulator, *, workers: int = 1,
-                 checkpoint: str | os.PathLike | None = None, checkpoint_meta: dict | None = None,
-                 checkpoint_every: int = 8, progress: Callable | None = None, tracer_path: str = TRACER):
+                 executor: Executor | None = None, checkpoint: str | os.PathLike | None = None,
+                 checkpoint_meta: dict | None = None, checkpoint_every: int = 8, progress: Callable | None = None,
+                 tracer_path: str = TRACER):
         self.scene = scene
         self.make_job = make_job
         self.acc = accumulator
-        self.workers = max(1, int(workers))
+        self.executor = executor or executor_for(workers=max(1, int(workers)))
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.meta = checkpoint_meta or {}
         self.every = max(1, checkpoint_every)
         self.progress = progress
         self.tracer_path = tracer_path
         self.interrupted = False
-        self.elapsed = 0.0
+        self.terminated = False  # stopped by SIGTERM rather than Ctrl-C
+
+    @property
+    def elapsed(self) -> float:
+        return self.acc.elapsed_s
 
     def save_checkpoint(self) -> None:
         if self.checkpoint is not None:
             self.acc.save(self.checkpoint, **self.meta)
 
-    def _merge(self, index: int, estimate: PassEstimate, start: float) -> None:
+    def _merge(self, index: int, estimate: PassEstimate, start: float, base: float) -> None:
         self.acc.add(estimate, pass_index=index)
-        self.elapsed = time.perf_counter() - start
+        self.acc.elapsed_s = base + time.perf_counter() - start
         if self.checkpoint is not None and self.acc.n % self.every == 0:
             self.save_checkpoint()
         if self.progress:
-            self.progress(self.acc, self.elapsed)
+            self.progress(self.acc, self.acc.elapsed_s)
 
     def run(self, stopping: Stopping) -> Accumulator:
-        """Run until `stopping` holds or Ctrl-C; the checkpoint is written either way."""
-        start = time.perf_counter() - self.elapsed
+        """Run until `stopping` holds, Ctrl-C or SIGTERM; the checkpoint is written either way."""
+        start, base = time.perf_counter(), self.acc.elapsed_s
         try:
-            if self.workers == 1:
-                self._run_here(stopping, start)
-            else:
-                self._run_pool(stopping, start)
-        except KeyboardInterrupt:
+            with _stop_on_signals():
+                try:
+                    self.executor.start(self.scene, self.tracer_path, RUN_PASS)
+                    self._run(stopping, start, base)
+                finally:
+                    self.executor.close()
+        except KeyboardInterrupt as stop:
             self.interrupted = True
-        self.elapsed = time.perf_counter() - start
+            self.terminated = isinstance(stop, Terminated)
+        self.acc.elapsed_s = base + time.perf_counter() - start
         self.save_checkpoint()
         return self.acc
 
-    def _run_here(self, stopping: Stopping, start: float) -> None:
-        tracer = _resolve(self.tracer_path)(self.scene)
-        while not stopping.done(self.acc, time.perf_counter() - start):
-            job = self.make_job(self.acc.last_pass + 1)
-            self._merge(job.index, run_pass(self.scene, tracer, job), start)
-
-    def _run_pool(self, stopping: Stopping, start: float) -> None:
+    def _run(self, stopping: Stopping, start: float, base: float) -> None:
         # Keep a window of passes in flight; merge finished ones strictly in pass order.
         next_index = self.acc.last_pass + 1
         finished: dict[int, PassEstimate] = {}
-        in_flight = {}
-        window = 2 * self.workers
-        with ProcessPoolExecutor(self.workers, initializer=_init_worker,
-                                 initargs=(self.scene, self.tracer_path)) as pool:
-            try:
-                while True:
-                    stop = stopping.done(self.acc, time.perf_counter() - start)
-                    if not stop:
-                        while len(in_flight) + len(finished) < window:
-                            fut = pool.submit(_worker_pass, self.make_job(next_index))
-                            in_flight[fut] = next_index
-                            next_index += 1
-                    if not in_flight:
-                        break
-                    if stop:  # passes already started are wasted; drop them rather than wait
-                        for fut in in_flight:
-                            fut.cancel()
-                        break
-                    done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-                    for fut in done:
-                        index, estimate = fut.result()
-                        del in_flight[fut]
-                        finished[index] = estimate
-                    while self.acc.last_pass + 1 in finished:
-                        i = self.acc.last_pass + 1
-                        self._merge(i, finished.pop(i), start)
-                        if stopping.done(self.acc, time.perf_counter() - start):
-                            break
-            except KeyboardInterrupt:
-                for fut in in_flight:
-                    fut.cancel()
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
+        window = 2 * self.executor.workers if self.executor.workers > 1 else 1
+        while not stopping.done(self.acc, base + time.perf_counter() - start):
+            while self.executor.in_flight + len(finished) < window:
+                self.executor.submit(self.make_job(next_index))
+                next_index += 1
+            for index, estimate in self.executor.next_done():
+                finished[index] = estimate
+            while self.acc.last_pass + 1 in finished:
+                self._merge(self.acc.last_pass + 1, finished.pop(self.acc.last_pass + 1), start, base)
+                if stopping.done(self.acc, base + time.perf_counter() - start):
+                    return  # passes still in flight are dropped: merging them would depend on timing
 
 
 def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["Runner", "Stopping", "PassJob", "run_pass", "default_workers", "PASS_FUNCTIONS"]
+__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers", "PASS_FUNCTIONS"]

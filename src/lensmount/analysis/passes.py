@@ -24,7 +24,7 @@ import numpy as np
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import PassEstimate
 
-_STATE_VERSION = 1
+_STATE_VERSION = 2
 
 
 @dataclass
@@ -54,6 +54,7 @@ class Accumulator:
     pass_part_flux : list of each pass's (P,) per-part flux
     photons, lost_flux : totals over the passes
     last_pass : index of the last pass added (-1 before any)
+    elapsed_s : wall time spent on the passes, summed over resumed parts of a run
     """
 
     part_names: list[str]
@@ -65,6 +66,7 @@ class Accumulator:
     photons: int = 0
     lost_flux: float = 0.0
     last_pass: int = -1
+    elapsed_s: float = 0.0
     pass_flux: list[float] = field(default_factory=list)
     pass_part_flux: list[np.ndarray] = field(default_factory=list)
 
@@ -183,6 +185,7 @@ class Accumulator:
         arrays = dict(
             version=np.int64(_STATE_VERSION), n=np.int64(self.n), photons=np.int64(self.photons),
             lost_flux=np.float64(self.lost_flux), last_pass=np.int64(self.last_pass),
+            elapsed_s=np.float64(self.elapsed_s),
             pixel_area_mm2=np.float64(self.pixel_area_mm2), part_names=np.array(self.part_names, dtype=str),
             sum_image=self.sum_image, sumsq_image=self.sumsq_image, sum_parts=self.sum_parts,
             pass_flux=np.asarray(self.pass_flux, dtype=np.float64),
@@ -190,7 +193,7 @@ class Accumulator:
         )
         for key, value in meta.items():
             arrays[f"meta_{key}"] = np.array(value)
-        write_npz(path, **arrays)
+        write_npz(path, compressed=True, **arrays)  # stray-light images are mostly zeros: ~20x smaller
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> tuple["Accumulator", dict]:
@@ -202,6 +205,7 @@ class Accumulator:
             acc = cls(names, float(z["pixel_area_mm2"]), z["sum_image"].copy(), z["sumsq_image"].copy(),
                       z["sum_parts"].copy(), n=int(z["n"]), photons=int(z["photons"]),
                       lost_flux=float(z["lost_flux"]), last_pass=int(z["last_pass"]),
+                      elapsed_s=float(z["elapsed_s"]),
                       pass_flux=[float(v) for v in z["pass_flux"]],
                       pass_part_flux=[row.copy() for row in z["pass_part_flux"]])
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}

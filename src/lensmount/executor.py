@@ -1,0 +1,278 @@
+"""Where passes run: this process, local worker processes, or a Dask cluster.
+
+The runner hands an executor picklable `PassJob`s and takes back `(index, PassEstimate)`;
+it merges them strictly in pass order, so the result does not depend on the executor,
+the number of workers or the order in which passes finish. Every executor
+
+* sends the Scene (plain numpy) to each worker once per run, never once per task, and
+  builds the Tracer there once (Embree scenes do not pickle);
+* survives a worker that dies mid-pass: the pass is run again elsewhere, and since a
+  pass depends only on (seed, index) the result is identical;
+* leaves no worker behind when the driver dies, however it dies: local workers (and the
+  worker processes of a `LocalCluster` started here) get SIGKILL from the kernel when
+  their parent goes (Linux `PR_SET_PDEATHSIG`), and ignore SIGINT/SIGTERM meant for the
+  process group, so the driver alone decides to checkpoint and stop.
+
+`executor_for(workers=, scheduler=, cluster=)` chooses: a scheduler address joins an
+existing Dask cluster, `cluster="local:N"` starts a Dask `LocalCluster` of N processes,
+otherwise N local processes (1 = this process, for tests and debugging).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import importlib
+import os
+import signal
+import sys
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+
+from lensmount.errors import InputError
+
+SCHEDULER_ENV = "LENSMOUNT_SCHEDULER"
+_PR_SET_PDEATHSIG = 1
+
+
+def resolve(path: str):
+    """'module:name' → the object."""
+    module, _, name = path.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def die_with_parent() -> None:
+    """Make the kernel SIGKILL this process when its parent dies; ignore group signals.
+
+    Called first thing in every worker process. On systems without prctl the worker still
+    ignores SIGINT/SIGTERM and exits when the driver closes the pool normally.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _sigkill_when_parent_dies()
+
+
+def _sigkill_when_parent_dies() -> None:
+    if sys.platform.startswith("linux"):
+        parent = os.getppid()
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os._exit(1)
+
+
+# --- worker side: one Scene and one Tracer per process -------------------------------------
+
+_WORKER: dict = {}  # this process's (key, scene, tracer)
+_INITIAL: dict = {}  # a local worker's scene and tracer path, from the pool's initializer
+
+
+def _tracer_for(scene, tracer_path: str):
+    """The process's tracer for `scene`, built on first use (a new scene replaces the old)."""
+    key = (id(scene), tracer_path)
+    if _WORKER.get("key") != key:
+        _WORKER.clear()
+        _WORKER.update(key=key, scene=scene, tracer=resolve(tracer_path)(scene))  # holds scene: id stays unique
+    return _WORKER["tracer"]
+
+
+def _init_local(scene, tracer_path: str) -> None:
+    die_with_parent()
+    _INITIAL["scene"] = (scene, tracer_path)
+
+
+def _local_pass(run_pass_path: str, job):
+    scene, tracer_path = _INITIAL["scene"]
+    return job.index, resolve(run_pass_path)(scene, _tracer_for(scene, tracer_path), job)
+
+
+def _dask_pass(run_pass_path: str, scene, tracer_path: str, job):
+    return job.index, resolve(run_pass_path)(scene, _tracer_for(scene, tracer_path), job)
+
+
+# --- executors -----------------------------------------------------------------------------
+
+class Executor:
+    """The interface the runner uses: `start`, `submit(job)`, `in_flight`, `next_done()`, `close()`.
+
+    `next_done()` blocks until at least one pass is finished and returns the finished
+    `(index, PassEstimate)` pairs (possibly none after a lost worker, whose passes it
+    has already sent out again).
+    """
+
+    workers: int = 1
+    description: str = ""
+
+    def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
+        self.scene, self.tracer_path, self.run_pass_path = scene, tracer_path, run_pass_path
+        self._jobs: dict = {}  # handle → job, the passes sent out and not yet returned
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._jobs)
+
+    def run_here(self, job):
+        return job.index, resolve(self.run_pass_path)(self.scene, _tracer_for(self.scene, self.tracer_path), job)
+
+    def close(self) -> None:
+        self._jobs = {}
+
+
+class InProcess(Executor):
+    """Passes one after another in this process (workers = 1)."""
+
+    workers, description = 1, "this process"
+
+    def submit(self, job) -> None:
+        self._jobs[len(self._jobs)] = job
+
+    def next_done(self) -> list:
+        job = self._jobs.pop(next(iter(self._jobs)))
+        self._jobs = dict(enumerate(self._jobs.values()))
+        return [self.run_here(job)]
+
+
+class LocalProcesses(Executor):
+    """N worker processes on this machine; a killed worker's passes are sent out again."""
+
+    def __init__(self, workers: int):
+        self.workers = max(1, int(workers))
+        self.description = f"{self.workers} local processes"
+        self._pool = None
+
+    def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
+        super().start(scene, tracer_path, run_pass_path)
+        self._open()
+
+    def _open(self) -> None:
+        self._pool = ProcessPoolExecutor(self.workers, initializer=_init_local,
+                                         initargs=(self.scene, self.tracer_path))
+
+    def submit(self, job) -> None:
+        try:
+            self._jobs[self._pool.submit(_local_pass, self.run_pass_path, job)] = job
+        except BrokenProcessPool:
+            self._replace_pool(extra=job)
+
+    def next_done(self) -> list:
+        done, _ = wait(list(self._jobs), return_when=FIRST_COMPLETED)
+        finished = []
+        for handle in done:
+            try:
+                finished.append(handle.result())
+            except BrokenProcessPool:
+                self._replace_pool()
+                return finished
+            del self._jobs[handle]
+        return finished
+
+    def _replace_pool(self, extra=None) -> None:
+        """A worker died: every pass in flight went with the pool. A new pool runs them again."""
+        jobs = list(self._jobs.values()) + ([extra] if extra is not None else [])
+        self._kill()
+        self._open()
+        self._jobs = {}
+        for job in jobs:
+            self._jobs[self._pool.submit(_local_pass, self.run_pass_path, job)] = job
+
+    def _kill(self) -> None:
+        if self._pool is None:
+            return
+        # Passes in flight are not waited for: a stopped run redoes them on resume, identically.
+        for process in list((getattr(self._pool, "_processes", None) or {}).values()):
+            process.kill()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool = None
+
+    def close(self) -> None:
+        self._kill()
+        super().close()
+
+
+class DaskCluster(Executor):
+    """Passes as Dask tasks on an existing cluster (`address`) or a LocalCluster of `local_workers` processes.
+
+    The Scene is scattered to every worker once (`broadcast=True`); each task names it by
+    its future, so only the small PassJob travels per task. Dask re-runs the tasks of a
+    worker that dies; passes are pure functions of (seed, index), so nothing changes.
+    """
+
+    def __init__(self, address: str | None = None, local_workers: int | None = None):
+        self.address, self.local_workers = address, local_workers
+        self.workers = local_workers or 1
+        self.description = f"Dask ({address or f'LocalCluster of {local_workers} processes'})"
+        self._client = self._cluster = None
+
+    def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
+        super().start(scene, tracer_path, run_pass_path)
+        from distributed import Client, LocalCluster
+
+        if self.address:
+            self._client = Client(self.address, timeout="20s")
+        else:
+            self._cluster = LocalCluster(n_workers=self.local_workers, threads_per_worker=1, processes=True,
+                                         dashboard_address=None, silence_logs=logging.ERROR)
+            self._client = Client(self._cluster)
+            self._client.register_plugin(_die_with_parent_plugin())
+        self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+        self._scene = self._client.scatter(scene, broadcast=True, hash=False)
+
+    def submit(self, job) -> None:
+        future = self._client.submit(_dask_pass, self.run_pass_path, self._scene, self.tracer_path, job,
+                                     pure=False, retries=3)
+        self._jobs[future] = job
+
+    def next_done(self) -> list:
+        from distributed import wait as dask_wait
+
+        done = dask_wait(list(self._jobs), return_when="FIRST_COMPLETED").done
+        finished = [future.result() for future in done]
+        for future in done:
+            del self._jobs[future]
+        return finished
+
+    def close(self) -> None:
+        for future in self._jobs:
+            future.cancel()
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._client = self._cluster = None
+        super().close()
+
+
+def _die_with_parent_plugin():
+    """A Dask worker plugin: LocalCluster workers are our children; they must not outlive us."""
+    from distributed import WorkerPlugin
+
+    class DieWithParent(WorkerPlugin):
+        name = "lensmount-die-with-parent"
+
+        def setup(self, worker) -> None:
+            _sigkill_when_parent_dies()
+
+    return DieWithParent()
+
+
+def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | None = None) -> Executor:
+    """The executor the options ask for (see the module docstring)."""
+    scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+    if scheduler and cluster:
+        raise InputError("give either a scheduler address or a local cluster, not both", field="--cluster",
+                         valid=f"--scheduler ADDRESS (or {SCHEDULER_ENV}) | --cluster local:N")
+    if scheduler:
+        return DaskCluster(address=scheduler)
+    if cluster:
+        kind, _, n = cluster.partition(":")
+        if kind != "local" or not n.isdigit() or int(n) < 1:
+            raise InputError(f"cluster '{cluster}' is not understood", field="--cluster",
+                             valid="local:N with N ≥ 1, e.g. local:4")
+        return DaskCluster(local_workers=int(n))
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}", field="--workers",
+                         valid="an integer ≥ 1 (0 in the CLI means one per core)")
+    return InProcess() if workers == 1 else LocalProcesses(workers)
+
+
+__all__ = ["Executor", "InProcess", "LocalProcesses", "DaskCluster", "executor_for", "die_with_parent",
+           "resolve", "SCHEDULER_ENV"]

@@ -1,0 +1,78 @@
+"""A small planar run driven from the command line, for the process-level tests of the runner.
+
+    python planar_run.py CHECKPOINT PASSES WORKERS [--resume] [--cluster local:N] [--crash-once MARKER]
+
+Prints one line per merged pass ("merged N") and, at the end, the accumulator's flux
+series as JSON on the last line. `--crash-once` makes the worker that first computes
+pass 3 die (os._exit) once, to test that a lost pass is re-run with the same result.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "integrators"))
+sys.path.insert(0, str(HERE))
+
+from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E402
+
+from lensmount.analysis.passes import Accumulator  # noqa: E402
+from lensmount.executor import executor_for  # noqa: E402
+from lensmount.integrators.bidirectional import part_names  # noqa: E402
+from lensmount.runner import PassJob, Runner, Stopping, run_pass  # noqa: E402
+
+TRACER = "planar:PlanarTracer"
+
+
+def scene():
+    th = math.radians(30)
+    d = (math.sin(th), 0, -math.cos(th))
+    return PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (20.0, 0), "plate", disc=True)], [Lambert(0.2)],
+                       Detector(2.0, 2.0, 4, 4, 20.0), Collimated(d, (-300 * d[0], 0, 300 * -d[2]), 25.0))
+
+
+def crashing_pass(scene, tracer, photons, seed, index, *, crash_marker, **options):
+    """A bidirectional pass whose worker dies the first time anyone computes pass 3."""
+    marker = Path(crash_marker)
+    if index == 3 and not marker.exists():
+        marker.write_text(str(os.getpid()))
+        os._exit(17)
+    return run_pass(scene, tracer, PassJob("bidirectional", photons, seed, index, options=options))
+
+
+def main(argv):
+    checkpoint, passes, workers = Path(argv[0]), int(argv[1]), int(argv[2])
+    resume = "--resume" in argv
+    cluster = argv[argv.index("--cluster") + 1] if "--cluster" in argv else None
+    crash = argv[argv.index("--crash-once") + 1] if "--crash-once" in argv else None
+    delay = float(os.environ.get("PLANAR_PASS_DELAY", "0"))
+    sc = scene()
+
+    def job(i):
+        options = {"samples_per_pixel": 16}
+        if crash:
+            return PassJob("planar_run:crashing_pass", 2000, 5, i, options={**options, "crash_marker": crash})
+        return PassJob("bidirectional", 2000, 5, i, options=options)
+
+    acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), part_names(sc), 0.25)
+
+    def progress(a, elapsed):
+        print(f"merged {a.n}", flush=True)
+        time.sleep(delay)
+
+    runner = Runner(sc, job, acc, executor=executor_for(workers=workers, cluster=cluster), checkpoint=checkpoint,
+                    checkpoint_every=1, progress=progress, tracer_path=TRACER)
+    runner.run(Stopping(max_passes=passes))
+    print(json.dumps({"flux": acc.pass_flux, "n": acc.n, "terminated": runner.terminated,
+                      "interrupted": runner.interrupted, "elapsed_s": acc.elapsed_s}), flush=True)
+    return 143 if runner.terminated else (130 if runner.interrupted else 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,95 @@
+"""Executors: the same seed gives the same numbers on any executor; signals and dead workers.
+
+The planar scene of tests/integrators runs in a subprocess (`planar_run.py`), so that the
+tests can kill it, and its workers, the way a batch system does.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+SCRIPT = HERE / "planar_run.py"
+
+
+def _run(tmp_path, *args, name="ck.npz", env=None):
+    out = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / name), *map(str, args)],
+                         capture_output=True, text=True, timeout=300, env={**os.environ, **(env or {})})
+    assert out.returncode in (0, 130, 143), out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1]), out
+
+
+def _session_members(sid: int) -> list[int]:
+    """Live processes of session `sid` (a run started with start_new_session, and every child it made)."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        if fields[0] != "Z" and int(fields[3]) == sid:  # state, ppid, pgrp, session
+            members.append(int(entry.name))
+    return members
+
+
+def test_one_and_two_local_workers_agree(tmp_path):
+    one, _ = _run(tmp_path, 6, 1, name="a.npz")
+    two, _ = _run(tmp_path, 6, 2, name="b.npz")
+    assert one["n"] == two["n"] == 6
+    assert one["flux"] == two["flux"]
+
+
+@pytest.mark.slow
+def test_dask_local_cluster_agrees_with_local_processes(tmp_path):
+    local, _ = _run(tmp_path, 6, 1, name="a.npz")
+    dask, _ = _run(tmp_path, 6, 1, "--cluster", "local:2", name="b.npz")
+    assert dask["flux"] == local["flux"]
+
+
+def test_dead_local_worker_is_replaced_with_identical_result(tmp_path):
+    straight, _ = _run(tmp_path, 6, 2, name="a.npz")
+    crashed, _ = _run(tmp_path, 6, 2, "--crash-once", tmp_path / "marker", name="b.npz")
+    assert (tmp_path / "marker").exists()  # a worker really died
+    assert crashed["flux"] == straight["flux"]
+
+
+@pytest.mark.slow
+def test_dead_dask_worker_is_replaced_with_identical_result(tmp_path):
+    straight, _ = _run(tmp_path, 6, 1, name="a.npz")
+    crashed, _ = _run(tmp_path, 6, 1, "--cluster", "local:2", "--crash-once", tmp_path / "marker", name="b.npz")
+    assert (tmp_path / "marker").exists()
+    assert crashed["flux"] == straight["flux"]
+
+
+@pytest.mark.parametrize("how", [pytest.param(signal.SIGKILL, marks=pytest.mark.slow), signal.SIGTERM,
+                                 pytest.param(signal.SIGINT, marks=pytest.mark.slow)])
+def test_killed_run_resumes_identically_and_leaves_no_process(tmp_path, how):
+    ck = tmp_path / "ck.npz"
+    proc = subprocess.Popen([sys.executable, str(SCRIPT), str(ck), "40", "2"], stdout=subprocess.PIPE, text=True,
+                            start_new_session=True, env={**os.environ, "PLANAR_PASS_DELAY": "0.2"})
+    for line in proc.stdout:  # wait until a few passes are merged (and checkpointed)
+        if line.startswith("merged 3"):
+            break
+    proc.send_signal(how)
+    proc.wait(timeout=60)
+    if how != signal.SIGKILL:
+        assert proc.returncode == (143 if how == signal.SIGTERM else 130)
+    deadline = time.time() + 10
+    while _session_members(proc.pid) and time.time() < deadline:
+        time.sleep(0.1)
+    assert _session_members(proc.pid) == [], "a worker outlived its parent"
+    resumed, _ = _run(tmp_path, 10, 2, "--resume")
+    straight, _ = _run(tmp_path, 10, 2, name="straight.npz")
+    assert resumed["flux"] == straight["flux"]
+    assert resumed["elapsed_s"] > 0.6  # the time before the kill is counted too (3 passes × 0.2 s)
