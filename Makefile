@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 LM     := $(VENV)/bin/lensmount
 DESIGN := examples/double-gauss-360
 
-.PHONY: install install-test demo test test-all bench clean
+.PHONY: install install-test browser demo test test-all bench clean
 
 # The runtime alone for the demo; the test extra (pytest, CadQuery as an independent STEP reader) for tests.
 $(VENV)/.installed: pyproject.toml
@@ -25,11 +25,24 @@ demo: install
 	$(LM) regenerate $(DESIGN) --out out/double-gauss-360
 	$(LM) simulate $(DESIGN) --scene $(DESIGN)/scenes/case1-diaphragm-edge.toml --out out/case1
 
+# Headless Chromium for the report test (tests/report), from Debian, only when missing.
+# CI runs as root on a fresh Debian machine: there it installs (about a minute); elsewhere
+# it says what to do, and the test skips (or fails when CI=true).
+browser:
+	@if [ ! -x /usr/bin/chromium ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium for the report test (apt-get)"; \
+	    apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium; \
+	  else \
+	    echo "note: /usr/bin/chromium is missing; as root on Debian: apt-get install -y chromium"; \
+	  fi; \
+	fi
+
 # CI subset: everything but the tests marked slow.
-test: install-test
+test: install-test browser
 	$(PY) -m pytest -m "not slow" -q
 
-test-all: install-test
+test-all: install-test browser
 	$(PY) -m pytest -q
 
 bench: install-test

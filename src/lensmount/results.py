@@ -6,6 +6,7 @@
 - `preview.png`: false-colour log10(E/E_sun) with a colour bar, detector axes in mm and
   the field of view outlined.
 - `summary.json`: the numbers, never a NaN or Inf (`allow_nan=False`); unknowns are null.
+- `report.html`: one self-contained page (images inline) for handing the run round.
 
 Every file is written to a temporary name in the output folder and renamed into place,
 so a reader never sees half a file and a crash leaves the previous result intact.
@@ -16,12 +17,14 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.atomic import atomic_path
+from lensmount.report import run_report, write_report
 
 
 def _atomic(path, write) -> None:
@@ -70,34 +73,58 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
         return {k: np.array(v.pixels) for k, v in f.channels().items()}
 
 
-def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[float, float, float, float],
-                  field_radius_mm: float | None = None, field_half_size_mm: tuple[float, float] | None = None,
-                  title: str = "") -> None:
-    """False-colour log10 preview with colour bar and the field of view outlined.
+@dataclass(frozen=True)
+class PreviewScale:
+    """How a preview maps irradiance to colour, so previews meant to be compared match.
 
-    extent_mm : (x_min, x_max, y_min, y_max) of the detector
-    field_radius_mm : image height of the full field (circle), if known
-    field_half_size_mm : half width/height of a rectangular field, if known
+    vmin, vmax : E/E_sun at the bottom and top of the log colour bar (0 < vmin ≤ vmax)
+    block : pixels per side of the square blocks whose means are shown (1 = full resolution)
     """
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    vmin: float
+    vmax: float
+    block: int = 1
+
+
+def block_mean(image: np.ndarray, block: int) -> np.ndarray:
+    """(ny/b, nx/b) means of b×b pixel blocks; b must divide both sides."""
+    ny, nx = image.shape
+    if block <= 1:
+        return np.asarray(image, dtype=np.float64)
+    if ny % block or nx % block:
+        raise ValueError(f"block {block} does not divide the image {nx}×{ny}")
+    return np.asarray(image, dtype=np.float64).reshape(ny // block, block, nx // block, block).mean(axis=(1, 3))
+
+
+def preview_scale(images: list[np.ndarray], block: int = 1) -> PreviewScale:
+    """One log colour scale covering every image (already block-averaged): from the 1st
+    percentile of the lit pixels (at most 6 decades below the brightest) to the brightest."""
+    lit = [np.asarray(i, dtype=np.float64)[np.isfinite(i) & (np.asarray(i) > 0)] for i in images]
+    positive = np.concatenate([v.ravel() for v in lit]) if lit else np.zeros(0)
+    if not positive.size:
+        return PreviewScale(1e-12, 1e-11, block)  # nothing lit: any valid scale shows black
+    hi = float(positive.max())
+    lo = max(float(np.percentile(positive, 1)), hi * 1e-6)
+    return PreviewScale(lo, hi if hi > lo else lo * 10.0, block)
+
+
+def shared_scale(runs: list[tuple[np.ndarray, np.ndarray]], target_rel_error: float = 0.25) -> PreviewScale:
+    """The scale for previews of runs meant to be compared: one block size (the coarsest any
+    run needs to be readable, see `display_binning`) and one colour range over all of them.
+
+    runs : [(mean image, std error image), ...], all of the same shape
+    """
+    shapes = {m.shape for m, _ in runs}
+    if len(shapes) != 1:
+        raise ValueError(f"runs with different detector pixels cannot share a preview: {sorted(shapes)}")
+    block = max(display_binning(m, e, target_rel_error)[0] for m, e in runs)
+    return preview_scale([block_mean(m, block) for m, _ in runs], block)
+
+
+def _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm) -> None:
+    """Axes labels, the field of view outlined, and limits that show the whole outline."""
     from matplotlib.patches import Circle, Rectangle
 
-    img = np.nan_to_num(np.asarray(image, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    positive = img[img > 0]
-    fig, ax = plt.subplots(figsize=(6.4, 5.2), dpi=100)
-    if positive.size:
-        hi = float(positive.max())
-        lo = max(float(np.percentile(positive, 1)), hi * 1e-6)
-        shown = np.log10(np.clip(img, lo, None))
-        im = ax.imshow(shown, origin="lower", extent=extent_mm, cmap="inferno", vmin=math.log10(lo),
-                       vmax=math.log10(hi) if hi > lo else math.log10(lo) + 1, interpolation="nearest")
-        fig.colorbar(im, ax=ax, label="log10 E/E_sun")
-    else:
-        im = ax.imshow(np.zeros_like(img), origin="lower", extent=extent_mm, cmap="inferno", vmin=0, vmax=1)
-        fig.colorbar(im, ax=ax, label="E/E_sun (no stray light reached the detector)")
     if field_radius_mm:
         ax.add_patch(Circle((0, 0), field_radius_mm, fill=False, ec="cyan", lw=1, ls="--", label="field of view"))
     if field_half_size_mm:
@@ -113,8 +140,10 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         ax.set_facecolor("0.85")
     ax.set_xlabel("x on detector (mm)")
     ax.set_ylabel("y on detector (mm)")
-    ax.set_title(title or "stray irradiance", fontsize=9)
-    fig.tight_layout()
+
+
+def _save_figure(fig, path) -> None:
+    import matplotlib.pyplot as plt
 
     def write(tmp):
         fig.savefig(tmp, format="png")
@@ -123,6 +152,73 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         _atomic(Path(path), write)
     finally:
         plt.close(fig)
+
+
+def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[float, float, float, float],
+                  field_radius_mm: float | None = None, field_half_size_mm: tuple[float, float] | None = None,
+                  title: str = "", scale: PreviewScale | None = None) -> None:
+    """False-colour log10 preview with colour bar and the field of view outlined.
+
+    image : full-resolution E/E_sun; shown as `scale.block`-pixel block means
+    extent_mm : (x_min, x_max, y_min, y_max) of the detector
+    field_radius_mm : image height of the full field (circle), if known
+    field_half_size_mm : half width/height of a rectangular field, if known
+    scale : colour range and block size; None fits them to this image alone. Pass one
+        scale (from `shared_scale`) to every preview meant to be compared.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    img = np.nan_to_num(np.asarray(image, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    scale = scale or preview_scale([img])
+    img = block_mean(img, scale.block)
+    fig, ax = plt.subplots(figsize=(6.4, 5.2), dpi=100)
+    if np.any(img > 0):
+        shown = np.log10(np.clip(img, scale.vmin, None))
+        im = ax.imshow(shown, origin="lower", extent=extent_mm, cmap="inferno", vmin=math.log10(scale.vmin),
+                       vmax=math.log10(scale.vmax), interpolation="nearest")
+        fig.colorbar(im, ax=ax, label="log10 E/E_sun")
+    else:
+        im = ax.imshow(np.zeros_like(img), origin="lower", extent=extent_mm, cmap="inferno", vmin=0, vmax=1)
+        fig.colorbar(im, ax=ax, label="E/E_sun (no stray light reached the detector)")
+    _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm)
+    if scale.block > 1:
+        title = (title + " · " if title else "") + f"{scale.block}×{scale.block}-pixel means"
+    ax.set_title(title or "stray irradiance", fontsize=9)
+    fig.tight_layout()
+    _save_figure(fig, path)
+
+
+def write_difference(path: str | os.PathLike, new: np.ndarray, old: np.ndarray,
+                     extent_mm: tuple[float, float, float, float], scale: PreviewScale,
+                     field_radius_mm: float | None = None, field_half_size_mm: tuple[float, float] | None = None,
+                     title: str = "") -> np.ndarray:
+    """Signed difference new − old in E/E_sun, block means as in `scale`, on a diverging
+    colour bar symmetric about zero (red: brighter in new, blue: darker). The colour
+    limit is the largest |difference|, at least `scale.vmin` so that noise-free equal
+    runs show white rather than an empty range. Returns the block-mean difference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    clean = [np.nan_to_num(np.asarray(a, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0) for a in (new, old)]
+    if clean[0].shape != clean[1].shape:
+        raise ValueError(f"cannot subtract images of shapes {clean[0].shape} and {clean[1].shape}")
+    diff = block_mean(clean[0], scale.block) - block_mean(clean[1], scale.block)
+    limit = max(float(np.abs(diff).max()) if diff.size else 0.0, scale.vmin)
+    fig, ax = plt.subplots(figsize=(6.4, 5.2), dpi=100)
+    im = ax.imshow(diff, origin="lower", extent=extent_mm, cmap="RdBu_r", vmin=-limit, vmax=limit,
+                   interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="Δ E/E_sun (new − old)")
+    _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm)
+    suffix = f"{scale.block}×{scale.block}-pixel means" if scale.block > 1 else ""
+    ax.set_title(" · ".join(t for t in (title or "difference new − old", suffix) if t), fontsize=9)
+    fig.tight_layout()
+    _save_figure(fig, path)
+    return diff
 
 
 def display_binning(mean: np.ndarray, std_error: np.ndarray, target_rel_error: float = 0.25,
@@ -164,21 +260,25 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
               extent_mm: tuple[float, float, float, float] | None = None,
               field_radius_mm: float | None = None,
               field_half_size_mm: tuple[float, float] | None = None) -> dict[str, Path]:
-    """Write irradiance.exr, preview.png and summary.json into out_dir. Returns their paths."""
+    """Write irradiance.exr, preview.png, summary.json and report.html into out_dir. Returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     ny, nx = accumulator.sum_image.shape
     if extent_mm is None:
         extent_mm = (-nx / 2, nx / 2, -ny / 2, ny / 2)
-    paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json"}
+    paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json",
+             "html": out / "report.html"}
     write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names)
     title = f"{summary.get('method', '')} · {summary.get('passes', accumulator.n)} passes"
-    b, shown = display_binning(accumulator.mean_image, accumulator.std_error_image)
-    if b > 1:
-        title += f" · shown as {b}×{b}-pixel means (EXR: full {nx}×{ny})"
-    write_preview(paths["png"], shown, extent_mm, field_radius_mm, field_half_size_mm, title)
+    scale = shared_scale([(accumulator.mean_image, accumulator.std_error_image)])
+    if scale.block > 1:
+        title += f" · EXR: full {nx}×{ny}"
+    write_preview(paths["png"], accumulator.mean_image, extent_mm, field_radius_mm, field_half_size_mm, title,
+                  scale=scale)
     write_summary(paths["json"], summary)
+    write_report(paths["html"], run_report(summary, {"stray irradiance on the detector": paths["png"]}))
     return paths
 
 
-__all__ = ["write_run", "display_binning", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]
+__all__ = ["write_run", "display_binning", "PreviewScale", "preview_scale", "shared_scale", "block_mean",
+           "write_difference", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]

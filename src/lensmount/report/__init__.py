@@ -1,0 +1,171 @@
+"""report.html: one self-contained page per run, per comparison and per PST sweep.
+
+An engineer hands the page round by e-mail or opens it on a laptop in a train, so it
+carries everything inline: images as base64 PNG, a few lines of CSS, no scripts, no
+fonts, no links to fetch. What it shows comes from summary.json and the images the
+run wrote; it computes nothing of its own, so the page and the JSON never disagree.
+
+Summary keys read (all optional except `stray_fraction`): `method`, `passes`, `photons`,
+`time_s`, `stray_fraction_std_error`, `stray_fraction_rel_error`,
+`stray_fraction_bias_bound`, `per_part` ({name: {fraction, std_error, bias_bound}}),
+and for provenance every other scalar (input hashes, git commit, version, command).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import os
+from pathlib import Path
+
+from lensmount.atomic import write_text
+
+# Keys the headline and the part table show; every other scalar goes to "Inputs and provenance".
+_SHOWN = {"stray_fraction", "stray_fraction_std_error", "stray_fraction_rel_error", "stray_fraction_bias_bound",
+          "per_part", "units", "method", "passes", "photons", "time_s"}
+
+_CSS = """
+body{font-family:system-ui,sans-serif;margin:2em auto;max-width:60em;color:#222;padding:0 1em}
+h1{font-size:1.4em}h2{font-size:1.1em;margin-top:1.6em;border-bottom:1px solid #ccc}
+table{border-collapse:collapse;font-size:.9em}td,th{padding:.2em .8em;border-bottom:1px solid #eee;text-align:right}
+td:first-child,th:first-child{text-align:left}figure{display:inline-block;margin:.5em}
+figcaption{font-size:.85em;color:#555}img{max-width:100%}
+.verdict{font-size:1.2em;font-weight:bold;padding:.5em;border:2px solid #888;display:inline-block}
+.regression{border-color:#c00;color:#c00}.ok{border-color:#080;color:#080}.undecided{border-color:#b80;color:#b80}
+code{font-size:.85em;word-break:break-all}
+"""
+
+
+def esc(value) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def fmt(value, error=None) -> str:
+    """value ± error with the digits the error justifies; '—' for unknown."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if error is None or not math.isfinite(float(error)):
+        return f"{value:.4g}"
+    return f"{value:.4g} ± {error:.2g}"
+
+
+def image_block(caption: str, png: bytes | str | os.PathLike) -> str:
+    """A figure with the PNG inline as a data URI (bytes, or the path of a PNG file)."""
+    data = png if isinstance(png, bytes) else Path(png).read_bytes()
+    uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+    return f'<figure><img src="{uri}" alt="{esc(caption)}"><figcaption>{esc(caption)}</figcaption></figure>'
+
+
+def table_block(headers: list[str], rows: list[list], caption: str = "") -> str:
+    head = "".join(f"<th>{esc(h)}</th>" for h in headers)
+    body = "".join("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>" for row in rows)
+    cap = f"<caption>{esc(caption)}</caption>" if caption else ""
+    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def section(title: str, *blocks: str) -> str:
+    return f"<h2>{esc(title)}</h2>" + "".join(blocks)
+
+
+def page(title: str, blocks: list[str]) -> str:
+    """The whole document. No external resource of any kind (checked by the browser test)."""
+    return ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
+            "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; img-src data:; "
+            "style-src 'unsafe-inline'\">"
+            f"<title>{esc(title)}</title><style>{_CSS}</style></head><body><h1>{esc(title)}</h1>"
+            + "".join(blocks) + "</body></html>\n")
+
+
+def headline_rows(summary: dict) -> list[list]:
+    rows = [["stray fraction", fmt(summary.get("stray_fraction"), summary.get("stray_fraction_std_error"))]]
+    rel = summary.get("stray_fraction_rel_error")
+    rows.append(["relative standard error", f"{100 * rel:.2f} %" if rel is not None else "—"])
+    if summary.get("stray_fraction_bias_bound") is not None:
+        rows.append(["bias bound", fmt(summary["stray_fraction_bias_bound"])])
+    for key, label in (("method", "method"), ("passes", "passes"), ("photons", "photons"), ("time_s", "time (s)")):
+        if summary.get(key) is not None:
+            rows.append([label, f"{summary[key]:,}" if isinstance(summary[key], int) else summary[key]])
+    return rows
+
+
+def part_rows(per_part: dict) -> tuple[list[str], list[list]]:
+    """Parts that carry stray light, largest first: fraction ± error, share, bias bound if any."""
+    lit = sorted(((v.get("fraction") or 0.0, name, v) for name, v in per_part.items() if (v.get("fraction") or 0) > 0),
+                 key=lambda t: t[0], reverse=True)
+    total = sum(f for f, _, _ in lit) or 1.0
+    with_bias = any(v.get("bias_bound") is not None for _, _, v in lit)
+    headers = ["part", "stray fraction ± std. error", "share"] + (["bias bound"] if with_bias else [])
+    rows = [[name, fmt(f, v.get("std_error")), f"{100 * f / total:.1f} %"]
+            + ([fmt(v.get("bias_bound"))] if with_bias else []) for f, name, v in lit]
+    return headers, rows
+
+
+def provenance_rows(summary: dict) -> list[list]:
+    """Every scalar the summary carries beyond the figures (hashes, commit, version, command),
+    flattening one level of nested tables such as {"hashes": {"lens": ...}}."""
+    rows = []
+    for key in sorted(summary):
+        if key in _SHOWN:
+            continue
+        value = summary[key]
+        if isinstance(value, dict):
+            rows += [[f"{key}.{k}", v] for k, v in sorted(value.items()) if not isinstance(v, (dict, list))]
+        elif isinstance(value, list):
+            if all(not isinstance(v, (dict, list)) for v in value):
+                rows.append([key, " ".join(str(v) for v in value)])
+        else:
+            rows.append([key, "—" if value is None else value])
+    return rows
+
+
+def run_blocks(summary: dict, images: dict[str, bytes | str | os.PathLike]) -> list[str]:
+    """Headline figures, images, the per-part table and provenance of one run."""
+    blocks = [section("Result", table_block(["", ""], headline_rows(summary)))]
+    if images:
+        blocks.append(section("Images", *(image_block(c, p) for c, p in images.items())))
+    headers, rows = part_rows(summary.get("per_part", {}))
+    if rows:
+        blocks.append(section("Stray fraction by part (last scattering surface)", table_block(headers, rows)))
+    blocks.append(section("Inputs and provenance", table_block(["field", "value"], provenance_rows(summary))))
+    return blocks
+
+
+def run_report(summary: dict, images: dict[str, bytes | str | os.PathLike], title: str | None = None) -> str:
+    name = summary.get("design_name") or Path(str(summary.get("design", "run"))).name
+    scene = Path(str(summary.get("scene", ""))).stem
+    return page(title or f"lensmount run · {name}" + (f" · {scene}" if scene else ""), run_blocks(summary, images))
+
+
+def comparison_report(old: dict, new: dict, verdict: str, rows: list[list], headers: list[str],
+                      images: dict[str, bytes | str | os.PathLike], detail: str = "",
+                      kind: str = "undecided") -> str:
+    """The page for `compare`: the verdict first, then the change per part, the images on one
+    scale, and both runs' provenance side by side.
+
+    verdict : the sentence `compare` prints (e.g. "regression: +205 % ± 24 % (99 % confidence)")
+    rows, headers : the change table as `compare` prints it
+    kind : "regression" | "ok" | "undecided" (the colour of the verdict box)
+    """
+    blocks = [f'<p class="verdict {esc(kind)}" id="verdict">{esc(verdict)}</p>']
+    if detail:
+        blocks.append(f"<p>{esc(detail)}</p>")
+    blocks.append(section("Change", table_block(headers, rows)))
+    if images:
+        blocks.append(section("Images (one colour scale and pixel binning for both runs)",
+                              *(image_block(c, p) for c, p in images.items())))
+    prov_old, prov_new = dict(provenance_rows(old)), dict(provenance_rows(new))
+    keys = sorted(set(prov_old) | set(prov_new))
+    blocks.append(section("Inputs and provenance", table_block(
+        ["field", "old", "new"], [[k, prov_old.get(k, "—"), prov_new.get(k, "—")] for k in keys])))
+    return page("lensmount comparison", blocks)
+
+
+def write_report(path: str | os.PathLike, document: str) -> Path:
+    """Write the page atomically (a reader never sees half a report)."""
+    write_text(path, document)
+    return Path(path)
+
+
+__all__ = ["run_report", "comparison_report", "write_report", "page", "section", "image_block", "table_block",
+           "run_blocks", "fmt"]

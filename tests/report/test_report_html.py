@@ -1,0 +1,68 @@
+"""report.html opens offline in headless Chromium with every image loaded and the verdict shown."""
+
+import numpy as np
+
+from lensmount.analysis.passes import Accumulator
+from lensmount.integrators.estimate import PassEstimate
+from lensmount.report import comparison_report, write_report
+from lensmount.results import shared_scale, write_difference, write_preview, write_run
+
+from .conftest import images_loaded
+
+
+def _run(level: float, seed: int) -> Accumulator:
+    acc = Accumulator.empty((12, 16), ["diaphragm", "barrel"], 0.01)
+    rng = np.random.default_rng(seed)
+    for _ in range(4):
+        img = level * rng.random((12, 16))
+        acc.add(PassEstimate(img, np.stack([0.3 * img, 0.7 * img]), acc.part_names, 0.01, 100))
+    return acc
+
+
+SUMMARY = {"method": "bidirectional", "passes": 4, "photons": 400, "time_s": 1.5, "stray_fraction": 1.504e-6,
+           "stray_fraction_std_error": 1.3e-7, "stray_fraction_rel_error": 0.086, "stray_fraction_bias_bound": 4e-8,
+           "per_part": {"diaphragm": {"fraction": 1.0e-6, "std_error": 1e-7, "bias_bound": 3e-8},
+                        "barrel": {"fraction": 5.04e-7, "std_error": 5e-8, "bias_bound": 1e-8}},
+           "input_hash": "a1b2c3d4e5f60718", "git_commit": "0123456789abcdef0123456789abcdef01234567",
+           "git_dirty": False, "hashes": {"lens": "11aa", "mount": "22bb", "scene": "33cc"}}
+
+
+def test_run_report_opens_offline_with_images_and_provenance(tmp_path, open_offline):
+    paths = write_run(tmp_path / "run", _run(1e-3, 0), SUMMARY, extent_mm=(-8, 8, -6, 6))
+    page, requested = open_offline(paths["html"])
+    widths = images_loaded(page)
+    assert widths and all(w > 0 for w in widths), widths
+    text = page.inner_text("body")
+    for shown in ("1.504e-06 ± 1.3e-07", "bias bound", "diaphragm", "a1b2c3d4e5f60718",
+                  "0123456789abcdef0123456789abcdef01234567", "hashes.mount"):
+        assert shown in text, shown
+    assert [u for u in requested if not u.startswith(("file:", "data:"))] == []
+
+
+def test_comparison_report_shows_the_verdict_and_both_images(tmp_path, open_offline):
+    old, new = _run(1e-3, 1), _run(3e-3, 2)
+    scale = shared_scale([(old.mean_image, old.std_error_image), (new.mean_image, new.std_error_image)])
+    extent = (-8, 8, -6, 6)
+    for name, acc in (("old", old), ("new", new)):
+        write_preview(tmp_path / f"{name}.png", acc.mean_image, extent, title=name, scale=scale)
+    write_difference(tmp_path / "diff.png", new.mean_image, old.mean_image, extent, scale)
+    verdict = "regression: stray fraction +205 % ± 24 % at 99 % confidence"
+    doc = comparison_report(SUMMARY, {**SUMMARY, "stray_fraction": 4.59e-6}, verdict,
+                            [["total", "1.504e-06", "4.59e-06", "+205 % ± 24 %"]],
+                            ["", "old", "new", "change"],
+                            {n: tmp_path / f"{n}.png" for n in ("old", "new", "diff")}, kind="regression")
+    page, requested = open_offline(write_report(tmp_path / "report.html", doc))
+    assert page.inner_text("#verdict") == verdict
+    widths = images_loaded(page)
+    assert len(widths) == 3 and all(w > 0 for w in widths), widths
+    assert [u for u in requested if not u.startswith(("file:", "data:"))] == []
+
+
+def test_the_browser_check_sees_a_broken_image_and_a_network_fetch(tmp_path, open_offline):
+    """The two checks above can fail: a corrupt inline PNG reads width 0, a CDN link is caught."""
+    page_file = tmp_path / "bad.html"
+    page_file.write_text('<html><body><img src="data:image/png;base64,AAAA">'
+                         '<img src="https://cdn.example.com/x.png"></body></html>')
+    page, requested = open_offline(page_file)
+    assert images_loaded(page) == [0, 0]
+    assert "https://cdn.example.com/x.png" in requested
