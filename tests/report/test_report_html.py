@@ -23,8 +23,10 @@ SUMMARY = {"method": "bidirectional", "passes": 4, "photons": 400, "time_s": 1.5
            "stray_fraction_std_error": 1.3e-7, "stray_fraction_rel_error": 0.086, "stray_fraction_bias_bound": 4e-8,
            "per_part": {"diaphragm": {"fraction": 1.0e-6, "std_error": 1e-7, "bias_bound": 3e-8},
                         "barrel": {"fraction": 5.04e-7, "std_error": 5e-8, "bias_bound": 1e-8}},
-           "input_hash": "a1b2c3d4e5f60718", "git_commit": "0123456789abcdef0123456789abcdef01234567",
-           "git_dirty": False, "hashes": {"lens": "11aa", "mount": "22bb", "scene": "33cc"}}
+           "input_hash": "a1b2c3d4e5f60718",
+           "provenance": {"design_name": "mylens", "scene_name": "case1", "lens_sha256": "11aa", "mount_sha256": "22bb",
+                          "scene_sha256": "33cc", "git_commit": "0123456789abcdef0123456789abcdef01234567",
+                          "git_dirty": False}}
 
 
 def test_run_report_opens_offline_with_images_and_provenance(tmp_path, open_offline):
@@ -34,7 +36,8 @@ def test_run_report_opens_offline_with_images_and_provenance(tmp_path, open_offl
     assert widths and all(w > 0 for w in widths), widths
     text = page.inner_text("body")
     for shown in ("1.504e-06 ± 1.3e-07", "bias bound", "diaphragm", "a1b2c3d4e5f60718",
-                  "0123456789abcdef0123456789abcdef01234567", "hashes.mount"):
+                  "0123456789abcdef0123456789abcdef01234567",
+                  "provenance.mount_sha256", "mylens · case1"):
         assert shown in text, shown
     assert [u for u in requested if not u.startswith(("file:", "data:"))] == []
 

@@ -132,8 +132,9 @@ def run_blocks(summary: dict, images: dict[str, bytes | str | os.PathLike]) -> l
 
 
 def run_report(summary: dict, images: dict[str, bytes | str | os.PathLike], title: str | None = None) -> str:
-    name = summary.get("design_name") or Path(str(summary.get("design", "run"))).name
-    scene = Path(str(summary.get("scene", ""))).stem
+    prov = summary.get("provenance") or {}
+    name = prov.get("design_name") or Path(str(summary.get("design", "run"))).name
+    scene = prov.get("scene_name") or Path(str(summary.get("scene", ""))).stem
     return page(title or f"lensmount run · {name}" + (f" · {scene}" if scene else ""), run_blocks(summary, images))
 
 
