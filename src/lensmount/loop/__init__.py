@@ -9,9 +9,12 @@ directly:
     result.summary["stray_fraction"], result.paths["exr"]
 """
 
+from lensmount.loop.compare import CompareOptions, CompareResult, compare
+from lensmount.loop.history import HistoryOptions, history
 from lensmount.loop.regenerate import RegenerateOptions, RegenerateResult, regenerate
 from lensmount.loop.simulate import (Observer, PassStatus, SimulateOptions, SimulateResult, input_hash,
                                      simulate)
 
 __all__ = ["RegenerateOptions", "RegenerateResult", "regenerate", "SimulateOptions", "SimulateResult",
-           "PassStatus", "Observer", "simulate", "input_hash"]
+           "PassStatus", "Observer", "simulate", "input_hash", "CompareOptions", "CompareResult", "compare",
+           "HistoryOptions", "history"]

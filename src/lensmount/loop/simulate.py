@@ -147,6 +147,14 @@ def input_hash(design_hash: str, scene_path: Path, **params) -> str:
     return h.hexdigest()[:16]
 
 
+def planned_input_hash(o: SimulateOptions, design, spec) -> str:
+    """The input hash a run with these options would get (design: loaded Design, spec: its SceneSpec)."""
+    per_pass = o.photons_per_pass or spec.run.photons
+    extra = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
+    return input_hash(design.input_hash, Path(o.scene), method=o.method, photons_per_pass=per_pass, alpha=o.alpha,
+                      **extra)
+
+
 def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
     differ = [k for k in ("seed", "method", "input_hash") if str(meta.get(k)) != str(asked[k])]
     if not differ:
@@ -177,8 +185,7 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     seed = spec.run.seed if o.seed is None else o.seed
     per_pass = o.photons_per_pass or spec.run.photons
     options = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
-    digest = input_hash(design.input_hash, scene_path, method=o.method, photons_per_pass=per_pass, alpha=o.alpha,
-                        **options)
+    digest = planned_input_hash(o, design, spec)
     checkpoint = out / CHECKPOINT
     acc = None
     if o.resume:
@@ -279,4 +286,5 @@ def _field_radius(prescription) -> float | None:
 
 
 __all__ = ["SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
+           "planned_input_hash",
            "METHODS"]

@@ -1,0 +1,93 @@
+"""`lensmount compare A B` and `lensmount compare DESIGN --scene S --against last|best|REV`: parse, call, print.
+
+Exit codes: 0 no significant regression (also "undecided": noise is never a
+regression), 1 regression beyond the tolerance at the confidence asked, 2 bad input
+or runs that do not measure the same thing.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.analysis.compare import UNDECIDED, Verdict, parse_fraction
+from lensmount.cli import app, fail
+from lensmount.cli.simulate import TerminalObserver, _duration
+from lensmount.errors import InputError
+from lensmount.loop.compare import CompareOptions, compare as run_compare
+
+
+def _fraction(text: str, field: str) -> float:
+    try:
+        return parse_fraction(text, field)
+    except ValueError as exc:
+        raise InputError(str(exc), field=field, valid="a fraction such as 5% or 0.05") from None
+
+
+def _row(v: Verdict) -> list[str]:
+    rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
+    interval = f"[{v.low:+.3g}, {v.high:+.3g}]" if v.low > -float("inf") else "unknown"
+    return [f"{v.old:.4g}", f"{v.new:.4g}", f"{v.change:+.3g}{rel}", interval, v.verdict]
+
+
+@app.command()
+def compare(
+    a: Path = typer.Argument(..., help="Old run: a results folder, or a design folder (with --scene)."),
+    b: Optional[Path] = typer.Argument(None, help="New run: a results folder or a design folder; "
+                                                  "omit with --against."),
+    scene: Optional[str] = typer.Option(None, "--scene", help="Scene name or file, for design folders."),
+    against: Optional[str] = typer.Option(None, "--against",
+                                          help="Compare the design's current state with a stored run: "
+                                               "last | best | a git revision."),
+    metric: str = typer.Option("stray_fraction", "--metric", help="stray_fraction | stray_flux_mm2"),
+    tolerance: str = typer.Option("5%", "--tolerance", help="Allowed increase, relative to the old value."),
+    confidence: str = typer.Option("0.99", "--confidence", help="Confidence of the interval on the change."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for difference.exr/png and compare.json "
+                                                           "(default NEW/compare)."),
+    store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/"
+                                                               "runs.sqlite or $LENSMOUNT_STORE)."),
+    method: str = typer.Option("bidirectional", "--method", help="Method for runs that must be simulated."),
+    workers: int = typer.Option(0, "--workers", help="Worker processes for runs that must be simulated."),
+) -> None:
+    """Is the new run worse than the old one? Old, new, change with its interval, per part, and the verdict.
+
+    Exit 0: no significant regression (or undecided: then it says how many more photons
+    would decide). Exit 1: a regression beyond the tolerance at that confidence. Exit 2:
+    bad input or runs that are not comparable.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    observer = TerminalObserver(live=sys.stderr.isatty())
+    try:
+        options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
+                                 _fraction(confidence, "--confidence"), out, store, method, workers)
+        result = run_compare(options, observer)
+    except InputError as error:
+        observer.close()
+        fail(error)
+    finally:
+        observer.close()
+    v = result.verdict
+    console = Console()
+    for note in result.notes:
+        console.print(f"note: {note}", style="yellow")
+    table = Table(title=f"{result.metric}: old {result.old.folder} → new {result.new.folder}; tolerance "
+                        f"{100 * options.tolerance:g} %, interval at {100 * options.confidence:g} %",
+                  title_justify="left")
+    for col in ("", "old", "new", "change", "interval of the change", "verdict"):
+        table.add_column(col, justify="right" if col else "left")
+    table.add_row("total", *_row(v), style="bold")
+    for name, pv in sorted(result.per_part.items(), key=lambda kv: -max(kv[1].old, kv[1].new)):
+        if pv.old or pv.new:
+            table.add_row(name, *_row(pv))
+    console.print(table)
+    typer.echo(f"verdict: {v.verdict}" + (f" — {v.note}" if v.note else ""))
+    if v.verdict == UNDECIDED and v.more_photons is not None:
+        typer.echo(f"to decide: about {v.more_photons:,} more photons over both runs "
+                   f"(~{_duration(v.more_time_s)} at their speed)")
+    typer.echo("wrote " + ", ".join(str(p) for p in result.paths.values()))
+    raise typer.Exit(code=result.exit_code)

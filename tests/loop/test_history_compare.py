@@ -1,0 +1,162 @@
+"""`history` in commit order with commits, values and the dirty mark; `compare` exit codes, verdicts,
+difference image and refusals — on stored runs, without the tracer."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+from lensmount.design.folder import load_design
+from lensmount.loop.provenance import collect
+from lensmount.results import read_exr
+from lensmount.store import Store
+from tests.loop.runs import EXAMPLE, git, paths, write_run
+
+SCENE = "case1-diaphragm-edge"
+
+
+def _repo(tmp_path):
+    repo = tmp_path / "design"
+    shutil.copytree(EXAMPLE, repo, ignore=shutil.ignore_patterns("build", ".lensmount"))
+    git(repo, "init", "-q")
+    return repo
+
+
+def _record(repo, value, folder, store_path):
+    summary = write_run(folder, value, value * 0.02,
+                        prov=collect(load_design(repo), repo / "scenes" / f"{SCENE}.toml", ["lensmount"]).to_dict())
+    with Store(store_path) as store:
+        store.record(summary, paths(folder))
+
+
+def test_history_lists_revisions_in_commit_order_and_marks_a_dirty_tree(tmp_path, monkeypatch):
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    repo = _repo(tmp_path)
+    store_path = repo / ".lensmount" / "runs.sqlite"
+    commits, values = [], {}
+    for k, wall in enumerate((2.0, 2.5, 3.0)):  # three revisions of the mount, all committed in the same second
+        mount = repo / "mount.toml"
+        mount.write_text(mount.read_text() + f"\n# revision {k}\n")
+        git(repo, "add", "-A")
+        git(repo, "commit", "-qm", f"rev {k}")
+        commits.append(git(repo, "rev-parse", "HEAD"))
+        values[commits[-1]] = 1e-3 * (k + 1)
+    # Runs are recorded out of order (newest revision first): history must still follow the commits.
+    for k in (2, 0, 1):
+        git(repo, "checkout", "-q", commits[k])
+        _record(repo, values[commits[k]], tmp_path / f"run{k}", store_path)
+    git(repo, "checkout", "-q", commits[2])
+    (repo / "mount.toml").write_text((repo / "mount.toml").read_text() + "\n# not committed\n")
+    _record(repo, 7e-3, tmp_path / "dirty", store_path)
+
+    result = CliRunner().invoke(app, ["history", str(repo), "--scene", SCENE, "--plot", str(tmp_path / "h.png")])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if any(c[:8] in line for c in commits)]
+    assert [next(c for c in commits if c[:8] in line) for line in lines] == [commits[0], commits[1], commits[2],
+                                                                             commits[2]]
+    assert [f"{values[c]:.4g}" in line for c, line in zip(commits, lines)] == [True, True, True]
+    assert "*" not in "".join(lines[:3]) and f"{commits[2][:8]}*" in lines[3] and "0.007" in lines[3]
+    assert (tmp_path / "h.png").stat().st_size > 0
+
+
+def _pair(tmp_path, old, new, **kw):
+    a = tmp_path / "a"
+    b = tmp_path / "b"
+    write_run(a, *old, **kw)
+    write_run(b, *new, **kw)
+    return a, b
+
+
+def _compare(*args):
+    return CliRunner().invoke(app, ["compare", *map(str, args)])
+
+
+def test_regression_exits_1_with_a_signed_difference_image(tmp_path):
+    a, b = _pair(tmp_path, (1.0e-3, 1e-5), (1.5e-3, 1e-5))
+    result = _compare(a, b, "--tolerance", "5%", "--confidence", "99%")
+    assert result.exit_code == 1, result.output
+    assert "regression" in result.output
+    report = json.loads((b / "compare" / "compare.json").read_text())
+    assert report["verdict"] == "regression" and report["change"] == pytest.approx(5e-4)
+    assert report["low"] > report["threshold"] and report["exit_code"] == 1
+    diff = read_exr(b / "compare" / "difference.exr")
+    assert np.allclose(diff["Y"], 5e-4) and np.allclose(diff["old"], 1e-3) and np.allclose(diff["new"], 1.5e-3)
+
+
+def test_improvement_and_noise_exit_0(tmp_path):
+    a, b = _pair(tmp_path, (1.0e-3, 1e-5), (0.5e-3, 1e-5))
+    assert _compare(a, b).exit_code == 0
+    assert json.loads((b / "compare" / "compare.json").read_text())["verdict"] == "improvement"
+
+
+def test_a_change_below_the_noise_is_undecided_and_says_what_would_decide(tmp_path):
+    a, b = _pair(tmp_path, (1.0e-3, 2e-4), (1.1e-3, 2e-4))
+    result = _compare(a, b, "--out", tmp_path / "c")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert report["verdict"] == "undecided" and report["more_photons"] > 0
+    assert "undecided" in result.output and "more photons" in result.output
+
+
+def test_runs_of_different_scenes_are_not_comparable(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    write_run(a, 1e-3, 1e-5)
+    summary = write_run(b, 1e-3, 1e-5)
+    summary["provenance"]["scene_sha256"] = "t" * 64
+    (b / "summary.json").write_text(json.dumps(summary))
+    result = _compare(a, b)
+    assert result.exit_code == 2 and "different scenes" in result.output and "Traceback" not in result.output
+    assert not (b / "compare").exists()
+
+
+def test_different_detectors_are_not_comparable(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    write_run(a, 1e-3, 1e-5)
+    write_run(b, 1e-3, 1e-5, image=np.zeros((8, 8)))
+    result = _compare(a, b)
+    assert result.exit_code == 2 and "detector" in result.output
+    assert not (b / "compare").exists()
+
+
+@pytest.mark.parametrize("args,field", [(["--tolerance", "lots"], "--tolerance"), (["--confidence", "1.5"],
+                                         "--confidence"), (["--metric", "beauty"], "--metric")])
+def test_bad_options_exit_2(tmp_path, args, field):
+    a, b = _pair(tmp_path, (1.0e-3, 1e-5), (1.0e-3, 1e-5))
+    result = _compare(a, b, *args)
+    assert result.exit_code == 2 and field in result.output
+
+
+def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, monkeypatch):
+    # The current design state was simulated before (same input hash in the store): compare must
+    # reuse that run, not simulate again, and take the old one from the store by git revision.
+    from lensmount.design.scene import load_scene
+    from lensmount.loop.simulate import SimulateOptions, planned_input_hash
+
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    repo = _repo(tmp_path)
+    git(repo, "add", "-A")
+    git(repo, "commit", "-qm", "old")
+    old_commit = git(repo, "rev-parse", "HEAD")
+    scene = repo / "scenes" / f"{SCENE}.toml"
+    store_path = repo / ".lensmount" / "runs.sqlite"
+    prov = collect(load_design(repo), scene, ["x"]).to_dict()
+    with Store(store_path) as store:
+        store.record(write_run(tmp_path / "old", 1e-3, 1e-5, prov=prov, input_hash="old"), paths(tmp_path / "old"))
+    (repo / "mount.toml").write_text((repo / "mount.toml").read_text() + "\n# new revision\n")
+    git(repo, "commit", "-qam", "new")
+    design = load_design(repo)
+    digest = planned_input_hash(SimulateOptions(repo, scene), design, load_scene(scene))
+    with Store(store_path) as store:
+        store.record(write_run(tmp_path / "new", 2e-3, 1e-5, prov=collect(design, scene, ["x"]).to_dict(),
+                               input_hash=digest), paths(tmp_path / "new"))
+    result = _compare(repo, "--scene", SCENE, "--against", old_commit[:7])
+    assert result.exit_code == 1, result.output
+    report = json.loads((tmp_path / "new" / "compare" / "compare.json").read_text())
+    assert report["old_run"] == str((tmp_path / "old").resolve()) and report["new_run"] == str((tmp_path / "new").resolve())
+    assert report["old"] == 1e-3 and report["new"] == 2e-3
+    assert not (repo / "build").exists()  # nothing was simulated
+    bad = _compare(repo, "--scene", SCENE, "--against", "deadbeef")
+    assert bad.exit_code == 2 and old_commit[:10] in bad.output

@@ -1,0 +1,82 @@
+"""The results store: rows round-trip, a writer killed mid-insert leaves no half row, and two
+processes writing at once both land."""
+
+import multiprocessing as mp
+import os
+
+import pytest
+
+from lensmount.store import Store, default_path
+from tests.loop.runs import paths, write_run
+
+
+def test_record_round_trips(tmp_path):
+    s = write_run(tmp_path / "r", 1.5e-3, 2e-5)
+    s["stray_fraction_bias_bound"] = 4e-6
+    with Store(tmp_path / "runs.sqlite") as store:
+        rid = store.record(s, paths(tmp_path / "r"))
+        (row,) = store.runs(design_path=tmp_path / "r")
+    assert row.id == rid and row.stray_fraction == 1.5e-3 and row.stray_fraction_std_error == 2e-5
+    assert row.stray_fraction_bias_bound == 4e-6
+    assert row.per_part["barrel"]["fraction"] == 1.5e-3
+    assert row.summary_path == str((tmp_path / "r" / "summary.json").resolve())
+    assert row.lens_sha256 == "l" * 64 and row.git_commit is None and row.git_dirty is None
+
+
+def test_store_location(tmp_path, monkeypatch):
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    assert default_path(tmp_path) == tmp_path.resolve() / ".lensmount" / "runs.sqlite"
+    monkeypatch.setenv("LENSMOUNT_STORE", str(tmp_path / "shared.sqlite"))
+    assert default_path(tmp_path) == tmp_path / "shared.sqlite"
+    assert default_path(tmp_path, tmp_path / "x.sqlite") == tmp_path / "x.sqlite"
+
+
+def _die_during_insert(db_path, folder):
+    from lensmount.store import Store
+    from tests.loop.runs import paths, write_run
+
+    store = Store(db_path)
+    summary = write_run(folder, 1.0, 0.1)
+    store.db.set_progress_handler(lambda: os._exit(3), 1)  # the process dies inside the INSERT
+    store.record(summary, paths(folder))
+
+
+def test_a_writer_killed_mid_insert_leaves_no_row(tmp_path):
+    db = tmp_path / "runs.sqlite"
+    Store(db).close()
+    p = mp.get_context("spawn").Process(target=_die_during_insert, args=(db, tmp_path / "r"))
+    p.start()
+    p.join(60)
+    assert p.exitcode == 3
+    with Store(db) as store:
+        assert store.runs() == []
+        store.record(write_run(tmp_path / "r2", 2.0, 0.1), paths(tmp_path / "r2"))
+        assert len(store.runs()) == 1
+
+
+def _writer(db_path, folder, n, barrier):
+    from lensmount.store import Store
+    from tests.loop.runs import paths, write_run
+
+    summary = write_run(folder, 1.0, 0.1)
+    with Store(db_path) as store:
+        barrier.wait()
+        for _ in range(n):
+            store.record(summary, paths(folder))
+
+
+@pytest.mark.timeout(120)
+def test_two_processes_writing_at_once_both_land(tmp_path):
+    ctx = mp.get_context("spawn")
+    barrier = ctx.Barrier(2)
+    db = tmp_path / "runs.sqlite"
+    procs = [ctx.Process(target=_writer, args=(db, tmp_path / f"r{i}", 25, barrier)) for i in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(100)
+    assert [p.exitcode for p in procs] == [0, 0]
+    with Store(db) as store:
+        runs = store.runs()
+    assert len(runs) == 50 and len({r.id for r in runs}) == 50
+    assert sorted({r.out_dir for r in runs}) == sorted(str((tmp_path / f"r{i}").resolve()) for i in range(2))
