@@ -59,3 +59,20 @@ def reference_mesh(reference):
 
     _, out, _ = reference
     return TaggedMesh.load(out / "mesh.npz")
+
+
+@pytest.fixture(scope="session")
+def cooke(tmp_path_factory):
+    """(design dir, out dir) of examples/cooke-triplet, made by `lensmount init` + `regenerate` once."""
+    from typer.testing import CliRunner
+
+    from lensmount.cli import app
+
+    base = tmp_path_factory.mktemp("cooke")
+    design, out = base / "cooke", base / "out"
+    runner = CliRunner()
+    res = runner.invoke(app, ["init", str(design), "--example", "cooke-triplet"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["regenerate", str(design), "--out", str(out), "--quiet"])
+    assert res.exit_code == 0, res.output
+    return design, out

@@ -7,18 +7,13 @@ from typer.testing import CliRunner
 from lensmount.cli import app
 
 
-def test_init_then_regenerate_cooke(tmp_path):
-    runner = CliRunner()
-    d = tmp_path / "cooke"
-    res = runner.invoke(app, ["init", str(d), "--example", "cooke-triplet"])
-    assert res.exit_code == 0, res.output
+def test_init_then_regenerate_cooke(cooke):
+    d, out = cooke
     assert (d / "mount.toml").is_file() and (d / "lens.toml").is_file()
-    res = runner.invoke(app, ["regenerate", str(d), "--out", str(tmp_path / "out"), "--quiet"])
-    assert res.exit_code == 0, res.output
-    doc = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    doc = json.loads((out / "manifest.json").read_text())
     names = {p["name"] for p in doc["parts"]}
     assert {"lens-1", "lens-2", "lens-3", "diaphragm", "hood", "housing", "barrel"} <= names
-    res = runner.invoke(app, ["regenerate", str(d), "--out", str(tmp_path / "out"), "--quiet"])
+    res = CliRunner().invoke(app, ["regenerate", str(d), "--out", str(out), "--quiet"])
     assert res.exit_code == 0 and "cache" in res.output
 
 
@@ -40,12 +35,15 @@ def test_init_refuses_a_non_empty_folder(tmp_path):
     assert res.exit_code == 2
 
 
-def test_tessellation_options_change_the_mesh_not_the_steps(tmp_path):
+def test_tessellation_options_change_the_mesh_not_the_steps(tmp_path, cooke):
+    import shutil
+
     from lensmount.cad.mesh import TaggedMesh
 
     runner = CliRunner()
     d, out = tmp_path / "cooke", tmp_path / "out"
-    assert runner.invoke(app, ["init", str(d), "-e", "cooke-triplet"]).exit_code == 0
+    shutil.copytree(cooke[0], d)
+    shutil.copytree(cooke[1], out)  # with its cache: the default tessellation is not rebuilt
     assert runner.invoke(app, ["regenerate", str(d), "-o", str(out), "-q"]).exit_code == 0
     coarse = TaggedMesh.load(out / "mesh.npz")
     steps = {p.name: p.read_bytes() for p in (out / "parts").glob("*.step")}

@@ -39,13 +39,16 @@ def test_every_contact_is_outside_the_clear_aperture(reference_layout):
 
 
 def test_diaphragm_sits_at_the_stop_with_the_stop_radius(reference_layout):
+    from lensmount.cad.layout import pupil_edge_radius
     from lensmount.optics.paraxial import paraxial
 
     layout, spec = reference_layout
     p = layout.prescription
     d = layout.part("diaphragm").template
     assert d.z_stop == pytest.approx(p.vertex_z[5])
-    assert d.inner_radius == pytest.approx(p.surfaces[5].clear_semi_diameter)
+    # the land passes the on-axis ray entering at EPD/2 (real rays), close to the paraxial stop radius
+    assert d.inner_radius == pytest.approx(pupil_edge_radius(p, d.z_stop - 0.025, d.z_stop + 0.025), abs=1e-9)
+    assert d.inner_radius == pytest.approx(p.surfaces[5].clear_semi_diameter, rel=1e-3)
     # the stop radius is the marginal ray's height: paraxially EPD/2 times the pupil magnification
     assert d.inner_radius == pytest.approx(paraxial(p).stop_semi_diameter, rel=2e-3)
     assert d.land == pytest.approx(0.05)

@@ -154,31 +154,47 @@ def _radii(lo: float, R: float, chamfer: float) -> np.ndarray:
     return np.unique(np.concatenate([rs, [R - chamfer] if R - chamfer >= lo else []]))
 
 
-def _diaphragm(spec, stop, ia, ib, A, B, od, z_stop, r_stop, env) -> Diaphragm:
-    """The diaphragm in the gap between lens A and lens B.
+def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float:
+    """Largest radius, for z in [z0, z1], of the on-axis ray entering at the designed EPD/2.
 
-    A stop on a dummy surface in the gap puts the knife edge on the stop plane with the
-    stop's clear semi-diameter. A stop on A's rear (B's front) face puts the plate just
-    behind (in front of) the glass, its bore on the beam there, so the plate is the
-    aperture the file names without clipping more than the lens does.
+    A diaphragm whose bore is this radius over its land passes exactly the designed
+    entrance pupil (primary wavelength), wherever the land sits: on a dummy stop plane,
+    or next to a curved stop surface where the paraxial stop height no longer applies.
+    """
+    from lensmount.optics.paraxial import paraxial
+    from lensmount.optics.realrays import trace
+
+    h = 0.5 * paraxial(prescription).epd
+    rays = trace(prescription, np.array([[0.0, h, -1.0]]), np.array([[0.0, 0.0, 1.0]]), clip=False)
+    pts = np.concatenate([rays.origins[None], rays.points], axis=0)[:, 0]  # (S+2, 3) polyline
+    zs = np.linspace(z0, z1, 9)
+    return float(np.interp(zs, pts[:, 2], np.abs(pts[:, 1])).max())
+
+
+def _diaphragm(spec, p, stop, ia, ib, A, B, od, z_stop) -> Diaphragm:
+    """The diaphragm in the gap between lens A and lens B; its land passes the designed pupil.
+
+    A stop on a dummy surface in the gap puts the knife edge on the stop plane. A stop on
+    A's rear (B's front) face puts the land just behind (in front of) that face where the
+    face crosses the pupil's edge, the plate a cone that clears the glass outward of it
+    (`contact_slope`), so the plate limits no field more than the stop face itself.
     """
     ds = spec.diaphragm
-    args = (od, ds.thickness_mm, ds.land_mm, ds.bevel_angle_deg, ds.bevel_side)
+    land = ds.land_mm
+    args = (od, ds.thickness_mm, land, ds.bevel_angle_deg, ds.bevel_side)
     if ia < stop < ib:
-        return Diaphragm(z_stop, r_stop, *args)
-    probe = Diaphragm(0.0, r_stop, *args)
-    off0, off1 = probe.z_range()  # face offsets from the land centre
-    gap = 0.01  # mm of air between glass and plate
-    if stop == ia:
-        rs = _radii(min(r_stop, A.outer_radius), min(od, A.outer_radius), A.back_chamfer)
-        z0 = float(A.back_z(rs).max()) + gap
-        zc = z0 - off0
-    else:
-        rs = _radii(min(r_stop, B.outer_radius), min(od, B.outer_radius), B.front_chamfer)
-        z1 = float(B.front_z(rs).min()) - gap
-        zc = z1 - off1
-    land = (zc - 0.5 * ds.land_mm, zc + 0.5 * ds.land_mm)
-    return Diaphragm(zc, env.max_over(*land), *args)
+        return Diaphragm(z_stop, pupil_edge_radius(p, z_stop - 0.5 * land, z_stop + 0.5 * land), *args)
+    gap = 0.01  # mm of air between glass and plate at the land
+    side, glass, R = (+1, A.back_z, A.outer_radius) if stop == ia else (-1, B.front_z, B.outer_radius)
+    r0 = float(p.surfaces[stop].clear_semi_diameter)
+    for _ in range(4):  # the land's z depends on its radius through the glass's sag: settle both
+        m = side * (contact_slope(glass, r0, min(od, R), side, False) + _EPS_SLOPE)
+        probe = Diaphragm(0.0, r0, *args, slope=m)
+        off0, off1 = probe.z_range()  # face offsets from the land centre
+        zc = float(glass(r0)) + side * gap - (off0 if side > 0 else off1)
+        lo = zc - 0.5 * land
+        r0 = pupil_edge_radius(p, lo, lo + land)
+    return Diaphragm(zc, r0, *args, slope=m)
 
 
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
@@ -319,16 +335,20 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
         if stop_here:
             ds = spec.diaphragm
-            dia = _diaphragm(spec, stop, ia, ib, A.template, B.template, od, float(zv[stop]), clear[stop], env)
-            dz0, dz1 = dia.z_range()
+            dia = _diaphragm(spec, p, stop, ia, ib, A.template, B.template, od, float(zv[stop]))
             parts_dia = PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia)
             margin = spec.spacers.aperture_margin_mm
-            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + margin)
-            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + margin)
+            # the spacers' bores clear the beam along the plate faces (cones on a curved stop)
+            zf = sorted(float(dia.face_z("front", r)) for r in (dia.inner_radius, od))
+            zr = sorted(float(dia.face_z("rear", r)) for r in (dia.inner_radius, od))
+            hd0 = max(dia.face_inner_radius("front"), env.max_over(zf[0] - 1.0, zf[1]) + margin)
+            hd1 = max(dia.face_inner_radius("rear"), env.max_over(zr[0], zr[1] + 1.0) + margin)
             if stop != ia:  # a spacer between lens A and the diaphragm
-                ends.append((hA, float(A.template.back_z(hA)), mA, hd0, dz0, _EPS_SLOPE, A.name, "diaphragm"))
+                ends.append((hA, float(A.template.back_z(hA)), mA, hd0, float(dia.face_z("front", hd0)),
+                             _EPS_SLOPE - dia.slope, A.name, "diaphragm"))
             if stop != ib:  # and one between the diaphragm and lens B
-                ends.append((hd1, dz1, _EPS_SLOPE, hB, float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+                ends.append((hd1, float(dia.face_z("rear", hd1)), dia.slope + _EPS_SLOPE, hB,
+                             float(B.template.front_z(hB)), mB, "diaphragm", B.name))
             stop_placed = True
             parts.append(parts_dia)
         else:
@@ -411,4 +431,4 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     return Layout(p, ordered, contacts, env, notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius"]
