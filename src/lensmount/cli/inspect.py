@@ -16,8 +16,11 @@ from lensmount.cli import app  # defined before lensmount.cli imports this modul
 from lensmount.errors import InputError
 
 
-def inspect_document(prescription) -> dict:
-    """The `--json` document: paraxial data and one entry per surface (mm; radius null = plane)."""
+def inspect_document(prescription, notes=None) -> dict:
+    """The `--json` document: paraxial data and one entry per surface (mm; radius null = plane).
+
+    notes: for a .zmx, the import notes (kind imported/substituted/ignored, where, what).
+    """
     from lensmount.optics.glass import refractive_index
     from lensmount.optics.paraxial import paraxial
 
@@ -38,9 +41,10 @@ def inspect_document(prescription) -> dict:
             "mechanical_semi_diameter_mm": s.mechanical_semi_diameter,
             "is_stop": s.is_stop,
             "coating": s.coating,
+            "mirror": s.mirror,
             "z_mm": z[i],
         })
-    return {
+    doc = {
         "name": prescription.name,
         "efl_mm": par.efl,
         "bfl_mm": par.bfl,
@@ -56,8 +60,13 @@ def inspect_document(prescription) -> dict:
         "wavelengths_um": list(prescription.wavelengths_um),
         "primary_wavelength_um": wl,
         "field_angles_deg": list(prescription.field_angles_deg),
+        "object_distance_mm": prescription.object_distance if prescription.finite_object else None,
+        "object_heights_mm": list(prescription.object_heights_mm),
         "surfaces": surfaces,
     }
+    if notes:
+        doc["import_notes"] = [{"kind": n.kind, "where": n.where, "what": n.what} for n in notes]
+    return doc
 
 
 def _print_tables(doc: dict) -> None:
@@ -66,6 +75,13 @@ def _print_tables(doc: dict) -> None:
     from rich.table import Table
 
     console = Console()
+    if doc.get("import_notes"):
+        imp = Table(title="what the import did with the file", title_justify="left", box=box.SIMPLE_HEAD)
+        for col in ("", "where", "what"):
+            imp.add_column(col, no_wrap=col != "what")
+        for n in doc["import_notes"]:
+            imp.add_row(n["kind"], n["where"], n["what"])
+        console.print(imp)
     t = Table(title=f"{doc['name']} (mm; n at {doc['primary_wavelength_um']:g} µm; sd = semi-diameter)",
               title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("#", "radius", "thickness", "material", "n", "clear sd", "z vertex", "stop"):
@@ -73,7 +89,8 @@ def _print_tables(doc: dict) -> None:
     for s in doc["surfaces"]:
         radius = "inf" if s["radius_mm"] is None else f"{s['radius_mm']:.4f}"
         csd = "-" if s["clear_semi_diameter_mm"] is None else f"{s['clear_semi_diameter_mm']:.3f}"
-        t.add_row(str(s["number"]), radius, f"{s['thickness_mm']:.4f}", s["material"], f"{s['n_primary']:.6f}",
+        t.add_row(str(s["number"]), radius, f"{s['thickness_mm']:.4f}",
+                  s["material"] + (" (mirror)" if s["mirror"] else ""), f"{s['n_primary']:.6f}",
                   csd, f"{s['z_mm']:.3f}", "STOP" if s["is_stop"] else "")
     console.print(t)
     p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
@@ -88,7 +105,11 @@ def _print_tables(doc: dict) -> None:
             ("exit pupil diameter", f"{doc['exit_pupil_diameter_mm']:.4f} mm"),
             ("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm"),
             ("image plane z (file)", f"{doc['image_plane_z_mm']:.4f} mm"),
+            ("object", "at infinity" if doc["object_distance_mm"] is None
+             else f"{doc['object_distance_mm']:g} mm in front of surface 1"),
             ("field angles", ", ".join(f"{a:g}°" for a in doc["field_angles_deg"])),
+            *([("object heights", ", ".join(f"{h:g} mm" for h in doc["object_heights_mm"]))]
+              if doc["object_heights_mm"] else []),
             ("wavelengths", ", ".join(f"{w:g}" for w in doc["wavelengths_um"]) + " µm")]
     for r in rows:
         p.add_row(*r)
@@ -104,8 +125,9 @@ def inspect_command(
     save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
                                              "(e.g. to convert a .zmx); automatic semi-diameters stay automatic."),
 ) -> None:
-    """Show a lens: surfaces with computed clear semi-diameters, and its paraxial data."""
-    from lensmount.design.lens import load_lens, save_lens_toml
+    """Show a lens: what the import of a .zmx did (imported, substituted, ignored), the surfaces
+    with their clear semi-diameters, and the paraxial data."""
+    from lensmount.design.lens import import_notes, load_lens, save_lens_toml
 
     try:
         prescription = load_lens(lens, margin_mm=margin)
@@ -113,7 +135,7 @@ def inspect_command(
             raw = load_lens(lens, auto_clear_apertures=False)
             save_lens_toml(raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
-        doc = inspect_document(prescription)
+        doc = inspect_document(prescription, import_notes(lens))
     except InputError as error:
         from lensmount.cli import fail  # defined after the command modules are imported
 

@@ -24,7 +24,7 @@ from lensmount.errors import InputError
 from lensmount.optics.apertures import with_clear_semi_diameters
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
-from lensmount.optics.io.zemax import read_zmx
+from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 
@@ -60,6 +60,14 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
     return complete if auto_clear_apertures else prescription
 
 
+def import_notes(path) -> list:
+    """What reading a .zmx imported, substituted and ignored (ImportNote rows); [] for lens.toml."""
+    path = _resolve(Path(path))
+    if path.suffix.lower() != ".zmx":
+        return []
+    return read_zmx_with_notes(path)[1]
+
+
 def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, header: str | None = None) -> Path:
     """Write the prescription as lens.toml (atomically)."""
     return write_lens_toml(prescription, path, margin_mm, header)
@@ -93,10 +101,11 @@ def validate(prescription: Prescription, file: str = "lens") -> None:
             raise InputError(f"material '{s.material}' has no valid index over the wavelengths "
                              f"{', '.join(f'{w:g}' for w in p.wavelengths_um)} µm", file=file,
                              field=f"surface[{i + 1}].material", valid="a glass whose catalogue covers these wavelengths")
-        if not s.is_air_after and s.thickness <= 0:
-            raise InputError(f"glass thickness {s.thickness:g} mm after surface {i + 1} is not positive",
+        if not s.is_air_after and s.thickness * p.travel[i] <= 0:
+            raise InputError(f"glass thickness {s.thickness:g} mm after surface {i + 1} runs against the light",
                              file=file, field=f"surface[{i + 1}].thickness",
-                             valid="a centre thickness > 0 mm for a glass (negative thickness only in air)")
+                             valid="a centre thickness > 0 mm for a glass (< 0 after an odd number of mirrors); "
+                                   "negative thickness only in air")
         if s.clear_semi_diameter is not None and s.mechanical_semi_diameter is not None \
                 and s.mechanical_semi_diameter < s.clear_semi_diameter:
             raise InputError(f"mechanical semi-diameter {s.mechanical_semi_diameter:g} mm is smaller than the clear "
@@ -106,7 +115,7 @@ def validate(prescription: Prescription, file: str = "lens") -> None:
     if not p.surfaces[-1].is_air_after:
         raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
                          field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
-    if p.image_z <= 0:
+    if p.image_z <= 0 and not p.has_mirrors:
         raise InputError("the image plane lies in front of surface 1", file=file,
                          field=f"surface[{len(p.surfaces)}].thickness", valid="a total track > 0 mm")
     _check_radii(p, file, given_only=True)
@@ -140,6 +149,7 @@ def _check_crossings(p: Prescription, file: str) -> None:
     smaller one), since what lies beyond is the mount's business.
     """
     z = p.vertex_z
+    travel = p.travel
     for i in range(len(p.surfaces) - 1):
         a, b = p.surfaces[i], p.surfaces[i + 1]
         ha, hb = _outer_semi_diameter(a), _outer_semi_diameter(b)
@@ -149,7 +159,7 @@ def _check_crossings(p: Prescription, file: str) -> None:
         h = max(ha, hb) if not a.is_air_after else min(ha, hb)
         h = min(h, pa.max_radius(), pb.max_radius())
         r = np.linspace(0.0, h, _CROSS_SAMPLES)
-        gap = (z[i + 1] + pb.sag(r * r)) - (z[i] + pa.sag(r * r))
+        gap = ((z[i + 1] + pb.sag(r * r)) - (z[i] + pa.sag(r * r))) * travel[i]  # along the light
         gap = np.where(np.isfinite(gap), gap, np.inf)
         k = int(np.argmin(gap))
         if gap[k] < -_CROSS_TOL:
@@ -184,4 +194,4 @@ def _resolve(path: Path) -> Path:
     return path
 
 
-__all__ = ["load_lens", "save_lens_toml", "validate"]
+__all__ = ["load_lens", "import_notes", "save_lens_toml", "validate"]

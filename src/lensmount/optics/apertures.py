@@ -31,8 +31,8 @@ CLEAR_SPOKES = 180
 
 
 def _field_samples(prescription: Prescription, n: int) -> np.ndarray:
-    listed = np.abs(np.asarray(prescription.field_angles_deg, dtype=np.float64))
-    fan = np.linspace(0.0, prescription.max_field_deg, n) if n > 1 else np.zeros(1)
+    listed = np.abs(np.asarray(prescription.field_values, dtype=np.float64))
+    fan = np.linspace(0.0, listed.max(), n) if n > 1 else np.zeros(1)
     return np.unique(np.concatenate([listed, fan]))
 
 

@@ -5,6 +5,10 @@ Names: `N-BK7` (searched in Schott, Ohara, Hoya, CDGM, Sumita in that order),
 two-term Cauchy dispersion through n_F - n_C = (n_d - 1)/V_d). Air is 1.0 at every
 wavelength: lensmount models no air dispersion (a < 3e-4 index error, which shifts
 a 360 mm focal length by far less than the 0.01 % we check).
+
+Besides the vendor catalogues, fused silica (Zemax's MISC catalogue name `SILICA`, also
+`F_SILICA`, `FUSED_SILICA`) uses Malitson's Sellmeier fit (J. Opt. Soc. Am. 55, 1205,
+1965; 0.21-3.71 µm), the formula every optics package uses for it.
 """
 
 from __future__ import annotations
@@ -20,6 +24,9 @@ from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR
 
 CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita")
+_FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA")
+_MALITSON_B = (0.6961663, 0.4079426, 0.8974794)
+_MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
 _MODEL = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
 _LAMBDA_D, _LAMBDA_F, _LAMBDA_C = 0.5875618, 0.4861327, 0.6562725
 
@@ -39,6 +46,8 @@ def medium(name: str):
     """A callable n(wavelength_um) for a material name; raises InputError if unknown."""
     if name.strip().upper() == AIR:
         return lambda wl: np.ones_like(np.asarray(wl, dtype=np.float64))
+    if name.strip().upper() in _FUSED_SILICA_NAMES:
+        return _fused_silica
     m = _MODEL.match(name)
     if m:
         nd, vd = float(m.group(1)), float(m.group(2))
@@ -67,6 +76,54 @@ def medium(name: str):
     raise InputError(f"unknown glass '{name}'", field="material",
                      valid=f"a glass in the {', '.join(CATALOGUES)} catalogues (optionally 'SCHOTT:N-BK7'), "
                            "a model glass 'n_d/V_d' such as 1.5168/64.17, or AIR")
+
+
+def _fused_silica(wl):
+    l2 = np.asarray(wl, dtype=np.float64) ** 2
+    return np.sqrt(1.0 + sum(b * l2 / (l2 - c) for b, c in zip(_MALITSON_B, _MALITSON_C)))
+
+
+def successor(name: str) -> str | None:
+    """The catalogue glass that replaced a legacy (lead/arsenic) name, e.g. BK7 -> N-BK7.
+
+    Uses opticalglass's name decoder: the same composition group, number and suffix
+    with a new-generation prefix (N-, P-, S-, ...) in one catalogue, N- ("new", the
+    lead-free successor) preferred. None when there is no such glass or it is ambiguous.
+    """
+    from opticalglass.glass import decode_glass_name
+
+    try:
+        (group_num, prefix, suffix) = decode_glass_name(name.strip())
+    except Exception:
+        return None
+    if prefix or not group_num[0]:
+        return None
+    for cat in CATALOGUES:
+        found = [g for g in _catalogue_names(cat) if "-" in g and _decoded(g) == (group_num, suffix)]
+        new = [g for g in found if g.startswith("N-")]
+        for pick in (new, found):
+            if len(pick) == 1:
+                return f"{cat.upper()}:{pick[0]}"
+    return None
+
+
+def _decoded(glass: str):
+    from opticalglass.glass import decode_glass_name
+
+    try:
+        group_num, _, suffix = decode_glass_name(glass)
+    except Exception:
+        return None
+    return group_num, suffix
+
+
+@functools.lru_cache(maxsize=None)
+def _catalogue_names(catalogue: str) -> tuple[str, ...]:
+    from opticalglass import glassfactory
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return tuple(str(g).strip().upper() for g in glassfactory.get_glass_catalog(catalogue).get_glass_names())
 
 
 def _catalogue_index(glass, wl):

@@ -2,7 +2,10 @@
 
 Each surface is a 2x2 matrix acting on (y, n·u): refraction [[1, 0], [-phi, 1]]
 with power phi = (n' - n)·c, transfer over a gap t in index n [[1, t/n], [0, 1]].
-Object at infinity. All z in the assembly frame (surface 1 vertex at z = 0).
+Mirrors use the usual signed-index rule: the index changes sign at each reflection
+(n' = -n), so a mirror's power is -2 n c and the negative thicknesses after it give
+positive reduced thicknesses t/n'. Object at infinity or at `object_distance`.
+All z in the assembly frame (surface 1 vertex at z = 0).
 
 Definitions (Zemax's, for an object at infinity, image space in air):
     efl = -1 / C of the whole system (in air on both sides)
@@ -54,17 +57,20 @@ class Paraxial:
     wavelength_um: float
 
 
-def indices(prescription: Prescription, wavelength_um: float) -> np.ndarray:
-    """Refractive index of every medium: (S+1,), [0] in front of surface 1, [i+1] after surface i."""
+def indices(prescription: Prescription, wavelength_um: float, signed: bool = False) -> np.ndarray:
+    """Refractive index of every medium: (S+1,), [0] in front of surface 1, [i+1] after surface i.
+
+    signed=True gives the paraxial signed indices (negative while light travels -z).
+    """
     out = [1.0]
-    for s in prescription.surfaces:
-        out.append(float(refractive_index(s.material, wavelength_um)))
+    for s, sign in zip(prescription.surfaces, prescription.travel):
+        out.append(float(refractive_index(s.material, wavelength_um)) * (sign if signed else 1))
     return np.array(out)
 
 
 def surface_matrices(prescription: Prescription, wavelength_um: float) -> tuple[list, list]:
     """Refraction matrices R[i] (S) and transfer matrices T[i] (S) acting on (y, n u)."""
-    n = indices(prescription, wavelength_um)
+    n = indices(prescription, wavelength_um, signed=True)
     refr, trans = [], []
     for i, s in enumerate(prescription.surfaces):
         phi = (n[i + 1] - n[i]) * s.curvature
@@ -93,27 +99,35 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
     z_vertex = prescription.vertex_z
     last = nsurf - 1
 
-    system = _chain(refr, trans, 0, last)  # before surface 1 -> after last surface (both in air)
+    n_image = indices(prescription, wl, signed=True)[-1]
+    system = _chain(refr, trans, 0, last)  # before surface 1 -> after last surface
     a, c = system[0, 0], system[1, 0]
     power = -c
     efl = 1.0 / _nonzero(power)
-    bfl = -a / _nonzero(c)
-
-    if prescription.aperture.kind == "epd":
-        epd = float(prescription.aperture.value)
-    else:
-        epd = abs(efl) / float(prescription.aperture.value)
-    f_number = abs(efl) / epd
+    bfl = -a * n_image / _nonzero(c)  # signed z distance, negative while light runs -z
 
     # Entrance pupil: object-space ray (y1, u1) at surface 1 that crosses the stop's axis point.
     # y_stop = A y1 + B u1 = 0, and the ray meets the axis at z = -y1/u1 = B/A.
     front = _chain(refr, trans, 0, stop, include_last_refraction=False)
-    entrance_pupil_z = front[0, 1] / _nonzero(front[0, 0])
-    stop_semi = abs(front[0, 0] * epd / 2.0)  # parallel marginal ray at height epd/2
+    entrance_pupil_z = _finite(front[0, 1] / _nonzero(front[0, 0]))  # telecentric: far away
+    kind, value = prescription.aperture.kind, float(prescription.aperture.value)
+    if kind == "epd":
+        epd = value
+    elif kind == "fno":
+        epd = abs(efl) / value
+    else:  # object-space numerical aperture: the marginal ray's slope is fixed, the pupil may be far away
+        epd = _finite(2.0 * math.tan(math.asin(value)) * abs(prescription.object_distance + entrance_pupil_z))
+    f_number = abs(efl) / epd
+    y1, u1 = marginal_start(prescription, epd, entrance_pupil_z)
+    stop_semi = abs(front[0, 0] * y1 + front[0, 1] * u1)
+    if prescription.finite_object:
+        # the paraxial image of the axial object point, from the last vertex
+        y, nu = system @ np.array([y1, u1])
+        bfl = -y * n_image / _nonzero(nu)
 
     # Exit pupil: from the stop's vertex plane (medium before the stop's refraction) to image space.
     back = _chain(refr, trans, stop, last)
-    exit_pupil_z = z_vertex[last] - back[0, 1] / _nonzero(back[1, 1])
+    exit_pupil_z = z_vertex[last] - back[0, 1] * n_image / _nonzero(back[1, 1])
     # Lateral magnification of the stop's image: det / D, and det = 1 in (y, n u) coordinates.
     magnification = 1.0 / _nonzero(back[1, 1])
     exit_pupil_diameter = abs(2.0 * stop_semi * magnification)
@@ -130,7 +144,8 @@ def marginal_heights(prescription: Prescription, wavelength_um: float | None = N
     """Paraxial marginal-ray heights (S,) at every surface for the full entrance pupil."""
     wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
     refr, trans = surface_matrices(prescription, wl)
-    v = np.array([paraxial(prescription, wl).epd / 2.0, 0.0])
+    par = paraxial(prescription, wl)
+    v = np.array(marginal_start(prescription, par.epd, par.entrance_pupil_z))
     out = []
     for i in range(len(prescription.surfaces)):
         if i > 0:
@@ -138,6 +153,21 @@ def marginal_heights(prescription: Prescription, wavelength_um: float | None = N
         out.append(v[0])
         v = refr[i] @ v
     return np.array(out)
+
+
+def marginal_start(prescription: Prescription, epd: float, entrance_pupil_z: float) -> tuple[float, float]:
+    """(y, n u) of the paraxial marginal ray on surface 1's vertex plane (object space is air).
+
+    At infinity the ray is parallel at height epd/2; from a finite object it leaves
+    the axial object point towards the rim of the entrance pupil.
+    """
+    if not prescription.finite_object:
+        return epd / 2.0, 0.0
+    if prescription.aperture.kind == "object_na":
+        u = math.tan(math.asin(float(prescription.aperture.value)))
+    else:
+        u = (epd / 2.0) / _nonzero(prescription.object_distance + entrance_pupil_z)
+    return u * prescription.object_distance, u
 
 
 def _nonzero(x: float) -> float:
@@ -149,4 +179,4 @@ def _finite(x: float) -> float:
     return float(x) if math.isfinite(x) else 1e300
 
 
-__all__ = ["Paraxial", "paraxial", "marginal_heights", "indices", "surface_matrices"]
+__all__ = ["Paraxial", "paraxial", "marginal_heights", "marginal_start", "indices", "surface_matrices"]

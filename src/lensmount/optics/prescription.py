@@ -1,8 +1,10 @@
 """The lens model: interfaces and the gaps between them (as optiland and rayoptics do).
 
 Lengths in mm, wavelengths in µm. Surface 1 is the first surface after the object;
-its vertex sits at z = 0 and light travels +z. The object is at infinity (the sun);
-the image plane sits `surfaces[-1].thickness` behind the last surface. Paraxial
+its vertex sits at z = 0 and light enters travelling +z. The object is at infinity
+(the sun) unless `object_distance` says otherwise; the image plane sits
+`surfaces[-1].thickness` after the last surface. A mirror reverses the direction of
+travel: as in Zemax, the thicknesses after it are negative while light runs -z. Paraxial
 and derived quantities are computed (lensmount.optics.paraxial), never stored here.
 """
 
@@ -25,6 +27,7 @@ class Surface:
             after the last surface), mm.
         material: medium after the surface: `AIR`, a catalogue glass
             (`N-BK7`, `SCHOTT:N-BK7`) or a model glass `"1.5168/64.17"` (n_d/V_d).
+            For a mirror it is the medium the light returns into (the one in front).
         conic: conic constant k (0 sphere, -1 paraboloid).
         aspheric: even-asphere coefficients (A4, A6, A8, ...) of r^4, r^6, ... in mm units.
         clear_semi_diameter: semi-diameter the light uses, mm; None = computed
@@ -33,6 +36,7 @@ class Surface:
             clear semi-diameter plus the mount's edge allowance.
         is_stop: this surface is the aperture stop.
         coating: coating name (`perfect-ar`, `uncoated`, `mgf2-quarter-wave`, `R=0.01`) or None.
+        mirror: the surface reflects (Zemax `GLAS MIRROR`) instead of refracting.
     """
 
     radius: float = math.inf
@@ -44,6 +48,7 @@ class Surface:
     mechanical_semi_diameter: float | None = None
     is_stop: bool = False
     coating: str | None = None
+    mirror: bool = False
 
     @property
     def curvature(self) -> float:
@@ -60,15 +65,16 @@ class Surface:
 
 @dataclass(frozen=True)
 class Aperture:
-    """System aperture: entrance pupil diameter (mm) or image-space f-number."""
+    """System aperture: entrance pupil diameter (mm), image-space f-number (efl / epd),
+    or object-space numerical aperture (finite objects; n sin u of the axial marginal ray)."""
 
-    kind: Literal["epd", "fno"]
+    kind: Literal["epd", "fno", "object_na"]
     value: float
 
 
 @dataclass(frozen=True)
 class Prescription:
-    """A sequential lens, object at infinity.
+    """A sequential lens, object at infinity or at a finite distance.
 
     Args:
         surfaces: surfaces 1..N in order from the object (object and image excluded).
@@ -76,8 +82,13 @@ class Prescription:
         wavelength_weights: relative weights, same length.
         primary_wavelength: index into `wavelengths_um` of the design wavelength.
         field_angles_deg: field angles in degrees (0 first), measured in the y-z plane.
+            For a finite object: the object-space angles of the paraxial chief rays
+            (0 for a telecentric object space); the fields themselves are heights.
         aperture: entrance pupil diameter or f-number.
         name: a human name for reports.
+        object_distance: object plane to surface 1's vertex, mm; `math.inf` for an
+            object at infinity.
+        object_heights_mm: the fields of a finite object, heights on the object plane.
     """
 
     surfaces: tuple[Surface, ...]
@@ -87,6 +98,30 @@ class Prescription:
     primary_wavelength: int = 0
     field_angles_deg: tuple[float, ...] = (0.0,)
     name: str = "lens"
+    object_distance: float = math.inf
+    object_heights_mm: tuple[float, ...] = ()
+
+    @property
+    def finite_object(self) -> bool:
+        return math.isfinite(self.object_distance)
+
+    @property
+    def field_values(self) -> tuple[float, ...]:
+        """What the ray aiming takes as a field: angles (deg) at infinity, object heights (mm) otherwise."""
+        return self.object_heights_mm if self.finite_object else self.field_angles_deg
+
+    @property
+    def has_mirrors(self) -> bool:
+        return any(s.mirror for s in self.surfaces)
+
+    @property
+    def travel(self) -> tuple[int, ...]:
+        """Direction of travel (+1 along +z, -1 along -z) in the space after each surface."""
+        sign, out = 1, []
+        for s in self.surfaces:
+            sign = -sign if s.mirror else sign
+            out.append(sign)
+        return tuple(out)
 
     @property
     def primary_wavelength_um(self) -> float:

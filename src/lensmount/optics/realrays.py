@@ -2,13 +2,14 @@
 
 Every surface runs the same short pipeline (as optiland does):
 localise -> intersect (`Profile.intersect`) -> clip at the clear semi-diameter ->
-refract (vector Snell) -> record. A ray that misses a surface, falls outside its
+refract (vector Snell) or reflect (a mirror) -> record. A ray that misses a surface, falls outside its
 clear aperture, suffers total internal reflection or cannot reach the image
 plane is *vignetted*: it is marked, keeps its last valid point and direction
 (so no NaN ever appears) and is carried along without further effect.
 
-Ray aiming (`aim`): the object is at infinity, so a field is a direction. Rays are
-launched on the plane z = 0 (surface 1's vertex plane; intersections with negative
+Ray aiming (`aim`): for an object at infinity a field is a direction; for a finite
+object it is a point of the object plane, and each ray's direction is the line from
+that point to its launch point. Rays are launched on the plane z = 0 (surface 1's vertex plane; intersections with negative
 ray parameter are fine in a sequential trace) and their launch points are solved
 by Newton's method so that each ray crosses the *stop* at the requested
 normalised pupil coordinate times the stop semi-diameter (real-ray aiming, as
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.optics.paraxial import indices, paraxial
+from lensmount.optics.paraxial import indices, marginal_heights, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 
@@ -121,9 +122,12 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
         if clip and surface.clear_semi_diameter is not None:
             limit = surface.clear_semi_diameter * (1.0 + CLIP_REL_TOL) + CLIP_REL_TOL
             ok &= q[:, 0] ** 2 + q[:, 1] ** 2 <= limit * limit
-        # refract
-        new_dir, tir = refract(cur, profile.normal(q), n[i], n[i + 1])
-        ok &= ~tir
+        # refract, or reflect at a mirror
+        if surface.mirror:
+            new_dir = reflect(cur, profile.normal(q))
+        else:
+            new_dir, tir = refract(cur, profile.normal(q), n[i], n[i + 1])
+            ok &= ~tir
         # record (vignetted lanes keep their last valid point and direction)
         newly = alive & ~ok
         stopped_at[newly] = i
@@ -135,7 +139,7 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
 
     # image plane
     z_img = prescription.image_z if image_z is None else float(image_z)
-    forward = cur[:, 2] > 1e-12
+    forward = cur[:, 2] * (prescription.travel[nsurf - 1] if nsurf else 1) > 1e-12
     t = np.where(forward, (z_img - p[:, 2]) / np.where(forward, cur[:, 2], 1.0), 0.0)
     ok = alive & forward
     stopped_at[alive & ~ok] = nsurf
@@ -163,6 +167,12 @@ def refract(d: np.ndarray, normal: np.ndarray, n1, n2) -> tuple[np.ndarray, np.n
     return np.where(tir[:, None], d, out), tir
 
 
+def reflect(d: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Mirror reflection d - 2 (d·n) n of unit directions d (N, 3) at unit normals (either sign)."""
+    out = d - 2.0 * np.einsum("ij,ij->i", d, normal)[:, None] * normal
+    return out / _safe_norm(out)[:, None]
+
+
 # ----------------------------------------------------------------------------- aiming
 
 
@@ -184,7 +194,8 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     """Launch rays so that they cross the stop at pupil_xy · stop semi-diameter.
 
     Args:
-        field_deg: (F,) field angles, degrees, in the y-z plane.
+        field_deg: (F,) field angles, degrees, in the y-z plane; for a finite object,
+            object heights in mm (`Prescription.field_values`).
         pupil_xy: (P, 2) normalised pupil coordinates (unit disc = full aperture).
         stop_radius: stop semi-diameter, mm; defaults to `stop_semi_diameter` at the
             primary wavelength (the diaphragm is one size for every colour).
@@ -197,21 +208,39 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     fields = np.atleast_1d(np.asarray(field_deg, dtype=np.float64))
     pupil = np.asarray(pupil_xy, dtype=np.float64).reshape(-1, 2)
     n_f, n_p = len(fields), len(pupil)
-    d = np.repeat(field_direction(fields), n_p, axis=0)
     par = paraxial(prescription, wl)
+    if prescription.finite_object:
+        # a field is the object point (0, -h, -distance): a positive height images upward-going, like +angle
+        source = np.column_stack([np.zeros(n_f), -fields, np.full(n_f, -prescription.object_distance)])
+        source = np.repeat(source, n_p, axis=0)
+    else:
+        source = None
+        d = np.repeat(field_direction(fields), n_p, axis=0)
     stop = prescription.stop_index
     r_stop = stop_semi_diameter(prescription) if stop_radius is None else float(stop_radius)
     target = np.tile(pupil * r_stop, (n_f, 1))
 
-    # Paraxial start: through the entrance pupil point, back-projected onto z = 0.
-    ep = np.tile(pupil * par.epd / 2.0, (n_f, 1))
-    ep3 = np.column_stack([ep, np.full(len(ep), par.entrance_pupil_z)])
-    start = ep3 - d * (par.entrance_pupil_z / d[:, 2])[:, None]
-    xy = start[:, :2].copy()
+    def directions(xy_):
+        if source is None:
+            return d
+        v = np.column_stack([xy_, np.zeros(len(xy_))]) - source
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    # Paraxial start: through the entrance pupil point, back-projected onto z = 0
+    # (finite object: the stop's paraxial image seen from the object, scaled to z = 0).
+    if source is None:
+        ep = np.tile(pupil * par.epd / 2.0, (n_f, 1))
+        ep3 = np.column_stack([ep, np.full(len(ep), par.entrance_pupil_z)])
+        xy = (ep3 - d * (par.entrance_pupil_z / d[:, 2])[:, None])[:, :2].copy()
+    else:
+        # the line from the object point to the entrance pupil point, at z = 0
+        dist, ep_z = prescription.object_distance, par.entrance_pupil_z
+        y1 = abs(float(marginal_heights(prescription, wl)[0]))  # axial marginal ray height at z = 0
+        xy = np.tile(pupil * y1, (n_f, 1)) + source[:, :2] * (ep_z / (dist + ep_z))
 
     def at_stop(xy_):
         o = np.column_stack([xy_, np.zeros(len(xy_))])
-        r = trace(prescription, o, d, wl, clip=False, n_surfaces=stop + 1)
+        r = trace(prescription, o, directions(xy_), wl, clip=False, n_surfaces=stop + 1)
         ok = (r.vignetted_at == -1) | (r.vignetted_at > stop)
         return r.points[stop, :, :2], ok
 
@@ -234,7 +263,7 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
         step_y = (-j21 * res[:, 0] + j11 * res[:, 1]) / safe_det
         xy = np.where(good[:, None], xy - np.column_stack([step_x, step_y]), xy)
     origins = np.column_stack([xy, np.zeros(len(xy))])
-    return origins, d
+    return origins, directions(xy)
 
 
 def pupil_rings(rings: int, spokes: int, center: bool = True, half: bool = False) -> np.ndarray:
@@ -306,5 +335,5 @@ def _safe_norm(v: np.ndarray) -> np.ndarray:
     return np.where(n > 0.0, n, 1.0)
 
 
-__all__ = ["RealRays", "trace", "refract", "aim", "field_direction", "stop_semi_diameter",
+__all__ = ["RealRays", "trace", "refract", "reflect", "aim", "field_direction", "stop_semi_diameter",
            "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]

@@ -271,6 +271,10 @@ def _num(x: float) -> str:
 def format_lens_toml(prescription: Prescription, margin_mm: float = 0.0, header: str | None = None) -> str:
     """lens.toml text for a prescription (round-trips through parse_lens_toml)."""
     p = prescription
+    if p.has_mirrors or p.finite_object:
+        raise InputError("lens.toml holds refractive lenses with the object at infinity; this lens has "
+                         + ("a mirror" if p.has_mirrors else "a finite object distance"),
+                         valid="keep the .zmx as the lens file (lensmount reads it directly)")
     out = []
     if header:
         out += [f"# {ln}".rstrip() for ln in header.splitlines()]

@@ -1,32 +1,43 @@
-"""Zemax sequential lens files (.zmx), staged: text -> ZmxLens (parsed) -> Prescription.
+"""Zemax sequential lens files (.zmx), staged: text -> ZmxLens (parsed) -> Prescription + import notes.
 
-Supported (everything a rotationally symmetric refractive lens with the object at
-infinity needs):
-    UNIT MM|CM|IN|METER         lengths are converted to mm
-    SURF n / TYPE STANDARD|EVENASPH / CURV / CONI / PARM k v (EVENASPH: r^(2k) terms, k >= 2)
-    DISZ (INFINITY allowed for the object) / GLAS name (or ___BLANK model glass n_d, V_d)
-    DIAM v type (type 1 = fixed semi-diameter, 0 = automatic) / STOP / COAT / COMM
-    ENPD v | FNUM v / WAVM i wl weight (or WAVL/WWGT) / PWAV / FTYP / YFLN, XFLN (or YFLD, XFLD)
-    GCAT (preferred catalogues)
-Other surface types, mirrors, finite objects, non-angle fields, floating stops and an
-r^2 asphere term raise an InputError naming the line. Lines with other commands
-(display, tolerancing, optimisation settings) do not change the geometry and are skipped.
-Files are UTF-16 (as Zemax writes them, with a BOM) or UTF-8.
+What a lens file holds and how it is read:
+    UNIT MM|CM|IN|METER          lengths are converted to mm
+    TYPE STANDARD|EVENASPH|ODDASPH  CURV / CONI / PARM k v (EVENASPH: r^(2k); ODDASPH: r^k)
+    TYPE COORDBRK                a break that is zero, or that the next breaks undo before
+                                 any optical surface, is dropped; one that leaves a mirror,
+                                 lens or stop on a decentred or tilted axis is an error
+    GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup
+    DISZ (INFINITY for an object at infinity, a number for a finite object)
+    DIAM v flag / CLAP rmin rmax / MEMA v: every semi-diameter the file gives is honoured
+                                 and vignettes (flag 0 = Zemax's automatic value, 1 =
+                                 fixed, other flags = a solve or pickup, value as written);
+                                 surfaces without one get theirs from real rays
+    ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
+    OBNA v 1 (cone angle, deg) | FLOA (stop size from the stop's DIAM)
+    FTYP t ...: t = 0 angles, 1 object heights, 2 paraxial image heights, 3 real image
+    heights; XFLN/YFLN (or XFLD/YFLD); WAVM (or WAVL/WWGT); PWAV; GCAT
+Solves and pickups: Zemax writes the value a solve or pickup produced on the CURV,
+DISZ, GLAS, CONI and DIAM lines themselves, so the written value is the one used (the
+pickup is noted). Lines with other commands (display, tolerancing, merit function)
+do not change the geometry and are skipped. Files are UTF-16 (as Zemax writes them,
+with a BOM), UTF-8 or Latin-1.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.optics.glass import CATALOGUES, refractive_index
+from lensmount.optics.glass import CATALOGUES, refractive_index, successor
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
-_SUPPORTED_TYPES = ("STANDARD", "EVENASPH")
-# CLAP (circular aperture) is kept out of the geometry: lensmount's clear apertures come from DIAM.
+_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "COORDBRK")
+_SIX_DIGIT = re.compile(r"^(\d{3})(\d{3})$")
+_D_LINE = 0.5875618
 
 
 @dataclass
@@ -42,8 +53,12 @@ class ZmxSurface:
     thickness_line: int = 0
     glass: str = AIR
     glass_line: int = 0
+    glass_args: tuple = ()
+    mirror: bool = False
     diam: float | None = None
-    diam_fixed: bool = False
+    diam_flag: int = 0
+    clap: float | None = None
+    mema: float | None = None
     stop: bool = False
     coating: str | None = None
     comment: str | None = None
@@ -60,11 +75,22 @@ class ZmxLens:
     wwgt: list[float] = field(default_factory=list)
     primary: int = 1
     field_type: int = 0
+    field_type_line: int = 0
     n_fields: int | None = None
     n_waves: int | None = None
     xfields: list[float] = field(default_factory=list)
     yfields: list[float] = field(default_factory=list)
+    vignetting: bool = False
     catalogues: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ImportNote:
+    """One row of what the import did: `kind` is imported, substituted or ignored."""
+
+    kind: str
+    where: str
+    what: str
 
 
 def read_text(path) -> str:
@@ -100,6 +126,13 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         except (TypeError, ValueError):
             raise err(f"{what} '{tok}' is not a number", line, "a decimal number") from None
 
+    def arg(args, k, line, what, default=None):
+        if len(args) > k:
+            return num(args[k], line, what)
+        if default is None:
+            raise err(f"{what} is missing", line, "a decimal number")
+        return default
+
     for ln, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
@@ -108,7 +141,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         cmd = cmd.upper()
         args = rest.split()
         if cmd == "SURF":
-            cur = ZmxSurface(number=int(num(args[0] if args else "", ln, "surface number")), line=ln)
+            cur = ZmxSurface(number=int(arg(args, 0, ln, "surface number")), line=ln)
             lens.surfaces.append(cur)
         elif cmd == "UNIT":
             unit = args[0].upper() if args else "MM"
@@ -121,136 +154,287 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         elif cmd == "NAME":
             lens.name = rest.strip().strip('"') or lens.name
         elif cmd == "ENPD":
-            lens.aperture = ("epd", num(args[0] if args else "", ln, "entrance pupil diameter"), ln)
+            lens.aperture = ("epd", arg(args, 0, ln, "entrance pupil diameter"), ln)
         elif cmd == "FNUM":
-            lens.aperture = ("fno", num(args[0] if args else "", ln, "f-number"), ln)
-        elif cmd in ("FLOA", "OBNA", "OBJNA", "PARA", "WFNO"):
-            raise err(f"aperture type {cmd} is not supported", ln,
-                      "ENPD (entrance pupil diameter) or FNUM (image-space F/#)")
+            working = arg(args, 1, ln, "F/# type", 0.0) == 1
+            lens.aperture = ("working_fno" if working else "fno", arg(args, 0, ln, "f-number"), ln)
+        elif cmd == "OBNA":
+            cone = arg(args, 1, ln, "object NA type", 0.0) == 1
+            lens.aperture = ("object_cone_deg" if cone else "object_na", arg(args, 0, ln, "object-space NA"), ln)
+        elif cmd == "FLOA":
+            lens.aperture = ("float", 0.0, ln)
         elif cmd == "WAVM":
-            i, wl = int(num(args[0], ln, "wavelength index")), num(args[1], ln, "wavelength")
-            weight = num(args[2], ln, "wavelength weight") if len(args) > 2 else 1.0
-            lens.wavelengths[i] = (wl, weight)
+            i, wl = int(arg(args, 0, ln, "wavelength index")), arg(args, 1, ln, "wavelength")
+            lens.wavelengths[i] = (wl, arg(args, 2, ln, "wavelength weight", 1.0))
         elif cmd == "WAVL":
             lens.wavl = [num(a, ln, "wavelength") for a in args]
         elif cmd == "WWGT":
             lens.wwgt = [num(a, ln, "wavelength weight") for a in args]
         elif cmd == "PWAV":
-            lens.primary = int(num(args[0], ln, "primary wavelength"))
+            lens.primary = int(arg(args, 0, ln, "primary wavelength"))
         elif cmd == "FTYP":
-            lens.field_type = int(num(args[0], ln, "field type"))
-            if lens.field_type != 0:
-                raise err(f"field type {lens.field_type} is not supported (object at infinity)", ln,
-                          "FTYP 0: field angles in degrees")
+            lens.field_type, lens.field_type_line = int(arg(args, 0, ln, "field type")), ln
+            if lens.field_type not in (0, 1, 2, 3):
+                raise err(f"field type {lens.field_type} is not supported", ln,
+                          "FTYP 0 (angles), 1 (object heights), 2 (paraxial image heights) or 3 (real image heights)")
             if len(args) >= 4:
-                lens.n_fields = int(num(args[2], ln, "number of fields"))
-                lens.n_waves = int(num(args[3], ln, "number of wavelengths"))
+                lens.n_fields = int(arg(args, 2, ln, "number of fields"))
+                lens.n_waves = int(arg(args, 3, ln, "number of wavelengths"))
         elif cmd in ("YFLN", "YFLD"):
             lens.yfields = [num(a, ln, "field") for a in args]
         elif cmd in ("XFLN", "XFLD"):
             lens.xfields = [num(a, ln, "field") for a in args]
+        elif cmd in ("VDXN", "VDYN", "VCXN", "VCYN", "VANN"):
+            lens.vignetting |= any(num(a, ln, "vignetting factor") != 0.0 for a in args)
         elif cmd == "GCAT":
-            lens.catalogues = [a for a in args]
-        elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "STOP", "COAT", "COMM"):
+            lens.catalogues = list(args)
+        elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
-            if cmd == "TYPE":
-                cur.type, cur.type_line = (args[0].upper() if args else ""), ln
-                if cur.type not in _SUPPORTED_TYPES:
-                    raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which lensmount does not support",
-                              ln, "TYPE STANDARD or TYPE EVENASPH")
-            elif cmd == "CURV":
-                cur.curvature = num(args[0] if args else "", ln, "curvature")
-            elif cmd == "CONI":
-                cur.conic = num(args[0] if args else "", ln, "conic")
-            elif cmd == "PARM":
-                cur.parm[int(num(args[0], ln, "parameter index"))] = (num(args[1], ln, "parameter"), ln)
-            elif cmd == "DISZ":
-                tok = args[0] if args else ""
-                cur.thickness = math.inf if tok.upper() in ("INFINITY", "INF") else num(tok, ln, "thickness")
-                cur.thickness_line = ln
-            elif cmd == "GLAS":
-                cur.glass_line = ln
-                name = args[0] if args else AIR
-                if name.upper() == "MIRROR":
-                    raise err(f"surface {cur.number} is a mirror", ln, "refractive surfaces only (no GLAS MIRROR)")
-                if name.upper() == "___BLANK":
-                    if len(args) < 5:
-                        raise err("model glass without n_d and V_d", ln, "GLAS ___BLANK 1 0 n_d V_d ...")
-                    nd, vd = num(args[3], ln, "n_d"), num(args[4], ln, "V_d")
-                    name = f"{nd:.6g}/{vd:.6g}"
-                cur.glass = name
-            elif cmd == "DIAM":
-                cur.diam = num(args[0] if args else "", ln, "semi-diameter")
-                cur.diam_fixed = len(args) > 1 and args[1] == "1"
-            elif cmd == "STOP":
-                cur.stop = True
-            elif cmd == "COAT":
-                cur.coating = args[0] if args else None
-            elif cmd == "COMM":
-                cur.comment = rest.strip().strip('"') or None
+            _surface_line(cur, cmd, args, rest, ln, err, num, arg)
         # every other command is a display/optimisation setting with no effect here
     return lens
 
 
+def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
+    if cmd == "TYPE":
+        cur.type, cur.type_line = (args[0].upper() if args else ""), ln
+        if cur.type not in _SUPPORTED_TYPES:
+            raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
+                      "symmetric or not supported by lensmount", ln,
+                      "TYPE STANDARD, EVENASPH, ODDASPH, or a COORDBRK that the next breaks undo")
+    elif cmd == "CURV":
+        cur.curvature = arg(args, 0, ln, "curvature")
+    elif cmd == "CONI":
+        cur.conic = arg(args, 0, ln, "conic")
+    elif cmd == "PARM":
+        cur.parm[int(arg(args, 0, ln, "parameter index"))] = (arg(args, 1, ln, "parameter"), ln)
+    elif cmd == "DISZ":
+        tok = args[0] if args else ""
+        cur.thickness = math.inf if tok.upper() in ("INFINITY", "INF") else num(tok, ln, "thickness")
+        cur.thickness_line = ln
+    elif cmd == "GLAS":
+        cur.glass_line = ln
+        name = args[0] if args else AIR
+        cur.glass_args = tuple(args[1:])
+        if name.upper() == "MIRROR":
+            cur.mirror = True
+            name = AIR  # resolved to the medium in front when converting
+        cur.glass = name
+    elif cmd == "DIAM":
+        cur.diam = arg(args, 0, ln, "semi-diameter")
+        cur.diam_flag = int(arg(args, 1, ln, "semi-diameter type", 0.0))
+    elif cmd == "CLAP":
+        cur.clap = arg(args, 1, ln, "circular aperture radius")
+    elif cmd == "MEMA":
+        cur.mema = arg(args, 0, ln, "mechanical semi-diameter")
+    elif cmd == "STOP":
+        cur.stop = True
+    elif cmd == "COAT":
+        cur.coating = args[0] if args else None
+    elif cmd == "COMM":
+        cur.comment = rest.strip().strip('"') or None
+
+
 def to_prescription(lens: ZmxLens, file: str = "lens.zmx") -> Prescription:
     """Convert a parsed .zmx into a Prescription (object and image surfaces dropped)."""
+    return convert(lens, file)[0]
+
+
+def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[ImportNote]]:
+    """The Prescription and the notes on what was imported, substituted and ignored."""
+    from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
+
     if len(lens.surfaces) < 3:
         raise InputError("fewer than three SURF blocks (object, one surface, image)", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
+    notes: list[ImportNote] = []
     obj, body, image = lens.surfaces[0], lens.surfaces[1:-1], lens.surfaces[-1]
-    if not math.isinf(obj.thickness):
-        raise InputError("the object is at a finite distance; lensmount models an object at infinity",
-                         file=file, line=obj.thickness_line or obj.line, valid="DISZ INFINITY on SURF 0")
+    s = lens.unit
+    if obj.glass.upper() != AIR:
+        raise InputError("the object sits in a glass", file=file, line=obj.glass_line,
+                         valid="an object in air (no GLAS on SURF 0)")
     if image.curvature != 0.0:
         raise InputError("the image surface is curved", file=file, line=image.line, valid="a flat image surface (CURV 0)")
     if obj.stop or image.stop:
         raise InputError("the stop is on the object or image surface", file=file,
                          line=(obj if obj.stop else image).line, valid="STOP on one of SURF 1..N-1")
-    s = lens.unit
-    surfaces = []
+    object_distance = obj.thickness * s if math.isfinite(obj.thickness) else math.inf
+    notes.append(ImportNote("imported", "object", "at infinity" if math.isinf(object_distance)
+                            else f"at {object_distance:g} mm in front of surface 1"))
+
+    surfaces: list[Surface] = []
+    numbers: list[int] = []
+    medium = AIR
+    tilt = None  # (surface number, description) of a coordinate break not yet undone
+    state = [0.0, 0.0, 0.0, 0.0]  # decenter x, y, tilt x, tilt y accumulated by breaks
     for zs in body:
-        glass = zs.glass
-        if glass.upper() != AIR:
-            try:
-                refractive_index(glass, 0.5875618)
-            except InputError as exc:
-                raise InputError(exc.detail, file=file, line=zs.glass_line, valid=exc.valid) from None
-            if "/" not in glass and lens.catalogues:
-                glass = _prefer_catalogue(glass, lens.catalogues)
-        aspheric = ()
-        if zs.type == "EVENASPH" and zs.parm:
-            if zs.parm.get(1, (0.0, 0))[0] != 0.0:
-                raise InputError(f"surface {zs.number} has an r^2 asphere term (PARM 1)", file=file,
-                                 line=zs.parm[1][1], valid="PARM 1 = 0; put the base curvature in CURV")
-            kmax = max(zs.parm)
-            # PARM k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
-            aspheric = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, kmax + 1))
-            while aspheric and aspheric[-1] == 0.0:
-                aspheric = aspheric[:-1]
+        if zs.type == "COORDBRK":
+            for k in range(4):
+                state[k] += zs.parm.get(k + 1, (0.0, 0))[0]
+            if any(abs(v) > 1e-12 for v in state):
+                tilt = (zs.number, _describe_break(state))
+            else:
+                tilt = None
+            if zs.thickness != 0.0 and tilt is not None:
+                _asymmetric(file, zs, tilt, "has a thickness along the decentred or tilted axis")
+            _add_gap(surfaces, zs.thickness * s)
+            notes.append(ImportNote("ignored", f"SURF {zs.number}", "coordinate break "
+                                    + ("(zero)" if not any(zs.parm.get(k, (0.0, 0))[0] for k in range(1, 5))
+                                       else "undone by a later break" if tilt is None else "(see the next break)")))
+            continue
+        optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or _glass_name(zs) != medium.upper()
+        if tilt is not None:
+            if optical or zs.thickness != 0.0:
+                _asymmetric(file, zs, tilt, "is a mirror, lens surface or stop" if optical else
+                            "has a thickness along the decentred or tilted axis")
+            notes.append(ImportNote("ignored", f"SURF {zs.number}", "dummy surface between coordinate breaks"))
+            continue
+        material, note = _material(zs, medium, lens.catalogues, file)
+        if note:
+            notes.append(note)
+        if zs.mirror:
+            notes.append(ImportNote("imported", f"SURF {zs.number}", "mirror (GLAS MIRROR)"))
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
+        clear, mech = _semi_diameters(zs, s, notes)
         surfaces.append(Surface(
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
-            thickness=zs.thickness * s, material=glass, conic=zs.conic, aspheric=aspheric,
-            clear_semi_diameter=(zs.diam * s if zs.diam_fixed and zs.diam else None),
-            is_stop=zs.stop, coating=zs.coating))
-    if lens.aperture is None:
-        raise InputError("no system aperture", file=file, valid="ENPD (entrance pupil diameter) or FNUM (F/#)")
-    kind, value, ln = lens.aperture
-    if value <= 0:
-        raise InputError(f"aperture value {value} is not positive", file=file, line=ln, valid="a value > 0")
-    aperture = Aperture(kind, value * s if kind == "epd" else value)
+            thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
+            clear_semi_diameter=clear, mechanical_semi_diameter=mech, is_stop=zs.stop,
+            coating=zs.coating, mirror=zs.mirror))
+        numbers.append(zs.number)
+        medium = material
+    if tilt is not None:
+        _asymmetric(file, image, tilt, "is the image surface")
+    if not surfaces:
+        raise InputError("no optical surface between the object and the image", file=file,
+                         valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
+    if lens.vignetting:
+        notes.append(ImportNote("ignored", "fields", "vignetting factors (VDX/VDY/VCX/VCY/VAN): the "
+                                "file's apertures vignette the real rays instead"))
 
     waves, weights = _wavelengths(lens)
     if not waves:
-        waves, weights = [0.5875618], [1.0]
+        waves, weights = [_D_LINE], [1.0]
     primary = min(max(lens.primary, 1), len(waves)) - 1
-    fields = _fields(lens)
-    return Prescription(surfaces=tuple(surfaces), aperture=aperture, wavelengths_um=tuple(waves),
+    base = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0), wavelengths_um=tuple(waves),
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
-                        field_angles_deg=tuple(fields), name=lens.name)
+                        name=lens.name, object_distance=object_distance)
+    return apply_aperture_and_fields(base, lens, numbers, notes, file), notes
+
+
+def _glass_name(zs: ZmxSurface) -> str:
+    return AIR if zs.mirror else zs.glass.upper()
+
+
+def _add_gap(surfaces: list[Surface], gap: float) -> None:
+    if gap and surfaces:
+        from dataclasses import replace
+
+        surfaces[-1] = replace(surfaces[-1], thickness=surfaces[-1].thickness + gap)
+
+
+def _describe_break(state) -> str:
+    names = ("decenter x", "decenter y", "tilt about x", "tilt about y")
+    units = (" (lens units)", " (lens units)", "°", "°")
+    return ", ".join(f"{n} {v:g}{u}" for n, v, u in zip(names, state, units) if abs(v) > 1e-12)
+
+
+def _asymmetric(file, zs: ZmxSurface, tilt, why: str):
+    number, what = tilt
+    raise InputError(
+        f"surface {zs.number} {why} while the coordinate break at surface {number} leaves the axis "
+        f"moved ({what}): the system is not rotationally symmetric about one axis (an off-axis or "
+        "folded design), which lensmount's mount and tracer need",
+        file=file, line=zs.type_line or zs.line,
+        valid="coordinate breaks that are zero, or that later breaks undo before the next optical surface")
+
+
+def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, ImportNote | None]:
+    """The lensmount material for a GLAS line, and a note when it is a substitution."""
+    where = f"SURF {zs.number}"
+    if zs.mirror:
+        return medium, None
+    name = zs.glass
+    if name.upper() == AIR:
+        return AIR, None
+    args = zs.glass_args
+    pickup = f" (picked up from surface {args[1]})" if len(args) > 1 and args[0] == "2" else ""
+    nd_vd = _file_nd_vd(args)
+    if name.upper() == "___BLANK":
+        if nd_vd is None:
+            raise InputError("model glass without n_d and V_d", file=file, line=zs.glass_line,
+                             valid="GLAS ___BLANK 1 0 n_d V_d ...")
+        return _model(*nd_vd), ImportNote("imported", where, f"model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g}{pickup}")
+    six = _SIX_DIGIT.match(name)
+    if six:
+        nd, vd = 1.0 + int(six.group(1)) / 1000.0, int(six.group(2)) / 10.0
+        return _model(nd, vd), ImportNote("substituted", where, f"glass code {name} -> model glass {nd:g}/{vd:g}")
+    try:
+        refractive_index(name, _D_LINE)
+    except InputError:
+        pass
+    else:
+        return (_prefer_catalogue(name, catalogues) if catalogues else name), (
+            ImportNote("imported", where, f"glass {name}{pickup}") if pickup else None)
+    new = successor(name)
+    if new is not None:
+        return new, ImportNote("substituted", where, f"glass {name} (legacy name) -> {new}, its successor")
+    if nd_vd is not None:
+        return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in no catalogue lensmount has "
+                                          f"-> model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g} from the GLAS line")
+    raise InputError(f"unknown glass '{name}' and the GLAS line gives no n_d and V_d", file=file, line=zs.glass_line,
+                     valid=f"a glass in the {', '.join(CATALOGUES)} catalogues, or n_d and V_d on the GLAS line")
+
+
+def _file_nd_vd(args) -> tuple[float, float] | None:
+    try:
+        nd, vd = float(args[2]), float(args[3])
+    except (IndexError, ValueError):
+        return None
+    return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
+
+
+def _model(nd: float, vd: float) -> str:
+    # Zemax treats V_d = 0 as a constant index; a huge V_d is that to 1e-9.
+    return f"{nd:.6g}/{vd if vd > 0 else 1e9:.6g}"
+
+
+def _semi_diameters(zs: ZmxSurface, s: float, notes) -> tuple[float | None, float | None]:
+    where = f"SURF {zs.number}"
+    clear = zs.diam * s if zs.diam else None
+    if clear is not None:
+        kind = {0: "automatic (Zemax's value)", 1: "fixed"}.get(zs.diam_flag, "solve/pickup (value as written)")
+        notes.append(ImportNote("imported", where, f"semi-diameter {clear:.4g} mm, {kind}"))
+    if zs.clap:
+        r = zs.clap * s
+        clear = r if clear is None else min(clear, r)
+        notes.append(ImportNote("imported", where, f"circular aperture {r:.4g} mm"))
+    mech = zs.mema * s if zs.mema else None
+    if mech is not None and clear is not None and mech < clear:
+        notes.append(ImportNote("ignored", where, f"mechanical semi-diameter {mech:.4g} mm (smaller than the clear one)"))
+        mech = None
+    return clear, mech
+
+
+def _aspheric(zs: ZmxSurface, s: float, file) -> tuple[float, ...]:
+    """Polynomial sag terms in mm as Surface wants them: (A4, A6, ...) or, for ODDASPH, (A1, A2, A3, ...)."""
+    if not zs.parm or zs.type not in ("EVENASPH", "ODDASPH"):
+        return ()
+    if zs.type == "EVENASPH":
+        if zs.parm.get(1, (0.0, 0))[0] != 0.0:
+            raise InputError(f"surface {zs.number} has an r^2 asphere term (PARM 1)", file=file,
+                             line=zs.parm[1][1], valid="PARM 1 = 0; put the base curvature in CURV")
+        # PARM k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
+        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(zs.parm) + 1))
+    else:
+        raise InputError(f"surface {zs.number} is an odd asphere (ODDASPH)", file=file, line=zs.type_line,
+                         valid="TYPE STANDARD or EVENASPH")
+    while terms and terms[-1] == 0.0:
+        terms = terms[:-1]
+    return terms
 
 
 def _wavelengths(lens: ZmxLens):
@@ -264,24 +448,6 @@ def _wavelengths(lens: ZmxLens):
     return waves, weights
 
 
-def _fields(lens: ZmxLens) -> list[float]:
-    n = lens.n_fields or max(len(lens.yfields), len(lens.xfields), 1)
-    ys = (lens.yfields + [0.0] * n)[:n]
-    xs = (lens.xfields + [0.0] * n)[:n]
-    # The lens is rotationally symmetric: a field (x, y) is the radial angle with
-    # tan^2 = tan^2 x + tan^2 y, and only its magnitude matters.
-    out = []
-    for x, y in zip(xs, ys):
-        t = math.hypot(math.tan(math.radians(x)), math.tan(math.radians(y)))
-        out.append(round(math.degrees(math.atan(t)), 12))
-    seen, fields = set(), []
-    for f in out:
-        if f not in seen:
-            seen.add(f)
-            fields.append(f)
-    return fields
-
-
 def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
     """Keep the plain name unless a GCAT catalogue holds a different glass of that name."""
     known = [c for c in catalogues if c.lower() in (k.lower() for k in CATALOGUES)]
@@ -290,21 +456,27 @@ def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
     for cat in known:
         prefixed = f"{cat.upper()}:{name}"
         try:
-            n_pref = float(refractive_index(prefixed, 0.5875618))
+            n_pref = float(refractive_index(prefixed, _D_LINE))
         except InputError:
             continue
         try:
-            n_plain = float(refractive_index(name, 0.5875618))
+            n_plain = float(refractive_index(name, _D_LINE))
         except InputError:
             return prefixed
         return name if n_plain == n_pref else prefixed
     return name
 
 
+def read_zmx_with_notes(path) -> tuple[Prescription, list[ImportNote]]:
+    """Read a .zmx file: the Prescription and what was imported, substituted and ignored."""
+    text = read_text(path)
+    return convert(parse_zmx(text, str(path)), str(path))
+
+
 def read_zmx(path) -> Prescription:
     """Read a .zmx file into a Prescription."""
-    text = read_text(path)
-    return to_prescription(parse_zmx(text, str(path)), str(path))
+    return read_zmx_with_notes(path)[0]
 
 
-__all__ = ["ZmxLens", "ZmxSurface", "read_text", "parse_zmx", "to_prescription", "read_zmx"]
+__all__ = ["ZmxLens", "ZmxSurface", "ImportNote", "read_text", "parse_zmx", "to_prescription", "convert",
+           "read_zmx", "read_zmx_with_notes"]
