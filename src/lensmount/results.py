@@ -142,7 +142,8 @@ def _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm) -> None:
     ax.set_ylabel("y on detector (mm)")
 
 
-def _save_figure(fig, path) -> None:
+def save_figure(fig, path) -> None:
+    """Save a matplotlib figure as PNG atomically and close it."""
     import matplotlib.pyplot as plt
 
     def write(tmp):
@@ -188,7 +189,7 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         title = (title + " · " if title else "") + f"{scale.block}×{scale.block}-pixel means"
     ax.set_title(title or "stray irradiance", fontsize=9)
     fig.tight_layout()
-    _save_figure(fig, path)
+    save_figure(fig, path)
 
 
 def write_difference(path: str | os.PathLike, new: np.ndarray, old: np.ndarray,
@@ -217,7 +218,7 @@ def write_difference(path: str | os.PathLike, new: np.ndarray, old: np.ndarray,
     suffix = f"{scale.block}×{scale.block}-pixel means" if scale.block > 1 else ""
     ax.set_title(" · ".join(t for t in (title or "difference new − old", suffix) if t), fontsize=9)
     fig.tight_layout()
-    _save_figure(fig, path)
+    save_figure(fig, path)
     return diff
 
 
@@ -281,4 +282,4 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
 
 
 __all__ = ["write_run", "display_binning", "PreviewScale", "preview_scale", "shared_scale", "block_mean",
-           "write_difference", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]
+           "write_difference", "save_figure", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]

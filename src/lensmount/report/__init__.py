@@ -169,4 +169,4 @@ def write_report(path: str | os.PathLike, document: str) -> Path:
 
 
 __all__ = ["run_report", "comparison_report", "write_report", "page", "section", "image_block", "table_block",
-           "run_blocks", "fmt"]
+           "run_blocks", "provenance_rows", "fmt"]

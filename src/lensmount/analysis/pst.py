@@ -1,0 +1,227 @@
+"""Point source transmittance against off-axis angle.
+
+PST(θ) = E_det(θ) / E_in(θ): the mean irradiance on the detector over the irradiance the
+source puts on the entrance plane, E_sun cos θ. The runs give the detector irradiance
+normalised by E_sun, so PST = mean(image) / cos θ, with the batch-means error of the
+run carried through the same factor. Inside the field, with `direct` on, the direct image
+dominates (PST of order the relative aperture area); past the field edge only stray light
+is left and the curve drops by orders of magnitude.
+
+What does not change with the source direction is built once: the mount geometry (the
+regenerate cache), the Scene's mesh, optics, finishes and detector, and the tracer with
+its Embree BVH. Each angle only swaps the source (`make_source`) and runs its passes
+through that one tracer. The bidirectional view map is built per pass, inside
+`bidirectional_pass`, with the pass's own radius; it does not depend on the source, but
+sharing it across angles would need the estimator split into its view and photon phases,
+which `integrators.bidirectional` does not offer, so each angle still pays for it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from lensmount.errors import InputError
+
+METHODS = ("bidirectional", "forward")
+
+
+def parse_angles(text: str) -> list[float]:
+    """'0:30:1' (start:stop:step, stop included) or '0,5,7,20' → degrees, each in [0, 90)."""
+    field_name, valid = "--angles", "start:stop:step in degrees (e.g. 0:30:1) or a list (e.g. 0,7,20)"
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if not step > 0 or stop < start:
+                raise ValueError
+            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            angles = [round(start + i * step, 9) for i in range(n)]
+        else:
+            angles = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"cannot read the angles '{text}'", field=field_name, valid=valid) from None
+    if not angles or any(not (0.0 <= a < 90.0) for a in angles):
+        raise InputError(f"angles must lie in [0°, 90°), got '{text}'", field=field_name, valid=valid)
+    if len(angles) > 1000:
+        raise InputError(f"{len(angles)} angles is more than a sweep needs", field=field_name, valid=valid)
+    return angles
+
+
+@dataclass(frozen=True)
+class PstOptions:
+    """A PST sweep. Per angle: `passes` passes of `photons_per_pass` (default: the scene's [run])."""
+
+    design: Path
+    scene: Path
+    angles_deg: tuple[float, ...]
+    azimuth_deg: float | None = None  # default: the scene's source azimuth
+    method: str = "bidirectional"
+    passes: int | None = None
+    photons_per_pass: int | None = None
+    seed: int | None = None
+    samples_per_pixel: int = 1
+    alpha: float = 0.7
+    geometry: Path | None = None
+
+
+@dataclass(frozen=True)
+class PstPoint:
+    angle_deg: float
+    pst: float
+    std_error: float | None  # None: unknown (one pass)
+    in_field: bool
+    passes: int
+    photons: int
+    time_s: float
+
+
+@dataclass
+class PstResult:
+    points: list[PstPoint]
+    field_edge_deg: float
+    azimuth_deg: float
+    method: str
+    effects: list[str]
+    provenance: dict = field(default_factory=dict)
+
+
+def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: float, angle_deg: float
+           ) -> tuple[float, float | None]:
+    """PST and its standard error from a run's mean detector flux (normalised by E_sun)."""
+    cos = math.cos(math.radians(angle_deg))
+    scale = 1.0 / (detector_area_mm2 * cos) if detector_area_mm2 > 0 and cos > 0 else 0.0
+    se = flux_std_error_mm2 * scale if math.isfinite(flux_std_error_mm2) else None
+    return mean_flux_mm2 * scale, se
+
+
+def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> PstResult:
+    """Run the sweep; progress(text) after each angle."""
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.design.folder import load_design
+    from lensmount.design.scene import load_scene
+    from lensmount.loop import RegenerateOptions, regenerate
+    from lensmount.loop.provenance import collect
+    from lensmount.runner import PassJob, run_pass
+    from lensmount.scene.build import build_scene, make_source
+    from lensmount.trace.tracer import Tracer
+
+    o = options
+    say = progress or (lambda text: None)
+    if o.method not in METHODS:
+        raise InputError(f"unknown method '{o.method}'", field="--method", valid=" | ".join(METHODS))
+    for name, value in (("--passes", o.passes), ("--photons-per-pass", o.photons_per_pass)):
+        if value is not None and value < 1:
+            raise InputError(f"{name} must be at least 1, got {value}", field=name, valid="a positive integer")
+    if o.seed is not None and o.seed < 0:
+        raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
+    design = load_design(o.design)
+    spec = load_scene(o.scene)
+    seed = spec.run.seed if o.seed is None else o.seed
+    passes = o.passes or spec.run.passes
+    per_pass = o.photons_per_pass or spec.run.photons
+    azimuth = spec.source.azimuth_deg if o.azimuth_deg is None else float(o.azimuth_deg)
+    provenance = collect(design, o.scene).to_dict()
+
+    say("mount geometry (rebuilt only if the design changed)")
+    built = regenerate(RegenerateOptions(design.root, o.geometry))
+    mesh = TaggedMesh.load(built.folder / built.manifest.mesh)
+    base = build_scene(design.prescription, mesh, spec)
+    say("building the tracer (once for every angle)")
+    tracer = Tracer(base)
+    det = base.detector
+    area = det.width * det.height
+    field_edge = float(design.prescription.max_field_deg)
+    options = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
+    weights = tuple(design.prescription.wavelength_weights)
+
+    points = []
+    names = None
+    for angle in o.angles_deg:
+        source_spec = spec.source.model_copy(update={"off_axis_deg": float(angle), "azimuth_deg": azimuth})
+        scene = dataclasses.replace(base, source=make_source(source_spec, base.front_opening, base.mesh, det, weights))
+        start = time.perf_counter()
+        acc = None
+        for i in range(passes):
+            estimate = run_pass(scene, tracer, PassJob(o.method, per_pass, seed, i, o.alpha, options))
+            if acc is None:
+                names = list(estimate.part_names) if names is None else names
+                acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
+            acc.add(estimate, pass_index=i)
+        value, se = pst_of(acc.flux, acc.flux_std_error, area, angle)
+        point = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons,
+                         time.perf_counter() - start)
+        points.append(point)
+        err = f" ± {se:.2g}" if se is not None else ""
+        say(f"{angle:g}°: PST {value:.4g}{err} ({'in' if point.in_field else 'outside'} the field, "
+            f"{point.time_s:.1f} s)")
+    effects = [k for k in ("scatter", "ghosts", "direct") if getattr(base.effects, k)]
+    return PstResult(points, field_edge, azimuth, o.method, effects, provenance)
+
+
+def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
+    """pst.csv, pst.png (log scale, error bars, field edge) and report.html, atomically."""
+    from lensmount.atomic import write_text
+    from lensmount.report import image_block, page, provenance_rows, section, table_block, write_report
+
+    out = Path(out)
+    paths = {"csv": out / "pst.csv", "png": out / "pst.png", "html": out / "report.html"}
+    lines = ["angle_deg,pst,std_error,in_field,passes,photons,time_s"]
+    for p in result.points:
+        lines.append(f"{p.angle_deg:g},{p.pst:.6g},{'' if p.std_error is None else f'{p.std_error:.6g}'},"
+                     f"{int(p.in_field)},{p.passes},{p.photons},{p.time_s:.3f}")
+    write_text(paths["csv"], "\n".join(lines) + "\n")
+    plot_pst(paths["png"], result)
+    rows = [[f"{p.angle_deg:g}", f"{p.pst:.4g}", "—" if p.std_error is None else f"{p.std_error:.2g}",
+             "in field" if p.in_field else "outside", p.passes, f"{p.photons:,}", f"{p.time_s:.1f}"]
+            for p in result.points]
+    blocks = [section("Point source transmittance", image_block("PST against off-axis angle", paths["png"])),
+              section("Values", table_block(["angle (°)", "PST", "std. error", "", "passes", "photons", "time (s)"],
+                                            rows)),
+              section("Inputs and provenance", table_block(["field", "value"], provenance_rows(
+                  {"method": result.method, "effects": result.effects, "azimuth_deg": result.azimuth_deg,
+                   "field_edge_deg": result.field_edge_deg, "provenance": result.provenance})))]
+    name = result.provenance.get("design_name", "")
+    write_report(paths["html"], page(f"lensmount PST · {name}", blocks))
+    return paths
+
+
+def plot_pst(path: Path, result: PstResult) -> None:
+    """Log-scale PST with 1σ error bars; zero values (nothing reached the detector) drawn at the axis floor."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lensmount.results import save_figure
+
+    a = np.array([p.angle_deg for p in result.points])
+    v = np.array([p.pst for p in result.points])
+    e = np.array([p.std_error or 0.0 for p in result.points])
+    lit = v > 0
+    floor = 0.3 * float(v[lit].min()) if lit.any() else 1e-12
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
+    lower = np.minimum(e, v - 0.5 * floor * (v > 0))  # keep the lower bar above zero on a log axis
+    ax.errorbar(a[lit], v[lit], yerr=[np.clip(lower[lit], 0, None), e[lit]], fmt="o-", ms=3, capsize=2,
+                label=f"PST ({result.method}; {', '.join(result.effects) or 'no effects'})")
+    if (~lit).any():
+        ax.plot(a[~lit], np.full((~lit).sum(), floor), "v", color="0.5", label="0 (nothing reached the detector)")
+    ax.axvline(result.field_edge_deg, color="tab:red", ls="--", lw=1,
+               label=f"field edge {result.field_edge_deg:g}°")
+    ax.set_yscale("log")
+    ax.set_xlabel("off-axis angle (°)")
+    ax.set_ylabel("PST = E_detector / E_entrance")
+    ax.set_title(f"point source transmittance · azimuth {result.azimuth_deg:g}°", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+__all__ = ["PstOptions", "PstPoint", "PstResult", "parse_angles", "pst", "pst_of", "write_pst", "plot_pst"]

@@ -1,0 +1,46 @@
+"""`lensmount pst DESIGN --scene S --angles 0:30:1`: parses, calls lensmount.analysis.pst, prints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.cli import app, fail
+from lensmount.errors import InputError
+
+
+@app.command()
+def pst(
+    design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
+    scene: Path = typer.Option(..., "--scene", help="Scene file; its source is swept in angle, the rest kept."),
+    angles: str = typer.Option("0:30:1", "--angles",
+                               help="Off-axis angles in degrees: start:stop:step (stop included) or a list 0,7,20."),
+    azimuth: Optional[float] = typer.Option(None, "--azimuth",
+                                            help="Direction of the tilt in degrees (default: the scene's)."),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per angle (default: the scene's [run])."),
+    photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
+                                                   help="Photons per pass (default: the scene's [run])."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's [run] seed)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/pst-<scene name>)."),
+) -> None:
+    """Point source transmittance (detector irradiance over the irradiance on the entrance
+    plane) against off-axis angle: pst.csv, pst.png (log scale, error bars, field edge
+    marked) and report.html. Inside the field with `direct` on in the scene the direct image
+    dominates; outside it, the stray light. Geometry and tracer are built once for all angles."""
+    from lensmount.analysis.pst import PstOptions, parse_angles, pst as sweep, write_pst
+
+    try:
+        options = PstOptions(Path(design), Path(scene), tuple(parse_angles(angles)), azimuth, method, passes,
+                             photons_per_pass, seed)
+        result = sweep(options, progress=lambda text: typer.echo(text, err=True))
+        paths = write_pst(Path(out) if out else Path("out") / f"pst-{Path(scene).stem}", result)
+    except InputError as error:
+        fail(error)
+    typer.echo(f"field edge {result.field_edge_deg:g}°")
+    for p in result.points:
+        err = "" if p.std_error is None else f" ± {p.std_error:.2g}"
+        typer.echo(f"{p.angle_deg:6g}°  PST {p.pst:.4g}{err}  {'in field' if p.in_field else ''}")
+    typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))
