@@ -14,7 +14,10 @@ from lensmount.loop.history import HistoryOptions, history
 from lensmount.loop.regenerate import RegenerateOptions, RegenerateResult, regenerate
 from lensmount.loop.simulate import (Observer, PassStatus, SimulateOptions, SimulateResult, input_hash,
                                      simulate)
+# The sweeps built on simulate live in lensmount.analysis; they are part of the loop's API too.
+from lensmount.analysis.converge import ConvergeOptions, MethodCurve, converge  # noqa: E402
+from lensmount.analysis.pst import PstOptions, PstResult, pst  # noqa: E402
 
 __all__ = ["RegenerateOptions", "RegenerateResult", "regenerate", "SimulateOptions", "SimulateResult",
            "PassStatus", "Observer", "simulate", "input_hash", "CompareOptions", "CompareResult", "compare",
-           "HistoryOptions", "history"]
+           "HistoryOptions", "history", "PstOptions", "PstResult", "pst", "ConvergeOptions", "MethodCurve", "converge"]
