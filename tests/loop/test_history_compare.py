@@ -25,9 +25,12 @@ def _repo(tmp_path):
     return repo
 
 
+def _provenance(repo, scene) -> dict:
+    return collect(repo, repo / "lens.toml", repo / "mount.toml", scene, argv=["lensmount"]).to_dict()
+
+
 def _record(repo, value, folder, store_path):
-    summary = write_run(folder, value, value * 0.02,
-                        prov=collect(load_design(repo), repo / "scenes" / f"{SCENE}.toml", ["lensmount"]).to_dict())
+    summary = write_run(folder, value, value * 0.02, prov=_provenance(repo, repo / "scenes" / f"{SCENE}.toml"))
     with Store(store_path) as store:
         store.record(summary, paths(folder))
 
@@ -142,7 +145,7 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
     old_commit = git(repo, "rev-parse", "HEAD")
     scene = repo / "scenes" / f"{SCENE}.toml"
     store_path = repo / ".lensmount" / "runs.sqlite"
-    prov = collect(load_design(repo), scene, ["x"]).to_dict()
+    prov = _provenance(repo, scene)
     with Store(store_path) as store:
         store.record(write_run(tmp_path / "old", 1e-3, 1e-5, prov=prov, input_hash="old"), paths(tmp_path / "old"))
     (repo / "mount.toml").write_text((repo / "mount.toml").read_text() + "\n# new revision\n")
@@ -150,7 +153,7 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
     design = load_design(repo)
     digest = planned_input_hash(SimulateOptions(repo, scene), design, load_scene(scene))
     with Store(store_path) as store:
-        store.record(write_run(tmp_path / "new", 2e-3, 1e-5, prov=collect(design, scene, ["x"]).to_dict(),
+        store.record(write_run(tmp_path / "new", 2e-3, 1e-5, prov=_provenance(repo, scene),
                                input_hash=digest), paths(tmp_path / "new"))
     result = _compare(repo, "--scene", SCENE, "--against", old_commit[:7])
     assert result.exit_code == 1, result.output

@@ -13,11 +13,11 @@ from typing import Optional
 
 import typer
 
-from lensmount.analysis.compare import UNDECIDED, Verdict, parse_fraction
+from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
 from lensmount.cli.simulate import TerminalObserver, _duration
 from lensmount.errors import InputError
-from lensmount.loop.compare import CompareOptions, compare as run_compare
+from lensmount.loop.compare import CompareOptions, compare as run_compare, verdict_row
 
 
 def _fraction(text: str, field: str) -> float:
@@ -25,12 +25,6 @@ def _fraction(text: str, field: str) -> float:
         return parse_fraction(text, field)
     except ValueError as exc:
         raise InputError(str(exc), field=field, valid="a fraction such as 5% or 0.05") from None
-
-
-def _row(v: Verdict) -> list[str]:
-    rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
-    interval = f"[{v.low:+.3g}, {v.high:+.3g}]" if v.low > -float("inf") else "unknown"
-    return [f"{v.old:.4g}", f"{v.new:.4g}", f"{v.change:+.3g}{rel}", interval, v.verdict]
 
 
 @app.command()
@@ -51,6 +45,11 @@ def compare(
                                                                "runs.sqlite or $LENSMOUNT_STORE)."),
     method: str = typer.Option("bidirectional", "--method", help="Method for runs that must be simulated."),
     workers: int = typer.Option(0, "--workers", help="Worker processes for runs that must be simulated."),
+    passes: Optional[int] = typer.Option(None, "--passes", help="Passes for runs that must be simulated "
+                                                                "(default: the scene's [run])."),
+    photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
+                                                   help="Photons per pass for runs that must be simulated."),
+    time_s: Optional[float] = typer.Option(None, "--time", help="Seconds per run that must be simulated."),
 ) -> None:
     """Is the new run worse than the old one? Old, new, change with its interval, per part, and the verdict.
 
@@ -64,7 +63,8 @@ def compare(
     observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
-                                 _fraction(confidence, "--confidence"), out, store, method, workers)
+                                 _fraction(confidence, "--confidence"), out, store, method, workers, passes,
+                                 photons_per_pass, time_s)
         result = run_compare(options, observer)
     except InputError as error:
         observer.close()
@@ -80,10 +80,10 @@ def compare(
                   title_justify="left")
     for col in ("", "old", "new", "change", "interval of the change", "verdict"):
         table.add_column(col, justify="right" if col else "left")
-    table.add_row("total", *_row(v), style="bold")
+    table.add_row("total", *verdict_row(v), style="bold")
     for name, pv in sorted(result.per_part.items(), key=lambda kv: -max(kv[1].old, kv[1].new)):
         if pv.old or pv.new:
-            table.add_row(name, *_row(pv))
+            table.add_row(name, *verdict_row(pv))
     console.print(table)
     typer.echo(f"verdict: {v.verdict}" + (f" — {v.note}" if v.note else ""))
     if v.verdict == UNDECIDED and v.more_photons is not None:

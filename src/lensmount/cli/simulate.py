@@ -120,6 +120,9 @@ def simulate(
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/runs.sqlite, "
                                                                "or $LENSMOUNT_STORE)."),
     no_record: bool = typer.Option(False, "--no-record", help="Do not add this run to the results store."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address to run passes on "
+                                                                      "(or $LENSMOUNT_SCHEDULER)."),
+    cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a local Dask cluster: local:N."),
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
@@ -128,7 +131,7 @@ def simulate(
     """
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
                               photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
-                              not no_record, list(sys.argv))
+                              not no_record, list(sys.argv), scheduler, cluster)
     observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         result = run_simulation(options, observer)

@@ -66,7 +66,8 @@ class CompareOptions:
     (a design folder) and the old run comes from the store: "last", "best" or a git revision.
     tolerance : relative to the old value; confidence : of the interval on the change.
     out : folder for difference.exr/png and compare.json (default NEW/compare).
-    simulate : options template for runs that must be simulated (design, scene, out are filled in)."""
+    method, workers, passes, photons_per_pass, time_s : for runs that must be simulated (unset: the
+        scene's [run] table); a stored run is reused when its input hash matches."""
 
     a: Path
     b: Path | None = None
@@ -79,6 +80,9 @@ class CompareOptions:
     store: Path | None = None
     method: str = "bidirectional"
     workers: int = 0
+    passes: int | None = None
+    photons_per_pass: int | None = None
+    time_s: float | None = None
 
 
 @dataclass
@@ -123,7 +127,8 @@ def current_run(design: Path, scene: str, o: CompareOptions, observer: Observer 
     from lensmount.design.scene import load_scene
 
     scene_path = _scene_file(design, scene)
-    sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store)
+    sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
+                          photons_per_pass=o.photons_per_pass, time_s=o.time_s)
     d = load_design(design)
     digest = planned_input_hash(sim, d, load_scene(scene_path))
     with Store(default_path(design, o.store)) as store:
@@ -216,62 +221,73 @@ def compare(options: CompareOptions, observer: Observer | None = None) -> Compar
     return result
 
 
+def _std_error_image(run: Run, shape) -> np.ndarray:
+    """Per-pixel standard error from the run's checkpoint (the pass sums), zeros when it has none."""
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.loop.simulate import CHECKPOINT
+
+    path = run.folder / CHECKPOINT
+    if path.is_file():
+        acc, _ = Accumulator.load(path)
+        if acc.sum_image.shape == shape:
+            return acc.std_error_image
+    return np.zeros(shape)
+
+
+def _extent(run: Run, shape) -> tuple[float, float, float, float]:
+    det = run.summary.get("detector")
+    if det:
+        return (-det["width_mm"] / 2, det["width_mm"] / 2, -det["height_mm"] / 2, det["height_mm"] / 2)
+    ny, nx = shape
+    return (-nx / 2, nx / 2, -ny / 2, ny / 2)
+
+
 def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> dict[str, Path]:
-    """difference.exr (Y = new − old, channels old and new), difference.png, compare.json."""
-    from lensmount.results import read_exr, write_exr, write_summary
+    """difference.exr (Y = new − old, channels old and new), old.png and new.png on one colour scale,
+    difference.png (signed scale), compare.json and report.html."""
+    from lensmount.report import comparison_report, write_report
+    from lensmount.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
 
     a = read_exr(old.folder / "irradiance.exr")["Y"].astype(np.float64)
     b = read_exr(new.folder / "irradiance.exr")["Y"].astype(np.float64)
-    if a.shape != b.shape:
-        raise InputError(f"the detectors differ: {a.shape[1]}×{a.shape[0]} vs {b.shape[1]}×{b.shape[0]} pixels",
-                         file=str(new.folder), field="detector", valid="two runs with the same detector")
-    paths = {"exr": out / "difference.exr", "png": out / "difference.png", "json": out / "compare.json"}
+    if a.shape != b.shape or (old.summary.get("detector") or new.summary.get("detector")) and \
+            old.summary.get("detector") != new.summary.get("detector"):
+        raise InputError(f"the detectors differ: {a.shape[1]}×{a.shape[0]} pixels "
+                         f"{old.summary.get('detector') or ''} vs {b.shape[1]}×{b.shape[0]} pixels "
+                         f"{new.summary.get('detector') or ''}", file=str(new.folder), field="detector",
+                         valid="two runs with the same detector (size and pixels)")
+    paths = {"exr": out / "difference.exr", "png": out / "difference.png", "old_png": out / "old.png",
+             "new_png": out / "new.png", "json": out / "compare.json", "html": out / "report.html"}
+    scale = shared_scale([(a, _std_error_image(old, a.shape)), (b, _std_error_image(new, b.shape))])
+    extent = _extent(new, b.shape)
     write_exr(paths["exr"], b - a, np.stack([a, b]), ["old", "new"], only_contributing=False)
-    write_difference_preview(paths["png"], a, b, f"{result.metric}: {result.verdict.verdict}")
+    write_preview(paths["old_png"], a, extent, title=f"old: {old.folder.name}", scale=scale)
+    write_preview(paths["new_png"], b, extent, title=f"new: {new.folder.name}", scale=scale)
+    write_difference(paths["png"], b, a, extent, scale, title=f"{result.metric}: {result.verdict.verdict}")
     write_summary(paths["json"], result.to_dict())
+    v = result.verdict
+    kind = {"regression": "regression", "undecided": "undecided"}.get(v.verdict, "ok")
+    headers = ["", "old", "new", "change", "interval of the change", "verdict"]
+    rows = [["total", *verdict_row(v)]] + [[k, *verdict_row(pv)] for k, pv in result.per_part.items()
+                                           if pv.old or pv.new]
+    write_report(paths["html"], comparison_report(
+        old.summary, new.summary, verdict_sentence(v), rows, headers,
+        {"old": paths["old_png"], "new": paths["new_png"], "new − old": paths["png"]}, v.note, kind))
     return paths
 
 
-def write_difference_preview(path: Path, old: np.ndarray, new: np.ndarray, title: str) -> None:
-    """Old and new on one log colour scale, and new − old on a signed scale symmetric about 0."""
-    import matplotlib
+def verdict_row(v: Verdict) -> list[str]:
+    """old, new, change (relative), interval, verdict — as `compare` prints them."""
+    rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
+    interval = f"[{v.low:+.3g}, {v.high:+.3g}]" if math.isfinite(v.low) else "unknown"
+    return [f"{v.old:.4g}", f"{v.new:.4g}", f"{v.change:+.3g}{rel}", interval, v.verdict]
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import LogNorm, SymLogNorm
 
-    from lensmount.atomic import atomic_path
-
-    positive = np.concatenate([old[old > 0], new[new > 0]])
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), dpi=90)
-    if positive.size:
-        hi = float(positive.max())
-        norm = LogNorm(vmin=max(float(np.percentile(positive, 1)), hi * 1e-6), vmax=hi)
-    else:
-        norm = None
-    for ax, img, name in ((axes[0], old, "old"), (axes[1], new, "new")):
-        shown = np.where(img > 0, img, np.nan) if norm is not None else img
-        im = ax.imshow(shown, origin="lower", cmap="inferno", norm=norm, interpolation="nearest")
-        ax.set_title(f"{name} (E/E_sun, shared scale)", fontsize=9)
-        fig.colorbar(im, ax=ax, fraction=0.046)
-    diff = new - old
-    span = float(np.abs(diff).max()) or 1.0
-    linthresh = max(span * 1e-3, float(np.percentile(np.abs(diff[diff != 0]), 10)) if np.any(diff) else span)
-    im = axes[2].imshow(diff, origin="lower", cmap="RdBu_r", interpolation="nearest",
-                        norm=SymLogNorm(linthresh=linthresh, vmin=-span, vmax=span))
-    axes[2].set_title("new − old (red: more stray light)", fontsize=9)
-    fig.colorbar(im, ax=axes[2], fraction=0.046)
-    for ax in axes:
-        ax.set_xlabel("pixel x")
-        ax.set_ylabel("pixel y")
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(str(tmp), format="png")
-    finally:
-        plt.close(fig)
+def verdict_sentence(v: Verdict) -> str:
+    rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
+    return f"{v.verdict}: change {v.change:+.3g}{rel}, interval [{v.low:+.3g}, {v.high:+.3g}] at " \
+           f"{100 * v.confidence:g} % confidence, tolerance {v.threshold:.3g}"
 
 
 __all__ = ["CompareOptions", "CompareResult", "Run", "compare", "current_run", "stored_run", "check_comparable",
-           "METRICS"]
+           "verdict_row", "verdict_sentence", "METRICS"]

@@ -82,20 +82,20 @@ class Provenance:
         return asdict(self)
 
 
-def collect(design, scene_path: str | Path, argv: list[str] | None = None) -> Provenance:
-    """The provenance of a run of `scene_path` on a loaded `lensmount.design.folder.Design`."""
-    root = Path(design.root).resolve()
+def collect(root: str | Path, lens_path: Path, mount_path: Path, scene_path: str | Path,
+            template_paths: list[Path] = (), argv: list[str] | None = None) -> Provenance:
+    """The provenance of a run of `scene_path` on the design folder `root` (its lens, mount and
+    user template files, as `lensmount.design.folder.Design` names them)."""
+    root = Path(root).resolve()
     scene_path = Path(scene_path).resolve()
-    inputs = [design.lens_path, design.mount_path, scene_path, *design.template_paths.values()]
-    git = git_state(root, inputs)
+    git = git_state(root, [lens_path, mount_path, scene_path, *template_paths])
     argv = sys.argv if argv is None else argv
     return Provenance(
         design_path=str(root), design_name=root.name, scene_path=str(scene_path), scene_name=scene_path.stem,
-        lens_file=Path(design.lens_path).name, lens_sha256=file_sha256(design.lens_path),
-        mount_sha256=file_sha256(design.mount_path), scene_sha256=file_sha256(scene_path),
-        git_commit=git.commit if git else None, git_dirty=git.dirty if git else None,
-        git_commit_time=git.commit_time if git else None, lensmount_version=lensmount.__version__,
-        command_line=shlex.join(argv))
+        lens_file=Path(lens_path).name, lens_sha256=file_sha256(lens_path), mount_sha256=file_sha256(mount_path),
+        scene_sha256=file_sha256(scene_path), git_commit=git.commit if git else None,
+        git_dirty=git.dirty if git else None, git_commit_time=git.commit_time if git else None,
+        lensmount_version=lensmount.__version__, command_line=shlex.join(argv))
 
 
 __all__ = ["Provenance", "GitState", "collect", "git_state", "commit_order", "file_sha256"]

@@ -10,7 +10,6 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import signal
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ class SimulateOptions:
     geometry : regenerate's output folder to reuse (default DESIGN/build, as `lensmount regenerate`)
     store : results store (default: lensmount.store.default_path); record : add the run to it
     argv : the command line recorded in the provenance (default sys.argv)
+    scheduler, cluster : where passes run (lensmount.executor.executor_for); default `workers` local processes
     """
 
     design: Path
@@ -52,6 +52,8 @@ class SimulateOptions:
     store: Path | None = None
     record: bool = True
     argv: list[str] | None = None
+    scheduler: str | None = None
+    cluster: str | None = None
 
 
 @dataclass(frozen=True)
@@ -193,7 +195,8 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
             raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
         acc, meta = Accumulator.load(checkpoint)
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
-    provenance = collect(design, scene_path, o.argv)
+    provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
+                         list(design.template_paths.values()), o.argv)
 
     geometry = Path(o.geometry) if o.geometry is not None else design.root / "build"
     obs.stage(f"mount geometry: {geometry} (rebuilt only if the design changed)")
@@ -207,6 +210,7 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.summary import build_summary
     from lensmount.cad.mesh import TaggedMesh
+    from lensmount.executor import executor_for
     from lensmount.integrators.bidirectional import part_names
     from lensmount.loop.progress import status_of
     from lensmount.results import write_run
@@ -241,20 +245,19 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
         obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history))
 
     obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, {n_workers} worker(s)")
-    runner = Runner(sc, job, acc, workers=n_workers, checkpoint=out / CHECKPOINT,
+    executor = executor_for(workers=n_workers, scheduler=o.scheduler, cluster=o.cluster)
+    runner = Runner(sc, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
-    previous = signal.getsignal(signal.SIGINT)
-    try:
-        runner.run(stopping)
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    runner.run(stopping)  # Ctrl-C / SIGTERM: the runner keeps the merged passes and the checkpoint
 
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
                             aperture_flux_mm2=aperture, input_hash=digest,
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": n_workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
-                                   "geometry": str(built.folder.resolve())})
+                                   "geometry": str(built.folder.resolve()),
+                                   "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
+                                                "nx": sc.detector.nx, "ny": sc.detector.ny}})
     det = sc.detector
     paths = write_run(out, acc, summary, extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
                       field_radius_mm=_field_radius(design.prescription))
