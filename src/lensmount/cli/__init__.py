@@ -35,7 +35,7 @@ def fail(error: InputError) -> None:
 
 
 # Modules that define commands; each does `@app.command()` at import.
-COMMAND_MODULES = ("inspect", "regenerate", "simulate", "compare", "history", "pst", "converge")
+COMMAND_MODULES = ("inspect", "regenerate", "simulate", "compare", "history", "pst", "converge", "sweep")
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"lensmount.cli.{_name}")

@@ -120,9 +120,10 @@ def simulate(
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/runs.sqlite, "
                                                                "or $LENSMOUNT_STORE)."),
     no_record: bool = typer.Option(False, "--no-record", help="Do not add this run to the results store."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address to run passes on "
-                                                                      "(or $LENSMOUNT_SCHEDULER)."),
-    cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a local Dask cluster: local:N."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", envvar="LENSMOUNT_SCHEDULER",
+                                            help="Run the passes on this Dask scheduler (tcp://HOST:8786); "
+                                                 "see docs/scale.md."),
+    cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a Dask LocalCluster: local:N processes."),
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
@@ -145,8 +146,9 @@ def simulate(
     if result.run_id is not None:
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
     if result.interrupted:
-        typer.echo("interrupted: results and checkpoint written; continue with --resume", err=True)
-        raise typer.Exit(code=130)
+        how = "SIGTERM" if result.terminated else "interrupted"
+        typer.echo(f"{how}: results and checkpoint written; continue with --resume", err=True)
+        raise typer.Exit(code=143 if result.terminated else 130)
 
 
 def print_summary(summary: dict, paths: dict) -> None:

@@ -31,7 +31,7 @@ class SimulateOptions:
     geometry : regenerate's output folder to reuse (default DESIGN/build, as `lensmount regenerate`)
     store : results store (default: lensmount.store.default_path); record : add the run to it
     argv : the command line recorded in the provenance (default sys.argv)
-    scheduler, cluster : where passes run (lensmount.executor.executor_for); default `workers` local processes
+    scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.executor
     """
 
     design: Path
@@ -97,6 +97,7 @@ class SimulateResult:
     summary: dict
     paths: dict[str, Path]
     interrupted: bool
+    terminated: bool = False  # stopped by SIGTERM (a batch scheduler) rather than Ctrl-C
     run_id: int | None = None
     store_path: Path | None = None
     warnings: list[str] = field(default_factory=list)
@@ -237,23 +238,22 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
     effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
     aperture = aperture_flux_normalised(2.0 * math.sqrt(sc.entrance_pupil_area_mm2 / math.pi),
                                         math.radians(sc.source.off_axis_deg))
-    n_workers = o.workers or default_workers()
+    executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster)
     shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
     history: list[tuple[float, float]] = []
 
     def progress(a, elapsed):
         obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history))
 
-    obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, {n_workers} worker(s)")
-    executor = executor_for(workers=n_workers, scheduler=o.scheduler, cluster=o.cluster)
+    obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, on {executor.description}")
     runner = Runner(sc, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
-    runner.run(stopping)  # Ctrl-C / SIGTERM: the runner keeps the merged passes and the checkpoint
+    runner.run(stopping)
 
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
                             aperture_flux_mm2=aperture, input_hash=digest,
-                            extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": n_workers,
+                            extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
@@ -261,7 +261,7 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
     det = sc.detector
     paths = write_run(out, acc, summary, extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
                       field_radius_mm=_field_radius(design.prescription))
-    result = SimulateResult(out, summary, paths, runner.interrupted, warnings=warnings)
+    result = SimulateResult(out, summary, paths, runner.interrupted, runner.terminated, warnings=warnings)
     if o.record and not runner.interrupted:
         from lensmount.store import Store, default_path
 

@@ -1,0 +1,80 @@
+"""Sweep: parameters, the variant grid, ranking with ties, and a real sweep of the reference design (slow)."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import pytest
+
+from lensmount.errors import InputError
+from lensmount.loop.sweep import Param, Variant, rank, variants_of
+
+ROOT = Path(__file__).resolve().parents[2]
+DESIGN = ROOT / "src" / "lensmount" / "examples" / "double-gauss-360"
+
+
+def test_param_parses_file_table_key_and_toml_values():
+    p = Param.parse("mount.vanes.count=3,5,7")
+    assert (p.file, p.keys, p.values) == ("mount", ("vanes", "count"), (3, 5, 7))
+    q = Param.parse('scene.source.off_axis_deg=7.5, 9')
+    assert q.values == (7.5, 9) and q.name == "scene.source.off_axis_deg"
+    assert Param.parse("mount.vanes.finish=black-anodised").values == ("black-anodised",)
+
+
+@pytest.mark.parametrize("bad", ["vanes.count=3", "mount.vanes.count", "mount..count=1", "mount.vanes.count=",
+                                 "hood=3"])
+def test_bad_param_names_the_option(bad):
+    with pytest.raises(InputError) as e:
+        Param.parse(bad)
+    assert e.value.field == "--param"
+
+
+def test_grid_is_every_combination_in_order():
+    grid = variants_of((Param.parse("mount.vanes.count=3,5"), Param.parse("mount.hood.length_mm=80,120,160")))
+    assert len(grid) == 6
+    assert grid[0] == {"mount.vanes.count": 3, "mount.hood.length_mm": 80}
+    assert grid[-1] == {"mount.vanes.count": 5, "mount.hood.length_mm": 160}
+
+
+def test_variants_within_the_noise_tie_and_separated_ones_do_not():
+    vs = [Variant(0, {}, 1.00, 0.01), Variant(1, {}, 1.01, 0.01), Variant(2, {}, 2.0, 0.01),
+          Variant(3, {}, 2.02, 0.01), Variant(4, {}, 2.03, 0.01), Variant(5, {}, None, None)]
+    rank(vs, 0.95)
+    # |Δ| against z·σ√2 = 0.0277: 0.01 and 0.02 tie with the group's best, 0.03 does not; unknown ranks last.
+    assert [v.rank for v in vs] == [1, 1, 2, 2, 3, 4]
+    assert vs[0].tied_with == [1] and vs[2].tied_with == [3] and vs[4].tied_with == []
+
+
+def test_a_bias_bound_widens_what_counts_as_a_tie():
+    a, b = Variant(0, {}, 1.0, 0.001), Variant(1, {}, 1.1, 0.001)
+    rank([a, b], 0.95)
+    assert (a.rank, b.rank) == (1, 2)
+    a.bias_bound = b.bias_bound = 0.06
+    rank([a, b], 0.95)
+    assert a.rank == b.rank == 1
+
+
+@pytest.mark.slow
+def test_sweep_of_six_reference_variants_ranks_them(tmp_path):
+    from lensmount.loop import SimulateOptions
+    from lensmount.loop.sweep import SweepOptions, sweep
+
+    design = tmp_path / "design"
+    shutil.copytree(DESIGN, design)
+    scene = design / "scenes" / "case2-lambertian.toml"
+    text = scene.read_text().replace("pixels = [600, 600]", "pixels = [60, 60]")
+    scene.write_text(text)
+    params = (Param.parse("mount.vanes.count=0,3,5"), Param.parse("mount.hood.length_mm=60,100"))
+    base = SimulateOptions(design, scene, passes=4, photons_per_pass=20_000, workers=2, record=False)
+    result = sweep(SweepOptions(design, scene, params, tmp_path / "sweep", base))
+    assert len(result.variants) == 6 and result.plot.exists()
+    rows = list(csv.DictReader(result.table.open()))
+    assert len(rows) == 6 and all(float(r["stray_fraction"]) > 0 and float(r["std_error"]) > 0 for r in rows)
+    ranks = sorted(int(r["rank"]) for r in rows)
+    assert ranks[0] == 1 and ranks == sorted(ranks)
+    # Every variant was really built with its own vane count.
+    for v in result.variants:
+        mount = (tmp_path / "sweep" / "variants" / f"{v.index:02d}" / "design" / "mount.toml").read_text()
+        assert f"count = {v.values['mount.vanes.count']}" in mount
