@@ -69,3 +69,25 @@ def test_the_browser_check_sees_a_broken_image_and_a_network_fetch(tmp_path, ope
     page, requested = open_offline(page_file)
     assert images_loaded(page) == [0, 0]
     assert "https://cdn.example.com/x.png" in requested
+
+
+def test_compare_writes_a_report_with_the_verdict_and_shared_scale_images(tmp_path, open_offline):
+    """loop.compare on two results folders: report.html carries its verdict; old/new previews
+    share one colour scale and binning (results.shared_scale)."""
+    from lensmount.loop import CompareOptions, compare
+    from lensmount.loop.compare import verdict_sentence
+    from lensmount.results import write_run as write_results
+
+    old, new = _run(1e-3, 1), _run(3e-3, 2)
+    for name, acc in (("old", old), ("new", new)):
+        s = {**SUMMARY, "stray_fraction": acc.flux * 1e-3, "stray_fraction_std_error": acc.flux_std_error * 1e-3,
+             "stray_flux_mm2": acc.flux, "stray_flux_std_error_mm2": acc.flux_std_error}
+        write_results(tmp_path / name, acc, s, extent_mm=(-8, 8, -6, 6))
+    result = compare(CompareOptions(tmp_path / "old", tmp_path / "new", out=tmp_path / "cmp"))
+    assert result.verdict.verdict == "regression"
+    page, requested = open_offline(result.paths["html"])
+    assert page.inner_text("#verdict") == verdict_sentence(result.verdict)
+    assert page.inner_text("#verdict").startswith("regression")
+    widths = images_loaded(page)
+    assert len(widths) == 3 and all(w > 0 for w in widths), widths
+    assert [u for u in requested if not u.startswith(("file:", "data:"))] == []
