@@ -9,7 +9,10 @@ reaches into the other) is the number the error reports. Checks:
 * no mechanical face enters the beam footprint (real rays, full field), the
   diaphragm's knife edge excepted (it *is* the stop);
 * lens edge to bore clearance at least `checks.min_radial_clearance_mm`;
-* plates and walls at least `checks.min_thickness_mm` (knife-edge lands excepted).
+* plates and walls at least `checks.min_thickness_mm` (knife-edge lands excepted);
+* glass and metal either touch at a designed contact, the metal leaving the glass
+  at the contact wedge (`seats.wedge_deg`), or stay `seats.clearance_mm` apart: no
+  sub-micrometre sliver a ray leaving the glass could slip through.
 
 A violation raises GeometryError naming both parts and the overlap in mm.
 """
@@ -164,6 +167,85 @@ def check_thickness(layout: Layout, spec: MountSpec) -> None:
                                 field=f"{plan.kind}", valid=f"a {what} >= {min_t} mm (checks.min_thickness_mm)")
 
 
+GLASS_STEP_MM = 0.005  # spacing of the glass boundary samples for the gap measurement
+
+
+def _glass_points(segments) -> np.ndarray:
+    """(m, 2) points on a lens's profile, about GLASS_STEP_MM apart (exactly on arcs and lines)."""
+    out = []
+    for s in segments:
+        ends = np.asarray(s.points, dtype=np.float64)
+        length = float(np.hypot(*(ends[-1] - ends[0])))
+        if s.kind == "arc":
+            length *= 1.6  # an arc is longer than its chord; over-sampling is harmless
+        n = int(min(200_000, max(2, np.ceil(length / GLASS_STEP_MM))))
+        if s.kind == "line":
+            t = np.linspace(0.0, 1.0, n)[:, None]
+            out.append(ends[0] + t * (ends[-1] - ends[0]))
+        else:
+            out.append(s.polyline(n))
+    return np.concatenate(out)
+
+
+def glass_gaps(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> list[tuple]:
+    """Glass-to-metal gaps narrower than `seats.clearance_mm`, in the (r, z) profiles.
+
+    Returns (lens, part, r, z, gap mm, distance mm from the nearest designed contact of
+    that lens and part, or inf) for every sampled glass point whose distance to the part's
+    profile is below the clearance. A designed contact shows as gaps that grow from 0 with
+    the distance from it; anything else is a sliver.
+    """
+    c = spec.seats.clearance_mm
+    lenses = [p for p in layout.parts if p.kind == "lens" and p.name in segments]
+    metal = {p.name: outline(segments[p.name]) for p in layout.parts
+             if p.kind != "lens" and p.name in segments}
+    found = []
+    for lens in lenses:
+        pts = _glass_points(segments[lens.name])
+        t = lens.template
+        for name, poly in metal.items():
+            lo, hi = poly.min(0) - c, poly.max(0) + c
+            near = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+            if not len(near):
+                continue
+            gap = np.full(len(near), np.inf)
+            for k in range(0, len(near), 4096):
+                gap[k:k + 4096] = _distance_to_boundary(near[k:k + 4096], poly)
+            thin = gap < c
+            if not thin.any():
+                continue
+            touch = np.array([(ct.height, float((t.front_z if ct.surface == t.front.index else t.back_z)(ct.height)))
+                              for ct in layout.contacts if ct.part == name and ct.lens == lens.name]).reshape(-1, 2)
+            q = near[thin]
+            dist = (np.sqrt(((q[:, None, :] - touch[None]) ** 2).sum(-1)).min(axis=1)
+                    if len(touch) else np.full(len(q), np.inf))
+            found += [(lens.name, name, float(r), float(z), float(g), float(s))
+                      for (r, z), g, s in zip(q, gap[thin], dist)]
+    return found
+
+
+def slivers(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> list[tuple]:
+    """The gaps of `glass_gaps` that are neither the clearance (up to the 10 % a slanted
+    face's perpendicular distance takes off) nor a contact wedge (at least half the designed
+    wedge opening at their distance from the contact; the contact point itself, gap 0, is
+    fine). Tangent contacts open quadratically by design and are not judged."""
+    if spec.seats.contact == "tangent":
+        return []
+    wedge, c = np.tan(np.radians(spec.seats.wedge_deg)), spec.seats.clearance_mm
+    return [g for g in glass_gaps(layout, spec, segments) if g[4] < min(0.9 * c, 0.5 * wedge * g[5] - 1e-9)]
+
+
+def check_glass_clearance(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:
+    bad = slivers(layout, spec, segments)
+    if bad:
+        lens, part, r, z, gap, _ = min(bad, key=lambda g: g[4])
+        raise GeometryError(
+            f"{part} runs {gap * 1e3:.2f} µm from the glass of {lens} at r = {r:.3f} mm, z = {z:.3f} mm "
+            "without holding it: a sliver a ray leaving the glass can slip through",
+            field="seats.clearance_mm", valid="parameters that let the part touch the glass at its contact "
+            f"or stay at least {spec.seats.clearance_mm} mm away")
+
+
 def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:
     """All checks, on the built-in profiles (`segments` per part name)."""
     outlines = {name: outline(segs) for name, segs in segments.items()}
@@ -171,7 +253,8 @@ def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> 
     check_clearance(layout, spec)
     check_thickness(layout, spec)
     check_interference(outlines)
+    check_glass_clearance(layout, spec, segments)
     check_beam(layout, outlines)
 
 
-__all__ = ["check_layout", "check_thickness", "penetration", "outline", "OVERLAP_TOL_MM"]
+__all__ = ["check_layout", "check_thickness", "penetration", "outline", "glass_gaps", "slivers", "OVERLAP_TOL_MM"]

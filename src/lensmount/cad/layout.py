@@ -106,28 +106,31 @@ class Envelope:
         return float(max(ends.max(), inside.max() if len(inside) else 0.0))
 
 
-def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool) -> float:
+def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool, wedge: float) -> float:
     """Cone slope m of an end face touching the glass at radius h.
 
     boundary(r) is the glass's z at r (the face toward the part); side = +1 when the
     part lies behind the glass (larger z), -1 in front. The face z_c + side·m·(r − h)
     must stay off the glass for h < r <= r_max: m >= side·(z(r) − z(h)) / (r − h).
-    Sharp-corner contact: the flattest safe face, never steeper into the part than
-    flat (m >= 0). Tangent contact: the surface's own slope at h, m = side·z'(h), which
-    is safe on a surface convex toward the part (m may then be negative); on a
-    concave one the safe slope wins and the contact stays a sharp corner.
+    Sharp-corner contact: the face leaves the glass at least at the angle atan(wedge),
+    m >= that bound + wedge, so the gap grows by at least wedge·(r − h) and never runs
+    alongside the glass at sub-micrometre distance (on a surface concave toward the
+    part the bare bound would hug it); never steeper into the part than flat (m >= 0).
+    Tangent contact: the surface's own slope at h, m = side·z'(h), safe on a surface
+    convex toward the part (m may then be negative; the gap grows quadratically, as
+    a tangent contact does); on a concave one the sharp rule wins.
     """
     zh = float(boundary(h))
     need = -np.inf
     if r_max > h + 1e-9:
         rs = np.linspace(h, r_max, _SLOPE_SAMPLES)[1:]
         need = float((side * (boundary(rs) - zh) / (rs - h)).max())
+    sharp = max(0.0, need + wedge)
     if tangent:
         dh = 1e-4
-        m = max(need, side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh))
-    else:
-        m = max(0.0, need)
-    return m + _EPS_SLOPE
+        along = side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh)
+        return (along if along >= need else sharp) + _EPS_SLOPE
+    return sharp + _EPS_SLOPE
 
 
 def _opening(env: "Envelope", h: float, z_far: float, z_contact: float, spec: MountSpec) -> float:
@@ -184,11 +187,12 @@ def _diaphragm(spec, p, stop, ia, ib, A, B, od, z_stop) -> Diaphragm:
     args = (od, ds.thickness_mm, land, ds.bevel_angle_deg, ds.bevel_side)
     if ia < stop < ib:
         return Diaphragm(z_stop, pupil_edge_radius(p, z_stop - 0.5 * land, z_stop + 0.5 * land), *args)
-    gap = 0.01  # mm of air between glass and plate at the land
+    gap = spec.seats.clearance_mm  # air between glass and plate at the land
+    wedge = np.tan(np.radians(spec.seats.wedge_deg))
     side, glass, R = (+1, A.back_z, A.outer_radius) if stop == ia else (-1, B.front_z, B.outer_radius)
     r0 = float(p.surfaces[stop].clear_semi_diameter)
     for _ in range(4):  # the land's z depends on its radius through the glass's sag: settle both
-        m = side * (contact_slope(glass, r0, min(od, R), side, False) + _EPS_SLOPE)
+        m = side * contact_slope(glass, r0, min(od, R), side, False, wedge)
         probe = Diaphragm(0.0, r0, *args, slope=m)
         off0, off1 = probe.z_range()  # face offsets from the land centre
         zc = float(glass(r0)) + side * gap - (off0 if side > 0 else off1)
@@ -209,6 +213,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     edge = spec.lens_edge
     chamfer = edge.chamfer_mm if edge.style == "chamfered" else 0.0
     cm, tangent = edge.contact_margin_mm, spec.seats.contact == "tangent"
+    wedge, c_glass = np.tan(np.radians(spec.seats.wedge_deg)), spec.seats.clearance_mm
     c_bore, c_sp = spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
     min_t = spec.checks.min_thickness_mm
     parts: list[PartPlan] = []
@@ -287,7 +292,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     h0 = clear[i0] + cm
     if spec.seats.front == "retainer":
         r_out = bores[0] - c_sp
-        m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent)
+        m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent, wedge)
         ret = Retainer(h0, float(el0.front_z(h0)), m, -1, r_out, spec.retainer.thickness_mm)
         ret.far_r = _opening(env, h0, ret.far_face_z(), ret.contact_z, spec)
         _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
@@ -297,7 +302,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         z_front = ret.far_face_z()
         bore_pts.append((bores[0], z_front))
     else:
-        m = contact_slope(el0.front_z, h0, radii[0], -1, tangent)
+        m = contact_slope(el0.front_z, h0, radii[0], -1, tangent, wedge)
         cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
         z_front = cz(bores[0]) - spec.barrel.lip_mm
         bore_pts += [(_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
@@ -315,8 +320,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         element_no = int(B.name.split("-")[1])
         seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
         if seat == "shoulder":
-            mA = contact_slope(A.template.back_z, hA, RA, +1, tangent)
-            mB = contact_slope(B.template.front_z, hB, RB, -1, tangent)
+            mA = contact_slope(A.template.back_z, hA, RA, +1, tangent, wedge)
+            mB = contact_slope(B.template.front_z, hB, RB, -1, tangent, wedge)
             cA = lambda r, z0=float(A.template.back_z(hA)), m=mA, h=hA: z0 + m * (r - h)  # noqa: E731
             cB = lambda r, z0=float(B.template.front_z(hB)), m=mB, h=hB: z0 - m * (r - h)  # noqa: E731
             rr = np.linspace(max(hA, hB), min(bores[gi], bores[gi + 1]), 50)
@@ -330,8 +335,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact("barrel", B.name, ib, hB, clear[ib])]
             continue
         od = min(bores[gi], bores[gi + 1]) - c_sp
-        mA = contact_slope(A.template.back_z, hA, min(RA, od), +1, tangent)
-        mB = contact_slope(B.template.front_z, hB, min(RB, od), -1, tangent)
+        mA = contact_slope(A.template.back_z, hA, min(RA, od), +1, tangent, wedge)
+        mB = contact_slope(B.template.front_z, hB, min(RB, od), -1, tangent, wedge)
         ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
         if stop_here:
             ds = spec.diaphragm
@@ -376,8 +381,10 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                 contacts.append(Contact(name, pb, ib, br, clear[ib]))
         # barrel steps where the glass outside the spacer ends
         r_in = od + c_sp
-        za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max())
-        zb = float(B.template.front_z(_radii(min(r_in, RB), RB, B.template.front_chamfer)).min())
+        # (clear of the glass by c_glass: the step does not hold the lens, and a step face
+        # through the glass's corner would leave a sub-micrometre sliver beside it)
+        za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max()) + c_glass
+        zb = float(B.template.front_z(_radii(min(r_in, RB), RB, B.template.front_chamfer)).min()) - c_glass
         if zb < za:
             raise GeometryError(f"the barrel cannot step between {A.name} and {B.name}: their edges overlap "
                                 f"axially by {za - zb:.3f} mm", field="lens_edge.allowance_mm",
@@ -395,14 +402,14 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     iL = groups[gl][-1]
     hL = clear[iL] + cm
     if spec.seats.rear == "shoulder":
-        m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent)
+        m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent, wedge)
         cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
         z_back = cz(bores[gl]) + spec.barrel.lip_mm
         bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (_opening(env, hL, z_back, cz(hL), spec), z_back)]
         contacts.append(Contact("barrel", elL.name, iL, hL, clear[iL]))
     else:
         r_out = bores[gl] - c_sp
-        m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent)
+        m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent, wedge)
         ret = Retainer(hL, float(elL.template.back_z(hL)), m, +1, r_out, spec.retainer.thickness_mm)
         ret.far_r = _opening(env, hL, ret.far_face_z(), ret.contact_z, spec)
         _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)

@@ -57,6 +57,10 @@ class Seats(_Strict):
     default: Literal["spacer", "shoulder"] = "spacer"
     element: dict[int, Literal["spacer", "shoulder"]] = Field(
         default_factory=dict, description="1-based element number → seat on its object side")
+    wedge_deg: float = Field(1.0, gt=0, lt=45, description="smallest angle at which a sharp-contact "
+                             "end face leaves the glass it touches (no sub-micrometre sliver beside a contact)")
+    clearance_mm: float = Field(0.01, gt=0, description="glass to metal where the metal does not hold "
+                                "the glass (barrel steps beside a lens edge, a diaphragm next to its stop face)")
 
 
 class Spacers(_Strict):
