@@ -74,3 +74,11 @@ def test_bad_input_is_one_paragraph_and_exit_2(tmp_path, args, needle):
     assert result.exit_code == 2, result.output
     assert needle in result.output and "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_a_run_where_nothing_reached_the_detector_has_no_error_bar():
+    """Forward photons may all miss a 50 µm edge: a zero with zero spread is not a 0 % error."""
+    statuses = [PassStatus(n, 1000 * n, float(n), 0.0, 0.0, 0.0, None, None, None, None) for n in range(1, 9)]
+    curve = _curve("forward", statuses, level_times(8, 3), {}, reference=1e-8)
+    assert all(lv.rel_std_error is None for lv in curve.levels)
+    assert curve.slope is None and curve.next_halving_s is None

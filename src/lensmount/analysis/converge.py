@@ -166,7 +166,8 @@ def _curve(method, statuses, times, summary, reference) -> MethodCurve:
     for s in statuses:
         last = s is statuses[-1]
         while k < len(times) and (s.elapsed_s >= times[k] or (last and k == len(times) - 1)):
-            rel = s.rel_error if math.isfinite(s.rel_error) else None
+            # All passes zero (nothing reached the detector yet) is no error bar of 0: unknown.
+            rel = s.rel_error if math.isfinite(s.rel_error) and s.value != 0 else None
             bias = summary.get("stray_fraction_bias_bound") if last else None
             vs_ref = abs(s.value - reference) / reference if reference else None
             levels.append(Level(method, k, s.elapsed_s, s.passes, s.photons, s.value, s.std_error, rel, bias, vs_ref))
@@ -213,6 +214,9 @@ def plot_converge(path: Path, curves: list[MethodCurve], reference: float | None
     for c, color in zip(curves, ("tab:blue", "tab:orange", "tab:green")):
         pts = [(lv.time_s, lv.rel_std_error) for lv in c.levels if lv.rel_std_error]
         if not pts:
+            if c.levels and c.levels[-1].value == 0:
+                ax.plot([], [], " ", label=f"{c.method}: nothing reached the detector "
+                                           f"({c.levels[-1].photons:,} photons, {c.levels[-1].time_s:.0f} s)")
             continue
         t, e = np.array(pts).T
         slope = f", slope {c.slope:+.2f}" if c.slope is not None else ""

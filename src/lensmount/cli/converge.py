@@ -55,6 +55,7 @@ def converge(
         typer.echo(f"{c.method}:")
         for lv in c.levels:
             rel = "—" if lv.rel_std_error is None else f"{100 * lv.rel_std_error:.2f} %"
+            rel += " (nothing reached the detector yet)" if lv.value == 0 else ""
             extra = "" if lv.rel_error_vs_reference is None else f" · vs reference {100 * lv.rel_error_vs_reference:.2f} %"
             extra += "" if lv.bias_bound is None else f" · bias bound {lv.bias_bound:.2g}"
             typer.echo(f"  {lv.time_s:8.1f} s  {lv.passes:5d} passes  {lv.photons:>13,} photons  "
