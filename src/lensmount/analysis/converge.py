@@ -11,7 +11,8 @@ one; it is known at the last level only (the summary is written once per run).
 A Monte Carlo error falls as t^-1/2; the fitted slope of log(error) against log(t) says
 whether a method does (a bidirectional run whose radius bias still dominates falls slower).
 The next halving of the error takes t·(2^(1/|slope|) − 1) more seconds at the fitted rate
-(3·t at the ideal −½).
+(3·t at the ideal −½). Only levels with at least MIN_PASSES_FOR_SLOPE passes enter the
+fit; the first levels need many short passes (a small --photons-per-pass) to count.
 
 Levels are snapshots of one run each, so they are nested, not independent: the curve
 shows one run's progress, as an engineer would watch it, at the cost of the largest level
@@ -31,6 +32,7 @@ import numpy as np
 from lensmount.errors import InputError
 
 METHODS = ("bidirectional", "forward")
+MIN_PASSES_FOR_SLOPE = 4
 
 
 @dataclass(frozen=True)
@@ -174,7 +176,10 @@ def _curve(method, statuses, times, summary, reference) -> MethodCurve:
             k += 1
     # Several levels can fall on one pass when passes are long: keep the distinct points.
     distinct = [lv for i, lv in enumerate(levels) if i == 0 or lv.passes != levels[i - 1].passes]
-    slope = fit_slope([lv.time_s for lv in distinct], [lv.rel_std_error for lv in distinct])
+    # An error bar from n passes is itself uncertain by ~1/√(2(n−1)) (±71 % at n = 2): fit
+    # the slope only where it means something.
+    fitted = [lv for lv in distinct if lv.passes >= MIN_PASSES_FOR_SLOPE]
+    slope = fit_slope([lv.time_s for lv in fitted], [lv.rel_std_error for lv in fitted])
     halving = halving_time(distinct[-1].time_s, slope) if distinct else None
     return MethodCurve(method, distinct, slope, halving, summary)
 

@@ -60,6 +60,10 @@ def converge(
             extra += "" if lv.bias_bound is None else f" · bias bound {lv.bias_bound:.2g}"
             typer.echo(f"  {lv.time_s:8.1f} s  {lv.passes:5d} passes  {lv.photons:>13,} photons  "
                        f"{lv.value:.4g}  rel. std. error {rel}{extra}")
+        few = [lv for lv in c.levels if lv.passes < 8]
+        if few:
+            typer.echo(f"  note: {len(few)} level(s) have fewer than 8 passes; their error bars are themselves "
+                       "uncertain by ±25 % or more (a smaller --photons-per-pass gives more passes)")
         slope = "—" if c.slope is None else f"{c.slope:+.2f}"
         typer.echo(f"  slope {slope} (ideal −0.50); halving the error once more takes ~{_duration(c.next_halving_s)}")
     typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))
