@@ -104,18 +104,23 @@ def part_rows(per_part: dict) -> tuple[list[str], list[list]]:
 def provenance_rows(summary: dict) -> list[list]:
     """Every scalar the summary carries beyond the figures (hashes, commit, version, command),
     flattening one level of nested tables such as {"hashes": {"lens": ...}}."""
+    def shown(v):
+        if v is None:
+            return "—"
+        return f"{v:.6g}" if isinstance(v, float) else v
+
     rows = []
     for key in sorted(summary):
         if key in _SHOWN:
             continue
         value = summary[key]
         if isinstance(value, dict):
-            rows += [[f"{key}.{k}", v] for k, v in sorted(value.items()) if not isinstance(v, (dict, list))]
+            rows += [[f"{key}.{k}", shown(v)] for k, v in sorted(value.items()) if not isinstance(v, (dict, list))]
         elif isinstance(value, list):
             if all(not isinstance(v, (dict, list)) for v in value):
                 rows.append([key, " ".join(str(v) for v in value)])
         else:
-            rows.append([key, "—" if value is None else value])
+            rows.append([key, shown(value)])
     return rows
 
 
