@@ -104,3 +104,44 @@ def test_afocal_system_gives_finite_numbers(make_plate):
     p = paraxial(make_plate())
     for v in (p.efl, p.bfl, p.exit_pupil_z, p.exit_pupil_diameter, p.image_z):
         assert math.isfinite(v)
+
+
+def _mirror_lens(surfaces, epd=20.0):
+    from lensmount.optics.prescription import Aperture, Prescription
+
+    return Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", epd), wavelengths_um=(0.55,))
+
+
+def test_concave_mirror_and_cassegrain_focal_lengths_follow_the_mirror_formulas():
+    from lensmount.optics.prescription import Surface
+
+    # one concave mirror, R = -200: f = |R| / 2 = 100, focus 100 mm in front of it (light returns along -z)
+    single = _mirror_lens([Surface(radius=-200.0, thickness=-100.0, mirror=True, is_stop=True)])
+    par = paraxial(single)
+    assert abs(par.efl) == pytest.approx(100.0, rel=1e-12)
+    assert par.image_z == pytest.approx(-100.0, rel=1e-12)
+    # Cassegrain: primary R1 = -400 (f1 = 200), secondary R2 = -150 (convex to the returning light,
+    # f2 = -75), separation d = 150: f = f1 f2 / (f1 + f2 - d) = 200 * -75 / (200 - 75 - 150) = 600
+    cass = _mirror_lens([Surface(radius=-400.0, thickness=-150.0, mirror=True, is_stop=True),
+                         Surface(radius=-150.0, thickness=200.0, mirror=True)])
+    par = paraxial(cass)
+    assert abs(par.efl) == pytest.approx(600.0, rel=1e-12)
+    # Gaussian imaging at the secondary (real-positive mirror convention): the primary's focus lies
+    # 50 mm beyond it (virtual object, s = -50), f2 = -75: 1/s' = 1/f2 - 1/s = 1/150, a real image
+    # 150 mm back towards +z, i.e. at z = 0 (the primary's vertex), magnification -s'/s = 3 = 600 / 200.
+    assert par.bfl == pytest.approx(150.0, rel=1e-12)
+    assert par.image_z == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_paraboloid_mirror_brings_every_parallel_ray_to_its_focus():
+    from lensmount.optics.prescription import Surface
+    from lensmount.optics.realrays import trace
+
+    lens = _mirror_lens([Surface(radius=-200.0, conic=-1.0, thickness=-100.0, mirror=True, is_stop=True)], epd=80.0)
+    h = np.linspace(-40.0, 40.0, 17)
+    o = np.column_stack([np.zeros_like(h), h, np.full_like(h, -50.0)])
+    d = np.tile([0.0, 0.0, 1.0], (len(h), 1))
+    r = trace(lens, o, d)
+    assert not r.vignetted.any()
+    assert np.max(np.abs(r.image_points[:, 1])) < 1e-9          # all on axis at the paraxial focus
+    assert np.all(r.directions[-1][:, 2] < 0.0)                  # travelling back towards -z

@@ -23,7 +23,7 @@ import numpy as np
 from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR
 
-CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita")
+CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita", "Hikari")
 _FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA")
 _MALITSON_B = (0.6961663, 0.4079426, 0.8974794)
 _MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
@@ -84,22 +84,24 @@ def _fused_silica(wl):
 
 
 def successor(name: str) -> str | None:
-    """The catalogue glass that replaced a legacy (lead/arsenic) name, e.g. BK7 -> N-BK7.
+    """The catalogue glass that replaced a legacy name: BK7 -> N-BK7 (lead-free), E-LAFH3 -> J-LAFH3,
+    and the catalogue glass of a moulding variant: L-TIM28_MOLD -> S-TIM28.
 
     Uses opticalglass's name decoder: the same composition group, number and suffix
-    with a new-generation prefix (N-, P-, S-, ...) in one catalogue, N- ("new", the
-    lead-free successor) preferred. None when there is no such glass or it is ambiguous.
+    with another prefix (N-, P-, S-, J-, ...) in one catalogue, N- ("new", the lead-free
+    successor) preferred. None when there is no such glass or it is ambiguous.
     """
     from opticalglass.glass import decode_glass_name
 
+    name = re.sub(r"_MOLD(ED)?$", "", name.strip().upper())  # Zemax's moulded-variant names
     try:
-        (group_num, prefix, suffix) = decode_glass_name(name.strip())
+        (group_num, prefix, suffix) = decode_glass_name(name)
     except Exception:
         return None
-    if prefix or not group_num[0]:
+    if not group_num[0]:
         return None
     for cat in CATALOGUES:
-        found = [g for g in _catalogue_names(cat) if "-" in g and _decoded(g) == (group_num, suffix)]
+        found = [g for g in _catalogue_names(cat) if "-" in g and g != name and _decoded(g) == (group_num, suffix)]
         new = [g for g in found if g.startswith("N-")]
         for pick in (new, found):
             if len(pick) == 1:

@@ -362,7 +362,7 @@ def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, Impor
         return AIR, None
     args = zs.glass_args
     pickup = f" (picked up from surface {args[1]})" if len(args) > 1 and args[0] == "2" else ""
-    nd_vd = _file_nd_vd(args)
+    nd_vd = _file_nd_vd(args, model=name.upper() == "___BLANK")
     if name.upper() == "___BLANK":
         if nd_vd is None:
             raise InputError("model glass without n_d and V_d", file=file, line=zs.glass_line,
@@ -389,10 +389,14 @@ def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, Impor
                      valid=f"a glass in the {', '.join(CATALOGUES)} catalogues, or n_d and V_d on the GLAS line")
 
 
-def _file_nd_vd(args) -> tuple[float, float] | None:
+def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
+    """n_d, V_d from a GLAS line. For a catalogue name, 1.5/40 is what Zemax writes when it has
+    no data for the glass (its defaults), so it is no information."""
     try:
         nd, vd = float(args[2]), float(args[3])
     except (IndexError, ValueError):
+        return None
+    if not model and (nd, vd) == (1.5, 40.0):
         return None
     return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
 
