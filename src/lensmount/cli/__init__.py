@@ -1,4 +1,4 @@
-"""The `lensmount` command: init · inspect · regenerate · simulate · compare · history.
+"""The `lensmount` command: init · inspect · regenerate · check · simulate · compare · history.
 
 Each command group lives in its own module and registers itself on `app`; each
 parses its options, calls lensmount.loop (or the layer it fronts) and prints. This
@@ -35,7 +35,7 @@ def fail(error: InputError) -> None:
 
 
 # Modules that define commands; each does `@app.command()` at import.
-COMMAND_MODULES = ("inspect", "regenerate", "simulate", "compare", "history", "pst", "converge", "sweep")
+COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "history", "pst", "converge", "sweep")
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"lensmount.cli.{_name}")

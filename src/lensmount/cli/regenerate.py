@@ -33,6 +33,8 @@ def regenerate(
         None, "--linear-tolerance", help="tessellation chord deviation, mm (overrides mount.toml)"),
     angular_tolerance: Optional[float] = typer.Option(
         None, "--angular-tolerance", help="tessellation angular deflection, degrees (overrides mount.toml)"),
+    check: bool = typer.Option(False, "--check", help="then run `lensmount check` on the result "
+                               "(exit 1 when a lit wall is seen)"),
 ) -> None:
     """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json."""
     from rich.console import Console
@@ -63,6 +65,15 @@ def regenerate(
     typer.echo(f"{target}: {len(manifest.parts)} parts, {tri} triangles, {how}; input hash {manifest.input_hash[:12]}")
     for note in manifest.notes:
         typer.echo(f"note: {note}")
+    if check:
+        from lensmount.cli.check import run_check
+
+        try:
+            passed = run_check(design, target, None)
+        except InputError as error:
+            fail(error)
+        if not passed:
+            raise typer.Exit(code=1)
 
 
 @app.command()

@@ -105,6 +105,8 @@ class Hood(_Strict):
     enabled: bool = True
     length_mm: float = Field(100.0, gt=0)
     inner_diameter_mm: float | None = Field(None, gt=0, description="None: beam + margins + 4 mm")
+    exclusion_deg: float | None = Field(None, gt=0, lt=90, description="the smallest off-axis angle at "
+                                        "which the sun may stand (None: the largest field angle + 5°)")
     wall_mm: float = Field(2.0, gt=0)
     finish: str = "black-anodised"
 

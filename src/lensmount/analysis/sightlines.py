@@ -1,0 +1,196 @@
+"""Lit walls the detector sees: the stray-light engineer's geometric check, no Monte Carlo.
+
+A mount wall matters for stray light when it is both *lit* (the sun, at or beyond the
+exclusion angle, reaches it directly: straight in, or refracted through the lens, with no
+scatter on the way) and *visible* (the detector sees it: straight, or through the lens).
+Both sets come from deterministic ray grids through the real tracer (`trace.tracer.Tracer`):
+
+* visible: backward rays from a grid over the detector's area toward a grid over twice the
+  exit pupil (so the walls just outside the beam, the ones vanes must hide, are looked at);
+  the first mechanical face each ray meets is seen;
+* lit: forward rays on a square grid covering the front opening, from the sun at the
+  exclusion angle and at a ladder of larger angles up to 89°; the first mechanical face
+  each ray meets is lit.
+
+The mount is a solid of revolution, so the sun's azimuth only rotates the lit pattern; the
+sets are compared in the (r, z) half plane, per face, in cells of CELL_MM: a cell hit by a
+lit ray and by a visible ray is a lit wall the detector sees. Its area is that of the band
+the cell sweeps about the axis (2π r·CELL_MM): a measure, not a CAD area.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lensmount.cad.mesh import TaggedMesh
+from lensmount.optics.paraxial import paraxial
+from lensmount.optics.prescription import Prescription
+
+CELL_MM = 0.2
+DETECTOR_GRID = (15, 11)
+PUPIL_RINGS, PUPIL_SPOKES = 8, 36
+PUPIL_SCALE = 2.0
+SUN_GRID = 120  # per side of the square over the front opening
+SUN_STEPS_DEG = (0.0, 0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0)
+SUN_AZIMUTHS_DEG = (0.0, 45.0)  # two, so a facet pattern cannot hide a lit band
+
+
+@dataclass
+class LitWall:
+    part: str
+    kind: str
+    role: str
+    face: int
+    area_mm2: float
+    z_range: tuple[float, float]
+    r_range: tuple[float, float]
+    smallest_angle_deg: float  # the smallest sun angle that lights the seen cells
+
+
+@dataclass
+class SightlineReport:
+    exclusion_deg: float
+    walls: list[LitWall]
+    visible_points: np.ndarray  # (n, 2) (r, z) of backward hits on mechanical faces
+    lit_points: np.ndarray      # (m, 2) (r, z) of forward hits
+    both_points: np.ndarray     # (k, 2) cell centres both lit and seen
+    rays: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return not self.walls
+
+
+def _scene(prescription: Prescription, mesh: TaggedMesh, width: float, height: float, exclusion_deg: float):
+    from lensmount.design.scene import scene_from_dict
+    from lensmount.scene.build import build_scene
+
+    spec = scene_from_dict({"source": {"type": "collimated", "off_axis_deg": exclusion_deg},
+                            "detector": {"width_mm": width, "height_mm": height, "pixels": [1, 1]},
+                            "effects": {"scatter": True, "ghosts": False, "direct": False}})
+    return build_scene(prescription, mesh, spec)
+
+
+def _first_faces(tracer, origins, directions):
+    """(tags, points) of the rays whose first event is a mechanical face."""
+    from lensmount.trace.rays import RayBatch
+    from lensmount.trace.tracer import FACE
+
+    ev = tracer.next_event(RayBatch.make(origins, directions))
+    hit = ev.kind == FACE
+    return ev.tag[hit], ev.position[hit]
+
+
+def _cells(tags, points):
+    r = np.hypot(points[:, 0], points[:, 1])
+    return np.column_stack([tags, np.floor(r / CELL_MM), np.floor(points[:, 2] / CELL_MM)]).astype(np.int64)
+
+
+def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tuple[float, float],
+                   exclusion_deg: float) -> SightlineReport:
+    """Every mount face both lit by the sun at >= exclusion_deg and seen by the detector."""
+    from lensmount.trace.sources import orthonormal_basis, source_direction
+    from lensmount.trace.tracer import Tracer
+
+    p = prescription
+    w, h = detector_mm
+    scene = _scene(p, mesh, w, h, exclusion_deg)
+    tracer = Tracer(scene)
+    par = paraxial(p)
+    # ---- visible: detector grid x (enlarged) exit pupil grid, traced backward --------------
+    nx, ny = DETECTOR_GRID
+    gx, gy = np.meshgrid(np.linspace(-0.5 * w, 0.5 * w, nx), np.linspace(-0.5 * h, 0.5 * h, ny))
+    z_det = scene.detector.z
+    det = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z_det - 1e-6)])
+    rho = np.sqrt((np.arange(PUPIL_RINGS) + 0.5) / PUPIL_RINGS) * 0.5 * PUPIL_SCALE * par.exit_pupil_diameter
+    phi = np.arange(PUPIL_SPOKES) * 2 * np.pi / PUPIL_SPOKES
+    rr, pp = np.meshgrid(rho, phi)
+    pupil = np.column_stack([(rr * np.cos(pp)).ravel(), (rr * np.sin(pp)).ravel(),
+                             np.full(rr.size, par.exit_pupil_z)])
+    o = np.repeat(det, len(pupil), axis=0)
+    d = np.tile(pupil, (len(det), 1)) - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    v_tags, v_pts = _first_faces(tracer, o, d)
+    # ---- lit: the sun at and beyond the exclusion angle --------------------------------
+    opening = scene.front_opening
+    reach = float(np.linalg.norm(mesh.vertices - [0.0, 0.0, opening.z], axis=1).max()) + 1.0
+    u = (np.arange(SUN_GRID) + 0.5) / SUN_GRID * 2 - 1
+    su, sv = np.meshgrid(u, u)
+    inside = su ** 2 + sv ** 2 <= 1.0
+    l_tags, l_pts, l_angle = [], [], []
+    angles = [a for a in (exclusion_deg + s for s in SUN_STEPS_DEG) if a < 89.5]
+    for th in angles:
+        for az in SUN_AZIMUTHS_DEG:
+            ds = source_direction(th, az)
+            e1, e2 = orthonormal_basis(ds)
+            # a disc normal to the light, set back beyond the assembly, covering the front opening
+            radius = opening.radius * 1.02 + 1e-3
+            centre = np.array([0.0, 0.0, opening.z]) - reach * ds
+            starts = centre + radius * (su[inside][:, None] * e1 + sv[inside][:, None] * e2)
+            t, q = _first_faces(tracer, starts, np.tile(ds, (len(starts), 1)))
+            l_tags.append(t)
+            l_pts.append(q)
+            l_angle.append(np.full(len(t), th))
+    l_tags, l_pts, l_angle = np.concatenate(l_tags), np.concatenate(l_pts), np.concatenate(l_angle)
+    # ---- compare in the (r, z) half plane, per face ------------------------------------
+    vc, lc = _cells(v_tags, v_pts), _cells(l_tags, l_pts)
+    seen = {tuple(c) for c in vc}
+    both = {}
+    for c, a in zip(map(tuple, lc), l_angle):
+        if c in seen:
+            both[c] = min(both.get(c, np.inf), float(a))
+    walls = []
+    by_face: dict[int, list] = {}
+    for (tag, ir, iz), a in both.items():
+        by_face.setdefault(tag, []).append((ir, iz, a))
+    for tag, cells in sorted(by_face.items()):
+        t = mesh.tag_table[tag]
+        arr = np.array(cells, dtype=np.float64)
+        r = (arr[:, 0] + 0.5) * CELL_MM
+        z = (arr[:, 1] + 0.5) * CELL_MM
+        walls.append(LitWall(t.part, t.kind, t.role, int(t.face), float((2 * math.pi * r * CELL_MM).sum()),
+                             (float(z.min() - 0.5 * CELL_MM), float(z.max() + 0.5 * CELL_MM)),
+                             (float(r.min() - 0.5 * CELL_MM), float(r.max() + 0.5 * CELL_MM)),
+                             float(arr[:, 2].min())))
+    walls.sort(key=lambda wl: -wl.area_mm2)
+    both_pts = np.array([((ir + 0.5) * CELL_MM, (iz + 0.5) * CELL_MM) for (_, ir, iz) in both]).reshape(-1, 2)
+    return SightlineReport(exclusion_deg, walls, np.column_stack([np.hypot(v_pts[:, 0], v_pts[:, 1]), v_pts[:, 2]]),
+                           np.column_stack([np.hypot(l_pts[:, 0], l_pts[:, 1]), l_pts[:, 2]]), both_pts,
+                           {"backward": int(len(o)), "forward": int(len(angles) * len(SUN_AZIMUTHS_DEG) * inside.sum())})
+
+
+def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
+    """check.png: the mount's (r, z) section, seen points, lit points and the lit walls seen."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lensmount.results import save_figure
+
+    fig, ax = plt.subplots(figsize=(11, 4.5), dpi=110)
+    v = mesh.vertices
+    ax.plot(v[:, 2], np.hypot(v[:, 0], v[:, 1]), ",", color="0.75")
+    if len(report.visible_points):
+        ax.plot(report.visible_points[:, 1], report.visible_points[:, 0], ".", ms=1, color="tab:blue",
+                label="seen by the detector")
+    if len(report.lit_points):
+        ax.plot(report.lit_points[:, 1], report.lit_points[:, 0], ".", ms=1, color="tab:orange", alpha=0.4,
+                label=f"lit by the sun at ≥ {report.exclusion_deg:g}°")
+    if len(report.both_points):
+        ax.plot(report.both_points[:, 1], report.both_points[:, 0], "s", ms=4, color="red",
+                label="lit and seen")
+    ax.set_xlabel("z (mm)")
+    ax.set_ylabel("r (mm)")
+    verdict = "PASS: no lit wall is seen" if report.passed else \
+        f"FAIL: {len(report.walls)} lit face(s) seen, first {report.walls[0].part} face {report.walls[0].face}"
+    ax.set_title(f"lensmount check — sun at ≥ {report.exclusion_deg:g}° — {verdict}")
+    ax.legend(loc="upper right", markerscale=6, fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+__all__ = ["lit_walls_seen", "plot_report", "SightlineReport", "LitWall"]

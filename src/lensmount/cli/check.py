@@ -1,0 +1,95 @@
+"""`lensmount check DESIGN [--exclusion-deg A]`: lit walls the detector sees, and the realised pupil.
+
+Parses, builds (or restores) the geometry through lensmount.loop, calls
+lensmount.analysis.sightlines and lensmount.cad.pupil, prints and writes
+check.json + check.png. Exit 1 when a lit wall is seen, 0 when none is, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.errors import InputError
+
+
+def exclusion_of(spec, prescription, override: float | None) -> float:
+    """--exclusion-deg, else [hood] exclusion_deg, else the largest field angle + 5°."""
+    if override is not None:
+        if not 0.0 < override < 90.0:
+            raise InputError(f"exclusion angle {override}° is outside (0°, 90°)", field="--exclusion-deg",
+                             valid="an angle in degrees between 0 and 90")
+        return float(override)
+    if spec.hood.exclusion_deg is not None:
+        return float(spec.hood.exclusion_deg)
+    return float(prescription.max_field_deg) + 5.0
+
+
+def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo) -> bool:
+    """Check the geometry in `folder` (already regenerated from `design`); True when it passes."""
+    from lensmount.analysis.sightlines import lit_walls_seen, plot_report
+    from lensmount.atomic import write_text
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pupil import realised_entrance_pupil
+    from lensmount.design.folder import load_design
+    from lensmount.optics.paraxial import paraxial
+
+    d = load_design(design)
+    p, spec = d.prescription, d.mount
+    angle = exclusion_of(spec, p, exclusion)
+    mesh = TaggedMesh.load(Path(folder) / "mesh.npz")
+    size = (spec.housing.detector_width_mm, spec.housing.detector_height_mm)
+    report = lit_walls_seen(p, mesh, size, angle)
+    pupil = realised_entrance_pupil(p, mesh)
+    efl = paraxial(p).efl
+    limited = sorted(set(pupil.limited_by))
+    echo(f"entrance pupil: realised {pupil.diameter:.3f} mm (f/{efl / pupil.diameter:.2f}), designed "
+         f"{pupil.design_diameter:.3f} mm (f/{efl / pupil.design_diameter:.2f}), "
+         f"{100 * pupil.relative_error:+.2f} %; limited by {', '.join(limited)}")
+    if report.passed:
+        echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing the detector sees "
+             f"({report.rays['backward']} backward, {report.rays['forward']} forward rays)")
+    else:
+        echo(f"{len(report.walls)} lit face(s) the detector sees with the sun at {angle:g}° or beyond:")
+        for w in report.walls:
+            echo(f"  {w.part} face {w.face} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
+                 f"…{w.z_range[1]:.1f} mm, r {w.r_range[0]:.1f}…{w.r_range[1]:.1f} mm, lit from "
+                 f"{w.smallest_angle_deg:g}°")
+    out = Path(folder) / "check"
+    out.mkdir(parents=True, exist_ok=True)
+    plot_report(report, mesh, out / "check.png")
+    doc = {"exclusion_deg": angle, "passed": report.passed, "rays": report.rays,
+           "lit_walls_seen": [w.__dict__ for w in report.walls],
+           "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
+                              "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
+                              "limited_by": limited}}
+    write_text(out / "check.json", json.dumps(doc, indent=2) + "\n")
+    echo(f"picture: {out / 'check.png'}; details: {out / 'check.json'}")
+    return report.passed
+
+
+@app.command()
+def check(
+    design: Path = typer.Argument(..., help="design folder: lens.toml (or lens.zmx), mount.toml"),
+    exclusion_deg: Optional[float] = typer.Option(
+        None, "--exclusion-deg", help="smallest sun angle off the axis, degrees (default: mount.toml's "
+        "hood.exclusion_deg, else the largest field angle + 5°)"),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="geometry folder (default DESIGN/build)"),
+) -> None:
+    """Geometric stray-light check, no Monte Carlo: is any mount face both lit by the sun (at the
+    exclusion angle or beyond, straight in or through the lens) and seen by the detector (over its
+    area, through the exit pupil)? Lists each such face with its part, area and where it lies,
+    draws check.png, and reports the entrance pupil the mount realises (real rays through the
+    mesh) against the design's. Exit 1 when a lit wall is seen, 0 when none is."""
+    from lensmount.loop import RegenerateOptions, regenerate as build
+
+    try:
+        folder = build(RegenerateOptions(design, out)).folder
+        passed = run_check(design, folder, exclusion_deg)
+    except InputError as error:
+        fail(error)
+    raise typer.Exit(code=0 if passed else 1)

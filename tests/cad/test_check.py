@@ -1,0 +1,54 @@
+"""`lensmount check`: the geometric stray-light check (lit walls the detector sees) and the
+realised entrance pupil, on the reference design's geometry (built once per session)."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+
+
+def test_sun_just_outside_the_field_lights_walls_the_detector_sees(reference):
+    """The reference's field is ±5°: at 5.5° the sun's image lands just beyond the detector on the
+    housing bore, which the detector sees, and the rear group's spacers catch light it sees too."""
+    design, out, _ = reference
+    res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "5.5"])
+    assert res.exit_code == 1, res.output
+    doc = json.loads((out / "check" / "check.json").read_text())
+    assert not doc["passed"]
+    walls = {(w["part"], w["face"]) for w in doc["lit_walls_seen"]}
+    assert ("housing", 0) in walls
+    assert "housing face 0" in res.output
+    assert (out / "check" / "check.png").stat().st_size > 10_000
+    pupil = doc["entrance_pupil"]
+    assert abs(pupil["realised_mm"] / pupil["design_mm"] - 1) < 5e-3 and pupil["limited_by"] == ["diaphragm"]
+    assert "f/7.00" in res.output
+
+
+def test_sun_far_outside_the_field_lights_nothing_the_detector_sees(reference):
+    design, out, _ = reference
+    res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "30"])
+    assert res.exit_code == 0, res.output
+    assert "no lit wall is seen" in res.output
+
+
+def test_bad_exclusion_angle_is_an_input_error(reference):
+    design, out, _ = reference
+    res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "95"])
+    assert res.exit_code == 2 and "--exclusion-deg" in res.output and "Traceback" not in res.output
+
+
+@pytest.mark.slow
+def test_hood_without_vanes_sun_just_outside_the_field(tmp_path, design_copier):
+    """A deliberately bad design: the reference hood without vanes, the sun at 5.5°. Vanes cannot
+    change what the detector sees through the lens (the hood lies outside the field's beam), so the
+    lit walls found are the ones inside: the check must exit 1 and name the part and face."""
+    d = design_copier("double-gauss-360", tmp_path / "d")
+    text = (d / "mount.toml").read_text().replace("count = 3", "count = 0").replace("in_air_gaps = 1", "in_air_gaps = 0")
+    (d / "mount.toml").write_text(text + "\n")
+    res = CliRunner().invoke(app, ["regenerate", str(d), "--quiet", "--check"])
+    assert res.exit_code == 0 or res.exit_code == 1, res.output
+    res = CliRunner().invoke(app, ["check", str(d), "--exclusion-deg", "5.5"])
+    assert res.exit_code == 1
+    assert "housing face 0" in res.output
