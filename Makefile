@@ -23,7 +23,8 @@ install-test: $(VENV)/.installed-test
 
 demo: install
 	$(LM) regenerate $(DESIGN) --out out/double-gauss-360
-	$(LM) simulate $(DESIGN) --scene $(DESIGN)/scenes/case1-diaphragm-edge.toml --out out/case1
+	$(LM) simulate $(DESIGN) --scene $(DESIGN)/scenes/case1-diaphragm-edge.toml --geometry out/double-gauss-360 \
+	    --out out/case1 --store out/runs.sqlite
 
 # Headless Chromium for the report test (tests/report), from Debian, only when missing.
 # CI runs as root on a fresh Debian machine: there it installs (about a minute); elsewhere

@@ -163,3 +163,23 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
     assert not (repo / "build").exists()  # nothing was simulated
     bad = _compare(repo, "--scene", SCENE, "--against", "deadbeef")
     assert bad.exit_code == 2 and old_commit[:10] in bad.output
+
+
+def test_provenance_hashes_each_input_and_ignores_outputs_for_dirty(tmp_path):
+    import hashlib
+
+    repo = _repo(tmp_path)
+    scene = repo / "scenes" / f"{SCENE}.toml"
+    assert _provenance(repo, scene)["git_commit"] is None  # a repository without commits has no HEAD
+    git(repo, "add", "-A")
+    git(repo, "commit", "-qm", "one")
+    (repo / "build").mkdir()
+    (repo / "build" / "mesh.npz").write_bytes(b"output")  # outputs inside the folder are not inputs
+    p = _provenance(repo, scene)
+    assert p["git_commit"] == git(repo, "rev-parse", "HEAD") and p["git_dirty"] is False
+    for key, name in (("lens_sha256", "lens.toml"), ("mount_sha256", "mount.toml")):
+        assert p[key] == hashlib.sha256((repo / name).read_bytes()).hexdigest()
+    assert p["scene_sha256"] == hashlib.sha256(scene.read_bytes()).hexdigest()
+    assert p["design_path"] == str(repo.resolve()) and p["design_name"] == "design" and p["scene_name"] == SCENE
+    scene.write_text(scene.read_text() + "\n# edited\n")
+    assert _provenance(repo, scene)["git_dirty"] is True

@@ -46,7 +46,7 @@ def compare(
     method: str = typer.Option("bidirectional", "--method", help="Method for runs that must be simulated."),
     workers: int = typer.Option(0, "--workers", help="Worker processes for runs that must be simulated."),
     passes: Optional[int] = typer.Option(None, "--passes", help="Passes for runs that must be simulated "
-                                                                "(default: the scene's [run])."),
+                                                                "(default: the scene's run.passes)."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
                                                    help="Photons per pass for runs that must be simulated."),
     time_s: Optional[float] = typer.Option(None, "--time", help="Seconds per run that must be simulated."),

@@ -1,0 +1,36 @@
+"""simulate's progress arithmetic: error ∝ 1/√t gives the ETA, the trend and the cost of a halving."""
+
+import math
+
+import pytest
+
+from lensmount.cli.simulate import describe
+from lensmount.loop import PassStatus
+from lensmount.loop.progress import error_slope, next_halving_s, time_to_error
+
+
+def test_eta_follows_inverse_square_of_the_error():
+    # 10 % after 60 s: 5 % needs 4x the time in all, so 180 s more; 2.5 % needs 16x, 900 s more.
+    assert time_to_error(60.0, 0.10, 0.05) == pytest.approx(180.0)
+    assert time_to_error(60.0, 0.10, 0.025) == pytest.approx(900.0)
+    assert time_to_error(60.0, 0.04, 0.05) == 0.0
+    assert time_to_error(60.0, math.inf, 0.05) is None
+    assert next_halving_s(60.0) == pytest.approx(180.0)
+
+
+def test_trend_of_a_healthy_run_is_minus_one_half():
+    history = [(t, 0.3 / math.sqrt(t)) for t in range(1, 40)]
+    assert error_slope(history) == pytest.approx(-0.5, abs=1e-9)
+    stuck = [(t, 0.1) for t in range(1, 40)]  # an error that does not fall (bias, or a broken estimator)
+    assert error_slope(stuck) == pytest.approx(0.0, abs=1e-9)
+    assert error_slope(history[:3]) is None  # too few points to say
+
+
+def test_one_plain_line_per_pass_says_value_error_trend_and_eta():
+    s = PassStatus(passes=12, photons=1_200_000, elapsed_s=60.0, value=1.234e-3, std_error=1.2e-4, rel_error=0.0972,
+                   error_slope=-0.49, target_rel_error=0.05, eta_s=time_to_error(60.0, 0.0972, 0.05), max_passes=None)
+    line = describe(s)
+    assert "\n" not in line
+    for needle in ("pass 12", "1,200,000 photons", "0.001234 ± 0.00012", "9.72 %", "t^-0.49", "target 5 %",
+                   "in ~3 min"):
+        assert needle in line, (needle, line)
