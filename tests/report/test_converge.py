@@ -44,6 +44,15 @@ def test_levels_are_read_from_the_passes_of_one_run():
     assert curve.levels[-1].bias_bound == 0.01 and curve.levels[0].bias_bound is None
     assert curve.slope == pytest.approx(-0.5, abs=0.2)  # σ/√n with noisy batch-means estimates
     assert curve.levels[-1].rel_error_vs_reference == pytest.approx(abs(values.mean() - 1.0))
+    assert curve.halving_rate == "fitted" and curve.next_halving_s > 0
+
+
+def test_an_implausible_slope_falls_back_to_the_monte_carlo_rate():
+    """A flat error over 2–5 passes is noise in the error bars: the halving time is 3·t, not hours."""
+    statuses = [PassStatus(n, 1000 * n, 10.0 * n, 1.0, 0.01, 0.01, None, None, None, None) for n in range(1, 17)]
+    curve = _curve("forward", statuses, level_times(160, 5), {}, reference=None)
+    assert curve.slope == pytest.approx(0.0, abs=1e-9)
+    assert curve.halving_rate == "1/√t" and curve.next_halving_s == pytest.approx(3 * 160)
 
 
 def test_reference_from_a_number_or_a_summary(tmp_path):

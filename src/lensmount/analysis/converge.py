@@ -70,8 +70,14 @@ class MethodCurve:
     method: str
     levels: list[Level]
     slope: float | None  # fitted d log(rel std error) / d log(t)
-    next_halving_s: float | None  # seconds more to halve the error at the fitted rate
+    next_halving_s: float | None  # seconds more to halve the error (None: no error bar yet)
     summary: dict = field(default_factory=dict)
+    halving_rate: str = "fitted"  # "fitted" slope, or "1/√t" when the fit is outside PLAUSIBLE_SLOPES
+
+
+# A fitted slope outside this range comes from error bars on few passes, not from the method:
+# the halving time is then given at the Monte Carlo rate 1/√t instead.
+PLAUSIBLE_SLOPES = (-1.5, -0.25)
 
 
 def read_reference(text: str | None) -> float | None:
@@ -180,8 +186,13 @@ def _curve(method, statuses, times, summary, reference) -> MethodCurve:
     # the slope only where it means something.
     fitted = [lv for lv in distinct if lv.passes >= MIN_PASSES_FOR_SLOPE]
     slope = fit_slope([lv.time_s for lv in fitted], [lv.rel_std_error for lv in fitted])
-    halving = halving_time(distinct[-1].time_s, slope) if distinct else None
-    return MethodCurve(method, distinct, slope, halving, summary)
+    rate, halving = "fitted", None
+    if distinct and distinct[-1].rel_std_error is not None:
+        if slope is not None and PLAUSIBLE_SLOPES[0] <= slope <= PLAUSIBLE_SLOPES[1]:
+            halving = halving_time(distinct[-1].time_s, slope)
+        else:
+            rate, halving = "1/√t", halving_time(distinct[-1].time_s, -0.5)
+    return MethodCurve(method, distinct, slope, halving, summary, rate)
 
 
 def _pct(x: float | None) -> str:

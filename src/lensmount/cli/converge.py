@@ -13,7 +13,7 @@ from lensmount.errors import InputError
 
 def _duration(seconds: float | None) -> str:
     if seconds is None:
-        return "unknown (the error did not fall over the levels)"
+        return "unknown (no error bar yet)"
     if seconds < 90:
         return f"{seconds:.0f} s"
     if seconds < 5400:
@@ -65,5 +65,7 @@ def converge(
             typer.echo(f"  note: {len(few)} level(s) have fewer than 8 passes; their error bars are themselves "
                        "uncertain by ±25 % or more (a smaller --photons-per-pass gives more passes)")
         slope = "—" if c.slope is None else f"{c.slope:+.2f}"
-        typer.echo(f"  slope {slope} (ideal −0.50); halving the error once more takes ~{_duration(c.next_halving_s)}")
+        rate = "at the fitted slope" if c.halving_rate == "fitted" else "at the 1/√t rate (fitted slope implausible)"
+        typer.echo(f"  slope {slope} (ideal −0.50); halving the error once more takes ~{_duration(c.next_halving_s)}"
+                   + (f" {rate}" if c.next_halving_s is not None else ""))
     typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))
