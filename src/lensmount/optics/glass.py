@@ -58,6 +58,16 @@ def medium(name: str):
         b = (nd - 1.0) / vd / (1.0 / _LAMBDA_F**2 - 1.0 / _LAMBDA_C**2)
         a = nd - b / _LAMBDA_D**2
         return lambda wl: a + b / np.asarray(wl, dtype=np.float64) ** 2
+    glass = _find_catalogue_glass(name)
+    if glass is None:
+        raise InputError(f"unknown glass '{name}'", field="material",
+                         valid=f"a glass in the {', '.join(CATALOGUES)} catalogues (optionally 'SCHOTT:N-BK7'), "
+                               "a model glass 'n_d/V_d' such as 1.5168/64.17, or AIR")
+    return functools.partial(_catalogue_index, glass)
+
+
+def _find_catalogue_glass(name: str):
+    """The opticalglass object for a catalogue name ('N-BK7' or 'SCHOTT:N-BK7'), None if there is none."""
     if ":" in name:
         cat, glass = (x.strip() for x in name.split(":", 1))
         matches = [c for c in CATALOGUES if c.lower() == cat.lower()]
@@ -69,13 +79,10 @@ def medium(name: str):
         search = [(c, name.strip()) for c in CATALOGUES]
     for cat, glass in search:
         try:
-            g = _catalogue_glass(glass.upper(), cat)
+            return _catalogue_glass(glass.upper(), cat)
         except Exception:
             continue
-        return functools.partial(_catalogue_index, g)
-    raise InputError(f"unknown glass '{name}'", field="material",
-                     valid=f"a glass in the {', '.join(CATALOGUES)} catalogues (optionally 'SCHOTT:N-BK7'), "
-                           "a model glass 'n_d/V_d' such as 1.5168/64.17, or AIR")
+    return None
 
 
 def _fused_silica(wl):
@@ -132,6 +139,47 @@ def _catalogue_index(glass, wl):
     wl = np.asarray(wl, dtype=np.float64)
     # calc_rindex takes nm and accepts arrays (rindex() would look arrays up as line names).
     return np.asarray(glass.calc_rindex(wl * 1000.0), dtype=np.float64).reshape(wl.shape)
+
+
+_T10 = "internal transmission mm, 10"
+
+
+@functools.lru_cache(maxsize=None)
+def _absorption(name: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(wavelengths µm, ascending; absorption coefficient 1/mm) from the catalogue's internal
+    transmittance of a 10 mm sample; None where the material has no catalogue data."""
+    import pandas as pd
+
+    if name.strip().upper() == AIR or _MODEL.match(name) or name.strip().upper() in _FUSED_SILICA_NAMES:
+        return None
+    medium(name)  # unknown names raise the usual InputError
+    glass = _find_catalogue_glass(name)
+    t10 = pd.to_numeric(glass.glass_data()[_T10], errors="coerce")  # blank cells are no data, not 0
+    t10 = t10[np.isfinite(t10.to_numpy(dtype=float))]
+    if t10.empty:
+        return None
+    wl = t10.index.to_numpy(dtype=float) / 1000.0
+    # T = 0 in the table is opaque to the table's precision: a finite, large absorption keeps it NaN-free
+    alpha = -np.log(np.clip(t10.to_numpy(dtype=float), 1e-12, 1.0)) / 10.0
+    order = np.argsort(wl)
+    return wl[order], alpha[order]
+
+
+def internal_transmittance(material: str, wavelength_um, path_mm) -> np.ndarray:
+    """Bulk internal transmittance exp(-a(λ) L) of `path_mm` of `material` (Beer-Lambert).
+
+    a(λ) comes from the catalogue's internal transmittance of a 10 mm sample, a = -ln(T10)/10,
+    interpolated linearly in wavelength and held at the end values outside the tabulated
+    range. AIR, model glasses (n_d/V_d) and fused silica have no catalogue data and are
+    lossless (1.0). Arrays broadcast; negative paths count as 0. Never NaN.
+    """
+    wl = np.asarray(wavelength_um, dtype=np.float64)
+    path = np.maximum(np.asarray(path_mm, dtype=np.float64), 0.0)
+    table = _absorption(material)
+    if table is None:
+        return np.ones(np.broadcast_shapes(wl.shape, path.shape))
+    alpha = np.interp(wl, *table)
+    return np.exp(-alpha * path)
 
 
 def refractive_index(name: str, wavelength_um) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 What a lens file holds and how it is read:
     UNIT MM|CM|IN|METER          lengths are converted to mm
-    TYPE STANDARD|EVENASPH|ODDASPH  CURV / CONI / PARM k v (EVENASPH: r^(2k); ODDASPH: r^k)
+    TYPE STANDARD|EVENASPH|ODDASPH  CURV / CONI / PARM k v (EVENASPH: r^(2k); ODDASPH: r^k, whose
+                                 even terms r^4..r^8 are imported and whose odd terms are an error)
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
@@ -278,7 +279,10 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
                 tilt = None
             if zs.thickness != 0.0 and tilt is not None:
                 _asymmetric(file, zs, tilt, "has a thickness along the decentred or tilted axis")
-            _add_gap(surfaces, zs.thickness * s)
+            if surfaces:
+                _add_gap(surfaces, zs.thickness * s)
+            elif math.isfinite(object_distance):
+                object_distance += zs.thickness * s  # a gap before surface 1 moves the object away
             notes.append(ImportNote("ignored", f"SURF {zs.number}", "coordinate break "
                                     + ("(zero)" if not any(zs.parm.get(k, (0.0, 0))[0] for k in range(1, 5))
                                        else "undone by a later break" if tilt is None else "(see the next break)")))
@@ -330,7 +334,7 @@ def _glass_name(zs: ZmxSurface) -> str:
 
 
 def _add_gap(surfaces: list[Surface], gap: float) -> None:
-    if gap and surfaces:
+    if gap:
         from dataclasses import replace
 
         surfaces[-1] = replace(surfaces[-1], thickness=surfaces[-1].thickness + gap)
@@ -434,8 +438,14 @@ def _aspheric(zs: ZmxSurface, s: float, file) -> tuple[float, ...]:
         # PARM k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
         terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(zs.parm) + 1))
     else:
-        raise InputError(f"surface {zs.number} is an odd asphere (ODDASPH)", file=file, line=zs.type_line,
-                         valid="TYPE STANDARD or EVENASPH")
+        # ODDASPH: PARM k multiplies r^k. Its even terms r^4, r^6, r^8 are an even asphere; an odd
+        # term (or r^2) has no counterpart in the rotationally symmetric profile the mount and tracer use.
+        for k, (value, line) in sorted(zs.parm.items()):
+            if value != 0.0 and (k % 2 == 1 or k == 2):
+                raise InputError(f"surface {zs.number} is an odd asphere with an r^{k} term (PARM {k} = {value:g})",
+                                 file=file, line=line,
+                                 valid="ODDASPH terms on r^4, r^6, r^8 only (PARM 4, 6, 8), or TYPE EVENASPH")
+        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - k) for k in range(4, max(zs.parm) + 1, 2))
     while terms and terms[-1] == 0.0:
         terms = terms[:-1]
     return terms
