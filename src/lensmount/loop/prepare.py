@@ -1,0 +1,45 @@
+"""The first half of every loop command: design folder + scene file → the Scene the tracer sees.
+
+`simulate`, `pst` and `ghosts` all start here: read and validate the design and the scene,
+take the mount geometry from regenerate's folder (rebuilt only when the design changed),
+and build the Scene (pure data).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+
+@dataclass
+class Prepared:
+    design: object  # lensmount.design.folder.Design
+    spec: object  # lensmount.design.scene.SceneSpec
+    built: object  # lensmount.loop.regenerate.RegenerateResult
+    scene: object  # lensmount.scene.scene.Scene
+
+
+def prepare(design_dir: Path, scene_path: Path, geometry: Path | None = None,
+            stage: Callable[[str], None] | None = None,
+            build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
+    """Load, regenerate (cached) and build; stage(text) tells what it is doing."""
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.design.folder import load_design
+    from lensmount.design.scene import load_scene
+    from lensmount.loop.regenerate import RegenerateOptions, regenerate
+    from lensmount.scene.build import build_scene
+
+    say = stage or (lambda text: None)
+    say("reading the design and the scene")
+    design = load_design(design_dir)
+    spec = load_scene(Path(scene_path))
+    folder = Path(geometry) if geometry is not None else design.root / "build"
+    say(f"mount geometry: {folder} (rebuilt only if the design changed)")
+    built = regenerate(RegenerateOptions(design.root, folder), progress=build_step)
+    say(f"mount geometry {'from the cache' if built.manifest.cached else 'built'}; building the scene")
+    scene = build_scene(design.prescription, TaggedMesh.load(built.folder / built.manifest.mesh), spec)
+    return Prepared(design, spec, built, scene)
+
+
+__all__ = ["Prepared", "prepare"]

@@ -1,0 +1,115 @@
+"""Ghost analysis against paraxial hand calculations and Fresnel at normal incidence."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from lensmount.analysis.ghosts import ghost_report
+from lensmount.optics.glass import refractive_index
+from lensmount.optics.prescription import Aperture, Prescription, Surface
+from lensmount.scene.build import optical_surfaces
+from lensmount.trace.detector import Detector
+from lensmount.trace.interfaces import parse_coating
+from lensmount.trace.sources import CollimatedSource, EmissionDisc
+
+WL = 0.5875618
+R1, T, H = 51.68, 6.0, 1.5  # a plano-convex N-BK7 singlet (f ≈ 100 mm) stopped down to f/33: paraxial
+
+
+def _scene(coating: str, detector_mm: float = 60.0, pixels: int = 200, off_axis_deg: float = 0.0):
+    lens = Prescription((Surface(R1, T, "N-BK7", is_stop=True, clear_semi_diameter=H, mechanical_semi_diameter=H),
+                         Surface(math.inf, 96.0, "AIR", clear_semi_diameter=H, mechanical_semi_diameter=H)),
+                        Aperture("epd", 2 * H), (WL,), (1.0,), 0, (0.0,), "singlet")
+    wl = np.array([WL])
+    c = parse_coating(coating)
+    source = CollimatedSource(off_axis_deg, 90.0, EmissionDisc((0.0, 0.0, -100.0), 10.0))
+    return SimpleNamespace(optical=optical_surfaces(lens, wl, lambda i, _: c), source=source,
+                           detector=Detector(detector_mm, detector_mm, pixels, pixels, lens.image_z),
+                           wavelengths_um=wl, entrance_pupil_area_mm2=math.pi * H * H), lens
+
+
+def _paraxial_ghost_focus(n: float, z_back: float) -> float:
+    """y–ω trace of the unfolded ghost: refract at S1, reflect at the flat S2, reflect at S1 from inside
+    (a concave mirror of power 2nc in glass), out through the flat S2; returns the focus z."""
+    c, tau = 1.0 / R1, T / n
+    y, w = 1.0, -(n - 1.0) * c          # after S1
+    y = y + 2 * tau * w                  # to the flat S2 and back to S1
+    w = w - y * 2.0 * n * c              # the inside reflection at S1
+    y = y + tau * w                      # to S2; refraction at a flat keeps ω
+    return z_back + (-y / w)
+
+
+def test_singlet_ghost_focus_matches_the_paraxial_hand_calculation():
+    scene, lens = _scene("uncoated")
+    report = ghost_report(scene)
+    assert [(g.first, g.second) for g in report.pairs] == [(1, 2)]
+    n = float(refractive_index("N-BK7", np.array([WL]))[0])
+    z_focus = _paraxial_ghost_focus(n, T)
+    expected = z_focus - lens.image_z
+    assert expected == pytest.approx(-85.6, abs=1.0)  # the hand calculation itself, in round numbers
+    assert report.pairs[0].focus_from_detector_mm == pytest.approx(expected, rel=2e-3)
+
+
+def test_singlet_ghost_flux_is_the_fresnel_product_at_normal_incidence():
+    scene, _ = _scene("uncoated", detector_mm=200.0, pixels=100)
+    g = ghost_report(scene).pairs[0]
+    n = float(refractive_index("N-BK7", np.array([WL]))[0])
+    r = ((n - 1.0) / (n + 1.0)) ** 2
+    # in through S1 (1 − R), R at S2 inside, R at S1 inside, out through S2 (1 − R); f/33: angles < 2°
+    assert g.fraction == pytest.approx((1 - r) ** 2 * r * r, rel=2e-3)
+    assert g.share == 1.0
+
+
+def test_perfect_ar_means_no_ghost_and_no_rays_traced(monkeypatch):
+    import lensmount.analysis.ghosts as ghosts
+
+    def fail(*args, **kwargs):
+        raise AssertionError("a pair with no reflectance was traced")
+
+    monkeypatch.setattr(ghosts, "_trace_pair", fail)
+    scene, _ = _scene("perfect-ar")
+    report = ghost_report(scene)
+    assert report.pairs == [] and report.skipped == [(1, 2)] and report.total_fraction == 0.0
+
+
+def test_a_constant_reflectance_scales_as_its_square():
+    a = ghost_report(_scene("R=0.01", detector_mm=200.0, pixels=100)[0]).pairs[0].fraction
+    b = ghost_report(_scene("R=0.02", detector_mm=200.0, pixels=100)[0]).pairs[0].fraction
+    assert b / a == pytest.approx((0.02 / 0.01) ** 2 * (0.98 / 0.99) ** 2, rel=1e-9)
+
+
+def test_source_behind_the_lens_gives_an_empty_report():
+    scene, _ = _scene("uncoated", off_axis_deg=120.0)
+    assert ghost_report(scene).pairs == []
+
+
+@pytest.mark.slow
+def test_ghost_report_agrees_with_the_forward_estimators_ghost_channel():
+    """The deterministic pair trace against stochastic Fresnel branching in the full tracer (an independent
+    code path: Embree mesh, the tracer's own refraction and Fresnel sampling), on an uncoated singlet in a
+    black barrel. Higher-order ghosts (four reflections, ~R² smaller) are inside the forward error bar."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
+    from lens_scenes import singlet_barrel
+
+    from lensmount.integrators.forward import forward_pass
+    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.trace.tracer import Tracer
+
+    scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=2.0, pixels=(40, 40), detector_mm=60.0,
+                           ghosts=True, coating="uncoated")
+    tracer = Tracer(scene)
+    report = ghost_report(scene, tracer)
+    ghost = scene.mesh.parts.__len__()  # the channel after the parts: `ghosts` (direct is off)
+    flux = [forward_pass(scene, tracer, 1_500_000, 7, i).part_flux[ghost] for i in range(8)]
+    aperture = scene.entrance_pupil_area_mm2 * math.cos(math.radians(2.0))
+    mean, se = np.mean(flux) / aperture, np.std(flux, ddof=1) / math.sqrt(len(flux)) / aperture
+    assert report.total_fraction == pytest.approx(mean, abs=4 * se)
+    assert se < 0.1 * mean  # the comparison has teeth: without the barrel the report reads ~6x more
+    assert abs(ghost_report(scene).total_fraction - mean) > 10 * se
