@@ -209,6 +209,8 @@ def compare(options: CompareOptions, observer: Observer | None = None) -> Compar
                 raise InputError("design folders need --scene", field="--scene", valid="a scene name or file")
             old, new = current_run(a, o.scene, o, observer), current_run(b, o.scene, o, observer)
     notes = check_comparable(old, new, o.metric)
+    if old.folder.resolve() == new.folder.resolve():
+        notes.append("old and new are the same stored run: the store holds no run of other inputs to compare with")
     verdict = judge(old.measurement(o.metric), new.measurement(o.metric), o.tolerance, o.confidence)
     per_part = {}
     if o.metric == "stray_fraction":
