@@ -28,13 +28,14 @@ from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.executor import Executor, executor_for, resolve
+from lensmount.integrators.bidirectional import Bidirectional
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.integrators.radius import DEFAULT_ALPHA, radius_scale
+from lensmount.integrators.forward import Forward
+from lensmount.integrators.settings import EstimatorSettings
 
-PASS_FUNCTIONS = {
-    "bidirectional": "lensmount.integrators.bidirectional:bidirectional_pass",
-    "forward": "lensmount.integrators.forward:forward_pass",
-}
+# Every integrator: Integrator(settings) with channels(scene) and
+# run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None) -> PassEstimate.
+INTEGRATORS = {"bidirectional": Bidirectional, "forward": Forward}
 TRACER = "lensmount.trace.tracer:Tracer"
 RUN_PASS = "lensmount.runner:run_pass"
 _resolve = resolve
@@ -66,23 +67,20 @@ class Stopping:
 
 @dataclass
 class PassJob:
-    """What a worker needs to compute pass `index` (all picklable)."""
+    """What a worker needs to compute pass `index` (all picklable): method, photons per pass
+    (every pass of a run has the same count: photon k of pass i is photon i·photons + k), seed."""
 
     method: str
     photons: int
     seed: int
     index: int
-    alpha: float = DEFAULT_ALPHA
-    options: dict | None = None
+    settings: EstimatorSettings = EstimatorSettings()
 
 
 def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     """One pass of the chosen method, in this process."""
-    fn = _resolve(PASS_FUNCTIONS.get(job.method, job.method))
-    opts = job.options or {}
-    if job.method == "bidirectional":
-        return fn(scene, tracer, job.photons, job.seed, job.index, radius_scale(job.index, job.alpha), **opts)
-    return fn(scene, tracer, job.photons, job.seed, job.index, **opts)
+    integrator = INTEGRATORS[job.method] if job.method in INTEGRATORS else resolve(job.method)  # or "module:Class"
+    return integrator(job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
 
 
 class Terminated(KeyboardInterrupt):
@@ -199,4 +197,4 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers", "PASS_FUNCTIONS"]
+__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers", "INTEGRATORS"]

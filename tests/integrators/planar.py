@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lensmount.cad.mesh import FaceTag, TaggedMesh
-from lensmount.integrators.tracing import DETECTOR, FACE, GONE, Step
 from lensmount.scene.scene import Effects
 from lensmount.trace.detector import Detector  # noqa: F401  (re-exported for the tests)
 from lensmount.trace.rays import RayBatch
+from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
 
 
 @dataclass
@@ -78,12 +78,13 @@ class PlanarScene:
 
 
 class PlanarTracer:
-    """next_step(rays) → Step, vectorised over rays, looping over the few faces."""
+    """The real tracer's contract, `next_event(rays, rng, origin_normal) -> Events`, on planar
+    faces: vectorised over rays, looping over the few faces. No glass, so `rng` is unused."""
 
     def __init__(self, scene: PlanarScene):
         self.scene = scene
 
-    def next_step(self, rays: RayBatch, rng) -> Step:
+    def next_event(self, rays: RayBatch, rng=None, origin_normal=None) -> Events:
         o, d = rays.origin, rays.direction
         n = len(rays)
         best = np.full(n, np.inf)
@@ -115,9 +116,12 @@ class PlanarTracer:
         nrm = normals[np.maximum(which, 0)] if len(normals) else np.zeros((n, 3))
         front = np.einsum("ij,ij->i", nrm, d) < 0
         kind = np.where((kind == FACE) & ~front, GONE, kind).astype(np.int8)  # one-sided faces
+        kind = np.where(rays.alive, kind, GONE).astype(np.int8)
         tag = np.where(kind == FACE, which, -1).astype(np.int32)
-        return Step(kind, pos, d.copy(), nrm, tag, np.where(rays.alive, rays.weight, 0.0), rays.wavelength.copy(),
-                    rays.id.copy())
+        prim = np.where(kind == FACE, 2 * which, -1).astype(np.int64)  # each face is two triangles
+        pixel = np.where(kind == DETECTOR, det.pixel_of(pos), -1)
+        return Events(kind, pos, d.copy(), nrm, tag, prim, pixel, np.where(rays.alive, rays.weight, 0.0),
+                      rays.wavelength.copy(), rays.id.copy(), np.zeros(n, bool), np.zeros(n, np.int32))
 
 
 class Lambert:

@@ -11,6 +11,7 @@ from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E40
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.integrators.bidirectional import part_names  # noqa: E402
+from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.runner import PassJob, Runner, Stopping  # noqa: E402
 
 TRACER = "planar:PlanarTracer"
@@ -25,7 +26,7 @@ def _scene():
 
 def _runner(scene, workers=1, checkpoint=None, acc=None):
     def job(i):
-        return PassJob("bidirectional", 2000, 5, i, options={"samples_per_pixel": 16})
+        return PassJob("bidirectional", 2000, 5, i, EstimatorSettings(samples_per_pixel=16))
 
     acc = acc or Accumulator.empty((4, 4), part_names(scene), 0.25)
     return Runner(scene, job, acc, workers=workers, checkpoint=checkpoint, checkpoint_every=2,

@@ -24,8 +24,9 @@ from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E40
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.executor import executor_for  # noqa: E402
-from lensmount.integrators.bidirectional import part_names  # noqa: E402
-from lensmount.runner import PassJob, Runner, Stopping, run_pass  # noqa: E402
+from lensmount.integrators.bidirectional import Bidirectional, part_names  # noqa: E402
+from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
+from lensmount.runner import PassJob, Runner, Stopping  # noqa: E402
 
 TRACER = "planar:PlanarTracer"
 
@@ -37,13 +38,16 @@ def scene():
                        Detector(2.0, 2.0, 4, 4, 20.0), Collimated(d, (-300 * d[0], 0, 300 * -d[2]), 25.0))
 
 
-def crashing_pass(scene, tracer, photons, seed, index, *, crash_marker, **options):
-    """A bidirectional pass whose worker dies the first time anyone computes pass 3."""
-    marker = Path(crash_marker)
-    if index == 3 and not marker.exists():
-        marker.write_text(str(os.getpid()))
-        os._exit(17)
-    return run_pass(scene, tracer, PassJob("bidirectional", photons, seed, index, options=options))
+class CrashingBidirectional(Bidirectional):
+    """The bidirectional integrator, but the worker dies the first time anyone computes pass 3
+    (the marker file named by $PLANAR_CRASH_MARKER records that it happened)."""
+
+    def run_pass(self, scene, tracer, pass_index, photons, seed, radius_scale=None):
+        marker = Path(os.environ["PLANAR_CRASH_MARKER"])
+        if pass_index == 3 and not marker.exists():
+            marker.write_text(str(os.getpid()))
+            os._exit(17)
+        return super().run_pass(scene, tracer, pass_index, photons, seed, radius_scale)
 
 
 def main(argv):
@@ -54,11 +58,12 @@ def main(argv):
     delay = float(os.environ.get("PLANAR_PASS_DELAY", "0"))
     sc = scene()
 
+    if crash:
+        os.environ["PLANAR_CRASH_MARKER"] = str(crash)  # before the workers start: they inherit it
+
     def job(i):
-        options = {"samples_per_pixel": 16}
-        if crash:
-            return PassJob("planar_run:crashing_pass", 2000, 5, i, options={**options, "crash_marker": crash})
-        return PassJob("bidirectional", 2000, 5, i, options=options)
+        return PassJob("planar_run:CrashingBidirectional" if crash else "bidirectional", 2000, 5, i,
+                       EstimatorSettings(samples_per_pixel=16))
 
     acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), part_names(sc), 0.25)
 

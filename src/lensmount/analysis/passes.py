@@ -24,7 +24,7 @@ import numpy as np
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import PassEstimate
 
-_STATE_VERSION = 2
+_STATE_VERSION = 3  # 2: elapsed time; 3: energy ledger
 
 
 @dataclass
@@ -53,6 +53,7 @@ class Accumulator:
     pass_flux : list of each pass's total flux (mm², normalised), in pass order
     pass_part_flux : list of each pass's (P,) per-part flux
     photons, lost_flux : totals over the passes
+    ledger : Σ over the passes of each energy-ledger entry (mm², `PassEstimate.ledger`)
     last_pass : index of the last pass added (-1 before any)
     elapsed_s : wall time spent on the passes, summed over resumed parts of a run
     """
@@ -69,6 +70,7 @@ class Accumulator:
     elapsed_s: float = 0.0
     pass_flux: list[float] = field(default_factory=list)
     pass_part_flux: list[np.ndarray] = field(default_factory=list)
+    ledger: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -94,6 +96,10 @@ class Accumulator:
         self.n += 1
         self.photons += int(estimate.photons)
         self.lost_flux += float(estimate.lost_flux)
+        for key, value in estimate.ledger.items():
+            if not np.isfinite(value):
+                raise ValueError(f"pass energy ledger entry '{key}' is not finite")
+            self.ledger[key] = self.ledger.get(key, 0.0) + float(value)
         self.pass_flux.append(float(image.sum() * self.pixel_area_mm2))
         self.pass_part_flux.append(parts.sum(axis=(1, 2)) * self.pixel_area_mm2)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
@@ -177,6 +183,11 @@ class Accumulator:
             p = p if math.isfinite(p) else 1.0
         return Drift(rel, z, p)
 
+    @property
+    def mean_ledger(self) -> dict[str, float]:
+        """The energy ledger per pass (mean over the passes), mm²."""
+        return {k: v / max(self.n, 1) for k, v in sorted(self.ledger.items())}
+
     # -- checkpoint ------------------------------------------------------------------------
 
     def save(self, path: str | os.PathLike, **meta) -> None:
@@ -190,6 +201,8 @@ class Accumulator:
             sum_image=self.sum_image, sumsq_image=self.sumsq_image, sum_parts=self.sum_parts,
             pass_flux=np.asarray(self.pass_flux, dtype=np.float64),
             pass_part_flux=np.asarray(self.pass_part_flux, dtype=np.float64).reshape(-1, len(self.part_names)),
+            ledger_keys=np.array(sorted(self.ledger), dtype=str),
+            ledger_values=np.array([self.ledger[k] for k in sorted(self.ledger)], dtype=np.float64),
         )
         for key, value in meta.items():
             arrays[f"meta_{key}"] = np.array(value)
@@ -207,7 +220,8 @@ class Accumulator:
                       lost_flux=float(z["lost_flux"]), last_pass=int(z["last_pass"]),
                       elapsed_s=float(z["elapsed_s"]),
                       pass_flux=[float(v) for v in z["pass_flux"]],
-                      pass_part_flux=[row.copy() for row in z["pass_part_flux"]])
+                      pass_part_flux=[row.copy() for row in z["pass_part_flux"]],
+                      ledger={str(k): float(v) for k, v in zip(z["ledger_keys"], z["ledger_values"])})
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 

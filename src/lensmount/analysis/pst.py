@@ -108,6 +108,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     from lensmount.design.scene import load_scene
     from lensmount.loop import RegenerateOptions, regenerate
     from lensmount.loop.provenance import collect
+    from lensmount.integrators.settings import EstimatorSettings
     from lensmount.runner import PassJob, run_pass
     from lensmount.scene.build import build_scene, make_source
     from lensmount.trace.tracer import Tracer
@@ -138,7 +139,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     det = base.detector
     area = det.width * det.height
     field_edge = float(design.prescription.max_field_deg)
-    options = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
+    settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
     weights = tuple(design.prescription.wavelength_weights)
 
     points = []
@@ -149,7 +150,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
         start = time.perf_counter()
         acc = None
         for i in range(passes):
-            estimate = run_pass(scene, tracer, PassJob(o.method, per_pass, seed, i, o.alpha, options))
+            estimate = run_pass(scene, tracer, PassJob(o.method, per_pass, seed, i, settings))
             if acc is None:
                 names = list(estimate.part_names) if names is None else names
                 acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)

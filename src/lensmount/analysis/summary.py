@@ -10,11 +10,15 @@ import numpy as np
 
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
 from lensmount.analysis.passes import Accumulator
+from lensmount.integrators.estimate import ledger_residual
 
 
 def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list[str], effects_skipped: list[str],
-                  time_s: float, aperture_flux_mm2: float, input_hash: str, extra: dict | None = None) -> dict:
-    """The summary dict. aperture_flux_mm2: flux entering the entrance pupil per unit E_sun."""
+                  time_s: float, aperture_flux_mm2: float, input_hash: str, estimator_settings: dict,
+                  extra: dict | None = None) -> dict:
+    """The summary dict. aperture_flux_mm2: flux entering the entrance pupil per unit E_sun;
+    estimator_settings: `EstimatorSettings.as_dict()` (with method, seed and photons per pass in
+    `extra`, what reproduces the run)."""
     flux, se = acc.flux, acc.flux_std_error
     scale = 1.0 / aperture_flux_mm2 if aperture_flux_mm2 > 0 else 0.0
     drift = acc.drift()
@@ -47,6 +51,8 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "peak_irradiance": finite_or_none(float(image.max()) if image.size else 0.0),
         "lost_flux": finite_or_none(acc.lost_flux / max(acc.n, 1)),
         "per_part": per_part,
+        "estimator_settings": dict(estimator_settings),
+        "energy_ledger": energy_ledger(acc),
         "input_hash": input_hash,
         "units": {"irradiance": "E/E_sun", "flux": "mm² (flux / E_sun)"},
     }
@@ -55,4 +61,16 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     return summary
 
 
-__all__ = ["build_summary"]
+def energy_ledger(acc: Accumulator) -> dict:
+    """Where the emitted flux went, per pass (mm², flux / E_sun), and how well it balances.
+
+    `entries` holds the named sums (docs/bidirectional.md, "energy ledger"); `residual_rel` is
+    (source − Σ others) / source, zero to rounding when every photon is accounted for.
+    """
+    entries = acc.mean_ledger
+    return {"entries": {k: finite_or_none(v) for k, v in entries.items()},
+            "residual_rel": finite_or_none(ledger_residual(entries)),
+            "units": "mm² (flux / E_sun) per pass"}
+
+
+__all__ = ["build_summary", "energy_ledger"]

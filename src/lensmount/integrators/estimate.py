@@ -1,14 +1,24 @@
-"""What one pass of any integrator produces: a complete, independent estimate.
+"""What one pass of any integrator produces, and the film and ledger it is built from.
 
 Passes are independent by construction (see the estimator reference), so the
 run's answer is the mean of the passes and its error bar is their spread.
+
+- `Film`: the detector image of one pass, one channel per part (the last scattering
+  vertex's part) plus `direct` and `ghosts` when the scene turns those effects on. Both
+  integrators deposit into it: photons by where they land, the gather as an image.
+- `EnergyLedger`: where the emitted flux went (docs/bidirectional.md, "energy ledger"):
+  source = detector + absorbed + escaped + glass + lost. Every entry is a flux in units of
+  E_sun·mm², the same as `PassEstimate.flux`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import defaultdict
+from dataclasses import dataclass, field
 
 import numpy as np
+
+DIRECT, GHOSTS = "direct", "ghosts"
 
 
 @dataclass
@@ -16,11 +26,11 @@ class PassEstimate:
     """One pass's estimate of detector irradiance, normalised by the source irradiance E_sun.
 
     image : (ny, nx) float64, E/E_sun per pixel (dimensionless); row 0 is the detector's -y edge
-    per_part : (P, ny, nx) float64, the same split by the part of the last scattering event
-    part_names : P names, aligned with `per_part`
+    per_part : (P, ny, nx) float64, the same split by channel (`Film.channels`)
+    part_names : P channel names, aligned with `per_part`
     pixel_area_mm2 : area of one pixel
     photons : photons traced in this pass
-    lost_flux : flux (E_sun·mm²) of rays ended by the tracer's guards (bounce limit, numerical), for the energy ledger
+    ledger : the pass's energy ledger (`EnergyLedger.as_dict`), mm² (flux / E_sun)
     """
 
     image: np.ndarray
@@ -28,7 +38,7 @@ class PassEstimate:
     part_names: list[str]
     pixel_area_mm2: float
     photons: int
-    lost_flux: float = 0.0
+    ledger: dict[str, float] = field(default_factory=dict)
 
     @property
     def flux(self) -> float:
@@ -39,3 +49,102 @@ class PassEstimate:
     def part_flux(self) -> np.ndarray:
         """(P,) flux per part, normalised by E_sun (mm²)."""
         return self.per_part.sum(axis=(1, 2)) * self.pixel_area_mm2
+
+    @property
+    def lost_flux(self) -> float:
+        """Flux the walk could not follow to its end (the ledger's `lost/…` entries), mm²."""
+        return float(sum(v for k, v in self.ledger.items() if k.startswith("lost/")))
+
+
+def film_channels(scene) -> list[str]:
+    """The channels every integrator reports for `scene`: its parts, then `direct` (direct on) and `ghosts` (ghosts on)."""
+    return (list(scene.mesh.parts) + ([DIRECT] if scene.effects.direct else [])
+            + ([GHOSTS] if scene.effects.ghosts else []))
+
+
+class Film:
+    """The detector image of one pass, by channel (see the module docstring)."""
+
+    def __init__(self, scene):
+        self.detector = scene.detector
+        self.channels = film_channels(scene)
+        self.n_parts = len(scene.mesh.parts)
+        self._direct = self.channels.index(DIRECT) if DIRECT in self.channels else -1
+        self._ghosts = self.channels.index(GHOSTS) if GHOSTS in self.channels else -1
+        det = self.detector
+        self._n_pix = det.nx * det.ny
+        self._flux = np.zeros(len(self.channels) * self._n_pix)  # Σ Φ·response per (channel, pixel)
+        self._images = np.zeros((len(self.channels), det.ny, det.nx))  # gathered E/E_sun
+        response = getattr(det, "spectral_weight", None)
+        self._response = None if response is None else np.asarray(response, np.float64)
+
+    def channel(self, part: np.ndarray, reflections: np.ndarray) -> np.ndarray:
+        """(N,) channel of paths whose last scattering part is `part` (-1: none) after `reflections`
+        Fresnel reflections; -1 where the path belongs to an effect the scene turned off."""
+        unscattered = part < 0
+        ch = np.where(unscattered, self._direct, part)
+        if self._ghosts >= 0:
+            ch = np.where(unscattered & (reflections > 0), self._ghosts, ch)
+        return ch.astype(np.int64)
+
+    def deposit(self, pixel: np.ndarray, flux: np.ndarray, wavelength: np.ndarray, channel: np.ndarray) -> None:
+        """Photons of flux (N,) [E_sun·mm²] landing in flat pixels (N,) (>= 0), into channels (N,) (>= 0)."""
+        if not len(pixel):
+            return
+        value = flux if self._response is None else flux * self._response[np.asarray(wavelength, np.int64)]
+        self._flux += np.bincount(channel * self._n_pix + pixel, weights=value, minlength=len(self._flux))
+
+    def add_images(self, per_channel: np.ndarray) -> None:
+        """Irradiance images (channels, ny, nx) E/E_sun estimated otherwise (the gather)."""
+        self._images += per_channel
+
+    def estimate(self, photons: int, ledger: "EnergyLedger") -> PassEstimate:
+        det = self.detector
+        per_part = self._images + self._flux.reshape(self._images.shape) / det.pixel_area
+        bad = ~np.isfinite(per_part)
+        if bad.any():  # never zeroed: a NaN here is a bug upstream and zeroing it would hide light
+            c, iy, ix = np.argwhere(bad)[0]
+            raise FloatingPointError(f"non-finite irradiance in channel '{self.channels[c]}' at pixel (x={ix}, "
+                                     f"y={iy}) ({int(bad.sum())} values in all)")
+        return PassEstimate(image=per_part.sum(axis=0), per_part=per_part, part_names=list(self.channels),
+                            pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict())
+
+
+class EnergyLedger:
+    """Where the flux of one pass went: named sums, E_sun·mm² (see docs/bidirectional.md).
+
+    Entries: `source`; `detector/<channel>` (photons the film counts), `detector_gathered/<channel>`
+    (bidirectional: photons whose last vertex is gathered, so the image counts them through the
+    gather instead), `detector_effect_off` (direct or ghost light the scene turned off);
+    `absorbed/<part>` (arriving minus scattered flux, per sample); `escaped` (left the assembly, or
+    hit the detector's back); `glass` (what the optics took: Fresnel reflection discarded when
+    ghosts are off); `lost/bounce_limit`, `lost/tracer_guard`; `roulette_balance` (flux of the
+    photons Russian roulette killed minus what the survivors gained: zero in expectation).
+    """
+
+    def __init__(self):
+        self._sums: dict[str, float] = defaultdict(float)
+
+    def add(self, name: str, flux) -> None:
+        self._sums[name] += float(np.sum(flux))
+
+    def add_by(self, prefix: str, names: list[str], index: np.ndarray, flux: np.ndarray) -> None:
+        """Σ flux per `names[index]` into `prefix/<name>` (index (N,) >= 0)."""
+        if not len(index):
+            return
+        sums = np.bincount(index, weights=flux, minlength=len(names))
+        for i in np.flatnonzero(np.bincount(index, minlength=len(names))):
+            self._sums[f"{prefix}/{names[i]}"] += float(sums[i])
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(sorted(self._sums.items()))
+
+
+def ledger_residual(ledger: dict[str, float]) -> float:
+    """source − Σ(every other entry), relative to the source (0 for a balanced ledger or no source)."""
+    source = ledger.get("source", 0.0)
+    rest = sum(v for k, v in ledger.items() if k != "source")
+    return (source - rest) / source if source else 0.0
+
+
+__all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "ledger_residual", "DIRECT", "GHOSTS"]

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.integrators.tracing import FACE, next_step
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import stream
+from lensmount.trace.tracer import FACE
 
 N_ZONES = 8  # detector radius zones for the azimuth histogram
 N_DPHI = 36  # azimuth bins over [−π, π)
@@ -167,7 +167,7 @@ def _pilot(scene, tracer, det, broad, seed, rim, n_rays):
         live = w > 0
         rays = RayBatch.make(x[live], omega[live], weight=w[live], wavelength=wl[live],
                              ids=np.flatnonzero(live))
-        step = next_step(tracer, rays, rng)
+        step = tracer.next_event(rays, rng)
         hit = (step.kind == FACE) & np.isin(step.tag, tags) & (step.weight > 0)
         i = step.id[hit].astype(np.int64)
         new = _fit(x, omega, wl, i, rim.z, rim.facing, r_max, n_wl, stage)

@@ -27,9 +27,9 @@ from lensmount.integrators.photon_gather import HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_tags, learned_rim
 from lensmount.integrators.media import air_radiance_factor
-from lensmount.integrators.tracing import FACE, next_step
 from lensmount.trace.detector import Detector
 from lensmount.trace.rays import RayBatch
+from lensmount.trace.tracer import FACE
 
 
 LEARNED_DISC_SHARE = 0.25  # of c, for the disc when the learned edge target takes the rest
@@ -120,12 +120,14 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
 
 def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
-                   mixture_c: float = 0.9, pilot_seed: int | None = None) -> HitPoints:
+                   mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
+                   radius_cap_mm: float = 5.0) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     broad : (n_tags,) bool, tags where hit points are made
     half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
     boundaries : FaceBoundaries for the on-face gather area (None: π r²)
+    neighbours, radius_cap_mm : r_0 is the `neighbours`-th nearest hit point on the face, at most radius_cap_mm
     pilot_seed : run seed for the learned edge target (`targets.learned_rim`, computed once per
         (scene, tracer, seed)); None: the paraxial rim annulus instead (the estimate is the same).
     """
@@ -158,7 +160,7 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
     rays = RayBatch.make(x[live], omega[live], weight=w[live] * n_wl / s, wavelength=wl[live], ids=pixel[live])
     if len(rays) == 0:
         return HitPoints.empty()
-    step = next_step(tracer, rays, rng)
+    step = tracer.next_event(rays, rng)
     tag = step.tag
     ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
     ok[ok] &= broad[tag[ok]]
@@ -173,13 +175,14 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
             ok &= ~on_edge | (rng.random(len(ok)) < keep_p)
             tau = np.where(on_edge, tau / keep_p, tau)
     pos, nrm, tg = step.position[ok], step.normal[ok], tag[ok]
-    radius = initial_radii(pos, tg, half_widths)
+    radius = initial_radii(pos, tg, half_widths, k=neighbours, cap_mm=radius_cap_mm)
     if learned is not None:
-        radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius)
+        radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius, k=neighbours,
+                                  cap_mm=radius_cap_mm)
     radius = radius * float(radius_scale)
     area = boundaries.inside_area(pos, nrm, tg, radius) if boundaries is not None else None
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
-    tau = tau[ok] * air_radiance_factor(scene, step.direction[ok], tg, None if step.prim is None else step.prim[ok],
+    tau = tau[ok] * air_radiance_factor(scene, step.direction[ok], tg, step.prim[ok],
                                         step.wavelength[ok])
     return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=tau,
                      pixel=step.id[ok].astype(np.int64), tag=tg.astype(np.int32),

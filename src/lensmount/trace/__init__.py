@@ -30,17 +30,17 @@ Contents:
     Coating, parse_coating, refract, reflect,
     fresnel_rt, reflectance                        (trace.interfaces) Snell, TIR, Fresnel, coatings
     RayBatch                                       (trace.rays)     structure-of-arrays rays
-    stream                                         (trace.sampler)  the only source of randomness
+    stream, Streams                                (trace.sampler)  the only source of randomness
 BSDF models: `lensmount.bsdf` (trace/bsdf/). Full description: docs/tracer.md.
 """
 
 from lensmount.trace.detector import Detector
 from lensmount.trace.interfaces import Coating, fresnel_rt, parse_coating, reflect, reflectance, refract
 from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import stream
+from lensmount.trace.sampler import Streams, stream
 from lensmount.trace.sources import CollimatedSource, EmissionDisc, SunSource, emission_disc, source_direction
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events, Hits, Tracer
 
 __all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "SunSource", "CollimatedSource",
            "EmissionDisc", "emission_disc", "source_direction", "Detector", "Coating", "parse_coating",
-           "refract", "reflect", "fresnel_rt", "reflectance", "RayBatch", "stream"]
+           "refract", "reflect", "fresnel_rt", "reflectance", "RayBatch", "stream", "Streams"]

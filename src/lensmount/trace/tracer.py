@@ -37,8 +37,10 @@ import numpy as np
 
 from lensmount.trace.interfaces import reflect, reflectance, refract
 from lensmount.trace.rays import RayBatch
+from lensmount.trace.sampler import ray_streams
 
-GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind (same codes as integrators.tracing)
+GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind: the one set of event codes (the integrators use these)
+FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM + interface count in the call
 
 _MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
 _MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
@@ -372,8 +374,10 @@ class Tracer:
         At every optical hit: media from the prescription, Snell refraction with the
         wavelength's index, total internal reflection, and the coating's reflectance R. With
         `effects.ghosts` off the ray transmits and its weight is multiplied by T = 1 − R; with
-        ghosts on it reflects with probability R (weight unchanged) using `rng`.
-        The input batch is not modified.
+        ghosts on it reflects with probability R (weight unchanged) using `rng`: a
+        `sampler.Streams` aligned with `rays` (ray i's k-th interface in this call draws dimension
+        FRESNEL_DIM + k of its own stream, so the branch does not depend on the batch), or a
+        Generator. The input batch is not modified.
 
         origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
         the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
@@ -392,13 +396,14 @@ class Tracer:
         prim = np.full(n, -1, np.int64)
         reflections = np.zeros(n, np.int32)
         ghosts = bool(self.scene.effects.ghosts)
+        streams = ray_streams(rng, n) if ghosts and rng is not None else None
         start_n = np.zeros((n, 3)) if origin_normal is None else np.where(
             np.isfinite(origin_normal), np.asarray(origin_normal, np.float64), 0.0)
         valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
         valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
         lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
         work = np.flatnonzero(rays.alive & (w > 0) & valid)
-        for _ in range(_MAX_OPTICAL):
+        for crossing in range(_MAX_OPTICAL):
             if work.size == 0:
                 break
             h = self._nearest(o[work], d[work], start_n[work])
@@ -417,8 +422,9 @@ class Tracer:
             glass = (h.prim >= 0) & (h.surface >= 0) & np.isfinite(h.t)
             gi = work[glass]
             if gi.size:
+                u = streams.at(gi, FRESNEL_DIM + crossing) if streams is not None else None
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.point[glass], d[gi], w[gi], wl[gi],
-                                                     ghosts, rng)
+                                                     ghosts, u)
                 reflections[gi] += refl
                 start_n[gi] = h.normal[glass]
                 bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
@@ -436,8 +442,9 @@ class Tracer:
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections)
 
-    def _interface(self, surf, p, d, w, wl, ghosts: bool, rng):
-        """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical)."""
+    def _interface(self, surf, p, d, w, wl, ghosts: bool, u):
+        """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical);
+        u (m,) uniforms for the Fresnel branch (None: always transmit)."""
         local = p - np.column_stack([np.zeros(len(p)), np.zeros(len(p)), self._z_vertex[surf]])
         nrm = np.empty_like(p)
         r = np.empty(len(p))
@@ -456,7 +463,7 @@ class Tracer:
         r = np.where(tir, 1.0, np.clip(r, 0.0, 1.0))
         mirror = reflect(d, nrm)
         if ghosts:
-            u = rng.random(len(p)) if rng is not None else np.ones(len(p))
+            u = np.ones(len(p)) if u is None else u
             bounce = tir | (u < r)
             new_d = np.where(bounce[:, None], mirror, t_dir)
             refl = (bounce & ~tir).astype(np.int32)
@@ -488,4 +495,4 @@ def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
     return np.where(ok & np.isfinite(resid) & (resid < 1e-9), t, np.inf)
 
 
-__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR"]
+__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "FRESNEL_DIM"]

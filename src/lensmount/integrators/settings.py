@@ -1,0 +1,75 @@
+"""The estimator's knobs in one frozen record: what the runner sends to workers, what
+`summary.json` records as `estimator_settings` and what goes into the input hash.
+
+A run is reproduced by (method, seed, photons per pass, these settings, the inputs).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+from lensmount.errors import InputError
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Knobs of the photon walk (both methods) and of the gather (bidirectional).
+
+    Args:
+        max_bounces: scattering events per photon; flux still travelling after them is `lost/bounce_limit`.
+        roulette_after: scattering events before Russian roulette starts.
+        roulette_level: roulette keeps a photon with q = min(1, Φ / (roulette_level · Φ0)), Φ0 its emitted flux.
+        alpha: progressive radius shrink, 0 < alpha < 1 (radius scale s_i of pass i).
+        samples_per_pixel: backward samples per pixel per pass (view map).
+        mixture_c: share of backward directions aimed at the exit targets (the rest cosine-weighted).
+        glossy_threshold_deg: lobes narrower than this half width are followed by photons, not gathered.
+        normal_limit_deg: a photon is gathered only where its face normal is within this of the hit point's.
+        neighbours: the k-th nearest hit point on the same face sets the initial radius r_0.
+        radius_cap_mm: upper bound of r_0 (mm), before the per-face strip limit.
+    """
+
+    max_bounces: int = 64
+    roulette_after: int = 3
+    roulette_level: float = 1e-3
+    alpha: float = 0.7
+    samples_per_pixel: int = 1
+    mixture_c: float = 0.5
+    glossy_threshold_deg: float = 15.0
+    normal_limit_deg: float = 30.0
+    neighbours: int = 8
+    radius_cap_mm: float = 5.0
+
+    def __post_init__(self):
+        checks = {
+            "max_bounces": (self.max_bounces >= 0, "an integer >= 0"),
+            "roulette_after": (self.roulette_after >= 0, "an integer >= 0"),
+            "roulette_level": (0.0 < self.roulette_level <= 1.0, "0 < roulette_level <= 1"),
+            "alpha": (0.0 < self.alpha < 1.0, "0 < alpha < 1"),
+            "samples_per_pixel": (self.samples_per_pixel >= 1, "an integer >= 1"),
+            "mixture_c": (0.0 <= self.mixture_c <= 1.0, "0 <= mixture_c <= 1"),
+            "glossy_threshold_deg": (0.0 <= self.glossy_threshold_deg <= 90.0, "0 to 90 degrees"),
+            "normal_limit_deg": (0.0 < self.normal_limit_deg <= 90.0, "0 < normal_limit_deg <= 90"),
+            "neighbours": (self.neighbours >= 1, "an integer >= 1"),
+            "radius_cap_mm": (0.0 < self.radius_cap_mm < math.inf, "a positive length in mm"),
+        }
+        for name, (ok, valid) in checks.items():
+            if not ok:
+                raise InputError(f"estimator setting {name} = {getattr(self, name)!r} is out of range",
+                                 field=name, valid=valid)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "EstimatorSettings":
+        """From a dict (a summary's `estimator_settings`); unknown keys are errors."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise InputError(f"unknown estimator setting '{unknown[0]}'", field=unknown[0],
+                             valid=", ".join(sorted(known)))
+        return cls(**values)
+
+
+__all__ = ["EstimatorSettings"]

@@ -1,0 +1,180 @@
+"""The photon walk both integrators share: emit, trace through the optics, deposit, scatter.
+
+One walk, bounce by bounce (pbrt's SPPM photon phase):
+
+1. *Emit* (`emit_photons`): photons first … first+n−1 of the run on the source's emission
+   disc, each carrying Φ = A_S / N_pass (E_sun·mm²), its emission numbers keyed by its
+   global index (`sampler.Streams`), so a photon is the same whichever pass or batch holds it.
+2. *Propagate*: `Tracer.next_event` carries every live photon through the glass to a
+   mechanical face, the detector, or out; its random numbers are keyed by
+   (seed, purpose, photon, bounce).
+3. *Detector*: a photon landing on the detector goes into the film channel of its last
+   scattering part (or `direct` / `ghosts`), unless its last scattering vertex is on a tag the
+   caller gathers (`gathered`: the bidirectional last-vertex rule), which counts it instead.
+4. *Yield* the bounce (the bidirectional integrator gathers the photons at faces here).
+5. *Scatter* at mechanical faces by the face's BSDF, Φ ← Φ · f cos θo / pdf; absorbers (and
+   every face when `effects.scatter` is off) end the photon. From `roulette_after` scatterings
+   on, Russian roulette keeps a photon with q = min(1, Φ / (roulette_level · Φ0)) and divides
+   Φ by q (unbiased). At `max_bounces` scatterings the walk stops.
+
+Every flux that leaves the walk is entered in the `EnergyLedger` under its name; a non-finite
+BSDF value is an error naming the finish and part, never a silent zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from lensmount.integrators.estimate import EnergyLedger, Film
+from lensmount.integrators.settings import EstimatorSettings
+from lensmount.trace.rays import RayBatch
+from lensmount.trace.sampler import Streams
+from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
+
+DIM_BSDF, DIM_ROULETTE = 0, 2  # Streams dimensions of a bounce (the tracer's Fresnel draws lie far above)
+
+
+class NonFiniteError(FloatingPointError):
+    """A non-finite value where light is carried: names where it came from."""
+
+
+@dataclass
+class Bounce:
+    """One step of N photons, before they scatter.
+
+    events : the tracer's events for the photons alive at this step
+    part : (N,) int32 part (into mesh.parts) of the last scattering vertex before it, -1 = none
+    reflections : (N,) Fresnel reflections so far along the path (ghosts)
+    scatterings : scattering events so far (the same for every photon of the step)
+    """
+
+    events: Events
+    part: np.ndarray
+    reflections: np.ndarray
+    scatterings: int
+
+
+def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int) -> RayBatch:
+    """Photons first … first+n−1 of the run (ids = global index), each carrying A_S / n_pass."""
+    ids = np.arange(first, first + n, dtype=np.int64)
+    rays, flux = scene.source.emit(n, Streams(seed, purpose + "/emit", ids))
+    rays.id = ids
+    rays.weight = np.where(rays.alive, rays.weight * (n / n_pass), 0.0)  # Φ = A_S / N_pass, however batched
+    return rays
+
+
+def scattering_tags(scene) -> np.ndarray:
+    """(n_tags,) bool: faces where a photon scatters on (BSDF neither missing nor black, scatter on)."""
+    on = np.array([b is not None and not b.is_black for b in scene.bsdf_of_tag], bool)
+    return on & bool(scene.effects.scatter)
+
+
+def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings: EstimatorSettings, film: Film,
+                ledger: EnergyLedger, gathered: np.ndarray | None = None) -> Iterator[Bounce]:
+    """Walk photons `rays` (ids = global photon index) until they die; see the module docstring.
+
+    gathered : (n_tags,) bool, tags whose light the caller counts by gathering (photons whose
+        last vertex is there are not put on the film); None: every photon is put on the film.
+    """
+    mesh = scene.mesh
+    parts = list(mesh.parts)
+    part_of_tag = mesh.part_of_tag() if mesh.tag_table else np.zeros(0, np.int32)
+    scatters = scattering_tags(scene)
+    rays = rays.subset(rays.alive & (rays.weight > 0))
+    _require_finite(rays.weight, "emitted photon flux", "the source")
+    ledger.add("source", rays.weight)
+    w0 = rays.weight.copy()  # each photon's emitted flux, the roulette's reference
+    part = np.full(len(rays), -1, np.int32)
+    last_tag = np.full(len(rays), -1, np.int32)
+    reflections = np.zeros(len(rays), np.int32)
+    start_normal = None  # photons start in free space; after a scatter, on the face they left
+    for bounce in range(settings.max_bounces + 1):
+        if len(rays) == 0:
+            return
+        streams = Streams(seed, purpose, rays.id, step=bounce)
+        ev = tracer.next_event(rays, streams, start_normal)
+        reflections = reflections + ev.reflections
+        ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off)
+        ledger.add("lost/tracer_guard", ev.weight[ev.lost])
+        ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
+        _to_film(film, ledger, ev, part, last_tag, reflections, gathered)
+        yield Bounce(ev, part, reflections, bounce)
+
+        face = np.flatnonzero(ev.kind == FACE)
+        tag = ev.tag[face]
+        w_in = ev.weight[face]
+        if bounce == settings.max_bounces:
+            ledger.add("lost/bounce_limit", w_in)
+            return
+        live = scatters[tag]
+        ledger.add_by("absorbed", parts, part_of_tag[tag[~live]], w_in[~live])
+        idx, tag, w_in = face[live], tag[live], w_in[live]
+        wo, f = _sample_bsdf(scene, tag, -ev.direction[idx], ev.normal[idx], streams, idx)
+        w = w_in * f
+        ledger.add_by("absorbed", parts, part_of_tag[tag], w_in - w)
+        if bounce + 1 >= settings.roulette_after:
+            q = np.minimum(1.0, w / (settings.roulette_level * w0[idx]))
+            survive = streams.at(idx, DIM_ROULETTE) < q
+            kept = np.where(survive, w / np.where(survive, q, 1.0), 0.0)
+            ledger.add("roulette_balance", w - kept)
+            w = kept
+        ok = w > 0
+        keep = idx[ok]
+        rays = RayBatch(origin=ev.position[keep], direction=wo[ok], weight=w[ok], wavelength=ev.wavelength[keep],
+                        alive=np.ones(len(keep), bool), id=ev.id[keep])
+        start_normal = ev.normal[keep]
+        part = part_of_tag[tag[ok]].astype(np.int32)
+        last_tag = tag[ok].astype(np.int32)
+        reflections = reflections[keep]
+        w0 = w0[keep]
+
+
+def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, last_tag, reflections, gathered) -> None:
+    """Photons on the detector: onto the film by channel, or to the gather's account, or effect off."""
+    hit = ev.kind == DETECTOR
+    if not hit.any():
+        return
+    ledger.add("escaped", ev.weight[hit & (ev.pixel < 0)])  # beside the rectangle (test tracers only)
+    hit &= ev.pixel >= 0
+    channel = film.channel(part, reflections)
+    by_gather = hit & (last_tag >= 0) & (gathered[np.maximum(last_tag, 0)] if gathered is not None else False)
+    counted = hit & ~by_gather & (channel >= 0)
+    film.deposit(ev.pixel[counted], ev.weight[counted], ev.wavelength[counted], channel[counted])
+    ledger.add_by("detector", film.channels, channel[counted], ev.weight[counted])
+    ledger.add_by("detector_gathered", film.channels, channel[by_gather], ev.weight[by_gather])
+    ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted])
+
+
+def _sample_bsdf(scene, tag, wi, n, streams: Streams, rows):
+    """Outgoing directions and weights f·cos/pdf, one vectorised call per finish (not per ray)."""
+    m = len(tag)
+    wo = np.zeros((m, 3))
+    f = np.zeros(m)
+    u = np.column_stack([streams.at(rows, DIM_BSDF), streams.at(rows, DIM_BSDF + 1)]) if m else np.zeros((0, 2))
+    for t in np.unique(tag):
+        sel = tag == t
+        o_dir, weight, _ = scene.bsdf_of_tag[int(t)].sample(wi[sel], n[sel], u[sel])
+        where = _face_name(scene, int(t))
+        _require_finite(weight, "BSDF sample weight", where)
+        _require_finite(o_dir, "scattered direction", where)
+        wo[sel] = o_dir
+        f[sel] = np.maximum(weight, 0.0)  # below the horizon a BSDF returns 0; never negative light
+    return wo, f
+
+
+def _face_name(scene, tag: int) -> str:
+    t = scene.mesh.tag_table[tag]
+    return f"finish '{t.finish}' on part '{t.part}' (role {t.role}, tag {tag})"
+
+
+def _require_finite(values: np.ndarray, what: str, where: str) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        raise NonFiniteError(f"{what} is not finite for {int(np.any(bad.reshape(len(values), -1), axis=1).sum())} "
+                             f"photon(s) at {where}")
+
+
+__all__ = ["photon_walk", "emit_photons", "scattering_tags", "Bounce", "NonFiniteError"]
