@@ -153,9 +153,15 @@ def input_hash(design_hash: str, scene_path: Path, **params) -> str:
 def planned_input_hash(o: SimulateOptions, design, spec) -> str:
     """The input hash a run with these options would get (design: loaded Design, spec: its SceneSpec)."""
     per_pass = o.photons_per_pass or spec.run.photons
-    extra = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
-    return input_hash(design.input_hash, Path(o.scene), method=o.method, photons_per_pass=per_pass, alpha=o.alpha,
-                      **extra)
+    return input_hash(design.input_hash, Path(o.scene), method=o.method, photons_per_pass=per_pass,
+                      estimator_settings=estimator_settings(o).as_dict())
+
+
+def estimator_settings(o: SimulateOptions):
+    """The estimator's knobs these options set (the rest at their defaults)."""
+    from lensmount.integrators.settings import EstimatorSettings
+
+    return EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
 
 
 def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
@@ -187,7 +193,7 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     check_writable(out)
     seed = spec.run.seed if o.seed is None else o.seed
     per_pass = o.photons_per_pass or spec.run.photons
-    options = {"samples_per_pixel": o.samples_per_pixel} if o.method == "bidirectional" else {}
+    settings = estimator_settings(o)
     digest = planned_input_hash(o, design, spec)
     checkpoint = out / CHECKPOINT
     acc = None
@@ -203,16 +209,16 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     obs.stage(f"mount geometry: {geometry} (rebuilt only if the design changed)")
     built = regenerate(RegenerateOptions(design.root, geometry), progress=obs.build_step)
     obs.stage(f"mount geometry {'from the cache' if built.manifest.cached else 'built'}; building the scene")
-    return _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, digest, acc, provenance)
+    return _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, settings, digest, acc, provenance)
 
 
-def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, digest, acc, provenance):
+def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, settings, digest, acc, provenance):
     from lensmount.analysis.metrics import aperture_flux_normalised
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.summary import build_summary
     from lensmount.cad.mesh import TaggedMesh
     from lensmount.executor import executor_for
-    from lensmount.integrators.bidirectional import part_names
+    from lensmount.integrators.estimate import film_channels
     from lensmount.loop.progress import status_of
     from lensmount.results import write_run
     from lensmount.runner import PassJob, Runner, Stopping, default_workers
@@ -229,11 +235,11 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
     stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target, max_passes=passes or 10_000)
 
     if acc is None:
-        names = part_names(sc) if o.method == "bidirectional" else _forward_part_names(sc)
+        names = film_channels(sc)
         acc = Accumulator.empty((sc.detector.ny, sc.detector.nx), names, sc.detector.pixel_area)
 
     def job(i: int) -> PassJob:
-        return PassJob(o.method, per_pass, seed, i, o.alpha, options)
+        return PassJob(o.method, per_pass, seed, i, settings)
 
     effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
     aperture = aperture_flux_normalised(2.0 * math.sqrt(sc.entrance_pupil_area_mm2 / math.pi),
@@ -252,7 +258,7 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
 
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
-                            aperture_flux_mm2=aperture, input_hash=digest,
+                            aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
                                    "geometry": str(built.folder.resolve()),
@@ -269,14 +275,6 @@ def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, options, 
         with Store(result.store_path) as store:
             result.run_id = store.record(summary, paths)
     return result
-
-
-def _forward_part_names(sc) -> list[str]:
-    """The forward estimator names its own channels: take them from a one-photon pass."""
-    from lensmount.runner import PassJob, run_pass
-    from lensmount.trace.tracer import Tracer
-
-    return list(run_pass(sc, Tracer(sc), PassJob("forward", 1, 0, 0)).part_names)
 
 
 def _field_radius(prescription) -> float | None:
