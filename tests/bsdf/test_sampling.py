@@ -25,6 +25,9 @@ CASES = {
     "abg-broad": ("abg", {"A": 0.02, "B": 0.05, "g": 1.5}),
     "harvey-narrow": ("harvey", {"b0": 10.0, "L": 0.01, "S": -1.5}),
     "harvey-broad": ("harvey", {"b0": 0.15, "L": 0.2, "S": -2.5}),
+    # a measured-table lobe: ABg (2e-3, 1e-3, 2) sampled at 40 nodes, as `measured_profile` would give it
+    "tabulated": ("tabulated", {"rho": np.geomspace(1e-3, 1.5, 40).tolist(),
+                                "brdf": (2e-3 / (1e-3 + np.geomspace(1e-3, 1.5, 40) ** 2)).tolist()}),
 }
 ANGLES = [0.0, 30.0, 60.0, 85.0]
 PARAMS = [pytest.param(case, deg, id=f"{case}@{deg:g}") for case in CASES for deg in ANGLES]

@@ -12,6 +12,7 @@
 | `abg`        | A, B, g                            | abg.py        |
 | `harvey`     | b0, L, S                           | harvey.py     |
 | `mirror`     | reflectance (default 1)            | mirror.py     |
+| `tabulated`  | rho, brdf (a measured table)       | tabulated.py  |
 
 `make_bsdf` raises `lensmount.errors.InputError` (field = the parameter) for an
 unknown model, an unknown parameter or a value out of range, including an ABg or
@@ -28,6 +29,7 @@ from lensmount.trace.bsdf.gaussian import Gaussian
 from lensmount.trace.bsdf.harvey import Harvey
 from lensmount.trace.bsdf.lambertian import Lambertian
 from lensmount.trace.bsdf.mirror import Mirror
+from lensmount.trace.bsdf.tabulated import Tabulated
 
 MODELS: dict[str, type[BSDF]] = {
     "absorber": Absorber,
@@ -36,6 +38,7 @@ MODELS: dict[str, type[BSDF]] = {
     "abg": ABg,
     "harvey": Harvey,
     "mirror": Mirror,
+    "tabulated": Tabulated,
 }
 
 
@@ -48,4 +51,5 @@ def make_bsdf(model: str, **params) -> BSDF:
 
 
 __all__ = ["BSDF", "MODELS", "make_bsdf", "reject_unknown",
-           "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror"]
+           "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror",
+           "Tabulated"]
