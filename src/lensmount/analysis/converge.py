@@ -223,6 +223,7 @@ def plot_converge(path: Path, curves: list[MethodCurve], reference: float | None
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     from lensmount.results import save_figure
 
@@ -249,6 +250,7 @@ def plot_converge(path: Path, curves: list[MethodCurve], reference: float | None
             tb, eb = np.array(bias).T
             ax.loglog(tb, eb, "s", mfc="none", color=color, label=f"{c.method}: bias bound (relative)")
     ax.plot([], [], ":", color="0.3", label="1/√t")
+    ax.xaxis.set_minor_formatter(NullFormatter())  # minor labels overlap on a log axis
     ax.set_xlabel("wall time (s; shared CPU, noisy)")
     ax.set_ylabel("relative error of the stray fraction")
     ax.set_title("error against time" + (f" · reference {reference:.4g}" if reference else ""), fontsize=9)
