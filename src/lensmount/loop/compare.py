@@ -123,14 +123,12 @@ def _scene_file(design: Path, scene: str) -> Path:
 
 def current_run(design: Path, scene: str, o: CompareOptions, observer: Observer | None = None) -> Run:
     """The design folder's current state on `scene`: a stored run with the same input hash, else a new run."""
-    from lensmount.design.folder import load_design
-    from lensmount.design.scene import load_scene
+    from lensmount.loop.prepare import read_inputs
 
     scene_path = _scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s)
-    d = load_design(design)
-    digest = planned_input_hash(sim, d, load_scene(scene_path))
+    digest = planned_input_hash(sim, *read_inputs(design, scene_path))
     with Store(default_path(design, o.store)) as store:
         stored = [r for r in store.runs(input_hash=digest) if Path(r.summary_path).is_file()]
     if stored:

@@ -20,20 +20,24 @@ class Prepared:
     scene: object  # lensmount.scene.scene.Scene
 
 
-def prepare(design_dir: Path, scene_path: Path, geometry: Path | None = None,
-            stage: Callable[[str], None] | None = None,
-            build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
-    """Load, regenerate (cached) and build; stage(text) tells what it is doing."""
-    from lensmount.cad.mesh import TaggedMesh
+def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None] | None = None):
+    """The validated design folder and scene file, (Design, SceneSpec); nothing built yet, so a
+    caller can refuse bad options and unwritable outputs before the slow part."""
     from lensmount.design.folder import load_design
     from lensmount.design.scene import load_scene
+
+    (stage or (lambda text: None))("reading the design and the scene")
+    return load_design(design_dir), load_scene(Path(scene_path))
+
+
+def build(design, spec, geometry: Path | None = None, stage: Callable[[str], None] | None = None,
+          build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
+    """Regenerate (cached) into `geometry` (default DESIGN/build) and build the Scene."""
+    from lensmount.cad.mesh import TaggedMesh
     from lensmount.loop.regenerate import RegenerateOptions, regenerate
     from lensmount.scene.build import build_scene
 
     say = stage or (lambda text: None)
-    say("reading the design and the scene")
-    design = load_design(design_dir)
-    spec = load_scene(Path(scene_path))
     folder = Path(geometry) if geometry is not None else design.root / "build"
     say(f"mount geometry: {folder} (rebuilt only if the design changed)")
     built = regenerate(RegenerateOptions(design.root, folder), progress=build_step)
@@ -42,4 +46,12 @@ def prepare(design_dir: Path, scene_path: Path, geometry: Path | None = None,
     return Prepared(design, spec, built, scene)
 
 
-__all__ = ["Prepared", "prepare"]
+def prepare(design_dir: Path, scene_path: Path, geometry: Path | None = None,
+            stage: Callable[[str], None] | None = None,
+            build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
+    """Load, regenerate (cached) and build; stage(text) tells what it is doing."""
+    design, spec = read_inputs(design_dir, scene_path, stage)
+    return build(design, spec, geometry, stage, build_step)
+
+
+__all__ = ["Prepared", "prepare", "read_inputs", "build"]

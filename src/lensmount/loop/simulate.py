@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.loop.regenerate import RegenerateOptions, regenerate
+from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
 METHODS = ("bidirectional", "forward")
@@ -180,15 +180,12 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     """Run one simulation end to end (see the module docstring). InputError on bad input,
     raised before anything is built or written."""
     from lensmount.analysis.passes import Accumulator
-    from lensmount.design.folder import load_design
-    from lensmount.design.scene import load_scene
+    from lensmount.loop.prepare import read_inputs
 
     o, obs = options, observer or Observer()
     check_options(o)
-    obs.stage("reading the design and the scene")
-    design = load_design(o.design)
+    design, spec = read_inputs(o.design, o.scene, obs.stage)
     scene_path = Path(o.scene)
-    spec = load_scene(scene_path)
     out = Path(o.out) if o.out is not None else Path("out") / scene_path.stem
     check_writable(out)
     seed = spec.run.seed if o.seed is None else o.seed
@@ -205,27 +202,21 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
                          list(design.template_paths.values()), o.argv)
 
-    geometry = Path(o.geometry) if o.geometry is not None else design.root / "build"
-    obs.stage(f"mount geometry: {geometry} (rebuilt only if the design changed)")
-    built = regenerate(RegenerateOptions(design.root, geometry), progress=obs.build_step)
-    obs.stage(f"mount geometry {'from the cache' if built.manifest.cached else 'built'}; building the scene")
-    return _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, settings, digest, acc, provenance)
+    prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
+    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance)
 
 
-def _run(o, obs, design, spec, scene_path, built, out, seed, per_pass, settings, digest, acc, provenance):
+def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
     from lensmount.analysis.metrics import aperture_flux_normalised
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.summary import build_summary
-    from lensmount.cad.mesh import TaggedMesh
     from lensmount.executor import executor_for
     from lensmount.integrators.estimate import film_channels
     from lensmount.loop.progress import status_of
     from lensmount.results import write_run
     from lensmount.runner import PassJob, Runner, Stopping, default_workers
-    from lensmount.scene.build import build_scene
 
-    mesh = TaggedMesh.load(built.folder / built.manifest.mesh)
-    sc = build_scene(design.prescription, mesh, spec)
+    design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
     warnings: list[str] = []
 
     photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
