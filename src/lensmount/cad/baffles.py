@@ -5,6 +5,19 @@ Vane bores are the real-ray beam envelope (full field, full pupil, every
 wavelength) plus `vanes.aperture_margin_mm`, so a vane can never clip the beam;
 a vane with less than `vanes.min_height_mm` of room above the beam is left out
 and a note says so.
+
+Hood vanes by line of sight (`vanes.placement = "line-of-sight"`), the classic
+construction in the meridional plane: the first vane stands at the hood's mouth.
+Behind vane k (bore r_k) the wall (radius R) is lit from z_k + w + (R − r_k)/tan θ_k
+on, θ_k the steepest sun ray that passes the openings before it (any angle behind
+the mouth vane; edge to opposite edge of vanes k−1 and k after that). The next
+vane's edge (the beam envelope + margin) is put where the line from that nearest lit
+wall point to the far edge of the entrance aperture (the first lens's clear aperture,
+across the axis) comes down to it: every lit point behind vane k is then hidden from
+every point of the aperture (the far edge is the critical one). The construction stops
+when no sun ray at the exclusion angle θ_e or beyond gets past the last two vanes
+(tan θ_e > (r_k + r_k−1)/(z_k − z_k−1)): the wall behind the last vane is dark.
+The count follows from the construction.
 """
 
 from __future__ import annotations
@@ -20,8 +33,55 @@ from lensmount.templates.vane import Vane
 HOOD_VANE_ROOM_MM = 4.0  # automatic hood bore: beam + vane margin + this much room for vanes
 
 
+MAX_VANES = 40  # a construction that needs more has a hood far too long for its exclusion angle
+
+
+def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: tuple[float, float],
+                  exclusion_deg: float, notes: list[str]) -> list[float]:
+    """Front-face z of the hood vanes by the classic construction (module docstring).
+
+    Args: env the Envelope; vs the [vanes] table; wall the hood's bore radius R; z_mouth, z_end
+    the hood's open and back ends; aperture (a, z_a) the entrance aperture's radius and z.
+    """
+    a, z_a = aperture
+    tan_e = np.tan(np.radians(exclusion_deg))
+    t, w, m = vs.thickness_mm, min(vs.edge_width_mm, vs.thickness_mm), vs.aperture_margin_mm
+    last = z_end - t  # the deepest a vane's front face may sit
+    grid = np.linspace(z_mouth, last, max(2, int(np.ceil((last - z_mouth) / 0.05)) + 1))
+    bore = np.maximum(env.at(grid), env.at(grid + t)) + m  # vane edge radius (front face at grid z)
+
+    def r_at(z):
+        return float(np.interp(z, grid, bore))
+
+    zs = [z_mouth]
+    tan_max = np.inf  # the steepest sun ray past the vanes so far: the mouth vane takes any angle
+    while len(zs) < MAX_VANES:
+        z, r = zs[-1], r_at(zs[-1])
+        if tan_max < tan_e:
+            return zs  # no sun ray at the exclusion angle or beyond gets past the last two vanes
+        z_lit = max(z + t, z + w + (wall - r) / tan_max)  # the nearest wall point lit behind this vane
+        if z_lit >= z_end:
+            return zs
+        # the sight line from the aperture's far edge (-a, z_a) to that wall point (R, z_lit)
+        line = wall - (wall + a) * (grid - z_lit) / (z_a - z_lit)
+        # the vane goes at the last z where the line still passes above a vane's edge (so it hits it)
+        ok = (grid > z_lit) & (line <= bore)
+        if not ok.any():
+            notes.append(f"vanes: the wall lit from z = {z_lit:.2f} mm cannot be hidden inside the hood; "
+                         "the last vane stands at its back end")
+            return zs + [last] if last > z + t else zs
+        z_next = float(grid[np.argmax(ok) - 1])
+        if z_next <= z + t:
+            notes.append(f"vanes: the construction stalls at z = {z:.2f} mm (vanes would overlap)")
+            return zs
+        tan_max = (r + r_at(z_next)) / max(z_next + w - (z + w), 1e-9)  # edge to opposite edge
+        zs.append(z_next)
+    notes.append(f"vanes: the construction stopped at {MAX_VANES} vanes")
+    return zs
+
+
 def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_front: float,
-                   spacers: list, notes: list[str]):
+                   spacers: list, notes: list[str], aperture: tuple[float, float], exclusion_deg: float):
     """(hood PartPlan or None, [vane PartPlan]) for a barrel whose front face is at z_front.
 
     Args:
@@ -30,6 +90,8 @@ def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_f
         r_barrel: barrel outside radius, mm. bore_front: barrel bore at its front, mm.
         spacers: the spacer PartPlans (long ones are tubes that hold vanes).
         notes: list the caller reports; vanes left out are noted here.
+        aperture: (radius, z) of the entrance aperture (the first lens's clear aperture).
+        exclusion_deg: the smallest sun angle off the axis (line-of-sight vanes).
     """
     from lensmount.cad.layout import PartPlan
 
@@ -65,6 +127,8 @@ def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_f
                     raise GeometryError(f"vane position {z} mm lies outside the hood "
                                         f"({z_mouth:.2f} .. {z_inner_end - vs.thickness_mm:.2f} mm)",
                                         field="vanes.positions_mm", valid="z values inside the hood")
+        elif vs.placement == "line-of-sight":
+            zs = line_of_sight(env, vs, ri, z_mouth, z_inner_end, aperture, exclusion_deg, notes)
         else:  # evenly from the mouth to the back of the hood
             span = z_inner_end - z_mouth - vs.thickness_mm
             zs = [z_mouth + span * k / max(vs.count - 1, 1) for k in range(vs.count)]

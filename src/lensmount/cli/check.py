@@ -24,9 +24,7 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
             raise InputError(f"exclusion angle {override}° is outside (0°, 90°)", field="--exclusion-deg",
                              valid="an angle in degrees between 0 and 90")
         return float(override)
-    if spec.hood.exclusion_deg is not None:
-        return float(spec.hood.exclusion_deg)
-    return float(prescription.max_field_deg) + 5.0
+    return spec.exclusion_deg(prescription.max_field_deg)
 
 
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo) -> bool:

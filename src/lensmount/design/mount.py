@@ -88,7 +88,10 @@ class Diaphragm(_Strict):
 
 
 class Vanes(_Strict):
-    count: int = Field(3, ge=0, description="vanes in the hood, placed automatically")
+    placement: Literal["line-of-sight", "even"] = Field(
+        "line-of-sight", description="hood vanes by the classic construction from the beam envelope "
+        "and [hood] exclusion_deg (as many as it takes), or `count` vanes evenly spaced")
+    count: int = Field(3, ge=0, description="vanes in the hood (placement = even)")
     positions_mm: list[float] | None = Field(None, description="explicit z of hood vane front faces "
                                              "(assembly frame) instead of automatic placement")
     in_air_gaps: int = Field(1, ge=0, description="vanes in each long spacer tube")
@@ -157,6 +160,10 @@ class MountSpec(_Strict):
             if k not in KNOWN_KINDS:
                 raise ValueError(f"unknown part kind {k!r}; valid: {', '.join(KNOWN_KINDS)}")
         return v
+
+    def exclusion_deg(self, max_field_deg: float) -> float:
+        """The smallest sun angle off the axis: [hood] exclusion_deg, else the largest field + 5°."""
+        return float(self.hood.exclusion_deg if self.hood.exclusion_deg is not None else max_field_deg + 5.0)
 
     def finish_of(self, part: str, default: str) -> str:
         return self.finishes.get(part, default)
