@@ -161,6 +161,9 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
     assert report["old_run"] == str((tmp_path / "old").resolve()) and report["new_run"] == str((tmp_path / "new").resolve())
     assert report["old"] == 1e-3 and report["new"] == 2e-3
     assert not (repo / "build").exists()  # nothing was simulated
+    by_name = _compare(repo, "--scene", SCENE, "--against", "HEAD~1", "--out", tmp_path / "by-name")
+    assert by_name.exit_code == 1
+    assert json.loads((tmp_path / "by-name" / "compare.json").read_text())["old_run"] == str((tmp_path / "old").resolve())
     bad = _compare(repo, "--scene", SCENE, "--against", "deadbeef")
     assert bad.exit_code == 2 and old_commit[:10] in bad.output
 

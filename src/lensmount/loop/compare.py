@@ -152,9 +152,12 @@ def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None,
         pick = (others or runs)[-1]
     elif against == "best":
         pick = min((r for r in runs if r.stray_fraction is not None), key=lambda r: r.stray_fraction, default=None)
-    else:
-        matches = [r for r in runs if r.git_commit and r.git_commit.startswith(against.lower())]
-        pick = matches[-1] if matches else None
+    else:  # a revision: git's name for it (HEAD~1, a tag) or a prefix of a stored commit id
+        from lensmount.loop.provenance import resolve_revision
+
+        commit = resolve_revision(design, against) or against.lower()
+        matches = [r for r in runs if r.git_commit and r.git_commit.startswith(commit)]
+        pick = max(matches, key=lambda r: (not r.git_dirty, r.id)) if matches else None  # clean runs first
     if pick is None:
         commits = sorted({r.git_commit[:10] for r in runs if r.git_commit})
         raise InputError(f"no stored run matches {against!r}", file=str(design), field="--against",

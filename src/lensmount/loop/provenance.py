@@ -54,6 +54,12 @@ def git_state(directory: str | Path, inputs: list[Path] | None = None) -> GitSta
     return GitState(head.strip(), bool(status.strip()), int(when or 0))
 
 
+def resolve_revision(directory: str | Path, revision: str) -> str | None:
+    """The full commit id git gives a revision name (HEAD~2, a tag, a short id), None when it knows none."""
+    out = _git(Path(directory).resolve(), "rev-parse", "--verify", "--quiet", f"{revision}^{{commit}}")
+    return out.strip() if out else None
+
+
 def commit_order(directory: str | Path) -> list[str]:
     """Commits reachable from HEAD, oldest first (empty outside git)."""
     out = _git(Path(directory).resolve(), "rev-list", "--topo-order", "--reverse", "HEAD")
@@ -98,4 +104,4 @@ def collect(root: str | Path, lens_path: Path, mount_path: Path, scene_path: str
         lensmount_version=lensmount.__version__, command_line=shlex.join(argv))
 
 
-__all__ = ["Provenance", "GitState", "collect", "git_state", "commit_order", "file_sha256"]
+__all__ = ["Provenance", "GitState", "collect", "git_state", "commit_order", "resolve_revision", "file_sha256"]
