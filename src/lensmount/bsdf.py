@@ -17,13 +17,15 @@ out-of-range values raise `lensmount.errors.InputError`):
     0.05
 
 Models: `absorber`, `lambertian{reflectance}`, `gaussian{reflectance, half_width_deg}`,
-`abg{A, B, g}`, `harvey{b0, L, S}`, `mirror{reflectance}`. Definitions, parameter
+`abg{A, B, g}`, `harvey{b0, L, S}`, `mirror{reflectance}`, `tabulated{rho, brdf}` (a measured
+lobe; scene files name the measurement file instead). Definitions, parameter
 ranges and how each is sampled: docs/bsdf.md and each class's module.
 """
 
 from __future__ import annotations
 
-from lensmount.trace.bsdf import (BSDF, MODELS, ABg, Absorber, Gaussian, Harvey, Lambertian, Mirror,
+from lensmount.trace.bsdf import (BSDF, MODELS, ABg, Absorber, Gaussian, Harvey, Lambertian, Mirror, Tabulated,
                                   make_bsdf)
 
-__all__ = ["BSDF", "MODELS", "make_bsdf", "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror"]
+__all__ = ["BSDF", "MODELS", "make_bsdf", "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror",
+           "Tabulated"]
