@@ -42,10 +42,10 @@ def test_glass_and_metal_touch_or_keep_the_clearance(examples_dir, example, refe
         point = np.array([ct.height, float(face(ct.height))])
         assert _distance(point, outline(segs[ct.part])) < 1e-6, f"{ct.part} does not touch {ct.lens}"
     for lens, part, r, z, gap, dist in gaps:
-        # the clearance (0.9 c: perpendicular to a slanted face), or a wedge opening from a contact
-        assert gap >= min(0.9 * c, 0.5 * wedge * dist), (lens, part, r, z, gap, dist)
+        # the clearance (>= 0.5 c perpendicular: it is set along the axis), or a wedge opening from a contact
+        assert gap >= min(0.5 * c, 0.5 * wedge * dist), (lens, part, r, z, gap, dist)
     far = [g[4] for g in gaps if g[5] > 1.0]
-    assert not far or min(far) >= 0.9 * c
+    assert not far or min(far) >= 0.5 * c
     assert slivers(layout, spec, segs) == []
 
 

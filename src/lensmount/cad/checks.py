@@ -225,14 +225,15 @@ def glass_gaps(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> li
 
 
 def slivers(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> list[tuple]:
-    """The gaps of `glass_gaps` that are neither the clearance (up to the 10 % a slanted
-    face's perpendicular distance takes off) nor a contact wedge (at least half the designed
-    wedge opening at their distance from the contact; the contact point itself, gap 0, is
-    fine). Tangent contacts open quadratically by design and are not judged."""
+    """The gaps of `glass_gaps` that are neither the clearance (at least half of it: the
+    clearance is set along the axis, and perpendicular to a 45° chamfer that leaves 71 %)
+    nor a contact wedge (at least half the designed wedge opening at their distance from
+    the contact; the contact point itself, gap 0, is fine). Tangent contacts open
+    quadratically by design and are not judged."""
     if spec.seats.contact == "tangent":
         return []
     wedge, c = np.tan(np.radians(spec.seats.wedge_deg)), spec.seats.clearance_mm
-    return [g for g in glass_gaps(layout, spec, segments) if g[4] < min(0.9 * c, 0.5 * wedge * g[5] - 1e-9)]
+    return [g for g in glass_gaps(layout, spec, segments) if g[4] < min(0.5 * c, 0.5 * wedge * g[5] - 1e-9)]
 
 
 def check_glass_clearance(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:

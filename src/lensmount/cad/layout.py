@@ -286,11 +286,65 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     retainers: list[PartPlan] = []
     seat_of = spec.seats.element
 
+    def add_spacers(ends, od, ia, ib):
+        """Spacers from (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)."""
+        for fr, fz, fm, br, bz, bm, pa, pb in ends:
+            tube = None
+            if bz - fz >= spec.vanes.long_gap_mm:
+                t = max(od - spec.spacers.tube_wall_mm, fr, br)
+                tube = t if t > max(fr, br) + 1e-6 else None
+            sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
+            name = f"spacer-{len(spacers) + 1}"
+            if sp.min_length() < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
+                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
+                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
+            if od - max(fr, br) < min_t:
+                raise GeometryError(
+                    f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",
+                    field="lens_edge.allowance_mm", valid="a larger edge allowance")
+            spacers.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish), sp))
+            if pa.startswith("lens"):
+                contacts.append(Contact(name, pa, ia, fr, clear[ia]))
+            if pb.startswith("lens"):
+                contacts.append(Contact(name, pb, ib, br, clear[ib]))
+
+    def outer_diaphragm(z_stop, od):
+        """A diaphragm on a stop in front of the first element or behind the last one."""
+        ds = spec.diaphragm
+        lo = z_stop - 0.5 * ds.land_mm
+        dia = Diaphragm(z_stop, pupil_edge_radius(p, lo, lo + ds.land_mm), od, ds.thickness_mm, ds.land_mm,
+                        ds.bevel_angle_deg, ds.bevel_side)
+        parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia))
+        return dia
+
+    def lip_radius(dia, z0, z1, side):
+        """Bore of the barrel lip (z0..z1) that clamps an outer diaphragm: clear of the beam."""
+        r = max(dia.face_inner_radius(side), env.max_over(z0, z1) + spec.spacers.aperture_margin_mm)
+        if dia.outer_radius - r < min_t:
+            raise GeometryError(f"the barrel lip holding the diaphragm would be {dia.outer_radius - r:.3f} mm "
+                                f"high (minimum {min_t} mm)", field="spacers.aperture_margin_mm",
+                                valid="a smaller aperture margin or a larger edge allowance")
+        return r
+
+    stop = p.stop_index
     # ---- front seat ---------------------------------------------------------------------
     el0 = first_el(0).template
     i0 = groups[0][0]
     h0 = clear[i0] + cm
-    if spec.seats.front == "retainer":
+    if stop < i0:  # a front aperture: barrel lip | diaphragm | spacer | lens 1
+        od = bores[0] - c_sp
+        dia = outer_diaphragm(float(zv[stop]), od)
+        dz0, dz1 = dia.z_range()
+        z_front = dz0 - spec.barrel.lip_mm
+        r_lip = lip_radius(dia, z_front, dz0, "front")
+        bore_pts += [(r_lip, z_front), (r_lip, dz0), (bores[0], dz0)]
+        m = contact_slope(el0.front_z, h0, min(radii[0], od), -1, tangent, wedge)
+        hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
+        add_spacers([(hd1, dz1, _EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first_el(0).name)],
+                    od, -1, i0)
+    elif spec.seats.front == "retainer":
         r_out = bores[0] - c_sp
         m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent, wedge)
         ret = Retainer(h0, float(el0.front_z(h0)), m, -1, r_out, spec.retainer.thickness_mm)
@@ -309,8 +363,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
 
     # ---- gaps between groups --------------------------------------------------------------
-    stop = p.stop_index
-    stop_placed = False
+    stop_placed = stop < i0 or stop > groups[-1][-1]
     for gi in range(len(groups) - 1):
         A, B = last_el(gi), first_el(gi + 1)
         ia, ib = groups[gi][-1], groups[gi + 1][0]
@@ -358,27 +411,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             parts.append(parts_dia)
         else:
             ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
-        for k, (fr, fz, fm, br, bz, bm, pa, pb) in enumerate(ends):
-            tube = None
-            if bz - fz >= spec.vanes.long_gap_mm:
-                t = max(od - spec.spacers.tube_wall_mm, fr, br)
-                tube = t if t > max(fr, br) + 1e-6 else None
-            sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
-            name = f"spacer-{len(spacers) + 1}"
-            if sp.min_length() < min_t:
-                raise GeometryError(
-                    f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
-                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
-                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
-            if od - max(fr, br) < min_t:
-                raise GeometryError(
-                    f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",
-                    field="lens_edge.allowance_mm", valid="a larger edge allowance")
-            spacers.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish), sp))
-            if pa.startswith("lens"):
-                contacts.append(Contact(name, pa, ia, fr, clear[ia]))
-            if pb.startswith("lens"):
-                contacts.append(Contact(name, pb, ib, br, clear[ib]))
+        add_spacers(ends, od, ia, ib)
         # barrel steps where the glass outside the spacer ends
         r_in = od + c_sp
         # (clear of the glass by c_glass: the step does not hold the lens, and a step face
@@ -394,14 +427,25 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         raise GeometryError(
             f"the stop (surface {stop + 1}) does not lie in an air gap between two lens groups; "
             "the mount layout needs one", field=f"surface[{stop + 1}]",
-            valid="a stop between two lens groups (a stop in front of or behind the lens is not supported yet)")
+            valid="a stop in an air gap: between two lens groups, in front of the first or behind the last")
 
     # ---- rear seat ----------------------------------------------------------------------
     gl = len(groups) - 1
     elL = last_el(gl)
     iL = groups[gl][-1]
     hL = clear[iL] + cm
-    if spec.seats.rear == "shoulder":
+    if stop > iL:  # a rear stop: lens L | spacer | diaphragm | barrel lip
+        od = bores[gl] - c_sp
+        dia = outer_diaphragm(float(zv[stop]), od)
+        dz0, dz1 = dia.z_range()
+        z_back = dz1 + spec.barrel.lip_mm
+        r_lip = lip_radius(dia, dz1, z_back, "rear")
+        m = contact_slope(elL.template.back_z, hL, min(radii[gl], od), +1, tangent, wedge)
+        hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
+        add_spacers([(hL, float(elL.template.back_z(hL)), m, hd0, dz0, _EPS_SLOPE, elL.name, "diaphragm")],
+                    od, iL, -1)
+        bore_pts += [(bores[gl], dz1), (r_lip, dz1), (r_lip, z_back)]
+    elif spec.seats.rear == "shoulder":
         m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent, wedge)
         cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
         z_back = cz(bores[gl]) + spec.barrel.lip_mm
