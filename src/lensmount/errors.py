@@ -33,11 +33,13 @@ class InputError(ValueError):
             text += f" Valid: {self.valid.rstrip('.')}."
         return text
 
-    def located(self, file: str) -> "InputError":
-        """The same error with the file filled in (for loaders that learn it late)."""
-        if self.file:
+    def located(self, file: str | None, line: int | None = None) -> "InputError":
+        """The same error with the file (and line) filled in where it has none (for loaders that
+        learn them late)."""
+        if (self.file or not file) and (self.line is not None or line is None):
             return self
-        return InputError(self.detail, file=file, field=self.field, line=self.line, valid=self.valid)
+        return type(self)(self.detail, file=self.file or file, field=self.field,
+                          line=self.line if self.line is not None else line, valid=self.valid)
 
 
 class GeometryError(InputError):

@@ -1,12 +1,18 @@
-"""What the three input files share: TOML syntax errors and unknown keys, as InputErrors."""
+"""What the three input files share: TOML syntax errors, unknown keys (with the keys allowed
+there and a did-you-mean), pydantic errors as InputErrors, and the line a field sits on.
+
+TOML parsers give no positions for keys, so `line_of_key` scans the file text for the key
+within its table; every loader locates its errors through it.
+"""
 
 from __future__ import annotations
 
+import difflib
 import re
 import tomllib
 from typing import get_args
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from lensmount.errors import InputError
 
@@ -22,6 +28,91 @@ def parse_toml(text: str, file: str, valid: str = "TOML syntax (https://toml.io)
             line = int(m.group(1)) if m else None
         message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
         raise InputError(f"not valid TOML: {message}", file=file, line=line, valid=valid) from None
+
+
+def input_error(exc: ValidationError, model: type[BaseModel], *, file: str | None = None,
+                text: str | None = None, valid: str | None = None) -> InputError:
+    """The InputError for a pydantic ValidationError of `model` read from `file` (its `text`).
+
+    An unknown key is reported before anything else: a misspelt key also leaves the right
+    key missing, and "field required" for the right key would hide what the user typed.
+    """
+    errors = exc.errors()
+    err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+    loc = tuple(err["loc"])
+    field = ".".join(str(x) for x in loc) or None
+    allowed = keys_at(model, loc)
+    if err["type"] == "extra_forbidden":
+        key = str(loc[-1])
+        guess = did_you_mean(key, allowed)
+        message = f"unknown key '{key}'" + (f" (did you mean '{guess}'?)" if guess else "")
+        valid = ", ".join(allowed) or valid
+    elif err["type"] == "missing":
+        message = f"missing key '{loc[-1]}'"
+        valid = "a value for every required key; keys here: " + ", ".join(allowed)
+    else:
+        ctx = err.get("ctx") or {}
+        bound = next((f"a number {op} {ctx[k]}" for k, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
+                      if k in ctx), None)
+        message = f"{err['msg']} (got {err.get('input')!r})"
+        valid = bound or valid
+    return InputError(message, file=file, field=field, line=line_of_key(text, field), valid=valid)
+
+
+def located(exc: InputError, file: str | None, text: str | None) -> InputError:
+    """The error with the file and, from the field, the line filled in where it has none."""
+    return exc.located(file, line=line_of_key(text, exc.field))
+
+
+def did_you_mean(word: str, choices) -> str | None:
+    """The closest of `choices` to a misspelt `word`, if one is close."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+_KEY = r"""(?:"(?:[^"\\]|\\.)*"|'[^']*'|[A-Za-z0-9_-]+)"""
+_DOTTED = rf"{_KEY}(?:\s*\.\s*{_KEY})*"
+_HEADER = re.compile(rf"^\s*(\[\[?)\s*({_DOTTED})\s*\]")
+_ASSIGN = re.compile(rf"^\s*({_DOTTED})\s*=")
+
+
+def _parts(dotted: str) -> list[str]:
+    return [p[1:-1] if p[0] in "\"'" else p for p in re.findall(_KEY, dotted)]
+
+
+def line_of_key(text: str | None, field: str | None) -> int | None:
+    """1-based line of a field path ('detector.width_mm', 'objects.0.finish', 'assign.role:x') in TOML text.
+
+    Tables and arrays of tables (the n-th `[[objects]]` is 'objects.<n-1>') are followed; a
+    key inside an inline table is found on the line of its table. Without an exact match the
+    deepest enclosing table or key is given (a missing key: its table's header). Best effort:
+    None when nothing matches.
+    """
+    if not text or not field:
+        return None
+    table: list[str] = []
+    counts: dict[tuple, int] = {}
+    best, best_len = None, -1
+    for number, raw in enumerate(text.splitlines(), 1):
+        head = _HEADER.match(raw)
+        if head:
+            table = _parts(head.group(2))
+            if head.group(1) == "[[":
+                k = counts.get(tuple(table), 0)
+                counts[tuple(table)] = k + 1
+                table = table + [str(k)]
+            path = table
+        else:
+            assign = _ASSIGN.match(raw)
+            if not assign:
+                continue
+            path = table + _parts(assign.group(1))
+        rendered = ".".join(path)
+        if rendered == field:
+            return number
+        if field.startswith(rendered + ".") and len(rendered) > best_len:
+            best, best_len = number, len(rendered)
+    return best
 
 
 def keys_at(model: type[BaseModel], loc: tuple) -> list[str]:

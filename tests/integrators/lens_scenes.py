@@ -16,7 +16,7 @@ import numpy as np
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.scene.build import optical_surfaces
+from lensmount.scene.build import optical_surfaces, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
 from lensmount.trace.bsdf import make_bsdf
 from lensmount.trace.detector import Detector
@@ -123,7 +123,7 @@ def double_gauss_case(case: int = 1, *, off_axis_deg=7.0, pixels=(60, 60), edge_
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc), detector=Detector(side, side, *pixels, z_img),
                  wavelengths_um=wl, effects=Effects(True, ghosts, False),
-                 entrance_pupil_area_mm2=math.pi * 25.715**2)
+                 entrance_pupil_area_mm2=math.pi * 25.715**2, solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
 
 
 def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0, ghosts=False, direct=False,
@@ -147,14 +147,13 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc),
                  detector=Detector(detector_mm, detector_mm, *pixels, z_img), wavelengths_um=wl,
-                 effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h)
+                 effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h,
+                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
 
 
 def glass_rim(off_axis_deg=20.0, *, material="N-BK7", barrel_gap=0.2, pixels=(16, 16), detector_mm=80.0):
     """f/4 singlet whose ground rim scatters (Lambertian 0.5) inside a black barrel: much of the
     rim's light is scattered from INSIDE the glass (the n² case of the review)."""
-    from lensmount.scene.build import solid_index_of_tag
-
     h = 12.5
     lens = Prescription((Surface(51.68, 6.0, material, is_stop=True, clear_semi_diameter=h, mechanical_semi_diameter=h),
                          Surface(math.inf, 96.0, "AIR", clear_semi_diameter=h, mechanical_semi_diameter=h)),

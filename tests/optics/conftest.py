@@ -12,7 +12,7 @@ from lensmount.optics.prescription import Aperture, Prescription, Surface
 ROOT = Path(__file__).resolve().parents[2]
 DOUBLE_GAUSS = ROOT / "examples" / "double-gauss-360" / "lens.toml"
 COOKE_TOML = ROOT / "examples" / "cooke-triplet" / "lens.toml"
-COOKE_ZMX = ROOT / "examples" / "cooke-triplet" / "lens.zmx"
+COOKE_ZMX = ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx"  # not lens.zmx: one lens file per design
 
 
 @pytest.fixture(scope="session")

@@ -18,11 +18,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import lensmount
+from lensmount.design.lens import LENS_NAMES, find_lens, load_lens
 from lensmount.design.mount import MountSpec, load_mount
 from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription
+from lensmount.validation import line_of_key
 
-LENS_NAMES = ("lens.toml", "lens.zmx")
 MOUNT_NAME = "mount.toml"
 
 
@@ -51,16 +52,6 @@ class Design:
     input_hash: str
 
 
-def find_lens(root: Path) -> Path:
-    found = [root / n for n in LENS_NAMES if (root / n).is_file()]
-    if not found:
-        raise InputError("no lens file in the design folder", file=str(root),
-                         valid="a lens.toml or lens.zmx in the folder")
-    if len(found) > 1 and found[0].name == "lens.toml":
-        return found[0]  # lens.toml wins when both describe the lens (as in examples/cooke-triplet)
-    return found[0]
-
-
 def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path]) -> str:
     h = hashlib.sha256()
     h.update(f"lensmount {lensmount.__version__}\n".encode())
@@ -72,10 +63,19 @@ def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path]) 
     return h.hexdigest()
 
 
+def _check_element_numbers(mount: MountSpec, prescription: Prescription) -> None:
+    """Element numbers in mount.toml must exist in the lens (an unknown one would be ignored)."""
+    n = sum(len(g) - 1 for g in prescription.lens_groups())
+    for number in mount.lens_edge.semi_diameter_mm:
+        if not 1 <= number <= n:
+            field = f"lens_edge.semi_diameter_mm.{number}"
+            raise InputError(f"the lens has no element {number}", file=mount.source_file, field=field,
+                             line=line_of_key(mount.source_text, "lens_edge.semi_diameter_mm"),
+                             valid=f"element numbers 1 to {n} (from the object side)")
+
+
 def load_design(directory: str | Path) -> Design:
     """Load and validate a design folder (InputError on anything a user must fix)."""
-    from lensmount.design.lens import load_lens
-
     root = Path(directory)
     if not root.is_dir():
         raise InputError("design folder not found", file=str(root),
@@ -95,10 +95,11 @@ def load_design(directory: str | Path) -> Design:
                              field=f"templates.{kind}", valid="a .py file path relative to the design folder")
         templates[kind] = path
     prescription = load_lens(lens_path)
+    _check_element_numbers(mount, prescription)
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
                   content_hash(lens_path, mount_path, templates))
 
 
-__all__ = ["Design", "load_design", "content_hash", "find_lens"]
+__all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

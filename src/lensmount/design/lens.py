@@ -182,16 +182,33 @@ def _located(exc: InputError, path: Path) -> InputError:
     return InputError(exc.detail, file=exc.file or str(path), field=exc.field, line=line, valid=exc.valid)
 
 
+LENS_NAMES = ("lens.toml", "lens.zmx")
+
+
+def find_lens(root: Path) -> Path:
+    """The lens file of a design folder: exactly one of lens.toml and lens.zmx.
+
+    Both present is an error: one would silently win over an edited other.
+    """
+    root = Path(root)
+    found = [root / n for n in LENS_NAMES if (root / n).is_file()]
+    if not found:
+        raise InputError("the design folder holds no lens file", file=str(root),
+                         valid="a lens.toml or lens.zmx in the folder")
+    if len(found) > 1:
+        raise InputError("the design folder holds both lens.toml and lens.zmx, and which one is meant is "
+                         "ambiguous", file=str(root), field="lens file",
+                         valid="exactly one lens file: remove or rename the other "
+                               "(`lensmount inspect lens.zmx --save-toml lens.toml` converts)")
+    return found[0]
+
+
 def _resolve(path: Path) -> Path:
     if path.is_dir():
-        for name in ("lens.toml", "lens.zmx"):
-            if (path / name).exists():
-                return path / name
-        raise InputError("the folder holds no lens.toml or lens.zmx", file=str(path),
-                         valid="a design folder with lens.toml (or lens.zmx), or a path to the file")
+        return find_lens(path)
     if not path.exists():
         raise InputError("file not found", file=str(path), valid="a path to an existing lens.toml or .zmx file")
     return path
 
 
-__all__ = ["load_lens", "import_notes", "save_lens_toml", "validate"]
+__all__ = ["load_lens", "import_notes", "save_lens_toml", "validate", "find_lens", "LENS_NAMES"]

@@ -10,14 +10,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator
 
-from lensmount.validation import keys_at, parse_toml
+from lensmount.validation import did_you_mean, input_error, line_of_key, parse_toml
 from lensmount.errors import InputError
 
 SeatStyle = Literal["spacer", "shoulder", "retainer"]
 ContactStyle = Literal["sharp", "tangent"]
 KNOWN_KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing")
+FINISH_TABLES = ("barrel", "lens_edge", "spacers", "retainer", "diaphragm", "vanes", "hood", "housing")
 
 
 class _Strict(BaseModel):
@@ -161,6 +162,9 @@ class MountSpec(_Strict):
                 raise ValueError(f"unknown part kind {k!r}; valid: {', '.join(KNOWN_KINDS)}")
         return v
 
+    _file: str | None = PrivateAttr(None)
+    _text: str | None = PrivateAttr(None)
+
     def exclusion_deg(self, max_field_deg: float) -> float:
         """The smallest sun angle off the axis: [hood] exclusion_deg, else the largest field + 5°."""
         return float(self.hood.exclusion_deg if self.hood.exclusion_deg is not None else max_field_deg + 5.0)
@@ -168,40 +172,56 @@ class MountSpec(_Strict):
     def finish_of(self, part: str, default: str) -> str:
         return self.finishes.get(part, default)
 
+    def finish_fields(self) -> dict[str, str]:
+        """Every finish the file names: field path ('barrel.finish', 'finishes.vane-2') → finish."""
+        out = {f"{table}.finish": getattr(self, table).finish for table in FINISH_TABLES}
+        return out | {f"finishes.{part}": name for part, name in self.finishes.items()}
 
-def _field_path(loc) -> str:
-    return ".".join(str(x) for x in loc)
+    @property
+    def source_file(self) -> str | None:
+        """The mount.toml this spec was read from (None for a spec built in code)."""
+        return self._file
+
+    @property
+    def source_text(self) -> str | None:
+        """The file's text, so errors found later (against a scene) can name their line."""
+        return self._text
 
 
-def parse_mount(data: dict, file: str | None = None) -> MountSpec:
-    """Validate a mount.toml dictionary; raises InputError naming the first bad field."""
+def check_finish_parts(mount: MountSpec, part_names) -> None:
+    """InputError for a `[finishes]` entry naming a part the assembly does not have (it would
+    be ignored without a word, leaving the part its table's finish)."""
+    parts = sorted(set(part_names))
+    for part in mount.finishes:
+        if part not in parts:
+            field = f"finishes.{part}"
+            guess = did_you_mean(part, parts)
+            raise InputError(f"no part is named '{part}'" + (f" (did you mean '{guess}'?)" if guess else ""),
+                             file=mount.source_file, field=field, line=line_of_key(mount.source_text, field),
+                             valid="a part of this assembly: " + ", ".join(parts))
+
+
+def parse_mount(data: dict, file: str | None = None, text: str | None = None) -> MountSpec:
+    """Validate a mount.toml dictionary (`text`: the file's text, for line numbers); raises
+    InputError naming the first bad field."""
     try:
-        return MountSpec.model_validate(data)
+        spec = MountSpec.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = _field_path(err["loc"])
-        if err["type"] == "extra_forbidden":
-            raise InputError(f"unknown key '{field}'", file=file, field=field,
-                             valid=", ".join(keys_at(MountSpec, err["loc"])) or "see docs/mount-toml.md") from None
-        valid = {
-            "greater_than": f"a number > {err.get('ctx', {}).get('gt')}",
-            "greater_than_equal": f"a number >= {err.get('ctx', {}).get('ge')}",
-            "less_than": f"a number < {err.get('ctx', {}).get('lt')}",
-            "less_than_equal": f"a number <= {err.get('ctx', {}).get('le')}",
-        }.get(err["type"], "see docs/mount-toml.md")
-        raise InputError(f"{err['msg']} (got {err.get('input')!r})", file=file, field=field,
-                         valid=valid) from None
+        raise input_error(exc, MountSpec, file=file, text=text, valid="see docs/mount-toml.md") from None
+    spec._file, spec._text = file, text
+    return spec
 
 
 def load_mount(path: str | Path) -> MountSpec:
     """Read and validate mount.toml."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot read the mount file ({exc.strerror})", file=str(path),
                          valid="a readable mount.toml") from None
-    return parse_mount(parse_toml(text, str(path)), file=str(path))
+    return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 
-__all__ = ["MountSpec", "load_mount", "parse_mount", "SeatStyle", "ContactStyle"]
+__all__ = ["MountSpec", "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
+           "check_finish_parts"]

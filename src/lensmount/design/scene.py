@@ -54,9 +54,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
-from lensmount.validation import keys_at, parse_toml
+from lensmount.validation import did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
 from lensmount.errors import InputError
 from lensmount.scene.finishes import check_rules, finish_library
 from lensmount.trace.interfaces import parse_coating
@@ -75,8 +75,9 @@ class SourceSpec(_Strict):
 
     @model_validator(mode="after")
     def _sun_only(self):
-        if self.type == "collimated" and self.limb_darkening:
-            raise ValueError("limb_darkening applies to type = 'sun' only")
+        sun_only = {"limb_darkening", "angular_diameter_deg"} & self.model_fields_set
+        if self.type == "collimated" and sun_only:  # would be ignored without a word
+            raise ValueError(f"{', '.join(sorted(sun_only))} applies to type = 'sun' only")
         return self
 
 
@@ -132,6 +133,10 @@ class ObjectSpec(_Strict):
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"a {self.type} object needs {', '.join(missing)}")
+        unused = [k for k in ("radius_mm", "width_mm", "height_mm", "path")
+                  if k not in need and getattr(self, k) is not None]
+        if unused:  # a rectangle given radius_mm would silently keep its own size
+            raise ValueError(f"a {self.type} object takes {', '.join(need)}, not {', '.join(unused)}")
         if self.type == "mesh" and not str(self.path).lower().endswith((".stl", ".step", ".stp")):
             raise ValueError("path must be an .stl, .step or .stp file")
         return self
@@ -150,6 +155,18 @@ class SceneSpec(_Strict):
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
+    _file: str | None = PrivateAttr(None)
+    _text: str | None = PrivateAttr(None)
+
+    @property
+    def source_file(self) -> str | None:
+        """The scene file this spec was read from (None for a spec built in code)."""
+        return self._file
+
+    @property
+    def source_text(self) -> str | None:
+        """The scene file's text, so errors found later (scene.build) can name their line."""
+        return self._text
 
     @field_validator("coatings")
     @classmethod
@@ -178,23 +195,21 @@ def load_scene(path: str | Path) -> SceneSpec:
     except FileNotFoundError:
         raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
     data = parse_toml(text, str(path))
-    return scene_from_dict(data, file=str(path), base_dir=str(path.parent))
+    return scene_from_dict(data, file=str(path), base_dir=str(path.parent), text=text)
 
 
-def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".") -> SceneSpec:
-    """Validate a parsed scene table (also what tests and scripts use)."""
+def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".", text: str | None = None) -> SceneSpec:
+    """Validate a parsed scene table (also what tests and scripts use); `text` is the file's
+    text, for line numbers."""
     if "base_dir" in data:
-        raise InputError("unknown key", file=file, field="base_dir", valid=_valid_keys(("base_dir",)))
+        raise InputError("unknown key 'base_dir'", file=file, field="base_dir", valid=_valid_keys(("base_dir",)))
     try:
         spec = SceneSpec(**data, base_dir=base_dir)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        where = ".".join(str(x) for x in err["loc"])
-        if err["type"] == "extra_forbidden":
-            raise InputError("unknown key", file=file, field=where, valid=_valid_keys(err["loc"])) from None
-        raise InputError(err["msg"], file=file, field=where or None, valid=_valid_keys(err["loc"])) from None
+        raise input_error(exc, SceneSpec, file=file, text=text) from None
     except InputError as exc:
-        raise exc.located(file) if file else exc
+        raise located(exc, file, text) from None
+    spec._file, spec._text = file, text
     library = finish_library(spec.finishes)
     try:
         from lensmount.trace.bsdf import make_bsdf
@@ -214,8 +229,29 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".")
                 raise InputError(f"object '{obj.name}' names undefined finish '{obj.finish}'",
                                  field=f"objects.{k}.finish", valid=", ".join(sorted(library)))
     except InputError as exc:
-        raise exc.located(file) if file else exc
+        raise located(exc, file, text) from None
     return spec
+
+
+def check_mount_finishes(spec: SceneSpec, mount) -> None:
+    """InputError (naming mount.toml's field and line) for a finish the mount file gives that
+    the scene does not define.
+
+    Defined: the built-in library, the scene's `[finishes]`, and names the scene's `finish:`
+    rules re-assign (a mount finish may be a label the scene maps). A misspelt finish would
+    otherwise absorb silently wherever no scene rule covers it. Needs no geometry, so it runs
+    before the regenerate.
+    """
+    library = finish_library(spec.finishes)
+    labels = {key.partition(":")[2] for key in spec.assign if key.startswith("finish:")}
+    defined = sorted(set(library) | labels)
+    for field, name in mount.finish_fields().items():
+        if name not in defined:
+            guess = did_you_mean(name, defined)
+            raise InputError(f"finish '{name}' is not defined" + (f" (did you mean '{guess}'?)" if guess else ""),
+                             file=mount.source_file, field=field, line=line_of_key(mount.source_text, field),
+                             valid="a defined finish: " + ", ".join(defined)
+                                   + "; or define it in the scene's [finishes]")
 
 
 def _valid_keys(loc) -> str:
@@ -224,4 +260,4 @@ def _valid_keys(loc) -> str:
 
 
 __all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "RunSpec", "ObjectSpec", "load_scene",
-           "scene_from_dict"]
+           "scene_from_dict", "check_mount_finishes"]

@@ -21,10 +21,9 @@ def air_radiance_factor(scene, direction: np.ndarray, tag: np.ndarray, prim: np.
     tag, prim : (H,) mesh tag and triangle of the hit (prim None: no mesh, factor 1)
     wavelength : (H,) wavelength index
     """
-    index = getattr(scene, "solid_index_of_tag", None)
-    if index is None or prim is None or len(tag) == 0:
+    if prim is None or len(tag) == 0:
         return np.ones(len(tag))
-    n = index[tag, wavelength]
+    n = scene.solid_index_of_tag[tag, wavelength]
     glass = n != 1.0
     if not glass.any():
         return np.ones(len(tag))

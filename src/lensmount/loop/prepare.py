@@ -24,16 +24,19 @@ def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None]
     """The validated design folder and scene file, (Design, SceneSpec); nothing built yet, so a
     caller can refuse bad options and unwritable outputs before the slow part."""
     from lensmount.design.folder import load_design
-    from lensmount.design.scene import load_scene
+    from lensmount.design.scene import check_mount_finishes, load_scene
 
     (stage or (lambda text: None))("reading the design and the scene")
-    return load_design(design_dir), load_scene(Path(scene_path))
+    design, spec = load_design(design_dir), load_scene(Path(scene_path))
+    check_mount_finishes(spec, design.mount)
+    return design, spec
 
 
 def build(design, spec, geometry: Path | None = None, stage: Callable[[str], None] | None = None,
           build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
     """Regenerate (cached) into `geometry` (default DESIGN/build) and build the Scene."""
     from lensmount.cad.mesh import TaggedMesh
+    from lensmount.design.mount import check_finish_parts
     from lensmount.loop.regenerate import RegenerateOptions, regenerate
     from lensmount.scene.build import build_scene
 
@@ -42,7 +45,9 @@ def build(design, spec, geometry: Path | None = None, stage: Callable[[str], Non
     say(f"mount geometry: {folder} (rebuilt only if the design changed)")
     built = regenerate(RegenerateOptions(design.root, folder), progress=build_step)
     say(f"mount geometry {'from the cache' if built.manifest.cached else 'built'}; building the scene")
-    scene = build_scene(design.prescription, TaggedMesh.load(built.folder / built.manifest.mesh), spec)
+    mesh = TaggedMesh.load(built.folder / built.manifest.mesh)
+    check_finish_parts(design.mount, mesh.parts)
+    scene = build_scene(design.prescription, mesh, spec)
     return Prepared(design, spec, built, scene)
 
 

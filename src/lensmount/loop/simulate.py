@@ -217,7 +217,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.runner import PassJob, Runner, Stopping, default_workers
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
-    warnings: list[str] = []
+    warnings: list[str] = list(sc.warnings)  # legal but suspicious inputs (scene.build)
 
     photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
     if not any(v is not None for v in (photons, time_s, target, passes)):

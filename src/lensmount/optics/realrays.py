@@ -32,6 +32,7 @@ CLIP_REL_TOL = 1e-9  # a ray exactly on an automatic clear aperture passes
 _AIM_STEPS = 12
 _AIM_TOL = 1e-10  # mm at the stop
 _FD_STEP = 1e-4  # mm, finite-difference step for the aiming Jacobian
+_AIM_BACKTRACK = 8  # halvings of a Newton step before the ray keeps its last good start
 
 
 @dataclass
@@ -220,10 +221,10 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     r_stop = stop_semi_diameter(prescription) if stop_radius is None else float(stop_radius)
     target = np.tile(pupil * r_stop, (n_f, 1))
 
-    def directions(xy_):
+    def directions(xy_, rows=slice(None)):
         if source is None:
-            return d
-        v = np.column_stack([xy_, np.zeros(len(xy_))]) - source
+            return d[rows]
+        v = np.column_stack([xy_, np.zeros(len(xy_))]) - source[rows]
         return v / np.linalg.norm(v, axis=1, keepdims=True)
 
     # Paraxial start: through the entrance pupil point, back-projected onto z = 0
@@ -238,30 +239,44 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
         y1 = abs(float(marginal_heights(prescription, wl)[0]))  # axial marginal ray height at z = 0
         xy = np.tile(pupil * y1, (n_f, 1)) + source[:, :2] * (ep_z / (dist + ep_z))
 
-    def at_stop(xy_):
+    def at_stop(xy_, rows):
         o = np.column_stack([xy_, np.zeros(len(xy_))])
-        r = trace(prescription, o, directions(xy_), wl, clip=False, n_surfaces=stop + 1)
+        r = trace(prescription, o, directions(xy_, rows), wl, clip=False, n_surfaces=stop + 1)
         ok = (r.vignetted_at == -1) | (r.vignetted_at > stop)
         return r.points[stop, :, :2], ok
 
-    solved = np.zeros(len(xy), bool)
+    s0, ok0 = at_stop(xy, np.arange(len(xy)))
+    stuck = np.zeros(len(xy), bool)  # rays no Newton step (or fraction of one) can improve
     for _ in range(_AIM_STEPS):
-        s0, ok0 = at_stop(xy)
         res = s0 - target
-        solved = ok0 & (np.hypot(res[:, 0], res[:, 1]) < _AIM_TOL)
-        todo = ok0 & ~solved
-        if not todo.any():
+        rows = np.flatnonzero(ok0 & ~stuck & ~(np.hypot(res[:, 0], res[:, 1]) < _AIM_TOL))
+        if len(rows) == 0:
             break
-        sx, okx = at_stop(xy + [_FD_STEP, 0.0])
-        sy, oky = at_stop(xy + [0.0, _FD_STEP])
-        j11, j21 = (sx[:, 0] - s0[:, 0]) / _FD_STEP, (sx[:, 1] - s0[:, 1]) / _FD_STEP
-        j12, j22 = (sy[:, 0] - s0[:, 0]) / _FD_STEP, (sy[:, 1] - s0[:, 1]) / _FD_STEP
+        x, r0 = xy[rows], res[rows]
+        sx, okx = at_stop(x + [_FD_STEP, 0.0], rows)
+        sy, oky = at_stop(x + [0.0, _FD_STEP], rows)
+        j11, j21 = (sx[:, 0] - s0[rows, 0]) / _FD_STEP, (sx[:, 1] - s0[rows, 1]) / _FD_STEP
+        j12, j22 = (sy[:, 0] - s0[rows, 0]) / _FD_STEP, (sy[:, 1] - s0[rows, 1]) / _FD_STEP
         det = j11 * j22 - j12 * j21
-        good = todo & okx & oky & (np.abs(det) > 1e-12)
-        safe_det = np.where(good, det, 1.0)
-        step_x = (j22 * res[:, 0] - j12 * res[:, 1]) / safe_det
-        step_y = (-j21 * res[:, 0] + j11 * res[:, 1]) / safe_det
-        xy = np.where(good[:, None], xy - np.column_stack([step_x, step_y]), xy)
+        pending = okx & oky & (np.abs(det) > 1e-12)
+        stuck[rows[~pending]] = True
+        safe_det = np.where(pending, det, 1.0)
+        step = np.column_stack([(j22 * r0[:, 0] - j12 * r0[:, 1]) / safe_det,
+                                (-j21 * r0[:, 0] + j11 * r0[:, 1]) / safe_det])
+        # Halve a step that would throw the ray off a surface before the stop: an undamped
+        # Newton step can land far outside the lens, and the ray would then "miss" surface 1
+        # although the surface that really limits the beam lies further on.
+        for _half in range(_AIM_BACKTRACK):
+            idx = np.flatnonzero(pending)
+            s_t, ok_t = at_stop(x[idx] - step[idx], rows[idx])
+            took = idx[ok_t]
+            xy[rows[took]] = x[took] - step[took]
+            s0[rows[took]] = s_t[ok_t]
+            pending[took] = False
+            if not pending.any():
+                break
+            step = 0.5 * step
+        stuck[rows[pending]] = True
     origins = np.column_stack([xy, np.zeros(len(xy))])
     return origins, directions(xy)
 

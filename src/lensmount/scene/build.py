@@ -17,6 +17,7 @@ import numpy as np
 
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.errors import InputError
+from lensmount.validation import did_you_mean, located
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
@@ -108,12 +109,18 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     """A Scene from the lens, the mount's tagged mesh and a validated SceneSpec.
 
     bsdf_factory(model, **params) -> BSDF defaults to `lensmount.trace.bsdf.make_bsdf`.
+    Raises InputError (with the scene file's line where it has one) for an `[assign]` rule
+    that matches no face; `Scene.warnings` lists what is legal but suspicious.
     """
     if bsdf_factory is None:
         from lensmount.trace.bsdf import make_bsdf as bsdf_factory
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
-    mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
     library = finish_library(spec.finishes)
+    try:
+        mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
+        check_rules_match(spec.assign, mesh)
+    except InputError as exc:
+        raise located(exc, spec.source_file, spec.source_text) from None
     # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
     assign = {f"part:{o.name}": o.finish for o in spec.objects} | dict(spec.assign)
     finishes, bsdfs, cache = [], [], {}
@@ -128,28 +135,99 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
             cache[name] = bsdf_factory(params.pop("model"), **params)
         bsdfs.append(cache[name])
 
+    for key in spec.coatings:
+        if key.startswith("surface-") and int(key[8:]) > len(prescription.surfaces):
+            raise located(InputError(f"the lens has no surface {key[8:]}", field=f"coatings.{key}",
+                                     valid=f"surface-1 to surface-{len(prescription.surfaces)}"),
+                          spec.source_file, spec.source_text)
     optical = optical_surfaces(prescription, wavelengths,
                                lambda i, c: spec.coating_of_surface(i, c))
     opening = front_opening(prescription, mesh)
     d = spec.detector
     z_det = float(prescription.image_z if d.z_mm is None else d.z_mm)
     if d.spectral_weight is not None and len(d.spectral_weight) != len(wavelengths):
-        raise InputError(f"spectral_weight has {len(d.spectral_weight)} values for {len(wavelengths)} wavelengths",
-                         field="detector.spectral_weight", valid=f"{len(wavelengths)} non-negative numbers")
+        raise located(InputError(f"spectral_weight has {len(d.spectral_weight)} values for {len(wavelengths)} "
+                                 "wavelengths", field="detector.spectral_weight",
+                                 valid=f"{len(wavelengths)} non-negative numbers"), spec.source_file, spec.source_text)
     detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight)
     source = make_source(spec.source, opening, mesh, detector, tuple(prescription.wavelength_weights))
-    try:
-        from lensmount.optics.paraxial import paraxial
-
-        epd = paraxial(prescription).epd
-    except Exception:  # an afocal or odd lens must not stop a scene: fall back to the file's EPD
-        epd = prescription.aperture.value if prescription.aperture.kind == "epd" else 0.0
     e = spec.effects
     return Scene(mesh=mesh, optical=optical, bsdf_of_tag=bsdfs, source=source, detector=detector,
                  wavelengths_um=wavelengths, effects=Effects(e.scatter, e.ghosts, e.direct),
-                 front_opening=opening, entrance_pupil_area_mm2=math.pi * (0.5 * epd) ** 2,
-                 finish_of_tag=finishes, description=spec.description,
-                 solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths))
+                 entrance_pupil_area_mm2=entrance_pupil_area(prescription),
+                 solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths),
+                 front_opening=opening, finish_of_tag=finishes, description=spec.description,
+                 warnings=detector_warnings(mesh, detector))
+
+
+def entrance_pupil_area(prescription: Prescription) -> float:
+    """π (EPD/2)², mm²: what the stray fraction is normalised by. An EPD that cannot be found
+    is an error, never 0 (a zero area would read as a stray fraction of 0)."""
+    from lensmount.optics.paraxial import paraxial
+
+    if prescription.aperture.kind == "epd":  # given: no paraxial trace needed (nor a stop)
+        epd = float(prescription.aperture.value)
+    else:
+        try:
+            epd = float(paraxial(prescription).epd)
+        except (ArithmeticError, ValueError) as exc:  # InputError included: the lens is what is wrong
+            raise InputError(f"the entrance pupil cannot be computed ({exc})", field="aperture",
+                             valid="a focal lens with a stop, or an entrance pupil diameter") from None
+    if not (math.isfinite(epd) and epd > 0.0):
+        raise InputError(f"the entrance pupil diameter comes out as {epd:g} mm", field="aperture",
+                         valid="a lens whose paraxial entrance pupil diameter is finite and > 0")
+    return math.pi * (0.5 * epd) ** 2
+
+
+def check_rules_match(assign: dict[str, str], mesh: TaggedMesh) -> None:
+    """InputError for an `[assign]` rule that matches no face: a misspelt selector would
+    otherwise leave its faces to the next rule (often an absorber) without a word."""
+    present = {prefix: sorted({str(getattr(t, prefix)) for t in mesh.tag_table if t.role != "optical"})
+               for prefix in ("part", "role", "kind", "finish")}
+    for key in assign:
+        if key == "*":
+            continue
+        prefix, _, value = key.partition(":")
+        if value in present.get(prefix, ()):
+            continue
+        guess = did_you_mean(value, present.get(prefix, ()))
+        hint = f" (did you mean '{prefix}:{guess}'?)" if guess else ""
+        raise InputError(f"assignment rule '{key}' matches no face of the assembly{hint}", field=f"assign.{key}",
+                         valid="; ".join(f"{p}: {', '.join(v) or '(none)'}" for p, v in present.items()))
+
+
+def detector_warnings(mesh: TaggedMesh, detector: Detector) -> list[str]:
+    """A detector whose corners reach into the housing wall: legal (the detector is analytic)
+    but suspicious, typically a scene copied from a design with a larger detector."""
+    bore = housing_bore_at(mesh, detector.z)
+    corner = 0.5 * math.hypot(detector.width, detector.height)
+    if bore is None or corner <= bore:
+        return []
+    return [f"the detector ({detector.width:g} × {detector.height:g} mm, corners at {corner:.2f} mm from the axis) "
+            f"is larger than the housing's bore ({bore:.2f} mm radius at the detector plane z = {detector.z:g} mm): "
+            "the housing was built for a smaller detector (mount.toml [housing] detector_width_mm, "
+            "detector_height_mm), so the detector's outer part lies inside the housing wall"]
+
+
+def housing_bore_at(mesh: TaggedMesh, z: float) -> float | None:
+    """Smallest distance from the axis at which the housing's triangles cross the plane z (mm),
+    None without a housing or when the housing does not reach that plane."""
+    housing = [k for k, t in enumerate(mesh.tag_table) if t.kind == "housing"]
+    if not housing:
+        return None
+    tri = mesh.vertices[mesh.triangles[np.isin(mesh.tags, housing)]]  # (T, 3, 3)
+    radii = []
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        p, q = tri[:, a], tri[:, b]
+        crosses = (p[:, 2] - z) * (q[:, 2] - z) < 0.0
+        if crosses.any():
+            p, q = p[crosses], q[crosses]
+            t = (z - p[:, 2]) / (q[:, 2] - p[:, 2])
+            x = p + t[:, None] * (q - p)
+            radii.append(np.hypot(x[:, 0], x[:, 1]))
+    if not radii:
+        return None
+    return float(np.concatenate(radii).min())
 
 
 def solid_index_of_tag(prescription: Prescription, mesh: TaggedMesh, wavelengths_um: np.ndarray) -> np.ndarray:
@@ -189,4 +267,5 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]
+__all__ = ["build_scene", "check_rules_match", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
+           "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]

@@ -11,8 +11,9 @@ Built-in library (a scene's `[finishes]` table adds to or overrides it):
 
 Assignment (`[assign]`), most specific wins:
 `part:NAME` > `role:ROLE` > `kind:KIND` > `finish:NAME` (the finish the mount file gave the face)
-> `"*"`. A face matched by no rule keeps the finish its mount file gave it if that finish is
-defined, else it absorbs. Optical faces are never assigned a finish: the tracer refracts there.
+> `"*"`. A face matched by no rule keeps the finish its mount file gave it, which must be
+defined (an undefined one is an error, never a silent absorber); a rule that matches no face is
+an error too (scene.build). Optical faces are never assigned a finish: the tracer refracts there.
 """
 
 from __future__ import annotations
@@ -62,7 +63,12 @@ def finish_of(tag: FaceTag, assign: dict[str, str], library: dict[str, dict]) ->
             return assign[key]
     if "*" in assign:
         return assign["*"]
-    return tag.finish if tag.finish in library else "absorber"
+    if tag.finish not in library:  # never absorb silently: a misspelt mount finish would read as black
+        raise InputError(f"part '{tag.part}' has the finish '{tag.finish}' from its mount file, which is not defined, "
+                         "and no [assign] rule covers it", field="assign",
+                         valid="a defined finish in the mount file (" + ", ".join(sorted(library))
+                               + "), a [finishes] entry of that name, or an [assign] rule for the part")
+    return tag.finish
 
 
 __all__ = ["BUILTIN_FINISHES", "finish_library", "check_rules", "finish_of"]

@@ -69,6 +69,10 @@ class FrontOpening:
 class Scene:
     """Pure data for one simulation.
 
+    Every field the physics reads is required and checked here: a scene built by a
+    script cannot silently drop the 1/n² factor, the stray-fraction normalisation or
+    the effects it asked for.
+
     mesh: tagged triangles (mm, assembly frame).
     optical: analytic surfaces, any order; `optical_of_surface[i]` finds surface i.
     bsdf_of_tag: (n_tags,) BSDF per mesh tag, None for optical tags.
@@ -76,12 +80,15 @@ class Scene:
     detector: Detector.
     wavelengths_um: (W,).
     effects: Effects.
-    front_opening: FrontOpening (addition).
-    entrance_pupil_area_mm2: π (EPD/2)², for the stray fraction (addition).
-    finish_of_tag: finish name per tag, for reports (addition).
-    description: the scene file's description (addition).
+    entrance_pupil_area_mm2: π (EPD/2)², for the stray fraction (> 0).
     solid_index_of_tag: (n_tags, W) refractive index inside the solid each tag bounds (a lens
-        part's glass; 1 for mechanical parts), so a scatter seen from inside glass is known.
+        part's glass; 1 for mechanical parts), so a scatter seen from inside glass is known
+        (`scene.build.solid_index_of_tag` computes it from the prescription).
+    front_opening: FrontOpening, where the source's light enters (information).
+    finish_of_tag: finish name per tag, for reports (empty, or one per tag).
+    description: the scene file's description.
+    warnings: legal but suspicious inputs noticed while building (printed and written to
+        summary.json by the CLI).
     """
 
     mesh: TaggedMesh
@@ -90,12 +97,37 @@ class Scene:
     source: object
     detector: Detector
     wavelengths_um: np.ndarray
-    effects: Effects = field(default_factory=Effects)
+    effects: Effects
+    entrance_pupil_area_mm2: float
+    solid_index_of_tag: np.ndarray
     front_opening: FrontOpening | None = None
-    entrance_pupil_area_mm2: float = 0.0
     finish_of_tag: list[str] = field(default_factory=list)
     description: str = ""
-    solid_index_of_tag: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        n_tags = len(self.mesh.tag_table)
+        self.wavelengths_um = np.atleast_1d(np.asarray(self.wavelengths_um, np.float64))
+        w = len(self.wavelengths_um)
+        if w == 0 or not np.all(np.isfinite(self.wavelengths_um)):
+            raise ValueError("Scene.wavelengths_um must hold at least one finite wavelength")
+        if not isinstance(self.effects, Effects):
+            raise TypeError(f"Scene.effects must be an Effects, got {type(self.effects).__name__}")
+        if len(self.bsdf_of_tag) != n_tags:
+            raise ValueError(f"Scene.bsdf_of_tag has {len(self.bsdf_of_tag)} entries for {n_tags} mesh tags")
+        index = np.asarray(self.solid_index_of_tag, np.float64)
+        if index.shape != (n_tags, w) or not np.all(np.isfinite(index)) or np.any(index < 1.0):
+            raise ValueError(f"Scene.solid_index_of_tag must be a finite (n_tags, W) = ({n_tags}, {w}) array "
+                             f"of indices >= 1, got shape {index.shape}")
+        self.solid_index_of_tag = index
+        area = float(self.entrance_pupil_area_mm2)
+        if not (math.isfinite(area) and area > 0.0):
+            raise ValueError(f"Scene.entrance_pupil_area_mm2 must be finite and > 0, got {area}")
+        if self.finish_of_tag and len(self.finish_of_tag) != n_tags:
+            raise ValueError(f"Scene.finish_of_tag has {len(self.finish_of_tag)} names for {n_tags} mesh tags")
+        for s in self.optical:
+            if len(np.atleast_1d(s.n_before)) != w or len(np.atleast_1d(s.n_after)) != w:
+                raise ValueError(f"optical surface {s.index + 1}: n_before/n_after need one index per wavelength ({w})")
 
     @property
     def part_names(self) -> list[str]:

@@ -1,0 +1,90 @@
+"""The cooke-triplet example as a user gets it (`lensmount init`), its geometry regenerated
+once per session; each test copies the folder and the cached geometry, so a test that
+edits an input pays no rebuild unless the edit changes the CAD."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+
+# A scene for the cooke triplet's 36 × 24 mm housing, small enough to run in a second.
+SCENE = """\
+description = "cooke triplet, case 1 finishes"
+
+[source]
+type = "sun"
+off_axis_deg = 25.0
+azimuth_deg = 90.0
+
+[detector]
+width_mm = 36.0
+height_mm = 24.0
+pixels = [12, 8]
+
+[finishes]
+edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
+
+[assign]
+"*" = "absorber"
+"role:diaphragm-edge" = "edge-lambert-10"
+
+[run]
+photons = 2000
+passes = 1
+seed = 1
+"""
+
+OUTPUTS = ("summary.json", "irradiance.exr", "preview.png", "checkpoint.npz")
+
+
+@pytest.fixture(scope="session")
+def cooke_built(tmp_path_factory):
+    """(design folder, geometry folder) of `lensmount init -e cooke-triplet`, regenerated once."""
+    from lensmount.cad import regenerate
+
+    base = tmp_path_factory.mktemp("cooke")
+    design = base / "design"
+    res = CliRunner().invoke(app, ["init", str(design), "--example", "cooke-triplet"])
+    assert res.exit_code == 0, res.output
+    regenerate(design, base / "geometry")
+    return design, base / "geometry"
+
+
+@pytest.fixture
+def cooke(cooke_built, tmp_path):
+    """A fresh copy: (design folder with scenes/test.toml, out folder holding the cached geometry)."""
+    design, geometry = cooke_built
+    mine = tmp_path / "design"
+    shutil.copytree(design, mine)
+    (mine / "scenes").mkdir(exist_ok=True)
+    (mine / "scenes" / "test.toml").write_text(SCENE)
+    out = tmp_path / "out"
+    shutil.copytree(geometry, out / "geometry")
+    return mine, out
+
+
+def simulate(design: Path, out: Path, *extra: str):
+    """Run `lensmount simulate` on scenes/test.toml; returns the click Result."""
+    args = ["simulate", str(design), "--scene", str(design / "scenes" / "test.toml"), "--out", str(out),
+            "--method", "forward", "--workers", "1", *extra]
+    return CliRunner().invoke(app, args)
+
+
+def edit(path: Path, old: str, new: str) -> int:
+    """Replace `old` (once) in a file; returns the 1-based line of the edit."""
+    text = path.read_text()
+    assert old in text, f"{old!r} not in {path}"
+    path.write_text(text.replace(old, new, 1))
+    return text[: text.index(old)].count("\n") + 1
+
+
+def wrote_nothing(out: Path) -> bool:
+    return not any((out / name).exists() for name in OUTPUTS)

@@ -1,0 +1,102 @@
+"""Scene and mount values that used to be ignored or defaulted without a word (found by
+grepping the design and scene layers): each is now an InputError naming field and line."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.design.scene import load_scene, scene_from_dict
+from lensmount.errors import InputError
+from lensmount.scene import primitives
+from lensmount.scene.build import build_scene
+from tests.inputs.conftest import EXAMPLES
+from tests.trace.geometry import air_plane, scene_dict
+
+
+def _mount_parts() -> TaggedMesh:
+    """A barrel and a diaphragm-edge ring, tagged as the CAD layer tags (no CAD kernel)."""
+    barrel = primitives.tube(0.0, 50.0, 12.0, 14.0, part="barrel", kind="barrel", finish="black-anodised")
+    edge = primitives.tube(20.0, 20.05, 5.0, 12.0, part="diaphragm", kind="diaphragm", finish="black-anodised")
+    edge = TaggedMesh(edge.vertices, edge.triangles, edge.tags,
+                      [FaceTag("diaphragm", "diaphragm", "diaphragm-edge", "black-anodised")])
+    return TaggedMesh.concatenate([barrel, edge])
+
+
+def _write(tmp_path, data) -> str:
+    import tomli_w
+
+    path = tmp_path / "scene.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def test_selector_that_matches_nothing_names_its_line_in_build_scene(tmp_path):
+    path = _write(tmp_path, scene_dict(assign={"*": "absorber", "role:diafragm-edge": "ground-glass"}))
+    spec = load_scene(path)
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), _mount_parts(), spec)
+    e = err.value
+    line = path.read_text().splitlines().index('"role:diafragm-edge" = "ground-glass"') + 1
+    assert e.file == str(path) and e.line == line and e.field == "assign.role:diafragm-edge"
+    assert "did you mean 'role:diaphragm-edge'" in e.detail
+    assert e.valid.startswith("part: barrel, diaphragm; role: diaphragm-edge, mount; kind: barrel, diaphragm; "
+                              "finish: black-anodised")
+    # The right spelling builds, and the edge gets the finish.
+    spec = scene_from_dict(scene_dict(assign={"*": "absorber", "role:diaphragm-edge": "ground-glass"}))
+    scene = build_scene(air_plane(), _mount_parts(), spec)
+    assert scene.finish_of_tag == ["absorber", "ground-glass"]
+
+
+def test_undefined_mount_finish_without_a_rule_is_an_error_not_an_absorber():
+    mesh = _mount_parts()
+    mesh = TaggedMesh(mesh.vertices, mesh.triangles, mesh.tags,
+                      [FaceTag("barrel", "barrel", "mount", "black-anodized"), mesh.tag_table[1]])
+    spec = scene_from_dict(scene_dict(assign={"role:diaphragm-edge": "ground-glass"}))
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), mesh, spec)
+    assert "'black-anodized'" in err.value.detail and "barrel" in err.value.detail
+    assert "black-anodised" in err.value.valid
+
+
+def test_coating_for_a_surface_the_lens_does_not_have(tmp_path):
+    path = _write(tmp_path, scene_dict(coatings={"default": "perfect-ar", "surface-7": "uncoated"}))
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), _mount_parts(), load_scene(path))
+    assert err.value.field == "coatings.surface-7" and err.value.line is not None and "surface-1" in err.value.valid
+
+
+@pytest.mark.parametrize("patch,field,words", [
+    ({"source": {"type": "collimated", "off_axis_deg": 5.0, "angular_diameter_deg": 0.53}}, "source",
+     "angular_diameter_deg applies to type = 'sun' only"),
+    ({"objects": [{"type": "rectangle", "name": "r", "width_mm": 5.0, "height_mm": 5.0, "radius_mm": 3.0}]},
+     "objects.0", "takes width_mm, height_mm, not radius_mm"),
+])
+def test_values_that_would_be_ignored(tmp_path, patch, field, words):
+    path = _write(tmp_path, scene_dict(**patch))
+    with pytest.raises(InputError) as err:
+        load_scene(path)
+    assert err.value.field == field and words in err.value.detail and err.value.line is not None
+
+
+def test_a_collimated_source_without_sun_keys_is_fine():
+    scene_from_dict(scene_dict(source={"type": "collimated", "off_axis_deg": 5.0}))
+
+
+def test_mount_element_number_the_lens_does_not_have(tmp_path):
+    from lensmount.design.folder import load_design
+
+    d = tmp_path / "d"
+    d.mkdir()
+    for name in ("lens.toml", "mount.toml"):
+        shutil.copy2(EXAMPLES / "cooke-triplet" / name, d / name)
+    text = (d / "mount.toml").read_text().replace("semi_diameter_mm = { 1 = 10.2, 2 = 9.8, 3 = 8.0 }",
+                                                  "semi_diameter_mm = { 1 = 10.2, 2 = 9.8, 4 = 8.0 }")
+    (d / "mount.toml").write_text(text)
+    with pytest.raises(InputError) as err:
+        load_design(d)
+    e = err.value
+    assert e.field == "lens_edge.semi_diameter_mm.4" and "no element 4" in e.detail and "1 to 3" in e.valid
+    assert e.line == text.splitlines().index(next(x for x in text.splitlines() if "4 = 8.0" in x)) + 1
