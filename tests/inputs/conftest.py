@@ -1,6 +1,6 @@
 """The cooke-triplet example as a user gets it (`lensmount init`), its geometry regenerated
-once per session; each test copies the folder and the cached geometry, so a test that
-edits an input pays no rebuild unless the edit changes the CAD."""
+once per session into DESIGN/build (where simulate looks); each test copies the folder with
+it, so a test that edits an input pays no rebuild unless the edit changes the CAD."""
 
 from __future__ import annotations
 
@@ -47,28 +47,28 @@ OUTPUTS = ("summary.json", "irradiance.exr", "preview.png", "checkpoint.npz")
 
 @pytest.fixture(scope="session")
 def cooke_built(tmp_path_factory):
-    """(design folder, geometry folder) of `lensmount init -e cooke-triplet`, regenerated once."""
+    """(design folder, its geometry folder DESIGN/build) of `lensmount init -e cooke-triplet`,
+    regenerated once."""
     from lensmount.cad import regenerate
 
     base = tmp_path_factory.mktemp("cooke")
     design = base / "design"
     res = CliRunner().invoke(app, ["init", str(design), "--example", "cooke-triplet"])
     assert res.exit_code == 0, res.output
-    regenerate(design, base / "geometry")
-    return design, base / "geometry"
+    regenerate(design, design / "build")
+    return design, design / "build"
 
 
 @pytest.fixture
 def cooke(cooke_built, tmp_path):
-    """A fresh copy: (design folder with scenes/test.toml, out folder holding the cached geometry)."""
-    design, geometry = cooke_built
+    """A fresh copy of the design (with its cached geometry in build/ and scenes/test.toml) and
+    an out folder that does not exist yet."""
+    design, _ = cooke_built
     mine = tmp_path / "design"
     shutil.copytree(design, mine)
     (mine / "scenes").mkdir(exist_ok=True)
     (mine / "scenes" / "test.toml").write_text(SCENE)
-    out = tmp_path / "out"
-    shutil.copytree(geometry, out / "geometry")
-    return mine, out
+    return mine, tmp_path / "out"
 
 
 def simulate(design: Path, out: Path, *extra: str):

@@ -14,9 +14,9 @@ from tests.inputs.conftest import EXAMPLES, edit, simulate, wrote_nothing
 def _one_paragraph(res) -> str:
     assert res.exit_code == 2, res.output
     assert "Traceback" not in res.output
-    text = res.output.strip()
-    assert text.startswith("error: ") and "\n\n" not in text, text
-    return text
+    errors = [line for line in res.output.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and res.output.rstrip().endswith(errors[0]), res.output  # one paragraph, last
+    return errors[0]
 
 
 def test_misspelt_selector_lists_what_the_mesh_holds(cooke):
@@ -35,7 +35,6 @@ def test_misspelt_selector_lists_what_the_mesh_holds(cooke):
 
 def test_undefined_mount_finish_names_mount_toml_field_and_line(cooke):
     design, out = cooke
-    shutil.rmtree(out)
     mount = design / "mount.toml"
     text = mount.read_text().replace("[barrel]\n", '[barrel]\nfinish = "black-anodized"\n', 1)
     mount.write_text(text)
@@ -118,7 +117,7 @@ def test_mount_errors_carry_line_numbers(cooke):
     line = edit(mount, "land_mm = 0.05", "land_mm = -0.05")
     msg = _one_paragraph(simulate(design, out))
     assert str(mount) in msg and f"line {line}" in msg and "field 'diaphragm.land_mm'" in msg and "> 0" in msg
-    assert not out.exists() or wrote_nothing(out)
+    assert not out.exists()
 
 
 def test_detector_larger_than_the_housing_is_a_recorded_warning(cooke):
@@ -127,7 +126,8 @@ def test_detector_larger_than_the_housing_is_a_recorded_warning(cooke):
     edit(scene, "width_mm = 36.0\nheight_mm = 24.0", "width_mm = 44.5\nheight_mm = 44.5")
     res = simulate(design, out)
     assert res.exit_code == 0, res.output
-    assert re.search(r"warning: .*larger than the housing", res.output), res.output
+    printed = " ".join(res.output.split())  # the terminal may wrap the line
+    assert re.search(r"warning: the detector \(44\.5 × 44\.5 mm.* is larger than the housing", printed), printed
     warnings = json.loads((out / "summary.json").read_text())["warnings"]
     assert len(warnings) == 1 and "44.5 × 44.5 mm" in warnings[0] and "housing" in warnings[0]
 
