@@ -9,7 +9,8 @@ plane is *vignetted*: it is marked, keeps its last valid point and direction
 
 Ray aiming (`aim`): for an object at infinity a field is a direction; for a finite
 object it is a point of the object plane, and each ray's direction is the line from
-that point to its launch point. Rays are launched on the plane z = 0 (surface 1's vertex plane; intersections with negative
+that point to its launch point. Rays are launched on the plane z = 0
+(surface 1's vertex plane; intersections with negative
 ray parameter are fine in a sequential trace) and their launch points are solved
 by Newton's method so that each ray crosses the *stop* at the requested
 normalised pupil coordinate times the stop semi-diameter (real-ray aiming, as

@@ -42,7 +42,7 @@ def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coa
         clear = s.clear_semi_diameter if s.clear_semi_diameter is not None else math.inf
         mech = s.mechanical_semi_diameter if s.mechanical_semi_diameter is not None else clear
         out.append(OpticalSurface(i, float(zs[i]), Profile.of(s), float(clear), np.atleast_1d(n_before),
-                                  np.atleast_1d(n_after), coating_of(i, s.coating), float(mech)))
+                                  np.atleast_1d(n_after), coating_of(i, s.coating), float(mech), s.mirror))
     return out
 
 

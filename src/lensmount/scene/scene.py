@@ -45,6 +45,8 @@ class OpticalSurface:
     clear_semi_diameter, mechanical_semi_diameter: mm.
     n_before, n_after: (W,) refractive index in front of / behind the surface per scene wavelength.
     coating: how much it reflects.
+    mirror: the surface reflects every ray (Zemax GLAS MIRROR): R from a constant coating
+        (`R=0.9`), 1 otherwise; nothing is transmitted.
     """
 
     index: int
@@ -55,6 +57,7 @@ class OpticalSurface:
     n_after: np.ndarray
     coating: Coating
     mechanical_semi_diameter: float = math.inf  # (addition)
+    mirror: bool = False
 
 
 @dataclass(frozen=True)

@@ -162,6 +162,9 @@ class Tracer:
         self._n_before = np.array([np.broadcast_to(s.n_before, (w,)) for s in scene.optical] or [np.ones(w)])
         self._n_after = np.array([np.broadcast_to(s.n_after, (w,)) for s in scene.optical] or [np.ones(w)])
         self._wavelengths = np.asarray(scene.wavelengths_um, np.float64)
+        self._mirror = np.array([s.mirror for s in scene.optical] or [False])
+        self._mirror_r = np.array([s.coating.reflectance if s.coating.kind == "constant" else 1.0
+                                   for s in scene.optical] or [1.0])
         self._tolerance = self._facet_tolerance()
 
     # ------------------------------------------------------------------ intersection
@@ -469,9 +472,10 @@ class Tracer:
             refl = (bounce & ~tir).astype(np.int32)
         else:
             new_d = t_dir  # the TIR lanes already hold the mirror direction
-            w = w * np.where(tir, 1.0, 1.0 - r)
             refl = np.zeros(len(p), np.int32)
-        return new_d, w, refl
+        at_mirror = self._mirror[surf]  # a mirror reflects every ray, weighted by its R (no branch)
+        new_w = np.where(at_mirror, w * self._mirror_r[surf], w if ghosts else w * np.where(tir, 1.0, 1.0 - r))
+        return np.where(at_mirror[:, None], mirror, new_d), new_w, np.where(at_mirror, 0, refl)
 
 
 def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):

@@ -256,7 +256,8 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         raise InputError("the object sits in a glass", file=file, line=obj.glass_line,
                          valid="an object in air (no GLAS on SURF 0)")
     if image.curvature != 0.0:
-        raise InputError("the image surface is curved", file=file, line=image.line, valid="a flat image surface (CURV 0)")
+        raise InputError("the image surface is curved", file=file, line=image.line,
+                         valid="a flat image surface (CURV 0)")
     if obj.stop or image.stop:
         raise InputError("the stop is on the object or image surface", file=file,
                          line=(obj if obj.stop else image).line, valid="STOP on one of SURF 1..N-1")
@@ -385,7 +386,8 @@ def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, Impor
             ImportNote("imported", where, f"glass {name}{pickup}") if pickup else None)
     new = successor(name)
     if new is not None:
-        return new, ImportNote("substituted", where, f"glass {name} (legacy name) -> {new}, its successor")
+        return new, ImportNote("substituted", where,
+                               f"glass {name} (a legacy or moulding name) -> {new}, its catalogue successor")
     if nd_vd is not None:
         return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in no catalogue lensmount has "
                                           f"-> model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g} from the GLAS line")
@@ -422,7 +424,8 @@ def _semi_diameters(zs: ZmxSurface, s: float, notes) -> tuple[float | None, floa
         notes.append(ImportNote("imported", where, f"circular aperture {r:.4g} mm"))
     mech = zs.mema * s if zs.mema else None
     if mech is not None and clear is not None and mech < clear:
-        notes.append(ImportNote("ignored", where, f"mechanical semi-diameter {mech:.4g} mm (smaller than the clear one)"))
+        notes.append(ImportNote("ignored", where,
+                                f"mechanical semi-diameter {mech:.4g} mm (smaller than the clear one)"))
         mech = None
     return clear, mech
 
