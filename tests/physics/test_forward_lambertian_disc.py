@@ -149,3 +149,27 @@ def test_ghost_channel_of_a_window():
         err = disc * math.sqrt(frac * (1 - frac) / n_photons)
         assert abs(flux[name] - expected) < 4 * err, (name, flux[name], expected, err)
     assert flux["ghosts"] > 0
+
+
+@pytest.mark.slow
+def test_light_from_behind_through_an_open_back_is_not_dropped():
+    """The sun at 150°, behind the entrance plane: no light enters the front, but a Lambertian
+    disc (radius 25 mm, wider than the 10 mm front opening) lit from behind still scatters onto
+    the detector's face. Against the configuration factor, as above."""
+    a = 25.0
+    plate = primitives.disk((0.0, 0.0, 0.0), a, segments=256, part="plate", finish="lambert")
+    scene = mech_scene(plate, detector={"width_mm": SIDE, "height_mm": SIDE, "pixels": [1, 1], "z_mm": H},
+                       source={"type": "collimated", "off_axis_deg": 150.0, "azimuth_deg": 90.0},
+                       finishes={"lambert": {"model": "lambertian", "reflectance": RHO}},
+                       effects={"scatter": True, "direct": False}, assign={"*": "lambert"})
+    assert scene.source.entering_fraction == 0.0 and scene.source.no_light_enters
+    tracer = Tracer(scene)
+    values = [forward_pass(scene, tracer, 200_000, seed=5, pass_index=i).image.mean() for i in range(3)]
+    g = (np.arange(200) + 0.5) / 200 * SIDE - SIDE / 2
+    x, y = np.meshgrid(g, g)
+    r2 = x**2 + y**2
+    f = 0.5 * (1 - (H**2 + r2 - a**2) / np.sqrt((H**2 + r2 + a**2) ** 2 - 4 * r2 * a**2))
+    expected = RHO * math.cos(math.radians(30.0)) * f.mean() * 0.5 * 256 * math.sin(2 * math.pi / 256) / math.pi
+    mean, err = np.mean(values), np.std(values, ddof=1) / math.sqrt(3)
+    assert abs(mean - expected) < 4 * err + 1e-3 * expected, (mean, err, expected)
+    assert err < 0.05 * expected

@@ -104,3 +104,53 @@ def test_detector_hit_from_behind_is_flagged():
     assert t[0] == 50.0 and front[0]
     assert t[1] == 50.0 and not front[1]
     assert t[2] == np.inf  # starting on the detector: no self-hit
+
+
+# ---------------------------------------------------------------- the sun at and beyond 90° (issue 13, 8b)
+
+def test_directions_are_exact_at_right_angles():
+    assert source_direction(90.0, 90.0)[2] == 0.0  # not cos(π/2) = 6e-17
+    assert list(source_direction(180.0, 30.0)) == [0.0, 0.0, -1.0]
+    assert list(source_direction(90.0, 0.0)) == [-1.0, 0.0, 0.0]
+
+
+def test_entering_fraction_against_closed_forms():
+    from lensmount.trace.sources import entering_fraction
+
+    a = 0.5 * math.radians(0.53)
+    for theta in (0.0, 30.0, 89.0):  # collimated: cos θ
+        assert entering_fraction(theta) == pytest.approx(math.cos(math.radians(theta)), rel=1e-12)
+    for theta in (90.0, 120.0, 180.0):
+        assert entering_fraction(theta) == 0.0
+    # Uniform solar disc: on axis, the mean of cos ρ is 1 − α²/4; at 90° the upper half-disc gives
+    # the mean of max(sin ρ cos ψ, 0) = α · (2/3) · (1/π).
+    assert entering_fraction(0.0, a) == pytest.approx(1.0 - a * a / 4, abs=1e-9)
+    assert entering_fraction(90.0, a) == pytest.approx(2 * a / (3 * math.pi), rel=1e-3)
+    assert entering_fraction(90.0 + math.degrees(a), a) == 0.0 and entering_fraction(120.0, a) == 0.0
+
+
+@pytest.mark.parametrize("theta", [90.0, 120.0, 180.0])
+def test_sun_behind_the_entrance_plane_says_why(theta):
+    sun = _sun(theta)
+    if theta == 90.0:  # half the disc is still above the plane: light enters, grazing
+        assert sun.no_light_enters is None and sun.entering_fraction > 0
+    else:
+        assert sun.entering_fraction == 0.0
+        assert "behind the entrance plane" in sun.no_light_enters and "no light enters" in sun.no_light_enters
+    col = CollimatedSource(theta, 0.0, sun.disc)
+    assert col.entering_fraction == 0.0 and "behind the entrance plane" in col.no_light_enters
+
+
+@pytest.mark.parametrize("theta", [89.9, 90.0, 120.0, 180.0])
+def test_emission_disc_covers_the_whole_assembly_when_light_comes_from_the_side_or_behind(theta):
+    """Light from behind may still reach the detector through an open back: none of the assembly
+    (here a sphere of radius `clear` around the opening) may lie outside the photons' beam."""
+    clear, opening = 500.0, 30.0
+    d = source_direction(theta, 40.0)
+    disc = emission_disc(d, 0.0, opening, clear, 0.5 * math.radians(0.53))
+    centre = np.asarray(disc.centre)
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(5000, 3))
+    pts *= (clear * rng.random(5000) ** (1 / 3) / np.linalg.norm(pts, axis=1))[:, None]
+    across = (pts - centre) - ((pts - centre) @ d)[:, None] * d
+    assert np.linalg.norm(across, axis=1).max() <= disc.radius

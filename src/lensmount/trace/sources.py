@@ -31,10 +31,55 @@ LIMB_DARKENING_U = 0.6
 SUN_ANGULAR_DIAMETER_DEG = 0.53
 
 
+def _cos_deg(x: float) -> float:
+    """cos of an angle in degrees, exact at multiples of 90° (cos 90° is 0, not 6e-17)."""
+    x = math.fmod(float(x), 360.0)
+    quarter = x / 90.0
+    if quarter == round(quarter):
+        return (1.0, 0.0, -1.0, 0.0)[int(round(quarter)) % 4]
+    return math.cos(math.radians(x))
+
+
+def _sin_deg(x: float) -> float:
+    return _cos_deg(90.0 - float(x))
+
+
 def source_direction(off_axis_deg: float, azimuth_deg: float) -> np.ndarray:
-    """Unit propagation direction (3,) of light from a source at (θ, φ)."""
-    th, ph = math.radians(off_axis_deg), math.radians(azimuth_deg)
-    return np.array([-math.sin(th) * math.cos(ph), -math.sin(th) * math.sin(ph), math.cos(th)])
+    """Unit propagation direction (3,) of light from a source at (θ, φ); exact at multiples of 90°."""
+    st, ct = _sin_deg(off_axis_deg), _cos_deg(off_axis_deg)
+    return np.array([-st * _cos_deg(azimuth_deg), -st * _sin_deg(azimuth_deg), ct])
+
+
+def entering_fraction(off_axis_deg: float, half_angle_rad: float = 0.0, limb_darkening: bool = False) -> float:
+    """Irradiance crossing the entrance plane (z = const, into +z) per unit source irradiance.
+
+    The mean over the source's disc of max(d_z, 0): cos θ for a collimated source (exactly 0 at
+    90° and beyond); for the sun, a grazing share remains until the whole disc is behind the
+    plane (θ ≥ 90° + α): at θ = 90°, the upper half of a 0.53° sun still sends 9.8e-4 E_sun (2α/3π)
+    across it. Quadrature over the disc (the same brightness law as `emit`)."""
+    ct = _cos_deg(off_axis_deg)
+    if half_angle_rad <= 0.0:
+        return max(ct, 0.0)
+    if off_axis_deg - math.degrees(half_angle_rad) >= 90.0:
+        return 0.0
+    st = _sin_deg(off_axis_deg)
+    # Midpoint rule over equal-brightness annuli (inverse CDF of the radius) and azimuth.
+    s = _disc_radius_fraction((np.arange(256) + 0.5) / 256, limb_darkening)[:, None]
+    psi = 2.0 * np.pi * (np.arange(512) + 0.5) / 512
+    rho = s * half_angle_rad
+    dz = np.cos(rho) * ct + np.sin(rho) * np.cos(psi)[None, :] * st  # ψ from the tilt toward +z
+    return float(np.maximum(dz, 0.0).mean())
+
+
+def no_light_enters_reason(off_axis_deg: float, half_angle_rad: float = 0.0) -> str | None:
+    """Why no light crosses the entrance plane, or None when some does (see `entering_fraction`)."""
+    if entering_fraction(off_axis_deg, half_angle_rad) > 0.0:
+        return None
+    what = (f"the sun (disc radius {math.degrees(half_angle_rad):.3f}°) lies entirely" if half_angle_rad > 0
+            else "the source lies")
+    return (f"{what} behind the entrance plane ({off_axis_deg:g}° off axis): no light enters the front "
+            "opening, so the flux entering the aperture is zero; light could only reach the detector "
+            "through another opening in the side or back of the assembly (traced all the same)")
 
 
 def orthonormal_basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -67,6 +112,10 @@ def emission_disc(direction: np.ndarray, opening_z: float, opening_radius: float
     """
     centre = np.array([0.0, 0.0, opening_z]) - clear_distance * np.asarray(direction)
     radius = opening_radius * (1.0 + margin) + clear_distance * math.tan(half_angle_rad) + 1e-3
+    if float(np.asarray(direction)[2]) <= math.sin(half_angle_rad) + margin:
+        # Grazing or from behind: the front opening is seen edge-on or not at all, and light can
+        # reach the assembly anywhere (an open side or back); cover all of it, never drop it.
+        radius = max(radius, clear_distance * (1.0 + margin))
     return EmissionDisc(tuple(float(x) for x in centre), float(radius))
 
 
@@ -93,6 +142,16 @@ class SunSource:
     def half_angle_rad(self) -> float:
         return 0.5 * math.radians(self.angular_diameter_deg)
 
+    @property
+    def entering_fraction(self) -> float:
+        """Irradiance through the entrance plane / E_sun (see `entering_fraction`)."""
+        return entering_fraction(self.off_axis_deg, self.half_angle_rad, self.limb_darkening)
+
+    @property
+    def no_light_enters(self) -> str | None:
+        """The reason no light enters the front opening, for the run summary; None when some does."""
+        return no_light_enters_reason(self.off_axis_deg, self.half_angle_rad)
+
     def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]:
         """n photons: (RayBatch with weight = flux per photon, flux per photon [E_sun·mm²])."""
         return _emit(self, n, rng, self.half_angle_rad, self.limb_darkening)
@@ -114,6 +173,14 @@ class CollimatedSource:
     @property
     def half_angle_rad(self) -> float:
         return 0.0
+
+    @property
+    def entering_fraction(self) -> float:
+        return entering_fraction(self.off_axis_deg)
+
+    @property
+    def no_light_enters(self) -> str | None:
+        return no_light_enters_reason(self.off_axis_deg)
 
     def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]:
         return _emit(self, n, rng, 0.0, False)
@@ -157,4 +224,4 @@ def _disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
 
 
 __all__ = ["SunSource", "CollimatedSource", "EmissionDisc", "emission_disc", "source_direction",
-           "orthonormal_basis"]
+           "orthonormal_basis", "entering_fraction", "no_light_enters_reason"]

@@ -4,25 +4,21 @@
     hits = tracer.intersect(rays)            # nearest surface (mesh or detector), refined
     events = tracer.next_event(rays, rng)    # through the glass to a mechanical face, the detector, or out
 
-How a query stays exact although Embree is float32 (the tracer's three rules):
+How a query stays exact although Embree is float32 (docs/tracer.md):
 
-1. *Centred float32.* Embree gets vertices minus the assembly's bounding-box centre; rays are
-   launched in that frame. Embree only answers "which triangle, roughly where".
-2. *Float64 truth.* Every Embree hit is re-intersected in float64 with its own primitive: the
-   analytic `Profile` of the surface for optical faces (the point and normal are the
-   analytic ones: the mesh plus refinement is as exact as a sequential trace), the
-   triangle's float64 plane for mechanical faces. The ray's line (origin, direction) is never
-   moved sideways; every event point lies on it.
-3. *Fake hits are skipped, not offset away.* A hit whose float64 distance is not beyond
-   `t_min` (the surface the ray just left, seen again through float32 rounding), or an optical
-   facet whose analytic surface has no crossing near it (a refined point is not on the
-   tessellated facet, so the facets of the surface just crossed lie a chord's sag ahead), is
-   skipped and the query relaunched just beyond it. A ray leaving a surface is probed from
-   `eps` off that surface along its normal, on the side it leaves by (a scale-aware offset,
-   2e-6 of the assembly size: 1 µm for a 500 mm lens), so it never re-hits it, and the probe
-   stays inside the neighbouring faces at a concave corner (no leak). eps is far less than
-   a 50 µm knife edge, so thin parts are hit from both sides. The probe only finds the
-   triangle: the hit is computed on the ray's own float64 line.
+1. *Centred float32, two scenes.* Embree gets vertices minus the assembly's bounding-box
+   centre, glass facets and mechanical faces in separate scenes. Embree only answers "which
+   triangle, roughly where".
+2. *Float64 truth on the ray's own line.* Glass: every facet hit is re-intersected with the
+   analytic `Profile` of its surface (point and normal are the analytic ones: as exact as a
+   sequential trace); a facet with no crossing near it (the chord of the surface just left)
+   is skipped by relaunching just beyond it on the same line. Metal: float64 Möller–Trumbore
+   against the candidate and, near its edges, every triangle sharing a vertex with it
+   (`lensmount.trace.mechanical`). The line is never moved sideways; every event point lies
+   on it, inside its triangle.
+3. *Leaving a face.* No global offset: a ray leaving glass or a mechanical face meets every
+   mechanical face beyond it, however close (metal touching glass at gap 0 included); only the
+   face it leaves (coplanar, at t ≈ 0) and faces it does not enter are not hits.
 
 Media come from the prescription (n_before / n_after of surface i by the sign of d·n), never
 from which solid was hit, so cemented interfaces (two coincident facet sets, one surface index)
@@ -36,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lensmount.trace.interfaces import reflect, reflectance, refract
+from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import ray_streams
 
@@ -44,7 +41,7 @@ FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM +
 
 _MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
 _MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
-_EPS_REL = 2e-6          # launch offset, relative to the assembly size
+_EPS_REL = 2e-6          # relaunch step past a fake glass facet, relative to the assembly size
 _TMIN_REL = 1e-10        # float64 self-hit threshold, relative to the assembly size
 _EMBREE_MISS = 1e30
 
@@ -115,7 +112,8 @@ class Tracer:
     """Intersection and optical interfaces for one Scene (see the module docstring).
 
     Attributes: centre (3,) Embree frame origin; extent (mm, largest bounding-box side);
-    eps (launch offset, mm); t_min (float64 self-hit threshold, mm).
+    eps (relaunch step past a fake glass facet, mm); t_min (float64 |t| below which a hit
+    is at the ray's origin, mm); mechanical (`MechanicalFaces`).
     """
 
     def __init__(self, scene):
@@ -123,7 +121,7 @@ class Tracer:
         from embreex.mesh_construction import TriangleMesh
 
         self.scene = scene
-        self.embree_rays = 0  # rays sent to Embree so far (probes and relaunches), for benchmarks
+        self._optical_queries = 0
         mesh = scene.mesh
         if not np.all(np.isfinite(mesh.vertices)):
             raise ValueError("the scene's mesh has non-finite vertices (a tessellation bug upstream)")
@@ -138,11 +136,7 @@ class Tracer:
 
         tri = mesh.triangles
         self._has_mesh = len(tri) > 0
-        if self._has_mesh:
-            self._embree = rtcs.EmbreeScene()
-            v32 = (mesh.vertices - self.centre).astype(np.float32)
-            TriangleMesh(self._embree, v32, tri.astype(np.int32))
-        # Float64 triangle planes (for mechanical refinement).
+        # Float64 triangle planes (outward normals for CAD solids).
         v0 = mesh.vertices[tri[:, 0]] if self._has_mesh else np.zeros((0, 3))
         nrm = (np.cross(mesh.vertices[tri[:, 1]] - v0, mesh.vertices[tri[:, 2]] - v0)
                if self._has_mesh else np.zeros((0, 3)))
@@ -166,6 +160,28 @@ class Tracer:
         self._mirror_r = np.array([s.coating.reflectance if s.coating.kind == "constant" else 1.0
                                    for s in scene.optical] or [1.0])
         self._tolerance = self._facet_tolerance()
+        # Two Embree scenes: glass facets (refined against the analytic surfaces) and the
+        # mechanical faces (decided exactly in float64, lensmount.trace.mechanical). Apart,
+        # skipping a facet of the surface a ray leaves can never skip metal touching the glass.
+        optical = np.flatnonzero(self._tri_surface >= 0)
+        self._optical_prims = optical
+        self._has_optical = optical.size > 0
+        if self._has_optical:
+            self._embree = rtcs.EmbreeScene()
+            TriangleMesh(self._embree, (mesh.vertices - self.centre).astype(np.float32),
+                         tri[optical].astype(np.int32))
+        self.mechanical = MechanicalFaces(mesh.vertices, tri, self._tri_n, np.flatnonzero(self._tri_surface < 0),
+                                          self.centre, self.extent, self.t_min)
+
+    @property
+    def embree_rays(self) -> int:
+        """Rays sent to Embree so far (both scenes, relaunches included), for benchmarks."""
+        return self._optical_queries + self.mechanical.queries
+
+    @embree_rays.setter
+    def embree_rays(self, value: int) -> None:
+        self._optical_queries = value
+        self.mechanical.queries = 0
 
     # ------------------------------------------------------------------ intersection
 
@@ -185,7 +201,8 @@ class Tracer:
         return 4.0 * tol + 100.0 * self.eps
 
     def _embree_query(self, start: np.ndarray, d: np.ndarray):
-        self.embree_rays += len(start)
+        """Optical-facet candidates: (local facet index (m,) or -1, float32 distance from start)."""
+        self._optical_queries += len(start)
         res = self._embree.run((start - self.centre).astype(np.float32), d.astype(np.float32),
                                query="INTERSECT", output=1)
         prim = res["primID"].astype(np.int64)
@@ -224,127 +241,76 @@ class Tracer:
             best = np.where(closer, t, best)
         return best
 
-    def _mechanical_hit(self, prim, o, d, probe, te, n_start, rows):
-        """Float64 hit of rays (m,) with mechanical triangles `prim`: (t, normal, point).
+    def _optical_nearest(self, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
+        """Nearest analytic optical hit of rays (n,) before t_stop: (t, prim, normal, lost).
 
-        t is the crossing of the ray's line with the triangle's plane; inf marks a fake hit (the
-        face the ray leaves, or a coplanar neighbour of it). Exactly at a concave corner a ray
-        may leave one face straight into the next (t ≈ 0 on a face not parallel to the one it
-        starts on): that is a real hit at t = 0. The point is kept inside the triangle: where
-        float32 chose a triangle the float64 line only grazes past (seams, grazing incidence),
-        the point is the probe's hit moved into the triangle, so no event ever lands outside
-        a closed enclosure (the leak a seam would otherwise open).
-        """
-        tn = self._tri_n[prim]
-        v0 = self._tri_v0[prim]
-        den = np.einsum("ij,ij->i", tn, d)
-        num = np.einsum("ij,ij->i", tn, v0 - o)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(np.abs(den) > 1e-15, num / np.where(np.abs(den) > 1e-15, den, 1.0), np.inf)
-        t = np.where(np.isfinite(t), t, np.inf)
-        real = t > self.t_min
-        if n_start is not None:
-            ns = n_start[rows]
-            other_face = (np.abs(np.einsum("ij,ij->i", ns, tn)) < 1.0 - 1e-9) & (np.abs(ns).sum(axis=1) > 0)
-            corner = other_face & (t <= self.t_min) & (t > -1e3 * self.t_min)
-            t = np.where(corner, np.maximum(t, 0.0), t)
-            real |= corner
-        t = np.where(real, t, np.inf)
-        point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
-        inside, clamped = self._into_triangle(prim, point, probe + (te - np.einsum("ij,ij->i", probe - o, d))[:, None] * d)
-        point = np.where(inside[:, None], point, clamped)
-        t = np.where(inside | ~np.isfinite(t), t, np.maximum(np.einsum("ij,ij->i", point - o, d), 0.0))
-        return t, tn, point
-
-    def _into_triangle(self, prim, point, fallback):
-        """(inside (m,) bool, fallback projected onto the triangle's plane and clipped into it (m, 3))."""
-        tri = self.scene.mesh.triangles[prim]
-        v = self.scene.mesh.vertices
-        a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
-
-        def bary(x):
-            v0, v1, v2 = b - a, c - a, x - a
-            d00 = np.einsum("ij,ij->i", v0, v0)
-            d01 = np.einsum("ij,ij->i", v0, v1)
-            d11 = np.einsum("ij,ij->i", v1, v1)
-            d20 = np.einsum("ij,ij->i", v2, v0)
-            d21 = np.einsum("ij,ij->i", v2, v1)
-            den = d00 * d11 - d01 * d01
-            den = np.where(np.abs(den) > 1e-300, den, 1e-300)
-            l1 = (d11 * d20 - d01 * d21) / den
-            l2 = (d00 * d21 - d01 * d20) / den
-            return np.column_stack([1.0 - l1 - l2, l1, l2])
-
-        lam = bary(np.where(np.isfinite(point), point, a))
-        inside = np.all(lam >= -1e-9, axis=1)
-        lf = np.clip(bary(np.where(np.isfinite(fallback), fallback, a)), 0.0, None)
-        lf = lf / np.maximum(lf.sum(axis=1, keepdims=True), 1e-300)
-        return inside, lf[:, :1] * a + lf[:, 1:2] * b + lf[:, 2:] * c
-
-    def _nearest(self, o: np.ndarray, d: np.ndarray, n_start: np.ndarray | None = None) -> Hits:
-        """Nearest refined hit for rays (n, 3) in float64 (see the module docstring).
-
-        n_start (n, 3): normal of the surface each ray starts on (zeros for rays in free space).
-        The Embree probe then starts `eps` off that surface on the side the ray leaves by, so
-        float32 rounding can never put it behind the surface it leaves; the hit itself is
-        computed on the ray's own line in float64.
+        A facet hit is refined on the ray's own line against its surface's `Profile`; a facet
+        with no crossing of its surface near it (the chord of the surface just left) is skipped
+        by relaunching just beyond it on the same line.
         """
         n = len(o)
         t_hit = np.full(n, np.inf)
         prim = np.full(n, -1, np.int64)
         normal = np.zeros((n, 3))
         lost = np.zeros(n, bool)
-        if self._has_mesh and n:
-            probe = o.copy()
-            if n_start is not None:
-                side = np.where(np.einsum("ij,ij->i", n_start, d) >= 0.0, 1.0, -1.0)
-                probe = probe + (self.eps * side)[:, None] * n_start
-            todo = np.arange(n)
-            mech_point = np.full((n, 3), np.nan)  # mechanical hit points (inside their triangle)
-            for round_ in range(_MAX_SKIPS):
-                if todo.size == 0:
-                    break
-                oo, dd = o[todo], d[todo]
-                p, te = self._embree_query(probe[todo], dd)
-                te = te + np.einsum("ij,ij->i", probe[todo] - oo, dd)  # distance along the ray's own line
-                hit = p >= 0
-                t64 = np.full(len(todo), np.inf)
-                nn = np.zeros((len(todo), 3))
-                surf = np.where(hit, self._tri_surface[np.where(hit, p, 0)], -1)
-                # Mechanical faces: the float64 plane of the triangle.
-                mech = hit & (surf < 0)
-                if mech.any():
-                    t64[mech], nn[mech], pt = self._mechanical_hit(p[mech], oo[mech], dd[mech], probe[todo[mech]],
-                                                                   te[mech], n_start, todo[mech])
-                    mech_point[todo[mech]] = pt
-                # Optical faces: the analytic surface, point and normal.
-                for k in np.unique(surf[hit & (surf >= 0)]):
-                    sel = hit & (surf == k)
-                    ta = self._optical_root(int(k), oo[sel], dd[sel], te[sel])
-                    pl = oo[sel] + np.where(np.isfinite(ta), ta, 0.0)[:, None] * dd[sel]
-                    pl[:, 2] -= self._z_vertex[k]
-                    nk = self._profiles[k].normal(pl)
-                    cos = np.abs(np.einsum("ij,ij->i", nk, dd[sel]))
-                    near = np.abs(ta - te[sel]) * np.maximum(cos, 1e-3) <= self._tolerance[k]
-                    t64[sel] = np.where(np.isfinite(ta) & near, ta, np.inf)
-                    nn[sel] = nk
-                done = ~hit | np.isfinite(t64)
-                idx = todo[done & hit]
-                t_hit[idx] = t64[done & hit]
-                prim[idx] = p[done & hit]
-                normal[idx] = nn[done & hit]
-                # Fake hit: probe again from just beyond that facet (the probe steps eps past the
-                # facet's plane; the ray's line is unchanged), further each time it repeats.
-                again = ~done
-                if again.any():
-                    ia = todo[again]
-                    tn = self._tri_n[p[again]]
-                    side = np.where(np.einsum("ij,ij->i", tn, dd[again]) >= 0.0, 1.0, -1.0)
-                    grow = self.eps * (2.0 ** max(0, round_ - 8))
-                    probe[ia] = o[ia] + te[again, None] * dd[again] + (grow * side)[:, None] * tn \
-                        + (probe[ia] - o[ia] - np.einsum("ij,ij->i", probe[ia] - o[ia], dd[again])[:, None] * dd[again])
-                todo = todo[again]
-            lost[todo] = True
+        if not self._has_optical or n == 0:
+            return t_hit, prim, normal, lost
+        base = np.zeros(n)
+        todo = np.arange(n)
+        for round_ in range(_MAX_SKIPS):
+            if todo.size == 0:
+                break
+            oo, dd = o[todo], d[todo]
+            p, te = self._embree_query(oo + base[todo, None] * dd, dd)
+            te = te + base[todo]
+            hit = (p >= 0) & (te <= t_stop[todo] + self.eps)
+            p = np.where(hit, self._optical_prims[np.where(hit, p, 0)], -1)
+            t64 = np.full(len(todo), np.inf)
+            nn = np.zeros((len(todo), 3))
+            surf = np.where(hit, self._tri_surface[np.maximum(p, 0)], -1)
+            for k in np.unique(surf[hit]):
+                sel = hit & (surf == k)
+                ta = self._optical_root(int(k), oo[sel], dd[sel], te[sel])
+                pl = oo[sel] + np.where(np.isfinite(ta), ta, 0.0)[:, None] * dd[sel]
+                pl[:, 2] -= self._z_vertex[k]
+                nk = self._profiles[k].normal(pl)
+                cos = np.abs(np.einsum("ij,ij->i", nk, dd[sel]))
+                near = np.abs(ta - te[sel]) * np.maximum(cos, 1e-3) <= self._tolerance[k]
+                t64[sel] = np.where(np.isfinite(ta) & near, ta, np.inf)
+                nn[sel] = nk
+            done = ~hit | np.isfinite(t64)
+            idx = todo[done & hit]
+            t_hit[idx] = t64[done & hit]
+            prim[idx] = p[done & hit]
+            normal[idx] = nn[done & hit]
+            again = ~done
+            base[todo[again]] = te[again] + self.eps * 2.0 ** max(0, round_ - 8)
+            todo = todo[again]
+        lost[todo] = True
+        return t_hit, prim, normal, lost
+
+    def _nearest(self, o: np.ndarray, d: np.ndarray, leaving: np.ndarray | None = None,
+                 left_normal: np.ndarray | None = None) -> Hits:
+        """Nearest refined hit for rays (n, 3) in float64 (see the module docstring).
+
+        leaving (n,) bool: the ray starts on a face it is leaving (then a mechanical face that
+        touches the origin and that the ray enters is a hit at t = 0); left_normal (n, 3): the
+        normal of that face when it is mechanical (faces coplanar with it are not hits at t = 0).
+        """
+        n = len(o)
+        if leaving is None:
+            leaving = np.zeros(n, bool)
+        if left_normal is None:
+            left_normal = np.zeros((n, 3))
+        t_mech, prim_mech, lost = self.mechanical.nearest(o, d, leaving, left_normal)
+        t_opt, prim_opt, n_opt, lost_opt = self._optical_nearest(o, d, t_mech)
+        glass = t_opt < t_mech
+        t_hit = np.where(glass, t_opt, t_mech)
+        prim = np.where(glass, prim_opt, prim_mech)
+        lost = np.where(glass, lost_opt, lost | (lost_opt & ~np.isfinite(t_hit)))
+        mech = (prim >= 0) & ~glass
+        normal = np.where(glass[:, None], n_opt, 0.0)
+        normal[mech] = self._tri_n[prim[mech]]
         # The detector rectangle, analytic, merged with the mesh hit: nearest wins.
         t_det, front = self.scene.detector.intersect(o, d, self.t_min)
         on_det = t_det < t_hit
@@ -355,9 +321,6 @@ class Tracer:
         surface = np.where(prim >= 0, self._tri_surface[np.maximum(prim, 0)] if self._has_mesh else -1, -1)
         normal = np.where(on_det[:, None], np.array([0.0, 0.0, -1.0]), normal)
         point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
-        if self._has_mesh and n:
-            snap = ~on_det & (prim >= 0) & (surface < 0) & np.all(np.isfinite(mech_point), axis=1)
-            point[snap] = mech_point[snap]
         return Hits(t, point, normal, prim, tag, surface.astype(np.int32), on_det, on_det & front, lost)
 
     def intersect(self, rays: RayBatch, origin_normal: np.ndarray | None = None) -> Hits:
@@ -366,7 +329,8 @@ class Tracer:
         origin_normal (N, 3), optional: normal of the surface each ray starts on (e.g. the
         `Events.normal` of the event it was scattered at; zeros for rays in free space).
         """
-        return self._nearest(rays.origin, rays.direction, origin_normal)
+        left = _left_normal(origin_normal, len(rays))
+        return self._nearest(rays.origin, rays.direction, np.any(left != 0.0, axis=1), left)
 
     # ------------------------------------------------------------------ events
 
@@ -384,9 +348,9 @@ class Tracer:
 
         origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
         the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
-        Without it a ray leaving a face is still correct (its self-hit is rejected in float64),
-        but at a concave corner a ray leaving within ~1 µm of the edge could slip past the
-        neighbouring face.
+        With it, a ray meets every face beyond the one it leaves however close (a neighbour at
+        a concave corner at t = 0); without it, no face at t ≈ 0 is a hit (the ray is taken to
+        start on it), so a neighbouring face touching the origin is missed.
         """
         n = len(rays)
         o = rays.origin.copy()
@@ -400,8 +364,8 @@ class Tracer:
         reflections = np.zeros(n, np.int32)
         ghosts = bool(self.scene.effects.ghosts)
         streams = ray_streams(rng, n) if ghosts and rng is not None else None
-        start_n = np.zeros((n, 3)) if origin_normal is None else np.where(
-            np.isfinite(origin_normal), np.asarray(origin_normal, np.float64), 0.0)
+        left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
+        leaving = np.any(left_n != 0.0, axis=1)
         valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
         valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
         lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
@@ -409,7 +373,7 @@ class Tracer:
         for crossing in range(_MAX_OPTICAL):
             if work.size == 0:
                 break
-            h = self._nearest(o[work], d[work], start_n[work])
+            h = self._nearest(o[work], d[work], leaving[work], left_n[work])
             o[work] = h.point
             lost[work[h.lost]] = True
             det = h.detector & h.detector_front
@@ -429,7 +393,8 @@ class Tracer:
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.point[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, u)
                 reflections[gi] += refl
-                start_n[gi] = h.normal[glass]
+                leaving[gi] = True  # it leaves glass: metal touching it is a hit at t = 0
+                left_n[gi] = 0.0
                 bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
                 lost[gi[bad]] = True
                 gi = gi[~bad]
@@ -476,6 +441,14 @@ class Tracer:
         at_mirror = self._mirror[surf]  # a mirror reflects every ray, weighted by its R (no branch)
         new_w = np.where(at_mirror, w * self._mirror_r[surf], w if ghosts else w * np.where(tir, 1.0, 1.0 - r))
         return np.where(at_mirror[:, None], mirror, new_d), new_w, np.where(at_mirror, 0, refl)
+
+
+def _left_normal(origin_normal, n: int) -> np.ndarray:
+    """(n, 3) float64 normal of the face each ray leaves, zeros where none or not finite."""
+    if origin_normal is None:
+        return np.zeros((n, 3))
+    nrm = np.asarray(origin_normal, np.float64)
+    return np.where(np.all(np.isfinite(nrm), axis=1, keepdims=True), nrm, 0.0)
 
 
 def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
