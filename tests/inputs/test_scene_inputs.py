@@ -100,3 +100,19 @@ def test_mount_element_number_the_lens_does_not_have(tmp_path):
     e = err.value
     assert e.field == "lens_edge.semi_diameter_mm.4" and "no element 4" in e.detail and "1 to 3" in e.valid
     assert e.line == text.splitlines().index(next(x for x in text.splitlines() if "4 = 8.0" in x)) + 1
+
+
+def test_mount_errors_found_while_planning_the_cad_carry_the_line(tmp_path):
+    from lensmount.cad import regenerate
+
+    d = tmp_path / "d"
+    d.mkdir()
+    for name in ("lens.toml", "mount.toml"):
+        shutil.copy2(EXAMPLES / "cooke-triplet" / name, d / name)
+    text = (d / "mount.toml").read_text().replace('default = "spacer"', 'default = "spacer"\nelement = { 7 = "shoulder" }')
+    (d / "mount.toml").write_text(text)
+    with pytest.raises(InputError) as err:
+        regenerate(d, tmp_path / "out")
+    e = err.value
+    assert e.file == str(d / "mount.toml") and e.field == "seats.element.7"
+    assert e.line == text.splitlines().index('element = { 7 = "shoulder" }') + 1

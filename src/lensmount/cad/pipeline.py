@@ -25,6 +25,7 @@ import lensmount
 from lensmount.atomic import write_text
 from lensmount.cad import cache
 from lensmount.errors import InputError
+from lensmount.validation import located
 
 MANIFEST = "manifest.json"
 ASSEMBLY = "assembly.step"
@@ -129,7 +130,7 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     try:
         layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress)
     except InputError as exc:
-        raise exc.located(str(design.mount_path)) from None
+        raise located(exc, str(design.mount_path), design.mount.source_text) from None  # with the field's line
     mesh, triangles = tessellate(parts, spec, layout, progress)
 
     prev = _previous(out)

@@ -39,7 +39,7 @@ from typing import Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lensmount.atomic import write_text
-from lensmount.validation import keys_at, parse_toml
+from lensmount.validation import keys_at, line_of_key, parse_toml
 from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
@@ -221,8 +221,8 @@ def _field_path(loc) -> tuple[str, int | None, str | None]:
 
 def _input_error(exc: ValidationError, text: str, file: str) -> InputError:
     err = exc.errors()[0]
-    field, surface_no, last = _field_path(err["loc"])
-    line = _line_of(text, surface_no, last)
+    field, _, last = _field_path(err["loc"])
+    line = line_of_field(text, field)
     if err["type"] == "extra_forbidden":
         valid = "known keys: " + ", ".join(keys_at(LensFile, err["loc"]))
         return InputError(f"unknown key '{last}'", file=file, field=field, line=line, valid=valid)
@@ -234,29 +234,10 @@ def _input_error(exc: ValidationError, text: str, file: str) -> InputError:
 
 
 def line_of_field(text: str, field: str) -> int | None:
-    """Best-effort line of a field path such as 'surface[3].thickness' in lens.toml text."""
-    m = re.fullmatch(r"surface\[(\d+)\]\.(\w+)", field or "")
-    if m:
-        return _line_of(text, int(m.group(1)), m.group(2))
-    return _line_of(text, None, (field or "").split(".")[-1] or None)
-
-
-def _line_of(text: str, surface_no: int | None, key: str | None) -> int | None:
-    """Best-effort 1-based line of `key` (inside the n-th [[surface]] table if given)."""
-    lines = text.splitlines()
-    start, end = 0, len(lines)
-    if surface_no is not None:
-        heads = [i for i, ln in enumerate(lines) if re.match(r"\s*\[\[\s*surface\s*\]\]", ln)]
-        if len(heads) < surface_no:
-            return None
-        start = heads[surface_no - 1]
-        end = heads[surface_no] if surface_no < len(heads) else len(lines)
-    if key:
-        pat = re.compile(rf"^\s*{re.escape(key)}\s*=|[{{,]\s*{re.escape(key)}\s*=")
-        for i in range(start, end):
-            if pat.search(lines[i]):
-                return i + 1
-    return start + 1 if surface_no is not None else None
+    """Line of a field path such as 'surface[3].thickness' (1-based surface numbers, as errors
+    show them) in lens.toml text: the shared `validation.line_of_key`, which follows tables."""
+    path = re.sub(r"\[(\d+)\]", lambda m: f".{int(m.group(1)) - 1}", field or "")
+    return line_of_key(text, path)
 
 
 # ----------------------------------------------------------------------------- writer
