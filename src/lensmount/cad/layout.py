@@ -188,7 +188,7 @@ def _diaphragm(spec, p, stop, ia, ib, A, B, od, z_stop) -> Diaphragm:
     if ia < stop < ib:
         return Diaphragm(z_stop, pupil_edge_radius(p, z_stop - 0.5 * land, z_stop + 0.5 * land), *args)
     gap = spec.seats.clearance_mm  # air between glass and plate at the land
-    wedge = np.tan(np.radians(spec.seats.wedge_deg))
+    wedge = float(np.tan(np.radians(spec.seats.wedge_deg)))
     side, glass, R = (+1, A.back_z, A.outer_radius) if stop == ia else (-1, B.front_z, B.outer_radius)
     r0 = float(p.surfaces[stop].clear_semi_diameter)
     for _ in range(4):  # the land's z depends on its radius through the glass's sag: settle both
@@ -213,7 +213,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     edge = spec.lens_edge
     chamfer = edge.chamfer_mm if edge.style == "chamfered" else 0.0
     cm, tangent = edge.contact_margin_mm, spec.seats.contact == "tangent"
-    wedge, c_glass = np.tan(np.radians(spec.seats.wedge_deg)), spec.seats.clearance_mm
+    wedge, c_glass = float(np.tan(np.radians(spec.seats.wedge_deg))), spec.seats.clearance_mm
     c_bore, c_sp = spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
     min_t = spec.checks.min_thickness_mm
     parts: list[PartPlan] = []
@@ -372,6 +372,32 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         stop_here = ia <= stop <= ib
         element_no = int(B.name.split("-")[1])
         seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
+        if seat == "retainer":  # a barrel shoulder behind A, a retainer ring in front of B
+            mA = contact_slope(A.template.back_z, hA, RA, +1, tangent, wedge)
+            cA = lambda r, z0=float(A.template.back_z(hA)), m=mA, h=hA: z0 + m * (r - h)  # noqa: E731
+            r_out = bores[gi + 1] - c_sp
+            mB = contact_slope(B.template.front_z, hB, min(RB, r_out), -1, tangent, wedge)
+            ret = Retainer(hB, float(B.template.front_z(hB)), mB, -1, r_out, spec.retainer.thickness_mm)
+            ret.far_r = _opening(env, hB, ret.far_face_z(), ret.contact_z, spec)
+            name = f"retainer-{len(retainers) + 1}"
+            _check_ring(name, ret.far_r, r_out, min_t)
+            # the shoulder's rear face: a lip's thickness behind A, clear of the ring's far face
+            z_sh = max(cA(bores[gi]), cA(hA)) + spec.barrel.lip_mm
+            room = ret.far_face_z() - c_glass - z_sh
+            if room < 0:
+                raise GeometryError(
+                    f"no room for a shoulder behind {A.name} and a retainer in front of {B.name}: "
+                    f"{-room:.3f} mm short", field=f"seats.element.{element_no}",
+                    valid="'spacer' or 'shoulder', a thinner retainer or barrel lip, or a larger air gap")
+            r_sh = _opening(env, hA, z_sh, cA(hA), spec)
+            if bores[gi + 1] - r_sh < min_t:
+                raise GeometryError(f"the shoulder behind {A.name} would be {bores[gi + 1] - r_sh:.3f} mm high "
+                                    f"(minimum {min_t} mm)", field=f"seats.element.{element_no}",
+                                    valid="'spacer', or a larger edge allowance")
+            retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
+            bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (r_sh, z_sh), (bores[gi + 1], z_sh)]
+            contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact(name, B.name, ib, hB, clear[ib])]
+            continue
         if seat == "shoulder":
             mA = contact_slope(A.template.back_z, hA, RA, +1, tangent, wedge)
             mB = contact_slope(B.template.front_z, hB, RB, -1, tangent, wedge)
