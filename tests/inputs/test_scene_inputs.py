@@ -116,3 +116,14 @@ def test_mount_errors_found_while_planning_the_cad_carry_the_line(tmp_path):
     e = err.value
     assert e.file == str(d / "mount.toml") and e.field == "seats.element.7"
     assert e.line == text.splitlines().index('element = { 7 = "shoulder" }') + 1
+
+
+def test_without_assign_rules_every_face_keeps_its_mount_finish():
+    """Omitting [assign] and adding one rule agree on the faces the rule does not name."""
+    none = build_scene(air_plane(), _mount_parts(), scene_from_dict(scene_dict(assign={})))
+    data = scene_dict()
+    del data["assign"]
+    omitted = build_scene(air_plane(), _mount_parts(), scene_from_dict(data))
+    one = build_scene(air_plane(), _mount_parts(), scene_from_dict(scene_dict(assign={"role:diaphragm-edge": "mirror"})))
+    assert none.finish_of_tag == omitted.finish_of_tag == ["black-anodised", "black-anodised"]
+    assert one.finish_of_tag == ["black-anodised", "mirror"]

@@ -29,7 +29,7 @@ default = "perfect-ar"       # perfect-ar | uncoated | mgf2-quarter-wave | R=0.0
 [finishes]
 edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
 
-[assign]                     # part: > role: > kind: > finish: > "*"
+[assign]                     # part: > role: > kind: > finish: > "*"; no rule: the mount's finish
 "*" = "absorber"
 "role:diaphragm-edge" = "edge-lambert-10"
 
@@ -151,7 +151,9 @@ class SceneSpec(_Strict):
     effects: EffectsSpec = EffectsSpec()
     coatings: dict[str, str] = Field(default_factory=lambda: {"default": "perfect-ar"})
     finishes: dict[str, dict] = Field(default_factory=dict)
-    assign: dict[str, str] = Field(default_factory=lambda: {"*": "absorber"})
+    # No rules: every face keeps its mount finish. (A default of {"*": "absorber"} made adding
+    # one rule flip every other face from absorber to its mount finish without a word.)
+    assign: dict[str, str] = Field(default_factory=dict)
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
