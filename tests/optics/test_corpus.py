@@ -62,6 +62,11 @@ def test_the_corpus_holds_the_kinds_of_file_the_issue_names():
 def test_corpus_file_imports(path):
     lens, notes = read_zmx_with_notes(path)
     assert np.isfinite(paraxial(lens).efl) and notes
+    if path.stem == "US00583336-2-scaled":  # the symmetric Double Gauss picks its rear half up from the front
+        rear = {n.where: n.what for n in notes if n.what.startswith("pickups")}
+        assert "curvature from surface 6" in rear["SURF 8"] and "thickness from surface 5" in rear["SURF 8"]
+        assert lens.surfaces[7].radius == pytest.approx(-lens.surfaces[5].radius, rel=1e-15)
+        assert "picked up from surface 5" in next(n.what for n in notes if n.where == "SURF 8" and "glass" in n.what)
 
 
 @pytest.mark.slow  # optiland's start-up and glass database take ~40 s for the corpus on the shared machine

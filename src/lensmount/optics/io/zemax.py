@@ -63,6 +63,7 @@ class ZmxSurface:
     stop: bool = False
     coating: str | None = None
     comment: str | None = None
+    pickups: list = field(default_factory=list)  # "curvature from surface 6", ... (values as written)
 
 
 @dataclass
@@ -189,7 +190,8 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             lens.vignetting |= any(num(a, ln, "vignetting factor") != 0.0 for a in args)
         elif cmd == "GCAT":
             lens.catalogues = list(args)
-        elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM"):
+        elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
+                     "PZUP"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
             _surface_line(cur, cmd, args, rest, ln, err, num, arg)
@@ -206,6 +208,10 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
                       "TYPE STANDARD, EVENASPH, ODDASPH, or a COORDBRK that the next breaks undo")
     elif cmd == "CURV":
         cur.curvature = arg(args, 0, ln, "curvature")
+        if len(args) > 2 and args[1] == "4":  # solve type 4: pickup from surface args[2]
+            cur.pickups.append(f"curvature from surface {int(arg(args, 2, ln, 'pickup surface'))}")
+    elif cmd == "PZUP":  # thickness pickup: source surface, scale, offset
+        cur.pickups.append(f"thickness from surface {int(arg(args, 0, ln, 'pickup surface'))}")
     elif cmd == "CONI":
         cur.conic = arg(args, 0, ln, "conic")
     elif cmd == "PARM":
@@ -300,6 +306,9 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
             notes.append(note)
         if zs.mirror:
             notes.append(ImportNote("imported", f"SURF {zs.number}", "mirror (GLAS MIRROR)"))
+        if zs.pickups:
+            notes.append(ImportNote("imported", f"SURF {zs.number}",
+                                    "pickups: " + ", ".join(zs.pickups) + " (the values the file holds)"))
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
