@@ -127,3 +127,14 @@ def test_without_assign_rules_every_face_keeps_its_mount_finish():
     one = build_scene(air_plane(), _mount_parts(), scene_from_dict(scene_dict(assign={"role:diaphragm-edge": "mirror"})))
     assert none.finish_of_tag == omitted.finish_of_tag == ["black-anodised", "black-anodised"]
     assert one.finish_of_tag == ["black-anodised", "mirror"]
+
+
+@pytest.mark.parametrize("names", [["barrel"], ["plate", "plate"]])
+def test_object_named_like_a_part_would_refinish_it(tmp_path, names):
+    objects = [{"type": "disk", "name": n, "centre_mm": [0, 0, -20.0], "radius_mm": 5.0, "finish": "mirror"}
+               for n in names]
+    path = _write(tmp_path, scene_dict(objects=objects))
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), _mount_parts(), load_scene(path))
+    assert err.value.field == f"objects.{len(names) - 1}.name" and err.value.line is not None
+    assert f"'{names[-1]}' is already taken" in err.value.detail

@@ -117,6 +117,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
     library = finish_library(spec.finishes)
     try:
+        check_object_names(spec.objects, mesh.parts)
         mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
         check_rules_match(spec.assign, mesh)
     except InputError as exc:
@@ -177,6 +178,18 @@ def entrance_pupil_area(prescription: Prescription) -> float:
         raise InputError(f"the entrance pupil diameter comes out as {epd:g} mm", field="aperture",
                          valid="a lens whose paraxial entrance pupil diameter is finite and > 0")
     return math.pi * (0.5 * epd) ** 2
+
+
+def check_object_names(objects, parts) -> None:
+    """InputError for a scene object named like a mount part or another object: its finish acts
+    as a `part:` rule, so it would silently re-finish the mount part of the same name."""
+    taken = set(parts)
+    for k, o in enumerate(objects):
+        if o.name in taken:
+            raise InputError(f"the name '{o.name}' is already taken by a part of the assembly or another object",
+                             field=f"objects.{k}.name", valid="a name no mount part or other object has; parts: "
+                             + ", ".join(sorted(set(parts))))
+        taken.add(o.name)
 
 
 def check_rules_match(assign: dict[str, str], mesh: TaggedMesh) -> None:
@@ -267,5 +280,5 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
+__all__ = ["build_scene", "check_rules_match", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
            "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]
