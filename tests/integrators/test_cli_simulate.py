@@ -110,3 +110,19 @@ def test_same_seed_same_summary_any_workers(tmp_path):
     for key in ("stray_fraction", "stray_fraction_std_error", "photons", "effects", "per_part", "input_hash",
                 "mean_irradiance", "peak_irradiance", "stray_fraction_drift", "lost_flux"):
         assert key in a
+
+
+@pytest.mark.slow
+def test_sun_behind_the_entrance_plane_reads_zero_and_says_why(tmp_path):
+    design = _design_copy(tmp_path)
+    scene = design / "scenes" / "behind.toml"
+    text = (design / "scenes" / "case2-lambertian.toml").read_text()
+    scene.write_text(text.replace("off_axis_deg = 7.0", "off_axis_deg = 120.0").replace("[600, 600]", "[20, 20]"))
+    result = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(scene), "--out", str(tmp_path / "o"),
+                                      "--method", "forward", "--passes", "2", "--photons-per-pass", "2000",
+                                      "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["stray_fraction"] == 0 and s["aperture_flux_mm2"] == 0
+    assert "behind the entrance plane" in s["no_light_enters"]
+    assert "no light enters" in " ".join(result.output.split())

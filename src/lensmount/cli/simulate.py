@@ -162,6 +162,8 @@ def print_summary(summary: dict, paths: dict) -> None:
     console = Console()
     for warning in summary.get("warnings", []):
         console.print(f"warning: {warning}", style="yellow")
+    if summary.get("no_light_enters"):
+        console.print(f"no light enters: {summary['no_light_enters']}", style="yellow")
     table = Table(title=f"{summary['method']} · {summary['passes']} passes · {summary['photons']:,} photons "
                         f"· {summary['time_s']:.1f} s", title_justify="left", show_header=False)
     table.add_column(style="bold")

@@ -207,7 +207,6 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
-    from lensmount.analysis.metrics import aperture_flux_normalised
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.summary import build_summary
     from lensmount.executor import executor_for
@@ -233,8 +232,12 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         return PassJob(o.method, per_pass, seed, i, settings)
 
     effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
-    aperture = aperture_flux_normalised(2.0 * math.sqrt(sc.entrance_pupil_area_mm2 / math.pi),
-                                        math.radians(sc.source.off_axis_deg))
+    # Flux entering the aperture per unit E_sun: the pupil times the irradiance that crosses the
+    # entrance plane (exactly 0 once the whole source is behind it, with the reason said).
+    aperture = sc.entrance_pupil_area_mm2 * sc.source.entering_fraction
+    no_light = sc.source.no_light_enters
+    if no_light:
+        obs.stage(f"no light enters: {no_light}")
     executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster)
     shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
     history: list[tuple[float, float]] = []
@@ -252,6 +255,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                             aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
+                                   "no_light_enters": no_light,
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
