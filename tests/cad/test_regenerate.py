@@ -164,3 +164,23 @@ def test_changing_vane_count_rewrites_only_vane_steps(reference, tmp_path):
     assert back.cached and back.input_hash == manifest.input_hash
     assert [p.name for p in back.parts if (o2 / p.step).read_bytes() != old_bytes[p.name]] == []
     assert not (o2 / "parts" / f"vane-{len([p for p in new.parts if p.kind == 'vane'])}.step").exists()
+
+
+def test_bill_of_materials_beside_the_step_files(reference):
+    """bom.csv lists every part with its material and mass; the diaphragm plate's volume matches
+    the annulus minus its bevel computed by hand (Pappus), its mass aluminium's 2.70 g/cm³."""
+    import csv
+    import math
+
+    design, out, manifest = reference
+    rows = {r["part"]: r for r in csv.DictReader((out / "bom.csv").open())}
+    assert set(rows) == {p.name for p in manifest.parts}
+    assert rows["lens-1"]["material"] == "N-SSK2" and rows["barrel"]["material"] == "aluminium 6061-T6"
+    assert "N-BK7 assumed" in rows["lens-1"]["note"]
+    d = rows["diaphragm"]
+    r0, R, t, land = 16.299, 30.9812, 1.0, 0.05  # examples/double-gauss-360: land radius, outside, plate
+    run = t - land  # 45° bevel
+    bevel = 0.5 * run * run * 2 * math.pi * (r0 + run / 3)  # triangle (r0, land)-(r0+run, t) revolved
+    expected = math.pi * (R ** 2 - r0 ** 2) * t - bevel
+    assert float(d["volume_mm3"]) == pytest.approx(expected, rel=2e-3)
+    assert float(d["mass_g"]) == pytest.approx(expected * 2.70e-3, rel=2e-3)

@@ -63,3 +63,31 @@ def write_assembly_step(parts, path: Path) -> None:
 
 
 __all__ = ["write_part_step", "write_assembly_step", "STEP_TIMESTAMP", "colour_of"]
+
+
+GLASS_DENSITY_DEFAULT = 2.51  # g/cm³, N-BK7: the weight of a glass the BOM has no density for
+
+
+def bom_csv(rows, prescription, spec) -> str:
+    """bom.csv text: part, kind, material, finish, volume (mm³), density (g/cm³), mass (g), note.
+
+    rows: (name, kind, finish, volume_mm3, template) per part; a lens's material is the glass
+    after its front surface (prescription), every other part's is `[bom] metal`.
+    """
+    import csv
+    import io
+
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["part", "kind", "material", "finish", "volume_mm3", "density_g_cm3", "mass_g", "note"])
+    for name, kind, finish, volume, template in rows:
+        note = ""
+        if kind == "lens":
+            material = prescription.surfaces[template.front.index].material
+            density = spec.bom.glass_density_g_cm3.get(material)
+            if density is None:
+                density, note = GLASS_DENSITY_DEFAULT, "density of N-BK7 assumed: give [bom] glass_density_g_cm3"
+        else:
+            material, density = spec.bom.metal, spec.bom.metal_density_g_cm3
+        w.writerow([name, kind, material, finish, f"{volume:.3f}", f"{density:g}", f"{volume * density * 1e-3:.3f}", note])
+    return out.getvalue()

@@ -1,4 +1,4 @@
-"""`regenerate`: design folder → assembly.step, parts/NAME.step, mesh.npz, manifest.json.
+"""`regenerate`: design folder → assembly.step, parts/NAME.step, mesh.npz, bom.csv, manifest.json.
 
 manifest.json:
 
@@ -28,6 +28,7 @@ from lensmount.errors import InputError
 from lensmount.validation import located
 
 MANIFEST = "manifest.json"
+BOM = "bom.csv"
 ASSEMBLY = "assembly.step"
 MESH = "mesh.npz"
 STEPS = ("layout", "checks", "solids", "tessellation", "export")
@@ -98,7 +99,7 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
         CAD kernel ran.
     """
     from lensmount.cad.assembly import build_assembly, tessellate
-    from lensmount.cad.export import write_assembly_step, write_part_step
+    from lensmount.cad.export import bom_csv, write_assembly_step, write_part_step
     from lensmount.design.folder import load_design
 
     design = load_design(design_dir)
@@ -153,8 +154,10 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     if progress:
         progress("export", len(parts) + 2, len(parts) + 2)
     manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(), notes=list(layout.notes))
+    write_text(out / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume), bp.plan.template)
+                                   for bp in parts], layout.prescription, spec))
     write_text(out / MANIFEST, manifest.to_json())
-    cache.store(out, key, [ASSEMBLY, MESH, MANIFEST] + [e.step for e in entries])
+    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [e.step for e in entries])
     return manifest
 
 

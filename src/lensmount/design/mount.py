@@ -132,6 +132,16 @@ class Checks(_Strict):
     min_radial_clearance_mm: float = Field(0.0, ge=0, description="lens edge to bore")
 
 
+class Bom(_Strict):
+    """The bill of materials written beside the STEP files (bom.csv)."""
+
+    metal: str = Field("aluminium 6061-T6", description="material of every mechanical part")
+    metal_density_g_cm3: float = Field(2.70, gt=0)
+    glass_density_g_cm3: dict[str, float] = Field(
+        default_factory=dict, description="glass name → density (g/cm³); a glass not listed weighs "
+        "as N-BK7 (2.51) and the BOM says so")
+
+
 class Tessellation(_Strict):
     linear_tolerance_mm: float = Field(0.05, gt=0)
     angular_tolerance_deg: float = Field(6.0, gt=0, le=45)
@@ -152,6 +162,7 @@ class MountSpec(_Strict):
     housing: Housing = Housing()
     checks: Checks = Checks()
     tessellation: Tessellation = Tessellation()
+    bom: Bom = Bom()
     finishes: dict[str, str] = Field(default_factory=dict, description="part name → finish override")
     templates: dict[str, str] = Field(default_factory=dict, description="part kind → user template .py")
 
