@@ -96,3 +96,20 @@ def test_a_table_that_reflects_more_than_it_receives_is_refused():
 def test_a_rising_table_is_refused():
     with pytest.raises(InputError):
         make_bsdf("tabulated", rho=[0.01, 0.1], brdf=[0.01, 0.02])
+
+
+def test_scene_file_finish_from_a_measurement(tmp_path):
+    from lensmount.design.scene import scene_from_dict
+
+    _zemax_file(tmp_path / "paint.bsdf", abg)
+    doc = {"source": {"type": "sun", "off_axis_deg": 7.0}, "detector": {"width_mm": 10.0, "height_mm": 10.0,
+                                                                      "pixels": [10, 10]},
+           "finishes": {"paint": {"model": "tabulated", "file": "paint.bsdf"}}, "assign": {"*": "paint"}}
+    spec = scene_from_dict(doc, base_dir=str(tmp_path))
+    table = spec.finishes["paint"]
+    bsdf = make_bsdf(**table)
+    assert bsdf.tis == pytest.approx(make_bsdf("abg", A=A, B=B, g=G).tis, rel=0.05)
+    doc["finishes"]["paint"]["file"] = "missing.bsdf"
+    with pytest.raises(InputError) as e:
+        scene_from_dict(doc, base_dir=str(tmp_path))
+    assert e.value.field == "finishes.paint.file" and "missing.bsdf" in e.value.paragraph()

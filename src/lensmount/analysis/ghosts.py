@@ -126,7 +126,7 @@ def _launch(scene, first, d0: np.ndarray, rays_across: int):
     directions = _directions(scene.source, d0, n)
     # Back the rays off along their direction so that they cross z_start at the lattice points.
     origins = np.column_stack([x, y, np.full(n, z_start)]) - directions
-    weights = np.asarray(getattr(scene.source, "wavelength_weights", (1.0,)), np.float64)
+    weights = np.asarray(scene.source.wavelength_weights, np.float64)
     weights = weights / weights.sum() if weights.sum() > 0 else np.full(len(weights), 1.0 / len(weights))
     n_wl = len(scene.wavelengths_um)
     weights = weights if len(weights) == n_wl else np.full(n_wl, 1.0 / n_wl)

@@ -220,7 +220,10 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
             params = dict(params)
             if "model" not in params:
                 raise InputError(f"finish '{name}' has no model", field=f"finishes.{name}.model",
-                                 valid="absorber, lambertian, gaussian, abg, harvey, mirror")
+                                 valid="absorber, lambertian, gaussian, abg, harvey, mirror, tabulated")
+            if params["model"] == "tabulated" and "file" in params:
+                params = _measured_table(name, params, base_dir)
+                spec.finishes[name] = dict(params)  # the Scene gets the table, not the file name
             try:
                 make_bsdf(params.pop("model"), **params)
             except InputError as exc:
@@ -233,6 +236,24 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
     except InputError as exc:
         raise located(exc, file, text) from None
     return spec
+
+
+def _measured_table(name: str, params: dict, base_dir: str) -> dict:
+    """`{ model = "tabulated", file = "paint.bsdf" }` → the model with the measurement's table."""
+    from lensmount.design.brdf_data import read_brdf
+    from lensmount.trace.bsdf.tabulated import measured_profile
+
+    extra = sorted(set(params) - {"model", "file"})
+    if extra:
+        raise InputError(f"a measured finish takes its values from its file, not from '{extra[0]}'",
+                         field=f"finishes.{name}.{extra[0]}", valid='model = "tabulated", file = "DATA.bsdf|csv"')
+    path = Path(base_dir) / str(params["file"])
+    try:
+        rho, brdf = measured_profile(*read_brdf(path))
+    except InputError as exc:
+        raise InputError(f"{exc.detail} (measured BRDF {path})", field=f"finishes.{name}.file",
+                         valid=exc.valid) from None
+    return {"model": "tabulated", "rho": rho.tolist(), "brdf": brdf.tolist()}
 
 
 def check_mount_finishes(spec: SceneSpec, mount) -> None:
