@@ -184,3 +184,21 @@ def test_provenance_hashes_each_input_and_ignores_outputs_for_dirty(tmp_path):
     assert p["design_path"] == str(repo.resolve()) and p["design_name"] == "design" and p["scene_name"] == SCENE
     scene.write_text(scene.read_text() + "\n# edited\n")
     assert _provenance(repo, scene)["git_dirty"] is True
+
+
+def test_bias_bounds_from_the_summaries_widen_the_interval(tmp_path):
+    # A change of 10 σ is a regression on the standard errors alone, but not with bias bounds that
+    # reach across the tolerance: compare must read them (total and per part) from summary.json.
+    a, b = _pair(tmp_path, (1.0e-3, 1e-6), (1.1e-3, 1e-6))
+    assert _compare(a, b).exit_code == 1
+    for folder in (a, b):
+        s = json.loads((folder / "summary.json").read_text())
+        s["stray_fraction_bias_bound"] = 1e-4
+        s["per_part"]["barrel"]["bias_bound"] = 1e-4
+        (folder / "summary.json").write_text(json.dumps(s))
+    result = _compare(a, b, "--out", tmp_path / "c")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert report["verdict"] == "undecided" and report["more_photons"] is None
+    assert report["high"] - report["low"] > 4e-4
+    assert report["per_part"]["barrel"]["verdict"] == "undecided"

@@ -20,7 +20,7 @@ from lensmount.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
-    "stray_flux_mm2": ("stray_flux_mm2", "stray_flux_std_error_mm2", None),
+    "stray_flux_mm2": ("stray_flux_mm2", "stray_flux_std_error_mm2", "stray_flux_bias_bound_mm2"),
 }
 AGAINST = ("last", "best")
 
