@@ -119,3 +119,60 @@ def test_settings_out_of_range_are_input_errors():
     with pytest.raises(InputError, match="unknown estimator setting 'radius'"):
         EstimatorSettings.from_dict({"radius": 1.0})
     assert EstimatorSettings.from_dict(EstimatorSettings(neighbours=4).as_dict()) == EstimatorSettings(neighbours=4)
+
+
+def test_a_lens_without_an_entrance_pupil_is_an_input_error_not_a_zero_stray_fraction():
+    from lensmount.errors import InputError
+    from lensmount.optics.prescription import Aperture, Prescription, Surface
+    from lensmount.scene.build import entrance_pupil_area
+
+    window = Prescription((Surface(math.inf, 5.0, "N-BK7", is_stop=True, clear_semi_diameter=10,
+                                   mechanical_semi_diameter=10),
+                           Surface(math.inf, 50.0, "AIR", clear_semi_diameter=10, mechanical_semi_diameter=10)),
+                          Aperture("fno", 4.0), (0.5875618,), (1.0,), 0, (0.0,), "window")
+    with pytest.raises(InputError, match="entrance pupil"):
+        entrance_pupil_area(window)
+    singlet = Prescription((Surface(51.68, 6.0, "N-BK7", is_stop=True, clear_semi_diameter=12.5,
+                                    mechanical_semi_diameter=12.5),
+                            Surface(math.inf, 96.0, "AIR", clear_semi_diameter=12.5, mechanical_semi_diameter=12.5)),
+                           Aperture("epd", 25.0), (0.5875618,), (1.0,), 0, (0.0,), "singlet")
+    assert entrance_pupil_area(singlet) == pytest.approx(math.pi * 12.5**2, rel=1e-9)
+
+
+def test_backward_samples_are_keyed_by_pixel_and_sample():
+    """Sample j of pixel p draws the same numbers whatever the samples per pixel: with 4 samples the
+    hit points of samples 0 and 1 are those of a 2-sample view map (at half the weight)."""
+    from lensmount.integrators.radius import radius_caps
+    from lensmount.integrators.view_map import build_view_map, view_map_streams
+
+    scene = PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (1e4, 0), "plate", disc=True)], [Lambert(0.5)],
+                        Detector(2.0, 2.0, 4, 4, 20.0), Collimated((0, 0, 1), (0, 0, -300), 25.0))
+    det, tracer, m = scene.detector, PlanarTracer(scene), scene.mesh
+    caps = radius_caps(m.vertices, m.triangles, m.tags, len(m.tag_table))
+    maps = {}
+    for spp in (2, 4):
+        stats = {}
+        maps[spp] = build_view_map(scene, tracer, det, view_map_streams(7, 3, det, spp), broad=np.array([True]),
+                                   half_widths=caps, radius_scale=1.0, samples_per_pixel=spp, stats=stats)
+        assert stats == {"view_map_samples": det.nx * det.ny * spp, "view_map_lost_samples": 0}
+    two, four = maps[2], maps[4]
+    assert len(two) == det.nx * det.ny * 2 and len(four) == 2 * len(two)  # every sample sees the wide plate
+    first = np.isin(np.arange(len(four)) % 4, (0, 1))
+    np.testing.assert_array_equal(four.position[first], two.position)
+    np.testing.assert_allclose(four.weight[first], 0.5 * two.weight, rtol=1e-12)
+    other = build_view_map(scene, tracer, det, view_map_streams(7, 4, det, 2), broad=np.array([True]),
+                           half_widths=caps, radius_scale=1.0, samples_per_pixel=2)
+    assert not np.array_equal(other.position, two.position)  # another pass, other numbers
+
+
+class _NaNEval(Lambert):
+    def eval(self, wi, wo, n):
+        f = super().eval(wi, wo, n)
+        return np.where(np.arange(len(f)) % 50 == 0, np.nan, f)
+
+
+def test_a_non_finite_gather_value_is_an_error_naming_the_face():
+    scene = _plate(_NaNEval(0.5))
+    with pytest.raises(FloatingPointError, match="non-finite gather value on face tag 0"):
+        INTEGRATORS["bidirectional"](EstimatorSettings(samples_per_pixel=4)).run_pass(scene, PlanarTracer(scene), 0,
+                                                                                     2000, 1)

@@ -24,7 +24,7 @@ import numpy as np
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import PassEstimate
 
-_STATE_VERSION = 3  # 2: elapsed time; 3: energy ledger
+_STATE_VERSION = 4  # 2: elapsed time; 3: energy ledger; 4: diagnostics
 
 
 @dataclass
@@ -54,6 +54,7 @@ class Accumulator:
     pass_part_flux : list of each pass's (P,) per-part flux
     photons, lost_flux : totals over the passes
     ledger : Σ over the passes of each energy-ledger entry (mm², `PassEstimate.ledger`)
+    diagnostics : Σ over the passes of each count in `PassEstimate.diagnostics`
     last_pass : index of the last pass added (-1 before any)
     elapsed_s : wall time spent on the passes, summed over resumed parts of a run
     """
@@ -71,6 +72,7 @@ class Accumulator:
     pass_flux: list[float] = field(default_factory=list)
     pass_part_flux: list[np.ndarray] = field(default_factory=list)
     ledger: dict[str, float] = field(default_factory=dict)
+    diagnostics: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -100,6 +102,8 @@ class Accumulator:
             if not np.isfinite(value):
                 raise ValueError(f"pass energy ledger entry '{key}' is not finite")
             self.ledger[key] = self.ledger.get(key, 0.0) + float(value)
+        for key, value in estimate.diagnostics.items():
+            self.diagnostics[key] = self.diagnostics.get(key, 0.0) + float(value)
         self.pass_flux.append(float(image.sum() * self.pixel_area_mm2))
         self.pass_part_flux.append(parts.sum(axis=(1, 2)) * self.pixel_area_mm2)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
@@ -203,6 +207,8 @@ class Accumulator:
             pass_part_flux=np.asarray(self.pass_part_flux, dtype=np.float64).reshape(-1, len(self.part_names)),
             ledger_keys=np.array(sorted(self.ledger), dtype=str),
             ledger_values=np.array([self.ledger[k] for k in sorted(self.ledger)], dtype=np.float64),
+            diagnostics_keys=np.array(sorted(self.diagnostics), dtype=str),
+            diagnostics_values=np.array([self.diagnostics[k] for k in sorted(self.diagnostics)], dtype=np.float64),
         )
         for key, value in meta.items():
             arrays[f"meta_{key}"] = np.array(value)
@@ -221,7 +227,8 @@ class Accumulator:
                       elapsed_s=float(z["elapsed_s"]),
                       pass_flux=[float(v) for v in z["pass_flux"]],
                       pass_part_flux=[row.copy() for row in z["pass_part_flux"]],
-                      ledger={str(k): float(v) for k, v in zip(z["ledger_keys"], z["ledger_values"])})
+                      ledger={str(k): float(v) for k, v in zip(z["ledger_keys"], z["ledger_values"])},
+                      diagnostics={str(k): float(v) for k, v in zip(z["diagnostics_keys"], z["diagnostics_values"])})
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 

@@ -53,6 +53,7 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "per_part": per_part,
         "estimator_settings": dict(estimator_settings),
         "energy_ledger": energy_ledger(acc),
+        "diagnostics": {k: finite_or_none(v) for k, v in sorted(acc.diagnostics.items())},
         "input_hash": input_hash,
         "units": {"irradiance": "E/E_sun", "flux": "mm² (flux / E_sun)"},
     }

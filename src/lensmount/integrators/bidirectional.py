@@ -21,8 +21,9 @@ of photons in its lobe. Paths with no scattering at all (direct image, pure ghos
 are counted the same forward way when the scene turns `direct` or `ghosts` on.
 
 Photons are walked by the same code as the forward estimator (`walk.photon_walk`), photon k
-of pass i being photon i·N + k of the run with its numbers keyed by that index; the view map
-draws from `stream(seed, "view-map", i)`. Pass i is the same whichever worker runs it.
+of pass i being photon i·N + k of the run with its numbers keyed by that index; backward
+sample j of pixel p in pass i draws from the stream keyed (seed, i, p, j). Pass i is the same
+whichever worker runs it.
 """
 
 from __future__ import annotations
@@ -35,9 +36,8 @@ from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, fil
 from lensmount.integrators.photon_gather import Gatherer, PhotonHits
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.integrators.view_map import build_view_map
+from lensmount.integrators.view_map import build_view_map, view_map_streams
 from lensmount.integrators.walk import emit_photons, photon_walk, scattering_tags
-from lensmount.trace.sampler import stream
 from lensmount.trace.tracer import FACE
 
 _CACHE: dict[tuple, tuple] = {}
@@ -98,10 +98,12 @@ class Bidirectional:
         film, ledger = Film(scene), EnergyLedger()
 
         # Phase 1: the view map.
-        hits = build_view_map(scene, tracer, scene.detector, stream(seed, "view-map", pass_index), broad=broad,
+        diagnostics: dict[str, float] = {}
+        hits = build_view_map(scene, tracer, scene.detector,
+                              view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel), broad=broad,
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
-                              neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm)
+                              neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics)
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg)
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
@@ -120,7 +122,7 @@ class Bidirectional:
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))
         film.add_images(parts_g)
-        return film.estimate(photons, ledger)
+        return film.estimate(photons, ledger, diagnostics)
 
 
 def radius_scale_of(pass_index: int, settings: EstimatorSettings) -> float:

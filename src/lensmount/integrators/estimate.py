@@ -31,6 +31,8 @@ class PassEstimate:
     pixel_area_mm2 : area of one pixel
     photons : photons traced in this pass
     ledger : the pass's energy ledger (`EnergyLedger.as_dict`), mm² (flux / E_sun)
+    diagnostics : counts that are not flux, e.g. `view_map_samples`, `view_map_lost_samples`
+        (backward rays ended by the tracer's numerical guards)
     """
 
     image: np.ndarray
@@ -39,6 +41,7 @@ class PassEstimate:
     pixel_area_mm2: float
     photons: int
     ledger: dict[str, float] = field(default_factory=dict)
+    diagnostics: dict[str, float] = field(default_factory=dict)
 
     @property
     def flux(self) -> float:
@@ -98,7 +101,7 @@ class Film:
         """Irradiance images (channels, ny, nx) E/E_sun estimated otherwise (the gather)."""
         self._images += per_channel
 
-    def estimate(self, photons: int, ledger: "EnergyLedger") -> PassEstimate:
+    def estimate(self, photons: int, ledger: "EnergyLedger", diagnostics: dict | None = None) -> PassEstimate:
         det = self.detector
         per_part = self._images + self._flux.reshape(self._images.shape) / det.pixel_area
         bad = ~np.isfinite(per_part)
@@ -107,7 +110,8 @@ class Film:
             raise FloatingPointError(f"non-finite irradiance in channel '{self.channels[c]}' at pixel (x={ix}, "
                                      f"y={iy}) ({int(bad.sum())} values in all)")
         return PassEstimate(image=per_part.sum(axis=0), per_part=per_part, part_names=list(self.channels),
-                            pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict())
+                            pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict(),
+                            diagnostics=dict(diagnostics or {}))
 
 
 class EnergyLedger:

@@ -150,8 +150,11 @@ class Gatherer:
                 continue
             hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
             f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
-            f = np.where(np.isfinite(f) & (f > 0), f, 0.0)
-            contrib = f * photons.flux[pj] / h.area[hi]
+            contrib = np.maximum(f, 0.0) * photons.flux[pj] / h.area[hi]
+            if not np.all(np.isfinite(contrib)):  # never zeroed: that would hide light (or a bug)
+                raise FloatingPointError(f"non-finite gather value on face tag {tag} at "
+                                         f"{int(np.sum(~np.isfinite(contrib)))} photon-hit pairs (the finish's "
+                                         f"BSDF value or the hit point's area is not finite)")
             self.radiance += np.bincount(hi, weights=contrib, minlength=len(h))
 
     def image(self, shape: tuple[int, int], part_of_tag: np.ndarray, n_parts: int):
@@ -159,7 +162,10 @@ class Gatherer:
         ny, nx = shape
         h = self.hits
         value = h.weight * self.radiance
-        value = np.where(np.isfinite(value), value, 0.0)
+        if not np.all(np.isfinite(value)):
+            bad = np.flatnonzero(~np.isfinite(value))
+            raise FloatingPointError(f"non-finite hit-point value at {len(bad)} hit point(s), e.g. pixel "
+                                     f"{int(h.pixel[bad[0]])} on face tag {int(h.tag[bad[0]])}")
         image = np.bincount(h.pixel, weights=value, minlength=ny * nx)[: ny * nx].reshape(ny, nx)
         part = part_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
         flat = part.astype(np.int64) * (ny * nx) + h.pixel

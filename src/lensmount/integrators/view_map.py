@@ -29,6 +29,7 @@ from lensmount.integrators.targets import edge_tags, learned_rim
 from lensmount.integrators.media import air_radiance_factor
 from lensmount.trace.detector import Detector
 from lensmount.trace.rays import RayBatch
+from lensmount.trace.sampler import Streams, ray_streams
 from lensmount.trace.tracer import FACE
 
 
@@ -118,11 +119,28 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
                     facing=-1.0 if det.z > z_xp else 1.0)
 
 
-def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, broad: np.ndarray,
+def _sample_layout(det: Detector, samples_per_pixel: int) -> tuple[np.ndarray, np.ndarray]:
+    """(pixel, sample) of every backward sample of a pass, pixel-major."""
+    s = int(samples_per_pixel)
+    n_pix = det.nx * det.ny
+    return np.repeat(np.arange(n_pix, dtype=np.int64), s), np.tile(np.arange(s, dtype=np.int64), n_pix)
+
+
+def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixel: int) -> Streams:
+    """The numbers of pass `pass_index`'s backward samples, keyed by (seed, pass, pixel, sample)."""
+    pixel, sample = _sample_layout(det, samples_per_pixel)
+    return Streams(seed, "view-map", (np.full(len(pixel), int(pass_index)), pixel, sample))
+
+
+def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
-                   radius_cap_mm: float = 5.0) -> HitPoints:
+                   radius_cap_mm: float = 5.0, stats: dict | None = None) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
+
+    rng : `view_map_streams(...)` (one stream per sample), or a Generator (keys drawn from it)
+    stats : when given, gets `view_map_samples` and `view_map_lost_samples` (backward rays ended by
+        the tracer's numerical guards: their pixels see nothing this pass) added to it
 
     broad : (n_tags,) bool, tags where hit points are made
     half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
@@ -131,11 +149,11 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
     pilot_seed : run seed for the learned edge target (`targets.learned_rim`, computed once per
         (scene, tracer, seed)); None: the paraxial rim annulus instead (the estimate is the same).
     """
-    n_pix = det.nx * det.ny
     s = int(samples_per_pixel)
-    pixel = np.repeat(np.arange(n_pix, dtype=np.int64), s)
+    pixel, _ = _sample_layout(det, s)
     n = len(pixel)
-    u = rng.random((n, 6))
+    paths = ray_streams(rng, n)
+    u = paths.random((n, 6))
     x = det.sample_points(pixel, u[:, 0:2])
     n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)  # drawn first: the learned target depends on it
@@ -160,7 +178,11 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
     rays = RayBatch.make(x[live], omega[live], weight=w[live] * n_wl / s, wavelength=wl[live], ids=pixel[live])
     if len(rays) == 0:
         return HitPoints.empty()
-    step = tracer.next_event(rays, rng)
+    paths = paths.take(live)
+    step = tracer.next_event(rays, paths)
+    if stats is not None:
+        stats["view_map_samples"] = stats.get("view_map_samples", 0) + n
+        stats["view_map_lost_samples"] = stats.get("view_map_lost_samples", 0) + int(step.lost.sum())
     tag = step.tag
     ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
     ok[ok] &= broad[tag[ok]]
@@ -172,7 +194,7 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
         on_edge = ok & np.isin(tag, edge_tags(scene, broad))
         keep_p = min(1.0, MAX_EDGE_HITS / max(int(on_edge.sum()), 1))
         if keep_p < 1.0:
-            ok &= ~on_edge | (rng.random(len(ok)) < keep_p)
+            ok &= ~on_edge | (paths.at(None, 6) < keep_p)
             tau = np.where(on_edge, tau / keep_p, tau)
     pos, nrm, tg = step.position[ok], step.normal[ok], tag[ok]
     radius = initial_radii(pos, tg, half_widths, k=neighbours, cap_mm=radius_cap_mm)
@@ -189,4 +211,4 @@ def build_view_map(scene, tracer, det: Detector, rng: np.random.Generator, *, br
                      wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area)
 
 
-__all__ = ["exit_disc", "build_view_map"]
+__all__ = ["exit_disc", "build_view_map", "view_map_streams"]

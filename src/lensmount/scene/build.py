@@ -174,10 +174,12 @@ def entrance_pupil_area(prescription: Prescription) -> float:
         except (ArithmeticError, ValueError) as exc:  # InputError included: the lens is what is wrong
             raise InputError(f"the entrance pupil cannot be computed ({exc})", field="aperture",
                              valid="a focal lens with a stop, or an entrance pupil diameter") from None
-    if not (math.isfinite(epd) and epd > 0.0):
+    with np.errstate(over="ignore"):
+        area = float(np.pi * np.float64(0.5 * epd) ** 2) if math.isfinite(epd) else math.inf
+    if not (math.isfinite(area) and epd > 0.0):  # a lens without power gives EPD ~1e299: area overflows
         raise InputError(f"the entrance pupil diameter comes out as {epd:g} mm", field="aperture",
                          valid="a lens whose paraxial entrance pupil diameter is finite and > 0")
-    return math.pi * (0.5 * epd) ** 2
+    return area
 
 
 def check_object_names(objects, parts) -> None:
