@@ -6,6 +6,7 @@ Prints:
 - the raw embreex intersection rate (one nearest-hit query per ray) on the same mesh and the
   same number of rays, and the ratio of the two;
 - Embree queries per traced ray (probes + relaunches past facets);
+- optiland's non-sequential tracer through the same lens, in the same run (rays/s and ratio);
 - the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
   a time in Python) as a peer, with the largest landing-point difference.
 
@@ -20,12 +21,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from importlib.metadata import version
+
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 N_RAYS = 200_000
 N_PEER = 1_000
+N_OPTILAND = 50_000
 
 
 def _reference():
@@ -39,7 +43,7 @@ def _reference():
         from lensmount.cad import regenerate
         from lensmount.cad.mesh import TaggedMesh
 
-        out = Path(tempfile.mkdtemp(prefix="bench-trace-"))
+        out = Path(tempfile.gettempdir()) / "lensmount-bench-trace"  # regenerate's cache makes reruns fast
         manifest = regenerate(design, out)
         mesh = TaggedMesh.load(out / manifest.mesh)
         origin = "cad.regenerate"
@@ -105,6 +109,44 @@ def _rayoptics_peer(p, origins, dirs):
     return len(origins) / dt, pts
 
 
+def _optiland_peer(p, n):
+    """optiland's non-sequential tracer through the same lens (same radii, thicknesses and
+    glasses, the stop in air folded into its gap: the converter has no bare stop): rays/s or a
+    reason."""
+    try:
+        import warnings
+
+        from optiland.nonsequential.convert import sequential_to_nonsequential
+        from optiland.optic import Optic
+    except Exception as exc:
+        return f"optiland not installed ({exc.__class__.__name__}); `pip install -e '.[bench]'`"
+    op = Optic()
+    op.add_surface(index=0, radius=np.inf, thickness=np.inf)
+    rows = []
+    for s in p.surfaces:
+        glass = s.material.upper() != "AIR"
+        if s.is_stop and not glass and not np.isfinite(s.radius) and rows and not rows[-1][2]:
+            rows[-1][1] += s.thickness
+            continue
+        rows.append([s.radius, s.thickness, s.material.split(":")[-1] if glass else None])
+    for k, (r, t, m) in enumerate(rows, start=1):
+        op.add_surface(index=k, radius=r if np.isfinite(r) else np.inf, thickness=t, **({"material": m} if m else {}))
+    op.add_surface(index=len(rows) + 1)
+    op.set_aperture(aperture_type="EPD", value=0.9 * 51.43)
+    op.set_field_type(field_type="angle")
+    op.add_field(y=0.0)
+    op.add_field(y=3.5)
+    op.add_wavelength(value=p.primary_wavelength_um, is_primary=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = sequential_to_nonsequential(op, detector_width=40.0)
+        scene.trace(2000, seed=1)  # warm-up
+        t0 = time.perf_counter()
+        res = scene.trace(n, seed=1)
+        dt = time.perf_counter() - t0
+    return n / dt, float(res.total_flux_detected)
+
+
 def main() -> None:
     from lensmount.trace.rays import RayBatch
     from lensmount.trace.tracer import DETECTOR, Tracer
@@ -125,17 +167,33 @@ def main() -> None:
     full = time.perf_counter() - t0
     arrived = (ev.kind == DETECTOR).mean()
     print(f"full non-sequential trace: {N_RAYS / full:,.0f} rays/s ({N_RAYS} rays, {full:.2f} s, "
-          f"{arrived:.1%} reach the detector, {tracer.embree_rays / N_RAYS:.1f} Embree queries per ray)")
+          f"{arrived:.1%} reach the detector, {tracer.embree_rays / N_RAYS:.1f} Embree queries per ray: "
+          f"{tracer.mechanical.queries / N_RAYS:.1f} against the metal, mostly occlusion tests of the analytic "
+          f"steps, {tracer._optical_queries / N_RAYS:.1f} for glass facets)")
 
+    # Raw embreex: one nearest-hit query per ray against the whole mesh (all triangles, one scene).
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+
+    whole = rtcs.EmbreeScene()
+    TriangleMesh(whole, (mesh.vertices - tracer.centre).astype(np.float32), mesh.triangles.astype(np.int32))
     start = (o - tracer.centre).astype(np.float32)
     dirs = d.astype(np.float32)
-    tracer._embree.run(start[:2000], dirs[:2000], query="INTERSECT", output=1)
+    whole.run(start[:2000], dirs[:2000], query="INTERSECT", output=1)
     t0 = time.perf_counter()
-    tracer._embree.run(start, dirs, query="INTERSECT", output=1)
+    whole.run(start, dirs, query="INTERSECT", output=1)
     raw = time.perf_counter() - t0
     print(f"raw embreex nearest-hit: {N_RAYS / raw:,.0f} rays/s (same mesh, same {N_RAYS} rays)")
     print(f"ratio raw embreex / full trace: {full / raw:.1f}x "
           f"(per Embree query: {(full / tracer.embree_rays) / (raw / N_RAYS):.1f}x the raw cost)")
+
+    peer = _optiland_peer(p, N_OPTILAND)
+    if isinstance(peer, str):
+        print(f"peer optiland: {peer}")
+    else:
+        print(f"peer optiland {version('optiland')} non-sequential (same lens, same run): {peer[0]:,.0f} rays/s "
+              f"({N_OPTILAND} rays, {peer[1]:.0%} of the flux detected); lensmount full trace is "
+              f"{(N_RAYS / full) / peer[0]:.1f}x faster")
 
     sel = slice(0, N_PEER)
     rate, pts = _rayoptics_peer(p, o[sel], d[sel])

@@ -126,6 +126,20 @@ class MechanicalFaces:
 
     # ------------------------------------------------------------------ query
 
+    def occluded(self, o, d, t_far, leaving):
+        """(n,) bool: may a mechanical face lie on the rays' segments [0, t_far]? Exact in the
+        conservative direction: every float64 crossing lies on a fat copy, so False means none
+        (True may be a near miss: the caller then asks `nearest`)."""
+        if not self.has_faces or len(o) == 0:
+            return np.zeros(len(o), bool)
+        base = np.where(leaving, -self.back, 0.0)
+        start = o + base[:, None] * d
+        self.queries += len(o)
+        far = (t_far - base) * (1.0 + 1e-6) + self.margin
+        res = self._embree.run((start - self.centre).astype(np.float32), d.astype(np.float32),
+                               dists=far.astype(np.float32), query="OCCLUDED")
+        return np.asarray(res) >= 0
+
     def nearest(self, o, d, leaving, left_normal):
         """Nearest mechanical hit of rays (n,): (t (n,) inf = none, prim (n,) global or -1, lost (n,)).
 

@@ -54,7 +54,8 @@ class Hits:
     point : (N, 3) float64 hit points (the origin where nothing was hit)
     normal : (N, 3) unit normal: analytic and oriented +z for optical faces, the triangle's
         outward normal for mechanical faces, (0, 0, -1) on the detector
-    prim : (N,) int64 triangle index, -1 for detector or miss
+    prim : (N,) int64 triangle index, -1 for detector or miss (and for glass hits found by the
+        sequential step inside `next_event`, which needs no facet)
     tag : (N,) int32 mesh tag, -1 for detector or miss
     surface : (N,) int32 index into `scene.optical` for optical faces, else -1
     detector : (N,) bool, the detector rectangle is the nearest
@@ -152,6 +153,8 @@ class Tracer:
         self._tri_surface = tag_surface[self._tri_tag] if self._has_mesh else np.zeros(0, np.int32)
         self._profiles = [s.profile for s in scene.optical]
         self._z_vertex = np.array([s.z_vertex for s in scene.optical] or [0.0])
+        self._curvature = np.array([s.profile.curvature for s in scene.optical] or [0.0])
+        self._conic = np.array([s.profile.conic for s in scene.optical] or [0.0])
         w = len(scene.wavelengths_um)
         self._n_before = np.array([np.broadcast_to(s.n_before, (w,)) for s in scene.optical] or [np.ones(w)])
         self._n_after = np.array([np.broadcast_to(s.n_after, (w,)) for s in scene.optical] or [np.ones(w)])
@@ -170,6 +173,7 @@ class Tracer:
             self._embree = rtcs.EmbreeScene()
             TriangleMesh(self._embree, (mesh.vertices - self.centre).astype(np.float32),
                          tri[optical].astype(np.int32))
+        self._faces = self._optical_faces()
         self.mechanical = MechanicalFaces(mesh.vertices, tri, self._tri_n, np.flatnonzero(self._tri_surface < 0),
                                           self.centre, self.extent, self.t_min)
 
@@ -200,6 +204,48 @@ class Tracer:
                     tol[k] = float(dev.max()) if dev.size else 0.0
         return 4.0 * tol + 100.0 * self.eps
 
+    def _optical_faces(self):
+        """Per optical surface: (safe radius, z slab (2,)) of its facets, for the sequential step.
+
+        safe radius: inside it the facets certainly cover the analytic surface (the outer
+        boundary polygon's inscribed radius; 0 for a surface without facets, an annulus or an
+        asphere, which the step leaves to Embree); slab: z range of the facets padded by the
+        facet tolerance, inf-wide where unknown.
+        """
+        k_n = len(self._profiles)
+        safe = np.zeros(max(k_n, 1))
+        slab = np.tile([np.inf, -np.inf], (max(k_n, 1), 1))
+        if not self._has_mesh:
+            return safe, slab, np.full(max(k_n, 1), -1), np.full(max(k_n, 1), -1)
+        mesh = self.scene.mesh
+        for k in range(k_n):
+            tri = mesh.triangles[self._tri_surface == k]
+            if not len(tri):
+                continue
+            v = mesh.vertices[np.unique(tri)]
+            slab[k] = v[:, 2].min() - self._tolerance[k], v[:, 2].max() + self._tolerance[k]
+            edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+            uniq, count = np.unique(edges, axis=0, return_counts=True)
+            rim = uniq[count == 1]
+            a, b = mesh.vertices[rim[:, 0], :2], mesh.vertices[rim[:, 1], :2]
+            r = np.hypot(v[:, 0], v[:, 1])
+            r_rim = np.hypot(*mesh.vertices[np.unique(rim)][:, :2].T) if len(rim) else r
+            if any(self._profiles[k].aspheric) or not len(rim) or r_rim.min() < 0.99 * r_rim.max():
+                continue  # an asphere, or an annulus (a second, inner rim): Embree decides
+            # Distance from the axis to each rim edge (as a segment in xy).
+            ab = b - a
+            u = np.clip(-np.einsum("ij,ij->i", a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
+            safe[k] = max(float(np.hypot(*(a + u[:, None] * ab).T).min()) - self._tolerance[k], 0.0)
+        # The next surface with facets in each direction (a stop in air has none).
+        faceted = np.isfinite(slab[:k_n, 0])
+        up, down = np.full(max(k_n, 1), -1), np.full(max(k_n, 1), -1)
+        for k in range(k_n):
+            above = np.flatnonzero(faceted[k + 1:])
+            below = np.flatnonzero(faceted[:k])
+            up[k] = k + 1 + above[0] if above.size else -1
+            down[k] = below[-1] if below.size else -1
+        return safe, slab, up, down
+
     def _embree_query(self, start: np.ndarray, d: np.ndarray):
         """Optical-facet candidates: (local facet index (m,) or -1, float32 distance from start)."""
         self._optical_queries += len(start)
@@ -209,6 +255,28 @@ class Tracer:
         t = res["tfar"].astype(np.float64)
         return np.where((prim >= 0) & (t < _EMBREE_MISS), prim, -1), t
 
+    def _conic_roots(self, k, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
+        """Both float64 crossings (n,) of rays with conic surface k (an int, or (n,) per ray);
+        inf where none, behind t_min or off the vertex sheet."""
+        c, k1 = self._curvature[k], 1.0 + self._conic[k]
+        ox, oy, oz = o[:, 0], o[:, 1], o[:, 2] - self._z_vertex[k]
+        dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
+        a = c * (dx * dx + dy * dy + k1 * dz * dz)
+        b = c * (ox * dx + oy * dy + k1 * oz * dz) - dz
+        cc = c * (ox * ox + oy * oy + k1 * oz * oz) - 2.0 * oz
+        disc = b * b - a * cc
+        ok = disc >= 0.0
+        q = b + np.copysign(np.sqrt(np.where(ok, disc, 0.0)), b)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = np.where(ok & (q != 0.0), -cc / np.where(q != 0.0, q, 1.0), np.inf)
+            t2 = np.where(ok & (a != 0.0), -q / np.where(a != 0.0, a, 1.0), np.inf)
+        out = []
+        for t in (t1, t2):
+            fin = np.isfinite(t)
+            z = oz + np.where(fin, t, 0.0) * dz
+            out.append(np.where(fin & (t > self.t_min) & (k1 * c * z <= 1.0 + 1e-12), t, np.inf))
+        return out
+
     def _optical_root(self, k: int, o: np.ndarray, d: np.ndarray, t_guess: np.ndarray) -> np.ndarray:
         """Float64 crossing of rays (n,) with optical surface k nearest to the facet hit t_guess.
 
@@ -217,29 +285,70 @@ class Tracer:
         with the facet hit are kept. Aspheres: Newton from the facet hit. inf = not a real hit.
         """
         prof = self._profiles[k]
-        ol = o - np.array([0.0, 0.0, self._z_vertex[k]])
-        c, k1 = prof.curvature, 1.0 + prof.conic
         if any(prof.aspheric):
-            cands = [_newton_asphere(prof, ol, d, t_guess)]
-        else:
-            a = c * (d[:, 0] ** 2 + d[:, 1] ** 2 + k1 * d[:, 2] ** 2)
-            b = c * (ol[:, 0] * d[:, 0] + ol[:, 1] * d[:, 1] + k1 * ol[:, 2] * d[:, 2]) - d[:, 2]
-            cc = c * (ol[:, 0] ** 2 + ol[:, 1] ** 2 + k1 * ol[:, 2] ** 2) - 2.0 * ol[:, 2]
-            disc = b * b - a * cc
-            ok = disc >= 0.0
-            q = b + np.where(b >= 0.0, 1.0, -1.0) * np.sqrt(np.where(ok, disc, 0.0))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t1 = np.where(ok & (q != 0.0), -cc / np.where(q != 0.0, q, 1.0), np.inf)
-                t2 = np.where(ok & (a != 0.0), -q / np.where(a != 0.0, a, 1.0), np.inf)
-            cands = [t1, t2]
-        best = np.full(len(o), np.inf)
-        for t in cands:
-            t = np.where(np.isfinite(t), t, np.inf)
+            ol = o - np.array([0.0, 0.0, self._z_vertex[k]])
+            t = _newton_asphere(prof, ol, d, t_guess)
             z = ol[:, 2] + np.where(np.isfinite(t), t, 0.0) * d[:, 2]
-            good = np.isfinite(t) & (t > self.t_min) & (k1 * c * z <= 1.0 + 1e-12)
-            closer = good & (np.abs(t - t_guess) < np.abs(best - t_guess))
+            sheet = (1.0 + prof.conic) * prof.curvature * z <= 1.0 + 1e-12
+            return np.where(np.isfinite(t) & (t > self.t_min) & sheet, t, np.inf)
+        best = np.full(len(o), np.inf)
+        for t in self._conic_roots(k, o, d):
+            closer = np.isfinite(t) & (np.abs(t - t_guess) < np.abs(best - t_guess))
             best = np.where(closer, t, best)
         return best
+
+    def _sequential_step(self, left: np.ndarray, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
+        """The next optical hit of rays (n,) that just left optical surface `left`, without Embree.
+
+        A ray leaving surface k meets, before t_stop (the nearest metal), either surface k ± 1
+        (the next one in its direction of travel) or k again, unless its path enters the slab of
+        any other surface. The analytic crossing is exact where it lies inside the facets'
+        safe radius; elsewhere (near a rim, other slabs in the way, aspheres) the step declines.
+        Returns (sure (n,) bool, t (n,) inf = no optical hit before t_stop, surface (n,)).
+        """
+        n = len(o)
+        sure = np.zeros(n, bool)
+        t_best = np.full(n, np.inf)
+        s_best = np.full(n, -1, np.int64)
+        safe, slab, up, down = self._faces
+        k_n = len(self._profiles)
+        kk = np.clip(left, 0, k_n - 1)
+        nxt = np.where(d[:, 2] > 0.0, up[kk], down[kk])
+        ok = (left >= 0) & (nxt >= 0)
+        ok &= (safe[kk] > 0) & (safe[np.clip(nxt, 0, k_n - 1)] > 0)
+        idx = np.flatnonzero(ok)
+        if idx.size == 0:
+            return sure, t_best, s_best
+        oo, dd, ts = o[idx], d[idx], t_stop[idx]
+        good = np.ones(idx.size, bool)
+        tb = np.full(idx.size, np.inf)
+        sb = np.full(idx.size, -1, np.int64)
+        for k in (left[idx], nxt[idx]):
+            for t in self._conic_roots(k, oo, dd):
+                before = t < ts
+                tt = np.where(before, t, 0.0)
+                rho2 = (oo[:, 0] + tt * dd[:, 0]) ** 2 + (oo[:, 1] + tt * dd[:, 1]) ** 2
+                inside = rho2 <= safe[k] ** 2
+                # A crossing past the safe radius may or may not be on the glass: decline.
+                good &= ~(before & ~inside)
+                take = before & inside & (t < tb)
+                tb = np.where(take, t, tb)
+                sb = np.where(take, k, sb)
+        # The path up to the hit (or the metal) must not enter any other surface's slab.
+        t_end = np.minimum(tb, t_stop[idx])
+        z0 = oo[:, 2]
+        z1 = np.where(np.isfinite(t_end), z0 + np.where(np.isfinite(t_end), t_end, 0.0) * dd[:, 2],
+                      np.where(dd[:, 2] > 0, np.inf, -np.inf))
+        lo, hi = np.minimum(z0, z1), np.maximum(z0, z1)
+        crosses = (lo[:, None] <= slab[None, :k_n, 1]) & (hi[:, None] >= slab[None, :k_n, 0])
+        rows = np.arange(idx.size)
+        crosses[rows, left[idx]] = False
+        crosses[rows, nxt[idx]] = False
+        good &= ~crosses.any(axis=1)
+        sure[idx] = good
+        t_best[idx] = np.where(good, tb, np.inf)
+        s_best[idx] = np.where(good, sb, -1)
+        return sure, t_best, s_best
 
     def _optical_nearest(self, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
         """Nearest analytic optical hit of rays (n,) before t_stop: (t, prim, normal, lost).
@@ -290,25 +399,61 @@ class Tracer:
         return t_hit, prim, normal, lost
 
     def _nearest(self, o: np.ndarray, d: np.ndarray, leaving: np.ndarray | None = None,
-                 left_normal: np.ndarray | None = None) -> Hits:
+                 left_normal: np.ndarray | None = None, left_surface: np.ndarray | None = None) -> Hits:
         """Nearest refined hit for rays (n, 3) in float64 (see the module docstring).
 
         leaving (n,) bool: the ray starts on a face it is leaving (then a mechanical face that
         touches the origin and that the ray enters is a hit at t = 0); left_normal (n, 3): the
-        normal of that face when it is mechanical (faces coplanar with it are not hits at t = 0).
+        normal of that face when it is mechanical (faces coplanar with it are not hits at t = 0);
+        left_surface (n,): the optical surface (position in scene.optical) a ray just left, -1
+        for none (then the next glass surface may come from the sequential step, without Embree).
         """
         n = len(o)
         if leaving is None:
             leaving = np.zeros(n, bool)
         if left_normal is None:
             left_normal = np.zeros((n, 3))
-        t_mech, prim_mech, lost = self.mechanical.nearest(o, d, leaving, left_normal)
-        t_opt, prim_opt, n_opt, lost_opt = self._optical_nearest(o, d, t_mech)
+        t_mech = np.full(n, np.inf)
+        prim_mech = np.full(n, -1, np.int64)
+        lost = np.zeros(n, bool)
+        t_opt = np.full(n, np.inf)
+        s_opt = np.full(n, -1, np.int64)
+        prim_opt = np.full(n, -1, np.int64)
+        n_opt = np.zeros((n, 3))
+        lost_opt = np.zeros(n, bool)
+        rest = np.ones(n, bool)
+        if left_surface is not None and self._has_optical:
+            # Inside the lens: the analytic step to the next glass surface, then one occlusion
+            # query against the metal on that segment (a nearest-hit query only if it is blocked).
+            sure, t_seq, s_seq = self._sequential_step(left_surface, o, d, np.full(n, np.inf))
+            sure &= np.isfinite(t_seq)
+            si = np.flatnonzero(sure)
+            clear = ~self.mechanical.occluded(o[si], d[si], t_seq[si], leaving[si])
+            done = si[clear]
+            t_opt[done], s_opt[done] = t_seq[done], s_seq[done]
+            rest[done] = False
+        ri = np.flatnonzero(rest)
+        t_mech[ri], prim_mech[ri], lost[ri] = self.mechanical.nearest(o[ri], d[ri], leaving[ri], left_normal[ri])
+        if left_surface is not None and self._has_optical and ri.size:
+            sure, t_seq, s_seq = self._sequential_step(left_surface[ri], o[ri], d[ri], t_mech[ri])
+            t_opt[ri[sure]], s_opt[ri[sure]] = t_seq[sure], s_seq[sure]
+            rest[ri[sure]] = False
+        if rest.any():
+            t_r, p_r, n_opt[rest], lost_opt[rest] = self._optical_nearest(o[rest], d[rest], t_mech[rest])
+            t_opt[rest], prim_opt[rest] = t_r, p_r
+            s_opt[rest] = np.where(p_r >= 0, self._tri_surface[np.maximum(p_r, 0)] if self._has_mesh else -1, -1)
+        seq = ~rest & np.isfinite(t_opt)
+        for k in np.unique(s_opt[seq]):
+            sel = seq & (s_opt == k)
+            pl = o[sel] + t_opt[sel, None] * d[sel]
+            pl[:, 2] -= self._z_vertex[k]
+            n_opt[sel] = self._profiles[k].normal(pl)
         glass = t_opt < t_mech
         t_hit = np.where(glass, t_opt, t_mech)
-        prim = np.where(glass, prim_opt, prim_mech)
+        prim = np.where(glass, prim_opt, prim_mech)  # -1 for a glass hit from the sequential step
+        surface = np.where(glass, s_opt, -1)
         lost = np.where(glass, lost_opt, lost | (lost_opt & ~np.isfinite(t_hit)))
-        mech = (prim >= 0) & ~glass
+        mech = ~glass & (prim_mech >= 0)
         normal = np.where(glass[:, None], n_opt, 0.0)
         normal[mech] = self._tri_n[prim[mech]]
         # The detector rectangle, analytic, merged with the mesh hit: nearest wins.
@@ -317,8 +462,8 @@ class Tracer:
         t = np.where(on_det, t_det, t_hit)
         lost &= ~on_det
         prim = np.where(on_det, -1, prim)
+        surface = np.where(on_det, -1, surface)
         tag = np.where(prim >= 0, self._tri_tag[np.maximum(prim, 0)] if self._has_mesh else -1, -1).astype(np.int32)
-        surface = np.where(prim >= 0, self._tri_surface[np.maximum(prim, 0)] if self._has_mesh else -1, -1)
         normal = np.where(on_det[:, None], np.array([0.0, 0.0, -1.0]), normal)
         point = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
         return Hits(t, point, normal, prim, tag, surface.astype(np.int32), on_det, on_det & front, lost)
@@ -366,6 +511,7 @@ class Tracer:
         streams = ray_streams(rng, n) if ghosts and rng is not None else None
         left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
         leaving = np.any(left_n != 0.0, axis=1)
+        left_s = np.full(n, -1, np.int64)  # the glass surface a ray just left
         valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
         valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
         lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
@@ -373,20 +519,20 @@ class Tracer:
         for crossing in range(_MAX_OPTICAL):
             if work.size == 0:
                 break
-            h = self._nearest(o[work], d[work], leaving[work], left_n[work])
+            h = self._nearest(o[work], d[work], leaving[work], left_n[work], left_s[work])
             o[work] = h.point
             lost[work[h.lost]] = True
             det = h.detector & h.detector_front
             kind[work[det]] = DETECTOR
             normal[work[det]] = (0.0, 0.0, -1.0)
-            face = (h.prim >= 0) & (h.surface < 0) & np.isfinite(h.t)
+            face = (h.prim >= 0) & (h.surface < 0) & ~h.detector & np.isfinite(h.t)
             fi = work[face]
             kind[fi] = FACE
             tag[fi] = h.tag[face]
             prim[fi] = h.prim[face]
             side = np.where(np.einsum("ij,ij->i", h.normal[face], d[fi]) > 0.0, -1.0, 1.0)
             normal[fi] = h.normal[face] * side[:, None]
-            glass = (h.prim >= 0) & (h.surface >= 0) & np.isfinite(h.t)
+            glass = (h.surface >= 0) & np.isfinite(h.t)
             gi = work[glass]
             if gi.size:
                 u = streams.at(gi, FRESNEL_DIM + crossing) if streams is not None else None
@@ -395,6 +541,7 @@ class Tracer:
                 reflections[gi] += refl
                 leaving[gi] = True  # it leaves glass: metal touching it is a hit at t = 0
                 left_n[gi] = 0.0
+                left_s[gi] = h.surface[glass]
                 bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
                 lost[gi[bad]] = True
                 gi = gi[~bad]
