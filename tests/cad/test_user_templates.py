@@ -70,3 +70,37 @@ def test_user_template_without_make_part(reference_layout, tmp_path):
     with pytest.raises(InputError) as exc:
         build_parts(layout, spec, {"hood": _write(tmp_path, "hood.py", "x = 1\n")})
     assert exc.value.field == "templates.hood"
+
+
+ROLE_VANE = B3D_VANE + '''
+
+def face_role(name, params, r, z):
+    """The bore is the knife edge; the rest keeps the built-in profile's tags."""
+    return "vane-edge" if abs(r - params["inner_radius"]) < 1e-6 else None
+'''
+
+
+def test_a_template_declares_its_faces_roles(reference_layout, tmp_path):
+    """Without face_role the plain cylindrical bore of a user vane lies off the built-in profile
+    (which bevels after a 0.1 mm land) and is tagged mount; with it the bore is the vane edge."""
+    import dataclasses
+
+    import numpy as np
+
+    layout, spec = reference_layout
+    vanes = dataclasses.replace(layout, parts=[p for p in layout.parts if p.name == "vane-1"])
+    r0 = layout.part("vane-1").template.inner_radius
+
+    def bore_roles(text):
+        bp = build_parts(vanes, spec, {"vane": _write(tmp_path, "vane.py", text)})[0]
+        at_bore = [np.isclose(np.hypot(f.position_at(0.5, 0.5).X, f.position_at(0.5, 0.5).Y), r0)
+                   for f in bp.solid.faces()]
+        return {role for (role, _), b in zip(bp.roles, at_bore) if b}, {role for (role, _), b in zip(bp.roles, at_bore) if not b}
+
+    plain_bore, _ = bore_roles(B3D_VANE)
+    assert plain_bore == {"mount"}
+    declared_bore, others = bore_roles(ROLE_VANE)
+    assert declared_bore == {"vane-edge"} and others == {"mount"}
+    with pytest.raises(InputError) as exc:
+        bore_roles(ROLE_VANE.replace('"vane-edge" if', '"edge" if'))
+    assert exc.value.field == "templates.vane" and "vane-edge" in exc.value.paragraph()

@@ -23,7 +23,7 @@ from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.profile import face_roles
-from lensmount.templates.user import load_template, to_solid
+from lensmount.templates.user import declared_roles, load_template, to_solid
 
 USER_OVERLAP_TOL_MM3 = 1e-3
 
@@ -72,9 +72,11 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
     for k, pp in enumerate(layout.parts):
         segs = pp.template.segments()
         path = template_paths.get(pp.kind)
+        face_role = None
         if path is not None:
+            make_part, face_role = makers[pp.kind]
             try:
-                result = makers[pp.kind](pp.name, pp.template.params())
+                result = make_part(pp.name, pp.template.params())
             except Exception as exc:  # the user's code
                 raise GeometryError(f"user template for {pp.name} failed: {exc!r}", file=str(path),
                                     field=f"templates.{pp.kind}", valid="make_part returning a solid") from None
@@ -86,7 +88,10 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
         if not solid.is_valid:
             raise GeometryError(f"{pp.name}: the CAD kernel built an invalid solid", field=pp.kind,
                                 valid="parameters giving a simple closed profile")
-        out.append(BuiltPart(pp, solid, face_roles(solid, segs), path, part_hash(pp, raw)))
+        roles = face_roles(solid, segs)
+        if face_role is not None:
+            roles = declared_roles(solid, face_role, pp.name, pp.template.params(), roles, path, pp.kind)
+        out.append(BuiltPart(pp, solid, roles, path, part_hash(pp, raw)))
         if progress:
             progress("solids", k + 1, len(layout.parts))
     return out

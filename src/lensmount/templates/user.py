@@ -10,7 +10,15 @@ The file defines `make_part(name: str, params: dict)` and returns a build123d
 built-in template's parameters for that part (placement included: the result must
 sit in the assembly frame, optical axis +z). Both libraries sit on OCP, so the
 result is converted through its OCP shape. Faces that lie on the built-in
-template's profile keep its roles; other faces are tagged `mount`.
+template's profile keep its roles; other faces are tagged `mount`, unless the
+file also defines
+
+    def face_role(name: str, params: dict, r: float, z: float) -> str | None
+
+which names the role of the face through the point (r, z) (mm, a point in the
+middle of each face): `vane-edge`, `diaphragm-edge`, `bevel`, `lens-edge` or
+`mount`, or None to keep the profile's tag. That is how a template declares which
+of its faces are knife edges and bores (a scene's `role:` rules then find them).
 """
 
 from __future__ import annotations
@@ -39,7 +47,36 @@ def load_template(path: Path, kind: str):
     if not callable(fn):
         raise InputError("user template defines no make_part(name, params)", file=str(path),
                          field=f"templates.{kind}", valid="a function make_part(name: str, params: dict)")
-    return fn
+    role = getattr(module, "face_role", None)  # optional: the template's own face roles
+    if role is not None and not callable(role):
+        raise InputError("face_role in a user template must be a function", file=str(path),
+                         field=f"templates.{kind}", valid="def face_role(name, params, r, z) -> role or None")
+    return fn, role
+
+
+USER_ROLES = ("vane-edge", "diaphragm-edge", "bevel", "lens-edge", "mount")
+
+
+def declared_roles(solid, face_role, name: str, params: dict, fallback, path: Path, kind: str):
+    """(role, surface) per face of `solid`: the template's `face_role` where it names one, else fallback."""
+    import math
+
+    out = []
+    for f, default in zip(solid.faces(), fallback):
+        p = f.position_at(0.5, 0.5)
+        try:
+            role = face_role(name, params, math.hypot(p.X, p.Y), p.Z)
+        except Exception as exc:  # the user's code
+            raise InputError(f"face_role failed: {exc!r}", file=str(path), field=f"templates.{kind}",
+                             valid="def face_role(name, params, r, z) -> role or None") from None
+        if role is None:
+            out.append(default)
+        elif role in USER_ROLES:
+            out.append((role, -1))
+        else:
+            raise InputError(f"face_role returned {role!r} for {name}", file=str(path), field=f"templates.{kind}",
+                             valid=", ".join(USER_ROLES) + ", or None")
+    return out
 
 
 def to_solid(obj, path: Path, kind: str):
@@ -68,4 +105,4 @@ def to_solid(obj, path: Path, kind: str):
     return Compound(solids)
 
 
-__all__ = ["load_template", "to_solid"]
+__all__ = ["load_template", "to_solid", "declared_roles", "USER_ROLES"]
