@@ -10,8 +10,10 @@ do not pickle while the Scene (plain numpy) does. SIGINT and SIGTERM stop a run 
 way: the passes merged so far are kept and the checkpoint is written.
 
 Stopping rules (any that is given; at least one pass always runs):
-  photons ≥ N,   elapsed ≥ T seconds,   relative error of the total flux ≤ E
-  (checked only after `min_passes`, since an error bar from 2 passes is itself noise),
+  photons ≥ N,   elapsed ≥ T seconds,
+  (standard error + kernel-bias bound) / total flux ≤ E (`Accumulator.rel_error`; checked
+  only after `min_passes`, since an error bar from 2 passes is itself noise; never met by a
+  run with no signal, whose relative error is unknown),
   passes ≥ max_passes.
 """
 

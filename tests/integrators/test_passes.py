@@ -5,6 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from scipy.stats import norm
+from scipy.stats import t as student_t
+
 from lensmount.analysis.passes import Accumulator
 from lensmount.integrators.estimate import PassEstimate
 
@@ -23,10 +26,11 @@ def test_mean_and_std_error_match_numpy():
         acc.add(p)
     stack = np.stack([p.image for p in passes])
     np.testing.assert_allclose(acc.mean_image, stack.mean(0), rtol=1e-12)
-    np.testing.assert_allclose(acc.std_error_image, stack.std(0, ddof=1) / math.sqrt(40), rtol=1e-9)
+    widen = student_t.ppf(0.975, 39) / norm.ppf(0.975)  # Student-t at 39 degrees of freedom
+    np.testing.assert_allclose(acc.std_error_image, stack.std(0, ddof=1) / math.sqrt(40) * widen, rtol=1e-9)
     flux = stack.sum(axis=(1, 2)) * 0.01
     assert acc.flux == pytest.approx(flux.mean(), rel=1e-12)
-    assert acc.flux_std_error == pytest.approx(flux.std(ddof=1) / math.sqrt(40), rel=1e-12)
+    assert acc.flux_std_error == pytest.approx(flux.std(ddof=1) / math.sqrt(40) * widen, rel=1e-9)
     np.testing.assert_allclose(acc.part_flux, [0.25 * flux.mean(), 0.75 * flux.mean()], rtol=1e-12)
     assert acc.photons == 4000 and acc.n == 40 and acc.last_pass == 39
 
@@ -44,16 +48,82 @@ def test_std_error_covers_the_truth_at_the_nominal_rate():
     assert 0.88 < inside / 200 < 0.99
 
 
-def test_guards_before_two_passes_and_for_all_zero():
+def test_few_normal_passes_cover_the_truth_at_the_nominal_rate():
+    """Issue 13, 8(c): with 4 passes the plain standard error covers only 88 % at ±2 SE (t with 3
+    degrees of freedom); the Student-t widened one covers 95 %."""
+    rng = np.random.default_rng(17)
+    trials, inside = 3000, 0
+    for _ in range(trials):
+        acc = Accumulator.empty((1, 1), ["p"], 1.0)
+        for v in rng.normal(1.0, 0.2, 4):
+            acc.add(PassEstimate(np.array([[v]]), np.array([[[v]]]), ["p"], 1.0, 1))
+        inside += abs(acc.flux - 1.0) < 1.96 * acc.flux_std_error
+    assert 0.935 < inside / trials < 0.965, inside / trials
+
+
+def test_no_error_bar_from_two_passes():
+    acc = Accumulator.empty((1, 1), ["p"], 1.0)
+    for v in (1.0, 1.1):
+        acc.add(PassEstimate(np.array([[v]]), np.array([[[v]]]), ["p"], 1.0, 1))
+    assert acc.flux_std_error == math.inf and acc.rel_error() == math.inf
+    acc.add(PassEstimate(np.array([[0.9]]), np.array([[[0.9]]]), ["p"], 1.0, 1))
+    assert math.isfinite(acc.flux_std_error) and acc.rel_error() < 1
+
+
+def test_no_signal_is_never_converged_and_has_an_upper_bound():
+    """Issue 13, item 4: all-zero passes used to give 0 ± 0 and relative error 0 (a stopping rule
+    on it stopped). Now the relative error is unknown and the 95 % bound is 3 photons' worth of
+    the emitted flux (the ledger's `source`, 5 mm² per pass of 1000 photons here)."""
     acc = Accumulator.empty((2, 2), ["p"], 1.0)
-    assert acc.rel_error() == math.inf and acc.flux == 0.0
+    assert acc.rel_error() == math.inf and acc.flux == 0.0 and acc.upper_bound() is None
     assert np.all(acc.std_error_image == 0) and np.all(np.isfinite(acc.mean_image))
     z = np.zeros((2, 2))
-    for _ in range(3):
-        acc.add(PassEstimate(z, z[None], ["p"], 1.0, 10))
-    assert acc.rel_error() == 0.0
+    for _ in range(8):
+        acc.add(PassEstimate(z, z[None], ["p"], 1.0, 1000, ledger={"source": 5.0, "escaped": 5.0}))
+    assert acc.rel_error() == math.inf
+    assert acc.upper_bound() == pytest.approx(3.0 * 5.0 / 1000)  # Φ per photon = 5/1000, < 3 photons
     d = acc.drift()
     assert d.relative == 0.0 and d.z == 0.0
+    one = np.array([[0.0, 1e-9], [0.0, 0.0]])
+    acc.add(PassEstimate(one, one[None], ["p"], 1.0, 1000, ledger={"source": 5.0}))
+    assert acc.upper_bound() is None
+
+
+def _biased_pass(rng, s, c, truth=1.0, noise=0.02):
+    """A pass whose kernel bias is c·s (first order in the radius), its half-radius twin c·s/2,
+    both with the same photon noise plus a little of their own."""
+    common = truth + noise * rng.standard_normal()
+    full = common + c * s + 0.2 * noise * rng.standard_normal()
+    half = common + c * s / 2 + 0.4 * noise * rng.standard_normal()
+    img = np.array([[full]])
+    return PassEstimate(img, img[None], ["p"], 1.0, 1, radius_scale=s, part_flux_half=np.array([half]))
+
+
+@pytest.mark.parametrize("c", [0.0, 0.05, -0.08])
+def test_bias_bound_covers_a_first_order_kernel_bias(c):
+    from lensmount.integrators.radius import radius_scale
+
+    rng = np.random.default_rng(4)
+    acc = Accumulator.empty((1, 1), ["p"], 1.0)
+    scales = [radius_scale(i) for i in range(16)]
+    for s in scales:
+        acc.add(_biased_pass(rng, s, c))
+    true_bias = c * float(np.mean(scales))
+    bound, per_part = acc.bias_bound()
+    assert bound == per_part[0]
+    assert abs(true_bias) <= bound, (true_bias, bound)
+    assert bound < abs(true_bias) * 2.5 + 0.01  # and not vacuous: the noise of D is small
+    # Stopping: the relative error includes the bound.
+    assert acc.rel_error() == pytest.approx((acc.flux_std_error + bound) / abs(acc.flux))
+
+
+def test_passes_without_a_density_estimate_have_no_bias_bound():
+    rng = np.random.default_rng(2)
+    acc = Accumulator.empty((4, 5), ["diaphragm", "barrel"], 0.01)
+    for _ in range(5):
+        acc.add(_pass(rng))
+    bound, per_part = acc.bias_bound()
+    assert bound == 0.0 and np.all(per_part == 0.0)
 
 
 def test_nan_pass_is_refused():
@@ -93,6 +163,7 @@ def test_checkpoint_round_trip_is_exact(tmp_path):
     acc.add(p, 5)
     back.add(p, 5)
     assert back.flux == acc.flux and back.flux_std_error == acc.flux_std_error
+    assert back.bias_bound()[0] == acc.bias_bound()[0]
     assert not list(tmp_path.glob("*.tmp"))
 
 

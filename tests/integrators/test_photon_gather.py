@@ -93,3 +93,37 @@ def test_chunked_gather_equals_one_chunk():
     parts.gather(photons)
     np.testing.assert_allclose(parts.radiance, whole.radiance, rtol=1e-12)
     assert whole.radiance.sum() > 0
+
+
+def test_glossy_rule_routes_by_the_share_of_the_lobe_a_gather_can_catch():
+    """Lambertian and wide lobes: all gathered (core 0); a 5° Gaussian: photons only (inf);
+    black-paint ABg with a 1.8° half width but 35 % of its albedo beyond 15°: gathered outside
+    the core; a mirror: photons only. The share is the BSDF's own albedo split, checked against
+    an independent quadrature of the ABg lobe at normal incidence."""
+    import math
+
+    from lensmount.integrators.bidirectional import gather_cores
+    from lensmount.integrators.photon_gather import gatherable_share
+    from lensmount.trace.bsdf import make_bsdf
+
+    abg = make_bsdf("abg", A=2e-3, B=1e-3, g=2)
+    finishes = [make_bsdf("lambertian", reflectance=0.05), make_bsdf("gaussian", reflectance=0.05, half_width_deg=5.0),
+                abg, make_bsdf("mirror", reflectance=0.9), None]
+    core = gather_cores(finishes)
+    cone = math.sin(math.radians(15.0))
+    assert core[0] == 0.0 and core[1] == np.inf and core[2] == pytest.approx(cone) and core[3] == np.inf
+    assert core[4] == np.inf
+    # Normal incidence: f = A / (B + ρ²) in direction cosines, albedo = ∫ f cos θ dω = ∫ f d²β.
+    rho = np.linspace(0.0, 1.0, 200_001)
+    ring = 2 * np.pi * rho * 2e-3 / (1e-3 + rho**2)
+    inner = np.trapezoid(np.where(rho < cone, ring, 0.0), rho)
+    share0 = 1.0 - inner / np.trapezoid(ring, rho)
+    g = 48
+    u = (np.arange(g) + 0.5) / g
+    uu = np.column_stack([np.repeat(u, g), np.tile(u, g)])
+    n = np.tile([0.0, 0.0, 1.0], (len(uu), 1))
+    wo, w, _ = abg.sample(n.copy(), n, uu)
+    t = wo[:, :2]
+    share_sampled = w[np.hypot(t[:, 0], t[:, 1]) >= cone].sum() / w.sum()
+    assert share_sampled == pytest.approx(share0, abs=0.03)
+    assert 0.25 < gatherable_share(abg, cone) < 0.6

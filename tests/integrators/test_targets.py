@@ -144,7 +144,16 @@ def test_same_seed_same_pass_whatever_the_order(case1):
     assert a[0].flux > 0 and np.all(np.isfinite(a[0].image))
 
 
-def test_no_edge_no_learned_target():
-    scene = double_gauss_case(2, pixels=(4, 4))  # the edge is black: nothing to learn
-    broad, _ = classify(scene.bsdf_of_tag)
-    assert T.learned_rim(scene, None, scene.detector, broad, 1, None) is None
+def test_no_edge_no_learned_target(case1):
+    """Case 2 has case 1's geometry with a black diaphragm edge: no rim target, and no learned
+    target even when the pilot is handed case 1's rim and a real tracer, while the same call on
+    case 1 learns one (so the None comes from the edge's finish, not from the arguments)."""
+    scene1, tracer1 = case1
+    broad1, _ = classify(scene1.bsdf_of_tag)
+    rim = stop_rim_target(scene1, scene1.detector, broad1)
+    assert rim is not None
+    scene2 = double_gauss_case(2, pixels=(4, 4))
+    broad2, _ = classify(scene2.bsdf_of_tag)
+    assert stop_rim_target(scene2, scene2.detector, broad2) is None
+    assert T.learned_rim(scene2, Tracer(scene2), scene2.detector, broad2, 11, rim) is None
+    assert T.learned_rim(scene1, tracer1, scene1.detector, broad1, 11, rim) is not None

@@ -12,12 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from lensmount.analysis.passes import Accumulator
 from lensmount.cad import regenerate
 from lensmount.cad.mesh import TaggedMesh
 from lensmount.design.folder import load_design
 from lensmount.design.scene import scene_from_dict
 from lensmount.integrators.bidirectional import bidirectional_pass
 from lensmount.integrators.forward import forward_pass
+from lensmount.integrators.radius import radius_scale
 from lensmount.scene.build import build_scene
 from lensmount.trace.tracer import Tracer
 
@@ -32,55 +34,75 @@ def reference(tmp_path_factory):
     return load_design(DESIGN).prescription, TaggedMesh.load(out / manifest.mesh)
 
 
-def _scene(reference, case, pixels=60, **finish_override):
+def _scene(reference, case, pixels=60, off_axis_deg=None, **finish_override):
     lens, mesh = reference
     path = DESIGN / "scenes" / f"{case}.toml"
     data = tomllib.loads(path.read_text())
     data["detector"]["pixels"] = [pixels, pixels]
+    if off_axis_deg is not None:
+        data["source"]["off_axis_deg"] = off_axis_deg
     for key, value in finish_override.items():
         data["finishes"][key] = value
     return build_scene(lens, mesh, scene_from_dict(data, base_dir=str(path.parent)))
 
 
-def _run(scene, method, passes, photons, seed=1, **kw):
+def _run(scene, method, passes, photons, seed=1, schedule=False, **kw):
+    """(mean, standard error, {part: mean}, bias bound); schedule: the default radius schedule s_i."""
     tracer = Tracer(scene)
     if method == "bidirectional":
-        est = [bidirectional_pass(scene, tracer, photons, seed, i, 1.0, **kw) for i in range(passes)]
+        est = [bidirectional_pass(scene, tracer, photons, seed, i, radius_scale(i) if schedule else 1.0, **kw)
+               for i in range(passes)]
     else:
         est = [forward_pass(scene, tracer, photons, seed, i) for i in range(passes)]
-    flux = np.array([e.flux for e in est])
-    assert np.all(np.isfinite(flux))
-    parts = np.mean([e.part_flux for e in est], axis=0)
-    return flux.mean(), flux.std(ddof=1) / math.sqrt(passes), dict(zip(est[0].part_names, parts))
+    acc = Accumulator.empty(est[0].image.shape, est[0].part_names, est[0].pixel_area_mm2)
+    for i, e in enumerate(est):
+        acc.add(e, i)
+    assert np.isfinite(acc.flux)
+    return acc.flux, acc.flux_std_error, dict(zip(acc.part_names, acc.part_flux)), acc.bias_bound()[0]
 
 
 def test_case3_gaussian_is_brighter_than_case2_lambertian(reference):
-    m2, s2, _ = _run(_scene(reference, "case2-lambertian"), "bidirectional", 6, 200_000, samples_per_pixel=16)
-    m3, s3, _ = _run(_scene(reference, "case3-gaussian"), "bidirectional", 6, 200_000, samples_per_pixel=1)
+    m2, s2, _, _ = _run(_scene(reference, "case2-lambertian"), "bidirectional", 6, 200_000, samples_per_pixel=16)
+    m3, s3, _, _ = _run(_scene(reference, "case3-gaussian"), "bidirectional", 6, 200_000, samples_per_pixel=1)
     assert m3 - m2 > math.hypot(s2, s3), (m2, s2, m3, s3)
 
 
 def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
-    m, s, parts = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 200_000, samples_per_pixel=16)
+    m, s, parts, _ = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 200_000, samples_per_pixel=16)
     assert m > 0 and s < 0.3 * m
     lit = {name for name, f in parts.items() if f > 0}
     assert lit == {"diaphragm"}, parts
 
 
-@pytest.mark.parametrize("case,spp", [("case2-lambertian", 16), ("case3-gaussian", 1)])
-def test_bidirectional_agrees_with_forward_on_the_reference_design(reference, case, spp):
+@pytest.mark.parametrize("case,spp,fw_photons", [("case1-diaphragm-edge", 16, 1_000_000),
+                                                 ("case2-lambertian", 16, 200_000), ("case3-gaussian", 1, 200_000)])
+def test_bidirectional_agrees_with_forward_on_the_reference_design(reference, case, spp, fw_photons):
+    """Issue 13: the default radius schedule (not s = 1), within 3σ of (standard error + bias bound)."""
     scene = _scene(reference, case)
-    bi = _run(scene, "bidirectional", 8, 200_000, samples_per_pixel=spp)
-    fw = _run(scene, "forward", 8, 200_000, seed=2)
-    assert abs(bi[0] - fw[0]) <= 3 * math.hypot(bi[1], fw[1]), (bi[:2], fw[:2])
+    bi = _run(scene, "bidirectional", 8, 200_000, schedule=True, samples_per_pixel=spp)
+    fw = _run(scene, "forward", 8, fw_photons, seed=2)
+    assert abs(bi[0] - fw[0]) <= 3 * math.hypot(bi[1] + bi[3], fw[1]), (bi[0], bi[1], bi[3], fw[:2])
+
+
+def test_sun_image_on_the_housing_bore_at_the_edge_of_what_the_detector_sees(reference):
+    """Issue 13: at 5.3° the sun's image (radius 360 mm · tan 5.3° = 33.4 mm) lands where the
+    housing bore (R = 33.47 mm) meets the detector plane: the f/7 cone lights the bore both in
+    front of the plane, which the detector sees at grazing angles, and behind it, which it
+    cannot see. Case 2 finishes; default radius schedule against forward."""
+    scene = _scene(reference, "case2-lambertian", off_axis_deg=5.3)
+    bi = _run(scene, "bidirectional", 8, 200_000, schedule=True, samples_per_pixel=16)
+    fw = _run(scene, "forward", 8, 400_000, seed=2)
+    assert fw[2]["housing"] > 0.2 * fw[0], fw[2]  # the case is the one described: the housing matters
+    assert abs(bi[0] - fw[0]) <= 3 * math.hypot(bi[1] + bi[3], fw[1]), (bi[0], bi[1], bi[3], fw[:2])
 
 
 def test_relative_error_does_not_depend_on_the_edge_tis(reference):
-    """The paper's claim on case 1: 1 % and 10 % edge reflectance, same photons, same relative error."""
+    """The paper's claim on case 1 is about cost: 1 % and 10 % edge reflectance, the same photons
+    with independent seeds, relative errors within the spread of an error estimate from 8 passes."""
     rel = []
-    for rho in (0.01, 0.10):
+    for seed, rho in ((1, 0.01), (2, 0.10)):
         scene = _scene(reference, "case1-diaphragm-edge",
                        **{"edge-lambert-10": {"model": "lambertian", "reflectance": rho}})
-        m, s, _ = _run(scene, "bidirectional", 8, 200_000, samples_per_pixel=16)
+        m, s, _, _ = _run(scene, "bidirectional", 8, 200_000, seed=seed, samples_per_pixel=16)
         rel.append(s / m)
-    assert rel[0] == pytest.approx(rel[1], rel=0.35), rel
+    assert 1 / 2.5 < rel[0] / rel[1] < 2.5, rel

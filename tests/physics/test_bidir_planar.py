@@ -60,15 +60,6 @@ def test_extreme_reflectances_stay_finite_and_linear(rho):
     assert math.isfinite(mean) and abs(mean - expected) < 4 * se + 0.01 * expected
 
 
-def test_relative_error_does_not_depend_on_tis():
-    """The seed paper's claim on one scatter: same photons, same relative error at 1 % and 10 %."""
-    out = []
-    for rho in (0.01, 0.10):
-        mean, se, _ = _run(_plate_scene(rho), 6, 20_000, 64)
-        out.append(se / mean)
-    assert out[0] == pytest.approx(out[1], rel=0.05)
-
-
 def test_thin_edge_channel_is_not_fed_by_the_plate_beside_it():
     """A 50 µm strip (ρ = 0.1) beside a bright plate (ρ = 0.9), coplanar, seen from 5 mm.
 
@@ -89,7 +80,6 @@ def test_thin_edge_channel_is_not_fed_by_the_plate_beside_it():
     ys = np.linspace(-length / 2, length / 2, 2001)
     xs = np.linspace(-w / 2, w / 2, 11)
     gx, gy = np.meshgrid(xs, ys)
-    dA = (xs[1] - xs[0]) * (ys[1] - ys[0])
     e_det = []
     for px in (-0.1, 0.1):
         for py in (-0.1, 0.1):
@@ -98,7 +88,6 @@ def test_thin_edge_channel_is_not_fed_by_the_plate_beside_it():
     expected = float(np.mean(e_det))
     se = edge.std(ddof=1) / 2
     assert abs(edge.mean() - expected) < 3 * se + 0.03 * expected, (edge.mean(), se, expected)
-    assert dA > 0
 
 
 def _glossy_scene(half_width_deg, rho=0.05, D=50.0):

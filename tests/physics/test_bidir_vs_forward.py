@@ -59,14 +59,19 @@ def test_glossy_rule_on_a_5_degree_gaussian_barrel_agrees_with_forward():
     assert _agree(ga, fw), (ga, fw)
 
 
-def test_relative_error_is_the_same_at_1_and_10_percent_tis():
-    """The seed paper's claim, for the bidirectional estimator: same photons, same relative error."""
+def test_relative_error_does_not_grow_as_the_tis_falls():
+    """The seed paper's claim is about cost: at a fixed number of photons the bidirectional
+    estimate's relative error does not depend on the TIS (an analog forward tracer's grows as
+    1/√TIS). Independent seeds at ρ = 0.3 and ρ = 10⁻⁴ (where every photon that scatters twice
+    meets Russian roulette), 12 passes each: the relative errors agree within the spread of an
+    error estimate from 12 passes (a factor 2.2 is 2.5 of its log-σ ≈ 0.31)."""
     rel = []
-    for rho in (0.01, 0.10):
+    for seed, rho in ((3, 0.3), (4, 1e-4)):
         scene = singlet_barrel(make_bsdf("lambertian", reflectance=rho))
-        m, s = _flux(scene, Tracer(scene), "bidirectional", 8, 20_000, samples_per_pixel=32)
+        m, s = _flux(scene, Tracer(scene), "bidirectional", 12, 20_000, seed=seed, samples_per_pixel=32)
+        assert m > 0
         rel.append(s / m)
-    assert rel[0] == pytest.approx(rel[1], rel=0.25), rel
+    assert 1 / 2.2 < rel[1] / rel[0] < 2.2, rel
 
 
 def test_direct_and_ghost_channels_match_forward():
@@ -85,3 +90,23 @@ def test_direct_and_ghost_channels_match_forward():
         assert f.mean() > 0, channel
         se = math.hypot(b.std(ddof=1), f.std(ddof=1)) / math.sqrt(6)
         assert abs(b.mean() - f.mean()) <= 3 * se + 1e-9 * f.mean(), (channel, b.mean(), f.mean(), se)
+
+
+def test_black_paint_abg_is_gathered_outside_its_core_and_agrees_with_forward():
+    """Issue 13, item 3: ABg A = 2e-3, B = 1e-3, g = 2 has a 1.8° half width but most of its
+    albedo in the wings. It used to be routed to the photons by its half width alone; now its
+    wings are gathered at hit points and only the core (within sin 15° of the mirror direction)
+    is left to the photons. The split must not lose or double count: bidirectional = forward."""
+    from lensmount.integrators.bidirectional import classify, gather_cores
+
+    abg = make_bsdf("abg", A=2e-3, B=1e-3, g=2)
+    scene = singlet_barrel(abg)
+    core = gather_cores(scene.bsdf_of_tag)
+    barrel = [k for k, t in enumerate(scene.mesh.tag_table) if t.part == "barrel"]
+    assert np.all(core[barrel] == pytest.approx(math.sin(math.radians(15.0))))
+    assert np.all(classify(scene.bsdf_of_tag)[0][barrel])
+    tracer = Tracer(scene)
+    bi = _flux(scene, tracer, "bidirectional", 6, 50_000, samples_per_pixel=16)
+    fw = _flux(scene, tracer, "forward", 6, 100_000, seed=2)
+    assert bi[0] > 0 and bi[1] < 0.1 * bi[0]
+    assert _agree(bi, fw), (bi, fw)

@@ -18,16 +18,24 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
                   extra: dict | None = None) -> dict:
     """The summary dict. aperture_flux_mm2: flux entering the entrance pupil per unit E_sun;
     estimator_settings: `EstimatorSettings.as_dict()` (with method, seed and photons per pass in
-    `extra`, what reproduces the run)."""
+    `extra`, what reproduces the run).
+
+    The error bar is `stray_fraction_std_error` (spread of the passes, Student-t widened) plus
+    `stray_fraction_bias_bound` (kernel bias, `Accumulator.bias_bound`); `stray_fraction_rel_error`
+    is their sum over the value. With no signal at all `stray_fraction_upper_bound` is the 95 %
+    bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null."""
     flux, se = acc.flux, acc.flux_std_error
+    bias, part_bias = acc.bias_bound()
+    upper = acc.upper_bound()
     scale = 1.0 / aperture_flux_mm2 if aperture_flux_mm2 > 0 else 0.0
     drift = acc.drift()
     part_flux, part_se = acc.part_flux, acc.part_flux_std_error
     per_part = {
         name: {"fraction": finite_or_none(stray_fraction(float(f), aperture_flux_mm2)),
                "std_error": finite_or_none(float(s) * scale) if np.isfinite(s) else None,
+               "bias_bound": finite_or_none(float(b) * scale) if np.isfinite(b) else None,
                "flux_mm2": finite_or_none(float(f))}
-        for name, f, s in zip(acc.part_names, part_flux, part_se)
+        for name, f, s, b in zip(acc.part_names, part_flux, part_se, part_bias)
     }
     image = acc.mean_image
     summary = {
@@ -43,6 +51,9 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "aperture_flux_mm2": finite_or_none(aperture_flux_mm2),
         "stray_fraction": finite_or_none(stray_fraction(flux, aperture_flux_mm2)),
         "stray_fraction_std_error": finite_or_none(se * scale),
+        "stray_flux_bias_bound_mm2": finite_or_none(bias),
+        "stray_fraction_bias_bound": finite_or_none(bias * scale),
+        "stray_fraction_upper_bound": None if upper is None else finite_or_none(upper * scale),
         "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
         "stray_fraction_drift": finite_or_none(drift.relative),
         "stray_fraction_drift_z": finite_or_none(drift.z),

@@ -168,9 +168,17 @@ def print_summary(summary: dict, paths: dict) -> None:
                         f"· {summary['time_s']:.1f} s", title_justify="left", show_header=False)
     table.add_column(style="bold")
     table.add_column(justify="right")
-    table.add_row("stray fraction", pm(summary["stray_fraction"], summary.get("stray_fraction_std_error")))
+    upper = summary.get("stray_fraction_upper_bound")
+    if upper is not None:
+        table.add_row("stray fraction", f"no signal: < {upper:.2g} (95 %, no photon of "
+                                        f"{summary['photons']:,} reached the detector)")
+    else:
+        table.add_row("stray fraction", pm(summary["stray_fraction"], summary.get("stray_fraction_std_error")))
+    bias = summary.get("stray_fraction_bias_bound")
+    if bias:
+        table.add_row("kernel bias (bound)", f"± {bias:.2g}")
     rel = summary.get("stray_fraction_rel_error")
-    table.add_row("relative error", f"{100 * rel:.2f} %" if rel is not None else "—")
+    table.add_row("relative error (std + bias)", f"{100 * rel:.2f} %" if rel is not None else "—")
     drift = summary.get("stray_fraction_drift")
     if drift is not None:
         p = summary.get("stray_fraction_drift_p")

@@ -12,12 +12,13 @@ One pass = three phases, as pbrt-v4's SPPM reads:
 3. Update: pixel E_j = Σ_hit τ L_o, split by the part of the hit point's face.
 
 The last-vertex rule (docs/bidirectional.md): every stray path is counted exactly once,
-by the kind of its LAST scattering vertex before the detector. Broad (Lambertian, or a
-lobe ≥ `glossy_threshold_deg` half width): by the gather at a hit point. Narrow lobe or
-mirror: by the photon itself reaching the detector (splatted into its pixel as the
-forward estimator does), because a narrow lobe after the optics is nearly specular and
-photons follow it efficiently while a density estimate would need an enormous number
-of photons in its lobe. Paths with no scattering at all (direct image, pure ghosts)
+by its LAST scattering vertex before the detector. Broad (Lambertian, or a lobe ≥
+`glossy_threshold_deg` half width): by the gather at a hit point. Narrow lobe or mirror:
+by the photon itself reaching the detector (splatted into its pixel as the forward
+estimator does), because a narrow lobe after the optics is nearly specular and photons
+follow it efficiently while a density estimate would need an enormous number of photons
+in its lobe. A narrow lobe with wide wings (black-paint ABg) is split by direction
+(`gather_cores`): the gather counts the scatter outside its core, the photons the core. Paths with no scattering at all (direct image, pure ghosts)
 are counted the same forward way when the scene turns `direct` or `ghosts` on.
 
 Photons are walked by the same code as the forward estimator (`walk.photon_walk`), photon k
@@ -33,7 +34,7 @@ import math
 import numpy as np
 
 from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels
-from lensmount.integrators.photon_gather import Gatherer, PhotonHits
+from lensmount.integrators.photon_gather import Gatherer, PhotonHits, gatherable_share
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
@@ -43,26 +44,46 @@ from lensmount.trace.tracer import FACE
 _CACHE: dict[tuple, tuple] = {}
 
 
-def classify(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_threshold_deg):
-    """(broad, scatters) bool arrays per tag: broad gets hit points; scatters continues photons."""
-    n = len(bsdf_of_tag)
-    broad, scatters = np.zeros(n, bool), np.zeros(n, bool)
+def gather_cores(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_threshold_deg,
+                 min_share: float = EstimatorSettings.gathered_share) -> np.ndarray:
+    """(n_tags,) per finish, the core of its lobe that photons count (direction cosines around the
+    mirror direction); the gather takes the rest. 0: the whole lobe is gathered (a lobe at least
+    threshold_deg wide, Lambertian); sin(threshold_deg): a glossy finish that still scatters at
+    least min_share of its albedo outside that core at the incidences that occur
+    (`photon_gather.gatherable_share`), e.g. ABg A = 2e-3, B = 1e-3, g = 2 (1.8° half width, 35 %
+    outside 15°); inf: nothing gathered (mirrors, narrow lobes, absorbers).
+
+    Why a split and not one class per finish: black-paint ABg data has a narrow core on top of
+    wide wings. Routed by its half width alone it went entirely to the photons, and a 50 µm edge
+    of it got no hit points (case 1 read 7.5e-4 ± 7.5e-4: 1 of 4 passes saw a photon)."""
+    core = np.full(len(bsdf_of_tag), np.inf)
+    cone = math.sin(math.radians(threshold_deg))
     for t, b in enumerate(bsdf_of_tag):
-        if b is None or b.is_black:
+        if b is None or b.is_black or b.is_delta:
             continue
-        scatters[t] = True
-        width = float(getattr(b, "lobe_half_width_deg", math.inf))
-        broad[t] = (not b.is_delta) and width >= threshold_deg
-    return broad, scatters
+        if float(getattr(b, "lobe_half_width_deg", math.inf)) >= threshold_deg:
+            core[t] = 0.0
+        elif gatherable_share(b, cone) >= min_share:
+            core[t] = cone
+    return core
 
 
-def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm):
+def classify(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_threshold_deg,
+             min_share: float = EstimatorSettings.gathered_share):
+    """(broad, scatters) bool arrays per tag: broad gets hit points (some of its lobe is gathered,
+    `gather_cores`); scatters continues photons."""
+    scatters = np.array([b is not None and not b.is_black for b in bsdf_of_tag], bool)
+    return np.isfinite(gather_cores(bsdf_of_tag, threshold_deg, min_share)), scatters
+
+
+def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
+                  normal_limit_deg: float = EstimatorSettings.normal_limit_deg):
     """Per-scene constants (radius caps, face boundaries, part table), computed once per process."""
-    key = (id(scene), id(scene.mesh), cap_mm)  # the entry holds the scene, so the ids stay unique
+    key = (id(scene), id(scene.mesh), cap_mm, normal_limit_deg)  # the entry holds the scene: ids stay unique
     if key not in _CACHE:
         m = scene.mesh
         n_tags = len(m.tag_table)
-        hw = radius_caps(m.vertices, m.triangles, m.tags, n_tags, cap_mm=cap_mm)
+        hw = radius_caps(m.vertices, m.triangles, m.tags, n_tags, cap_mm=cap_mm, max_normal_deg=normal_limit_deg)
         boundaries = FaceBoundaries(m.vertices, m.triangles, m.tags, n_tags)
         _CACHE.clear()
         _CACHE[key] = (scene, hw, boundaries, m.part_of_tag(), list(m.parts))
@@ -92,9 +113,10 @@ class Bidirectional:
         """One complete, independent pass; radius_scale None: s_i of the settings' alpha schedule."""
         cfg = self.settings
         scale = radius_scale_of(pass_index, cfg) if radius_scale is None else float(radius_scale)
-        half_widths, boundaries, part_of_tag, _ = _scene_tables(scene, cfg.radius_cap_mm)
-        broad, _ = classify(scene.bsdf_of_tag, cfg.glossy_threshold_deg)
-        broad &= scattering_tags(scene)  # scatter off: every mechanical face absorbs, nothing is gathered
+        half_widths, boundaries, part_of_tag, _ = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
+        core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
+        core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
+        broad = np.isfinite(core)
         film, ledger = Film(scene), EnergyLedger()
 
         # Phase 1: the view map.
@@ -104,13 +126,14 @@ class Bidirectional:
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics)
-        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg)
+        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0))
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on.
         scatters = scattering_tags(scene)
         rays = emit_photons(scene, seed, self.purpose, int(pass_index) * int(photons), photons, photons)
-        for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=broad):
+        for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE
             at_face[at_face] &= scatters[ev.tag[at_face]] & (ev.weight[at_face] > 0)
@@ -122,7 +145,12 @@ class Bidirectional:
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))
         film.add_images(parts_g)
-        return film.estimate(photons, ledger, diagnostics)
+        estimate = film.estimate(photons, ledger, diagnostics)
+        # The same pass with every gather radius halved (only the gathered part changes): the bias estimate.
+        estimate.radius_scale = scale
+        estimate.part_flux_half = (estimate.part_flux - parts_g.sum(axis=(1, 2)) * film.detector.pixel_area
+                                   + gatherer.part_flux_half(part_of_tag, len(film.channels)) * film.detector.pixel_area)
+        return estimate
 
 
 def radius_scale_of(pass_index: int, settings: EstimatorSettings) -> float:
@@ -137,4 +165,4 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
                                                                  radius_scale=radius_scale)
 
 
-__all__ = ["Bidirectional", "bidirectional_pass", "classify", "part_names", "radius_scale_of"]
+__all__ = ["Bidirectional", "bidirectional_pass", "classify", "gather_cores", "part_names", "radius_scale_of"]

@@ -33,6 +33,10 @@ class PassEstimate:
     ledger : the pass's energy ledger (`EnergyLedger.as_dict`), mm² (flux / E_sun)
     diagnostics : counts that are not flux, e.g. `view_map_samples`, `view_map_lost_samples`
         (backward rays ended by the tracer's numerical guards)
+    radius_scale : s_i, the pass's gather radius relative to r_0 (0: no density estimate, no kernel bias)
+    part_flux_half : (P,) per-part flux (mm²) of the same pass with every gather radius halved
+        (same photons and hit points; None when the pass has no density estimate). The
+        difference to `part_flux` measures the kernel bias (`Accumulator.bias_bound`).
     """
 
     image: np.ndarray
@@ -42,6 +46,8 @@ class PassEstimate:
     photons: int
     ledger: dict[str, float] = field(default_factory=dict)
     diagnostics: dict[str, float] = field(default_factory=dict)
+    radius_scale: float = 0.0
+    part_flux_half: np.ndarray | None = None
 
     @property
     def flux(self) -> float:

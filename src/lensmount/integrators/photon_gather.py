@@ -23,6 +23,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.spatial import cKDTree
 
+from lensmount.integrators.settings import EstimatorSettings
+
 
 @dataclass
 class HitPoints:
@@ -37,6 +39,7 @@ class HitPoints:
     wavelength : (H,) int32 wavelength index
     radius : (H,) mm, gather radius of this pass (r_0 · s_i)
     area : (H,) mm², the part of the gather disc on the hit point's face (π r² away from boundaries)
+    area_half : (H,) mm², the same for the disc of radius r/2 (the bias estimate, `Gatherer`)
     """
 
     position: np.ndarray
@@ -48,10 +51,13 @@ class HitPoints:
     wavelength: np.ndarray
     radius: np.ndarray
     area: np.ndarray | None = None
+    area_half: np.ndarray | None = None
 
     def __post_init__(self):
         if self.area is None:
             self.area = np.pi * np.asarray(self.radius, np.float64) ** 2
+        if self.area_half is None:
+            self.area_half = np.pi * (0.5 * np.asarray(self.radius, np.float64)) ** 2
 
     def __len__(self) -> int:
         return len(self.weight)
@@ -60,7 +66,7 @@ class HitPoints:
     def empty(cls) -> "HitPoints":
         z3, z = np.zeros((0, 3)), np.zeros(0)
         return cls(z3, z3.copy(), z3.copy(), z, np.zeros(0, np.int64), np.zeros(0, np.int32),
-                   np.zeros(0, np.int32), z.copy(), z.copy())
+                   np.zeros(0, np.int32), z.copy(), z.copy(), z.copy())
 
     def subset(self, index) -> "HitPoints":
         return HitPoints(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -89,20 +95,64 @@ class PhotonHits:
     wavelength: np.ndarray
 
 
+def outside_core(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, core) -> np.ndarray:
+    """(N,) bool: wo lies at least `core` from the mirror direction of wi, in direction cosines.
+
+    The tangential part of the mirror direction is −t(wi), so the distance is |t(wo) + t(wi)|
+    (t: the part in the surface plane); symmetric in wi and wo, like the BSDF."""
+    t = wi + wo
+    t = t - np.einsum("ij,ij->i", t, n)[:, None] * n
+    return np.einsum("ij,ij->i", t, t) >= core * core
+
+
+INCIDENCES_DEG = (0.0, 20.0, 40.0, 60.0, 75.0)  # incidences on mount faces (the sun through a lens: any)
+
+
+def gatherable_share(bsdf, core: float, n_u: int = 48) -> float:
+    """Share of the BSDF's albedo outside the core |Δβ| < core around the mirror direction,
+    averaged over `INCIDENCES_DEG`: the part of the lobe a gather at hit points can catch.
+
+    Deterministic: the BSDF's own sampling on a stratified n_u × n_u grid (weights f cos/pdf)."""
+    g = (np.arange(n_u) + 0.5) / n_u
+    u = np.column_stack([np.repeat(g, n_u), np.tile(g, n_u)])
+    n = np.tile([0.0, 0.0, 1.0], (len(u), 1))
+    shares = []
+    for theta in np.radians(INCIDENCES_DEG):
+        wi = np.tile([math.sin(theta), 0.0, math.cos(theta)], (len(u), 1))
+        wo, w, _ = bsdf.sample(wi, n, u)
+        w = np.where(np.isfinite(w) & (w > 0), w, 0.0)
+        total = float(w.sum())
+        shares.append(float(w[outside_core(wi, wo, n, core)].sum()) / total if total > 0 else 0.0)
+    return float(np.mean(shares))
+
+
 class Gatherer:
-    """Hit points indexed for the pass; `gather(photons)` adds Σ f Φ / (π r²) into `radiance`.
+    """Hit points indexed for the pass; `gather(photons)` adds Σ f Φ / A into `radiance`.
 
     bsdf_of_tag : list indexed by tag of objects with `eval(wi, wo, n) -> (N,)` (None = no gather)
     max_normal_deg : photons whose surface normal differs more than this from the hit
         point's (other side of a sheet, another facet under a shared tag) are not gathered
+    detector_z : photons at z ≥ detector_z landed where the detector cannot see (it faces −z);
+        they are not gathered (the on-face area ends at that plane too, `FaceBoundaries`)
+    core_of_tag : (n_tags,) half width (direction cosines) of the lobe core that the photons
+        count themselves on a glossy finish (`bidirectional.gather_cores`); f is gathered only
+        outside it (`outside_core`). None or 0: the whole lobe is gathered.
+
+    `radiance_half` is the same estimate over the disc of radius r/2 (same photons, area
+    `area_half`): the difference between the two measures the kernel bias of the pass
+    (`analysis.passes.Accumulator.bias_bound`).
     """
 
-    def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = 30.0, chunk: int = 100_000):
+    def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = EstimatorSettings.normal_limit_deg, chunk: int = 100_000,
+                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None):
         self.hits = hits
         self.chunk = int(chunk)
         self.bsdf_of_tag = bsdf_of_tag
+        self.core_of_tag = core_of_tag
         self.cos_max = math.cos(math.radians(max_normal_deg))
-        self.radiance = np.zeros(len(hits))  # Σ f Φ / (π r²) per hit point, units E_sun/sr
+        self.detector_z = math.inf if detector_z is None else float(detector_z)
+        self.radiance = np.zeros(len(hits))  # Σ f Φ / A per hit point, units E_sun/sr
+        self.radiance_half = np.zeros(len(hits))
         self.pairs_tested = 0
         self.groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
         if len(hits) == 0:
@@ -125,7 +175,7 @@ class Gatherer:
             bsdf = self.bsdf_of_tag[int(tag)] if int(tag) < len(self.bsdf_of_tag) else None
             if bsdf is None:
                 continue
-            on_face = np.flatnonzero(photons.tag == tag)
+            on_face = np.flatnonzero((photons.tag == tag) & (photons.position[:, 2] < self.detector_z))
             for start in range(0, len(on_face), self.chunk):
                 self._gather_face(int(tag), bsdf, on_face[start:start + self.chunk], photons)
 
@@ -150,12 +200,24 @@ class Gatherer:
                 continue
             hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
             f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
-            contrib = np.maximum(f, 0.0) * photons.flux[pj] / h.area[hi]
-            if not np.all(np.isfinite(contrib)):  # never zeroed: that would hide light (or a bug)
+            core = 0.0 if self.core_of_tag is None else float(self.core_of_tag[tag])
+            if core > 0:  # the lobe's core is the photons' to count (glossy rule): gather the rest only
+                f = np.where(outside_core(wi, h.omega_o[hi], n_h, core), f, 0.0)
+            contrib = np.maximum(f, 0.0) * photons.flux[pj]
+            half = pairs["v"][keep] < 0.5 * h.radius[hi]
+            value, value_half = contrib / h.area[hi], contrib[half] / h.area_half[hi[half]]
+            if not (np.all(np.isfinite(value)) and np.all(np.isfinite(value_half))):  # never zeroed: it hides light
                 raise FloatingPointError(f"non-finite gather value on face tag {tag} at "
-                                         f"{int(np.sum(~np.isfinite(contrib)))} photon-hit pairs (the finish's "
+                                         f"{int(np.sum(~np.isfinite(value)))} photon-hit pairs (the finish's "
                                          f"BSDF value or the hit point's area is not finite)")
-            self.radiance += np.bincount(hi, weights=contrib, minlength=len(h))
+            self.radiance += np.bincount(hi, weights=value, minlength=len(h))
+            self.radiance_half += np.bincount(hi[half], weights=value_half, minlength=len(h))
+
+    def part_flux_half(self, part_of_tag: np.ndarray, n_parts: int) -> np.ndarray:
+        """(P,) Σ τ L_o per part with the r/2 estimate, as a sum over pixels (multiply by the pixel area)."""
+        h = self.hits
+        part = part_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
+        return np.bincount(part.astype(np.int64), weights=h.weight * self.radiance_half, minlength=n_parts)[:n_parts]
 
     def image(self, shape: tuple[int, int], part_of_tag: np.ndarray, n_parts: int):
         """(ny, nx) image and (P, ny, nx) per-part images of Σ τ L_o per pixel."""
@@ -173,4 +235,4 @@ class Gatherer:
         return image, per_part.reshape(n_parts, ny, nx)
 
 
-__all__ = ["HitPoints", "PhotonHits", "Gatherer"]
+__all__ = ["HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]

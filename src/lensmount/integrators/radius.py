@@ -29,6 +29,8 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from lensmount.integrators.settings import EstimatorSettings
+
 DEFAULT_ALPHA = 0.7
 
 
@@ -68,7 +70,45 @@ def face_half_widths(vertices: np.ndarray, triangles: np.ndarray, tags: np.ndarr
     return out
 
 
-def radius_caps(vertices, triangles, tags, n_tags: int, cap_mm: float = 5.0, strip_ratio: float = 0.05) -> np.ndarray:
+def face_bends(vertices, triangles, tags, n_tags: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n_tags,) smallest radius of curvature of every tagged face (mm; inf for a flat face) and
+    (n_tags,) largest angle between the normals of two neighbouring triangles (radians).
+
+    From each pair of triangles of one tag that share an edge of length L: the normals turn
+    by θ across the mean of the two triangles' heights over that edge, h = 2·area / L, so
+    R = (area₁ + area₂) / (L θ). A tessellated cylinder of radius R gives R; a plane, inf."""
+    v = np.asarray(vertices, np.float64)
+    tri = np.asarray(triangles, np.int64)
+    tags = np.asarray(tags, np.int64)
+    out, turn = np.full(n_tags, np.inf), np.zeros(n_tags)
+    if len(tri) == 0:
+        return out, turn
+    welded = _weld(v, tri)
+    cross = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nrm = cross / np.maximum(2.0 * area, 1e-300)[:, None]
+    e = np.sort(np.concatenate([welded[:, [0, 1]], welded[:, [1, 2]], welded[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(len(tri)), 3)
+    ends = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    keys = np.stack([tags[owner], e[:, 0], e[:, 1]], axis=1)
+    order = np.lexsort(keys.T[::-1])
+    k = keys[order]
+    pair = np.flatnonzero(np.all(k[1:] == k[:-1], axis=1))  # consecutive equal keys: two triangles, one edge
+    if len(pair) == 0:
+        return out, turn
+    t1, t2 = owner[order[pair]], owner[order[pair + 1]]
+    edge = ends[order[pair]]
+    length = np.linalg.norm(v[edge[:, 1]] - v[edge[:, 0]], axis=1)
+    angle = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", nrm[t1], nrm[t2])), -1.0, 1.0))
+    bent = (angle > 1e-6) & (length > 0)
+    radius = np.where(bent, (area[t1] + area[t2]) / np.where(bent, length * angle, 1.0), np.inf)
+    np.minimum.at(out, k[pair, 0], radius)
+    np.maximum.at(turn, k[pair, 0], angle)
+    return out, turn
+
+
+def radius_caps(vertices, triangles, tags, n_tags: int, cap_mm: float = 5.0, strip_ratio: float = 0.05,
+                max_normal_deg: float = EstimatorSettings.normal_limit_deg) -> np.ndarray:
     """(n_tags,) largest r_0 per face.
 
     A compact face (half width ≥ strip_ratio × its extent: plates, annuli of some width)
@@ -77,7 +117,18 @@ def radius_caps(vertices, triangles, tags, n_tags: int, cap_mm: float = 5.0, str
     point is two parallel lines, so `FaceBoundaries.inside_area` gives the on-face area of a
     large disc exactly (≈ 2 r w) and the gather collects the edge's photons over millimetres
     of its length instead of a 25 µm disc.
+
+    On a curved face the gather keeps only photons whose facet normal is within max_normal_deg
+    of the hit point's (`photon_gather.Gatherer`), while the on-face area counts the whole disc.
+    So r is also capped at the chord 2 R sin(β / 2) of the face's tightest bend R, with
+    β = max_normal_deg − the largest turn between neighbouring facets (facet normals are
+    quantised by that much): every photon of the face inside the disc then passes the normal
+    test, and the area counts only the band whose photons are kept. A 50 µm edge of R = 2 mm
+    read 0.21 of the truth at r = 5 mm (`tests/physics/test_thin_edge_uniform_light.py`).
     """
+    bend, turn = face_bends(vertices, triangles, tags, n_tags)
+    beta = np.maximum(math.radians(max_normal_deg) - turn, 0.25 * math.radians(max_normal_deg))
+    chord = 2.0 * bend * np.sin(beta / 2.0)
     hw = face_half_widths(vertices, triangles, tags, n_tags)
     v = np.asarray(vertices, np.float64)[np.asarray(triangles, np.int64)].reshape(-1, 3)
     t3 = np.repeat(np.asarray(tags, np.int64), 3)
@@ -87,7 +138,7 @@ def radius_caps(vertices, triangles, tags, n_tags: int, cap_mm: float = 5.0, str
     np.maximum.at(hi, t3, v)
     extent = np.where(np.isfinite(lo).all(axis=1), np.linalg.norm(hi - lo, axis=1), 0.0)
     strip = np.isfinite(hw) & (hw < strip_ratio * extent)
-    return np.where(strip, cap_mm, np.minimum(2.0 * hw, cap_mm))
+    return np.minimum(np.where(strip, cap_mm, np.minimum(2.0 * hw, cap_mm)), chord)
 
 
 def _weld(vertices: np.ndarray, triangles: np.ndarray, tol: float = 1e-6) -> np.ndarray:
@@ -144,13 +195,20 @@ class FaceBoundaries:
             aa, bb = a[m], b[m]
             self.by_tag[int(tag)] = (aa, bb, inward[m], cKDTree(0.5 * (aa + bb)))
 
-    def inside_area(self, position: np.ndarray, normal: np.ndarray, tag: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    def inside_area(self, position: np.ndarray, normal: np.ndarray, tag: np.ndarray, radius: np.ndarray,
+                    detector_z: float | None = None) -> np.ndarray:
         """(H,) area of the disc (centre, radius, in the plane normal to `normal`) that lies on the face.
 
         The nearest boundary segment says, by its inward direction, whether the centre is on
         the face (the usual case) or a few µm off it (float32 grazing hits on a thin face).
         On the face: π r² minus the caps beyond the nearest boundary and the nearest one on
         the opposite side. Off it: the band between the nearest boundary and the far one.
+
+        detector_z : the detector plane. The detector sees only z < detector_z, so the gather
+            drops photons beyond it (`Gatherer`) and the area ends there too: the plane's line
+            in the tangent plane is one more boundary, merged with the face boundary on its side.
+            Without it a face crossing the plane (the housing bore, where the sun's image lands
+            just behind the detector) lent the light the detector cannot see to the points it can.
         """
         area = np.pi * radius**2
         for t in np.unique(tag):
@@ -178,8 +236,11 @@ class FaceBoundaries:
             beyond = np.einsum("hkj,hj->hk", v, u1) < 0  # segments on the other side of the centre
             d2 = np.where(beyond, d, np.inf).min(axis=1)
             r = radius[idx]
-            d2r = np.where(np.isfinite(d2), d2, r)  # a cap at distance >= r is empty
-            inside = np.pi * r * r - _cap(d1, r) - _cap(d2r, r)
+            near_cut, far_cut = d1, d2
+            if detector_z is not None:
+                near_cut, far_cut = _cut_by_plane(position[idx], normal[idx], u1, d1, d2, detector_z)
+            d2r = np.where(np.isfinite(far_cut), far_cut, r)  # a cap at distance >= r is empty
+            inside = np.pi * r * r - _cap(near_cut, r) - _cap(d2r, r)
             # Off the face: the face is the band from the nearest boundary to the far one.
             # (Segments closer than d1 + half width are the near boundary's own neighbours.)
             hw = self.half_width.get(int(t), np.inf)
@@ -188,10 +249,35 @@ class FaceBoundaries:
             inside = np.where(on_face, inside, band)
             # Floor against rounding only: a point on a strip of width w keeps at least
             # min(π r²/2, r w) of its disc; half of that is never above the true area.
-            width = np.where(on_face, d1 + d2r, np.where(np.isfinite(far), far - d1, r))
+            width = np.where(on_face, near_cut + d2r, np.where(np.isfinite(far), far - d1, r))
             floor = 0.5 * np.minimum(0.5 * np.pi * r * r, r * width)
             area[idx] = np.maximum(inside, np.maximum(floor, 1e-12 * np.pi * r * r))
         return area
+
+
+def detector_plane_distance(position: np.ndarray, normal: np.ndarray, detector_z: float):
+    """(distance (H,), g (H, 3)): where the plane z = detector_z cuts each hit point's tangent
+    plane, a line at distance (detector_z − z) / |g| along g, the tangent direction of steepest
+    z ascent; inf when the face is parallel to the plane."""
+    g = np.zeros_like(normal)
+    g[:, 2] = 1.0
+    g = g - normal[:, 2:3] * normal
+    slope = np.linalg.norm(g, axis=1)
+    cuts = slope > 1e-9
+    dist = np.where(cuts, (detector_z - position[:, 2]) / np.where(cuts, slope, 1.0), np.inf)
+    return np.maximum(dist, 0.0), g
+
+
+def _cut_by_plane(position, normal, u1, d1, d2, detector_z: float):
+    """(d1, d2) with the detector plane's line (`detector_plane_distance`) merged in: it joins the
+    nearest boundary when it lies on that side of the centre, else the opposite one, whichever
+    is nearer."""
+    dist, g = detector_plane_distance(position, normal, detector_z)
+    cuts = np.isfinite(dist)
+    same_side = np.einsum("hj,hj->h", g, u1) > 0
+    d1 = np.where(cuts & same_side, np.minimum(d1, dist), d1)
+    d2 = np.where(cuts & ~same_side, np.minimum(d2, dist), d2)
+    return d1, d2
 
 
 def initial_radii(position: np.ndarray, tag: np.ndarray, cap: np.ndarray, k: int = 8,
@@ -212,4 +298,4 @@ def initial_radii(position: np.ndarray, tag: np.ndarray, cap: np.ndarray, k: int
     return r
 
 
-__all__ = ["DEFAULT_ALPHA", "radius_scale", "face_half_widths", "radius_caps", "initial_radii", "FaceBoundaries", "boundary_segments"]
+__all__ = ["DEFAULT_ALPHA", "face_bends", "radius_scale", "face_half_widths", "radius_caps", "initial_radii", "FaceBoundaries", "boundary_segments"]

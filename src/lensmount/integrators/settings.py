@@ -23,7 +23,9 @@ class EstimatorSettings:
         alpha: progressive radius shrink, 0 < alpha < 1 (radius scale s_i of pass i).
         samples_per_pixel: backward samples per pixel per pass (view map).
         mixture_c: share of backward directions aimed at the exit targets (the rest cosine-weighted).
-        glossy_threshold_deg: lobes narrower than this half width are followed by photons, not gathered.
+        glossy_threshold_deg: lobes narrower than this half width are followed by photons, not gathered...
+        gathered_share: ...unless this share of their albedo lies beyond sin(glossy_threshold_deg) of the
+            mirror direction (direction cosines): then that part is gathered and the core followed.
         normal_limit_deg: a photon is gathered only where its face normal is within this of the hit point's.
         neighbours: the k-th nearest hit point on the same face sets the initial radius r_0.
         radius_cap_mm: upper bound of r_0 (mm), before the per-face strip limit.
@@ -36,6 +38,7 @@ class EstimatorSettings:
     samples_per_pixel: int = 1
     mixture_c: float = 0.5
     glossy_threshold_deg: float = 15.0
+    gathered_share: float = 0.25
     normal_limit_deg: float = 30.0
     neighbours: int = 8
     radius_cap_mm: float = 5.0
@@ -49,6 +52,7 @@ class EstimatorSettings:
             "samples_per_pixel": (self.samples_per_pixel >= 1, "an integer >= 1"),
             "mixture_c": (0.0 <= self.mixture_c <= 1.0, "0 <= mixture_c <= 1"),
             "glossy_threshold_deg": (0.0 <= self.glossy_threshold_deg <= 90.0, "0 to 90 degrees"),
+            "gathered_share": (0.0 < self.gathered_share <= 1.0, "0 < gathered_share <= 1"),
             "normal_limit_deg": (0.0 < self.normal_limit_deg <= 90.0, "0 < normal_limit_deg <= 90"),
             "neighbours": (self.neighbours >= 1, "an integer >= 1"),
             "radius_cap_mm": (0.0 < self.radius_cap_mm < math.inf, "a positive length in mm"),

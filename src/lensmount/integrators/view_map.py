@@ -202,13 +202,17 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius, k=neighbours,
                                   cap_mm=radius_cap_mm)
     radius = radius * float(radius_scale)
-    area = boundaries.inside_area(pos, nrm, tg, radius) if boundaries is not None else None
+    area = area_half = None
+    if boundaries is not None:
+        area = boundaries.inside_area(pos, nrm, tg, radius, detector_z=det.z)
+        area_half = boundaries.inside_area(pos, nrm, tg, 0.5 * radius, detector_z=det.z)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
     tau = tau[ok] * air_radiance_factor(scene, step.direction[ok], tg, step.prim[ok],
                                         step.wavelength[ok])
     return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=tau,
                      pixel=step.id[ok].astype(np.int64), tag=tg.astype(np.int32),
-                     wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area)
+                     wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area,
+                     area_half=area_half)
 
 
 __all__ = ["exit_disc", "build_view_map", "view_map_streams"]

@@ -9,8 +9,9 @@ One walk, bounce by bounce (pbrt's SPPM photon phase):
    mechanical face, the detector, or out; its random numbers are keyed by
    (seed, purpose, photon, bounce).
 3. *Detector*: a photon landing on the detector goes into the film channel of its last
-   scattering part (or `direct` / `ghosts`), unless its last scattering vertex is on a tag the
-   caller gathers (`gathered`: the bidirectional last-vertex rule), which counts it instead.
+   scattering part (or `direct` / `ghosts`), unless the caller gathers its last scattering
+   (`gathered`: the bidirectional last-vertex rule; on a glossy finish only a scatter that
+   left outside the lobe's core), which counts it instead.
 4. *Yield* the bounce (the bidirectional integrator gathers the photons at faces here).
 5. *Scatter* at mechanical faces by the face's BSDF, Φ ← Φ · f cos θo / pdf; absorbers (and
    every face when `effects.scatter` is off) end the photon. From `roulette_after` scatterings
@@ -29,6 +30,7 @@ from typing import Iterator
 import numpy as np
 
 from lensmount.integrators.estimate import EnergyLedger, Film
+from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import Streams
@@ -76,8 +78,10 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
                 ledger: EnergyLedger, gathered: np.ndarray | None = None) -> Iterator[Bounce]:
     """Walk photons `rays` (ids = global photon index) until they die; see the module docstring.
 
-    gathered : (n_tags,) bool, tags whose light the caller counts by gathering (photons whose
-        last vertex is there are not put on the film); None: every photon is put on the film.
+    gathered : (n_tags,) per tag the core of the lobe (direction cosines around the mirror
+        direction, `photon_gather.outside_core`) outside which the caller counts the light by
+        gathering: a photon whose last scatter there left outside the core is not put on the
+        film. 0: all of it is gathered; inf: none. None: every photon is put on the film.
     """
     mesh = scene.mesh
     parts = list(mesh.parts)
@@ -88,7 +92,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
     ledger.add("source", rays.weight)
     w0 = rays.weight.copy()  # each photon's emitted flux, the roulette's reference
     part = np.full(len(rays), -1, np.int32)
-    last_tag = np.full(len(rays), -1, np.int32)
+    by_gather = np.zeros(len(rays), bool)  # the last scatter is the gather's to count
     reflections = np.zeros(len(rays), np.int32)
     start_normal = None  # photons start in free space; after a scatter, on the face they left
     for bounce in range(settings.max_bounces + 1):
@@ -100,7 +104,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off)
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
-        _to_film(film, ledger, ev, part, last_tag, reflections, gathered)
+        _to_film(film, ledger, ev, part, by_gather, reflections)
         yield Bounce(ev, part, reflections, bounce)
 
         face = np.flatnonzero(ev.kind == FACE)
@@ -127,12 +131,17 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
                         alive=np.ones(len(keep), bool), id=ev.id[keep])
         start_normal = ev.normal[keep]
         part = part_of_tag[tag[ok]].astype(np.int32)
-        last_tag = tag[ok].astype(np.int32)
+        if gathered is not None:
+            core = gathered[tag[ok]]
+            by_gather = np.isfinite(core) & outside_core(-ev.direction[keep], wo[ok], ev.normal[keep],
+                                                         np.where(np.isfinite(core), core, 0.0))
+        else:
+            by_gather = np.zeros(len(keep), bool)
         reflections = reflections[keep]
         w0 = w0[keep]
 
 
-def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, last_tag, reflections, gathered) -> None:
+def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, reflections) -> None:
     """Photons on the detector: onto the film by channel, or to the gather's account, or effect off."""
     hit = ev.kind == DETECTOR
     if not hit.any():
@@ -140,7 +149,7 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, last_tag, refle
     ledger.add("escaped", ev.weight[hit & (ev.pixel < 0)])  # beside the rectangle (test tracers only)
     hit &= ev.pixel >= 0
     channel = film.channel(part, reflections)
-    by_gather = hit & (last_tag >= 0) & (gathered[np.maximum(last_tag, 0)] if gathered is not None else False)
+    by_gather = hit & gathered_last
     counted = hit & ~by_gather & (channel >= 0)
     film.deposit(ev.pixel[counted], ev.weight[counted], ev.wavelength[counted], channel[counted])
     ledger.add_by("detector", film.channels, channel[counted], ev.weight[counted])

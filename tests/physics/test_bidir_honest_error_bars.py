@@ -1,0 +1,103 @@
+"""Issue 13, "What must show": the bidirectional estimate on the default radius schedule agrees
+with a long forward reference within 3σ of (standard error + bias bound), and its reported 2σ
+interval covers the reference in at least 18 of 20 seeds.
+
+Case (issue 13, item 1): the cooke-triplet example, every mount face and lens edge Lambertian
+5 %, the sun at 25° (outside the ±20° field), a 36 × 24 mm detector at 300 × 200 pixels. The
+sun's image misses the detector and lands on the housing bore just behind the detector plane:
+before the gather stopped at that plane this read +12 % in total (+28 % housing, z = 2.5) and
+its passes were heavy-tailed (spread 17 %, skew 1.2; now 6 %, skew 0).
+
+Slow. Sizes here (to keep the file near 4 min on 2 cores): the reference 6 × 10⁶ forward
+photons; the agreement run 16 passes × 10⁵ (the issue's); the coverage runs 20 seeds × 5 passes
+× 2 × 10⁴. Full-size figures are in the report of the change that added this file.
+"""
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lensmount.analysis.passes import Accumulator
+from lensmount.cad import regenerate
+from lensmount.cad.mesh import TaggedMesh
+from lensmount.design.folder import load_design
+from lensmount.design.scene import scene_from_dict
+from lensmount.integrators.bidirectional import bidirectional_pass
+from lensmount.integrators.forward import forward_pass
+from lensmount.integrators.radius import radius_scale
+from lensmount.scene.build import build_scene
+from lensmount.trace.tracer import Tracer
+
+pytestmark = pytest.mark.slow
+EXAMPLE = Path(__file__).resolve().parents[2] / "src" / "lensmount" / "examples" / "cooke-triplet"
+
+SCENE = {
+    "source": {"type": "sun", "off_axis_deg": 25.0, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
+               "limb_darkening": False},
+    "detector": {"width_mm": 36.0, "height_mm": 24.0, "pixels": [300, 200]},
+    "effects": {"scatter": True, "ghosts": False, "direct": False},
+    "coatings": {"default": "perfect-ar"},
+    "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}},
+    "assign": {"*": "lambert-5"},
+    "run": {"photons": 100_000, "passes": 16, "seed": 1},
+}
+
+
+@pytest.fixture(scope="module")
+def cooke(tmp_path_factory):
+    design = tmp_path_factory.mktemp("cooke")
+    for name in ("lens.toml", "mount.toml"):
+        shutil.copy(EXAMPLE / name, design / name)
+    manifest = regenerate(design, design / "build")
+    mesh = TaggedMesh.load(design / "build" / manifest.mesh)
+    scene = build_scene(load_design(design).prescription, mesh, scene_from_dict(SCENE, base_dir=str(design)))
+    return scene, Tracer(scene)
+
+
+@pytest.fixture(scope="module")
+def forward_reference(cooke):
+    scene, tracer = cooke
+    est = [forward_pass(scene, tracer, 400_000, 101, i) for i in range(15)]
+    flux = np.array([e.flux for e in est])
+    parts = np.array([e.part_flux for e in est])
+    n = len(flux)
+    return (flux.mean(), flux.std(ddof=1) / math.sqrt(n),
+            dict(zip(est[0].part_names, zip(parts.mean(0), parts.std(0, ddof=1) / math.sqrt(n)))))
+
+
+def _bidirectional(scene, tracer, seed, passes, photons):
+    acc = None
+    for i in range(passes):
+        e = bidirectional_pass(scene, tracer, photons, seed, i, radius_scale(i))
+        if acc is None:
+            acc = Accumulator.empty(e.image.shape, e.part_names, e.pixel_area_mm2)
+        acc.add(e, i)
+    return acc
+
+
+def test_cooke_triplet_at_25_degrees_agrees_with_forward(cooke, forward_reference):
+    scene, tracer = cooke
+    f, f_se, f_parts = forward_reference
+    acc = _bidirectional(scene, tracer, 1, 16, 100_000)
+    bias, part_bias = acc.bias_bound()
+    sigma = math.hypot(acc.flux_std_error + bias, f_se)
+    assert abs(acc.flux - f) <= 3 * sigma, (acc.flux, acc.flux_std_error, bias, f, f_se)
+    k = acc.part_names.index("housing")
+    h, h_se = f_parts["housing"]
+    h_sigma = math.hypot(acc.part_flux_std_error[k] + part_bias[k], h_se)
+    assert abs(acc.part_flux[k] - h) <= 3 * h_sigma, (acc.part_flux[k], acc.part_flux_std_error[k], part_bias[k], h)
+    assert acc.flux_std_error + bias < 0.1 * acc.flux  # an error bar that says something
+
+
+def test_reported_2_sigma_covers_the_forward_reference_in_18_of_20_seeds(cooke, forward_reference):
+    scene, tracer = cooke
+    f, f_se, _ = forward_reference
+    inside = 0
+    for seed in range(20):
+        acc = _bidirectional(scene, tracer, 1000 + seed, 5, 20_000)
+        sigma = acc.flux_std_error + acc.bias_bound()[0]
+        inside += abs(acc.flux - f) <= 2 * sigma
+    assert inside >= 18, inside
