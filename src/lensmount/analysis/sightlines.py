@@ -188,7 +188,7 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     verdict = "PASS: no lit wall is seen" if report.passed else \
         f"FAIL: {len(report.walls)} lit face(s) seen, first {report.walls[0].part} face {report.walls[0].face}"
     ax.set_title(f"lensmount check — sun at ≥ {report.exclusion_deg:g}° — {verdict}")
-    ax.legend(loc="upper right", markerscale=6, fontsize=8)
+    ax.legend(loc="upper right", markerscale=3, fontsize=8)
     fig.tight_layout()
     save_figure(fig, path)
 
