@@ -536,7 +536,7 @@ class Tracer:
             gi = work[glass]
             if gi.size:
                 u = streams.at(gi, FRESNEL_DIM + crossing) if streams is not None else None
-                d[gi], w[gi], refl = self._interface(h.surface[glass], h.point[glass], d[gi], w[gi], wl[gi],
+                d[gi], w[gi], refl = self._interface(h.surface[glass], h.normal[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, u)
                 reflections[gi] += refl
                 leaving[gi] = True  # it leaves glass: metal touching it is a hit at t = 0
@@ -557,15 +557,11 @@ class Tracer:
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections)
 
-    def _interface(self, surf, p, d, w, wl, ghosts: bool, u):
-        """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical);
-        u (m,) uniforms for the Fresnel branch (None: always transmit)."""
-        local = p - np.column_stack([np.zeros(len(p)), np.zeros(len(p)), self._z_vertex[surf]])
-        nrm = np.empty_like(p)
-        r = np.empty(len(p))
-        for k in np.unique(surf):
-            sel = surf == k
-            nrm[sel] = self._profiles[k].normal(local[sel])
+    def _interface(self, surf, nrm, d, w, wl, ghosts: bool, u):
+        """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical) with
+        the analytic normals nrm (m, 3) of their hits; u (m,) uniforms for the Fresnel branch
+        (None: always transmit)."""
+        r = np.empty(len(d))
         cos_dn = np.einsum("ij,ij->i", d, nrm)
         forward = cos_dn >= 0.0
         n1 = np.where(forward, self._n_before[surf, wl], self._n_after[surf, wl])
@@ -578,13 +574,13 @@ class Tracer:
         r = np.where(tir, 1.0, np.clip(r, 0.0, 1.0))
         mirror = reflect(d, nrm)
         if ghosts:
-            u = np.ones(len(p)) if u is None else u
+            u = np.ones(len(d)) if u is None else u
             bounce = tir | (u < r)
             new_d = np.where(bounce[:, None], mirror, t_dir)
             refl = (bounce & ~tir).astype(np.int32)
         else:
             new_d = t_dir  # the TIR lanes already hold the mirror direction
-            refl = np.zeros(len(p), np.int32)
+            refl = np.zeros(len(d), np.int32)
         at_mirror = self._mirror[surf]  # a mirror reflects every ray, weighted by its R (no branch)
         new_w = np.where(at_mirror, w * self._mirror_r[surf], w if ghosts else w * np.where(tir, 1.0, 1.0 - r))
         return np.where(at_mirror[:, None], mirror, new_d), new_w, np.where(at_mirror, 0, refl)
