@@ -81,3 +81,14 @@ def test_pst_of_the_reference_design(tmp_path):
     rows = paths["csv"].read_text().splitlines()
     assert rows[0].startswith("angle_deg,pst,std_error") and len(rows) == 4
     assert paths["png"].read_bytes()[:4] == b"\x89PNG" and "data:image/png;base64," in paths["html"].read_text()
+
+
+def test_no_light_entering_is_pst_zero_not_a_huge_number():
+    from lensmount.analysis.pst import pst_of
+    from lensmount.trace.sources import CollimatedSource, EmissionDisc
+
+    at_90 = CollimatedSource(90.0, 90.0, EmissionDisc((0.0, 0.0, 0.0), 1.0))
+    assert at_90.entering_fraction == 0.0
+    assert pst_of(1e-9, 1e-10, 100.0, at_90.entering_fraction) == (0.0, 0.0)
+    value, _ = pst_of(2.0, 0.1, 100.0, 0.5)
+    assert value == pytest.approx(2.0 / (100.0 * 0.5))

@@ -91,10 +91,13 @@ class PstResult:
     provenance: dict = field(default_factory=dict)
 
 
-def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: float, angle_deg: float
+def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: float, entering_fraction: float
            ) -> tuple[float, float | None]:
-    """PST and its standard error from a run's mean detector flux (normalised by E_sun)."""
-    cos = math.cos(math.radians(angle_deg))
+    """PST and its standard error from a run's mean detector flux (normalised by E_sun).
+
+    entering_fraction : the source's irradiance on the entrance plane over E_sun (cos θ for a
+        point source in front; exactly 0 from 90° on, so no light entering is PST 0, not 1/6e-17)."""
+    cos = float(entering_fraction)
     scale = 1.0 / (detector_area_mm2 * cos) if detector_area_mm2 > 0 and cos > 0 else 0.0
     se = flux_std_error_mm2 * scale if math.isfinite(flux_std_error_mm2) else None
     return mean_flux_mm2 * scale, se
@@ -103,14 +106,11 @@ def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: f
 def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> PstResult:
     """Run the sweep; progress(text) after each angle."""
     from lensmount.analysis.passes import Accumulator
-    from lensmount.cad.mesh import TaggedMesh
-    from lensmount.design.folder import load_design
-    from lensmount.design.scene import load_scene
-    from lensmount.loop import RegenerateOptions, regenerate
-    from lensmount.loop.provenance import collect
     from lensmount.integrators.settings import EstimatorSettings
+    from lensmount.loop.prepare import build, read_inputs
+    from lensmount.loop.provenance import collect
     from lensmount.runner import PassJob, run_pass
-    from lensmount.scene.build import build_scene, make_source
+    from lensmount.scene.build import make_source
     from lensmount.trace.tracer import Tracer
 
     o = options
@@ -122,8 +122,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
             raise InputError(f"{name} must be at least 1, got {value}", field=name, valid="a positive integer")
     if o.seed is not None and o.seed < 0:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
-    design = load_design(o.design)
-    spec = load_scene(o.scene)
+    design, spec = read_inputs(o.design, o.scene)
     seed = spec.run.seed if o.seed is None else o.seed
     passes = o.passes or spec.run.passes
     per_pass = o.photons_per_pass or spec.run.photons
@@ -131,10 +130,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     provenance = collect(design.root, design.lens_path, design.mount_path, o.scene,
                          list(design.template_paths.values())).to_dict()
 
-    say("mount geometry (rebuilt only if the design changed)")
-    built = regenerate(RegenerateOptions(design.root, o.geometry))
-    mesh = TaggedMesh.load(built.folder / built.manifest.mesh)
-    base = build_scene(design.prescription, mesh, spec)
+    base = build(design, spec, o.geometry, stage=say).scene
     say("building the tracer (once for every angle)")
     tracer = Tracer(base)
     det = base.detector
@@ -156,7 +152,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
                 names = list(estimate.part_names) if names is None else names
                 acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
             acc.add(estimate, pass_index=i)
-        value, se = pst_of(acc.flux, acc.flux_std_error, area, angle)
+        value, se = pst_of(acc.flux, acc.flux_std_error, area, scene.source.entering_fraction)
         point = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons,
                          time.perf_counter() - start)
         points.append(point)
