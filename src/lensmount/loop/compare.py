@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -225,13 +226,17 @@ def compare(options: CompareOptions, observer: Observer | None = None) -> Compar
 
 
 def _std_error_image(run: Run, shape) -> np.ndarray:
-    """Per-pixel standard error from the run's checkpoint (the pass sums), zeros when it has none."""
+    """Per-pixel standard error from the run's checkpoint (the pass sums), zeros when it has none
+    (or one this version cannot read): it only sets the preview's pixel binning."""
     from lensmount.analysis.passes import Accumulator
     from lensmount.loop.simulate import CHECKPOINT
 
     path = run.folder / CHECKPOINT
     if path.is_file():
-        acc, _ = Accumulator.load(path)
+        try:
+            acc, _ = Accumulator.load(path)
+        except (ValueError, KeyError, OSError, zipfile.BadZipFile):  # a checkpoint of an older lensmount: the images still compare
+            return np.zeros(shape)
         if acc.sum_image.shape == shape:
             return acc.std_error_image
     return np.zeros(shape)
