@@ -1,4 +1,4 @@
-"""`lensmount regenerate DESIGN [--out DIR]` and `lensmount init DIR --example NAME`.
+"""`lensmount regenerate DESIGN [--out DIR]` and `lensmount init DIR --example NAME | --lens FILE`.
 
 Parses, calls lensmount.cad / lensmount.design, prints. No geometry here.
 """
@@ -80,19 +80,29 @@ def regenerate(
 def init(
     directory: Path = typer.Argument(..., help="new design folder"),
     example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),
+    lens: Optional[Path] = typer.Option(
+        None, "--lens", "-l", help="start from this lens (.zmx or lens.toml) instead of an example: mount.toml "
+        "and a case-2 scene are derived from it (refractive lenses; mirrors are not mounted yet)"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
 ) -> None:
-    """Scaffold a design folder from an example (lens file, mount.toml, scenes/)."""
+    """Scaffold a design folder (lens file, mount.toml, scenes/) from an example or from a lens file."""
     try:
+        directory = Path(directory)
+        if directory.exists() and any(directory.iterdir()) and not force:
+            raise InputError("the folder exists and is not empty", file=str(directory),
+                             valid="a new or empty folder, or --force")
+        if lens is not None:
+            problem = _init_from_lens(directory, Path(lens))
+            if problem:
+                typer.echo(f"note: the derived mount does not build yet ({problem}); edit mount.toml", err=True)
+            typer.echo(f"{directory}: design folder from {lens} (mount.toml and scenes/case2-lambertian.toml "
+                       f"derived from the lens); next: lensmount regenerate {directory}")
+            return
         root = examples_root()
         names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())
         src = root / example
         if example not in names:
             raise InputError(f"unknown example {example!r}", field="--example", valid=", ".join(names))
-        directory = Path(directory)
-        if directory.exists() and any(directory.iterdir()) and not force:
-            raise InputError("the folder exists and is not empty", file=str(directory),
-                             valid="a new or empty folder, or --force")
     except InputError as error:
         fail(error)
     directory.mkdir(parents=True, exist_ok=True)
@@ -103,3 +113,36 @@ def init(
         if (src / sub).is_dir():
             shutil.copytree(src / sub, directory / sub, dirs_exist_ok=True)
     typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")
+
+
+def _init_from_lens(directory: Path, lens: Path) -> str | None:
+    """Copy the lens, write the derived mount.toml and case-2 scene (everything checked before writing)."""
+    import tomli_w
+
+    from lensmount.atomic import atomic_path, write_text
+    from lensmount.design.lens import load_lens
+    from lensmount.design.starter import case2_scene, starter_mount
+
+    prescription = load_lens(lens)
+    if prescription.has_mirrors:
+        mirrors = [i + 1 for i, s in enumerate(prescription.surfaces) if s.mirror]
+        raise InputError(f"the lens has mirrors (surface{'s' if len(mirrors) > 1 else ''} "
+                         f"{', '.join(map(str, mirrors))}); lensmount builds mounts for refractive lenses only "
+                         "today (a mirror needs a cell with a back support, which the mount templates do not "
+                         "have yet), so there is no mount.toml to derive", file=str(lens), field="GLAS MIRROR",
+                         valid="a lens without mirrors; `lensmount inspect` still analyses this one")
+    name = prescription.name if prescription.name not in ("", "lens") else lens.stem
+    mount, problem = starter_mount(prescription, name)
+    scene = case2_scene(prescription, mount, name)
+    target = "lens.zmx" if lens.suffix.lower() == ".zmx" else "lens.toml"
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "scenes").mkdir(exist_ok=True)
+    header = f"# mount.toml derived by `lensmount init --lens {lens.name}` (lensmount.design.starter); " \
+             "keys: docs/mount-toml.md\n"
+    write_text(directory / "scenes" / "case2-lambertian.toml", tomli_w.dumps(scene))
+    if problem:  # the user starts from it and edits; say what to edit
+        header += f"# This mount does not build yet: {problem}\n"
+    write_text(directory / "mount.toml", header + tomli_w.dumps(mount))
+    with atomic_path(directory / target) as tmp:  # byte for byte: a .zmx keeps its encoding
+        tmp.write_bytes(lens.read_bytes())
+    return problem

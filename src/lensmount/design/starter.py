@@ -1,0 +1,233 @@
+"""A starting mount.toml and case-2 scene derived from a lens (`lensmount init DIR --lens FILE`).
+
+The shipped examples' mount.toml fit their own lens only (the Cooke triplet's 0.5 mm
+edge allowance leaves a thin crown with no edge on another lens). Here every
+dimension follows from the lens itself, in the mount layer's own keys
+(docs/mount-toml.md):
+
+- metal thicknesses (barrel wall, lips, retainer, housing wall) scale with the
+  largest clear semi-diameter a, within what a machinist can turn (0.5-4 mm); so does
+  the thinnest part allowed ([checks], 0.2 mm on a lens under 10 mm across, else 0.3);
+- each element's mechanical semi-diameter is its clear semi-diameter plus the edge
+  allowance, cut back where the element's edge would be thinner than a quarter of its
+  centre (a meniscus or a strong positive lens) or where it would meet its
+  neighbour's edge across the air gap; where a spacer could not reach both
+  neighbours' contacts, a barrel shoulder seats the element (similar contact heights)
+  or a shoulder behind the one and a ring in front of the other (far apart);
+- the hood shades the first lens from the sun at the exclusion angle when that takes
+  at most two entrance diameters, else it stops there; its bore is the beam at the
+  mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
+- the housing's detector is a 3:2 frame inscribed in the image circle (real chief
+  ray of the largest field).
+
+The case-2 scene is the seed paper's: the sun 5° outside the field, every mount face
+and lens edge Lambertian 5 %, the diaphragm edge absorbing, on that detector.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from lensmount.design.mount import MountSpec
+from lensmount.optics.paraxial import paraxial
+from lensmount.optics.prescription import Prescription
+from lensmount.optics.realrays import chief_ray
+
+SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
+MIN_EDGE_FRACTION = 0.25     # edge thickness at least this fraction of the centre thickness
+MAX_HOOD_DIAMETERS = 2.0     # hood length at most this many entrance diameters
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return float(min(max(x, lo), hi))
+
+
+def _round(x: float, digits: int = 2) -> float:
+    return float(round(x, digits))
+
+
+def image_height(p: Prescription) -> float:
+    """Height of the largest field's real chief ray on the image plane, mm (0 for an on-axis lens)."""
+    if p.max_field_deg <= 0.0:
+        return 0.0
+    h = float(np.abs(chief_ray(p, p.max_field_deg).image_points[..., 1]).max())
+    return h if math.isfinite(h) else 0.0
+
+
+def detector_size(p: Prescription) -> tuple[float, float]:
+    """A 3:2 detector whose corners lie on the image circle (width, height), mm; a lens
+    with no field gets one a fifth of the exit beam wide."""
+    y = image_height(p)
+    if y <= 0.0:
+        side = max(0.2 * paraxial(p).exit_pupil_diameter, 1.0)
+        return _round(side), _round(side)
+    return _round(2 * y * 3 / math.sqrt(13)), _round(2 * y * 2 / math.sqrt(13))
+
+
+def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact: float, min_thickness: float,
+                     retainer: float, margin: float, widen: bool) -> tuple[dict[int, float], dict[int, str]]:
+    """Element number → mechanical semi-diameter where clear + allowance would not do, and
+    element number → seat where a spacer could not reach both neighbours' contacts.
+    `widen`: there, widen the smaller edge for a spacer (unless that makes it too thin)
+    rather than seat the element on a shoulder or ring.
+
+    Never below clear + contact margin + chamfer (the seat must touch the glass inside
+    its edge), nor below a spacer wall above the contacts at the diaphragm's gap, nor
+    below the front retainer's wall above the beam: a lens that is too thin even there
+    is left to `regenerate` to report (the lens file's own edge is).
+    """
+    from lensmount.cad.layout import Envelope
+    from lensmount.templates.lens_element import LensElement, OpticalFace
+
+    surf, zv = p.surfaces, p.vertex_z
+    clear = [float(s.clear_semi_diameter) for s in surf]
+
+    def face(i: int) -> OpticalFace:
+        return OpticalFace(i, float(zv[i]), surf[i].curvature, surf[i].conic, tuple(surf[i].aspheric))
+
+    step = 0.05 * allowance
+    groups = p.lens_groups()
+
+    def thin(k: int, r: float) -> bool:
+        g = groups[k]
+        return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
+                   < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a])) for a, b in zip(g[:-1], g[1:]))
+
+    numbers = np.cumsum([0] + [len(g) - 1 for g in groups])[:-1] + 1   # first element of each group
+    natural = [max(clear[i] for i in g) + allowance for g in groups]
+    floor = [max(clear[i] for i in g) + contact + chamfer + 0.01 for g in groups]
+    seats = {}
+    stop = p.stop_index
+    for k in range(len(groups) - 1):
+        ia, ib = groups[k][-1], groups[k + 1][0]
+        wall = max(clear[ia], clear[ib]) + contact + min_thickness + 0.02   # a spacer's outside
+        if wall <= min(natural[k], natural[k + 1]):
+            continue
+        if ia <= stop <= ib or (widen and not any(thin(j, wall) for j in (k, k + 1) if natural[j] < wall)):
+            # widen the smaller edge(s) so that a spacer fits (the diaphragm's gap always has spacers)
+            floor[k], floor[k + 1] = max(floor[k], wall), max(floor[k + 1], wall)
+        elif abs(clear[ia] - clear[ib]) < allowance:   # a barrel shoulder steps from one bore to the other
+            seats[int(numbers[k + 1])] = "shoulder"
+        else:   # contacts far apart in height: a shoulder behind A, a ring in front of B
+            seats[int(numbers[k + 1])] = "retainer"
+    i0 = groups[0][0]
+    if stop >= i0:  # a retainer holds element 1: its wall stands above the beam at its far face
+        zc = float(face(i0).z(clear[i0] + contact))
+        beam = Envelope(p, zc - retainer - 1.0, zc, step=0.1).max_over(zc - retainer - 1.0, zc)
+        floor[0] = max(floor[0], beam + margin + min_thickness + 0.02)
+    radii = [max(n, f) for n, f in zip(natural, floor)]
+    for k in range(len(groups)):   # thick enough at the edge
+        while radii[k] - step >= floor[k] and thin(k, radii[k]):
+            radii[k] -= step
+    for k in range(len(groups) - 1):      # room for the barrel's step between neighbouring edges
+        ia, ib = groups[k][-1], groups[k + 1][0]
+        for _ in range(40):
+            r = min(radii[k], radii[k + 1])
+            if float(face(ib).z(r) - face(ia).z(r)) > min_thickness + 2 * chamfer:
+                break
+            big = k if radii[k] >= radii[k + 1] else k + 1
+            if radii[big] - step < floor[big]:
+                break
+            radii[big] -= step
+    out = {}
+    for g, first, r, n in zip(groups, numbers, radii, natural):
+        if abs(r - n) > 1e-9:
+            for k in range(len(g) - 1):
+                out[int(first) + k] = _round(r, 3)
+    return out, seats
+
+
+def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
+    """mount.toml as a dict of tables, every dimension derived from the lens (module docstring),
+    and why the mount cannot be built (None when it can).
+
+    Two seatings are tried, checked with the layout planner (no CAD): spacers with widened
+    edges, then shoulders and rings where a spacer cannot reach; the first that plans wins.
+    When neither does, the first is returned with the planner's error for the user.
+    """
+    from lensmount.cad.layout import plan
+    from lensmount.design.mount import parse_mount
+    from lensmount.errors import InputError
+
+    first = None
+    for widen in (True, False):
+        mount = _mount(p, name, widen)
+        try:
+            plan(p, parse_mount(mount))
+            return mount, None
+        except InputError as error:
+            first = first or (mount, error.paragraph())
+    return first
+
+
+def _mount(p: Prescription, name: str, widen: bool) -> dict:
+    from lensmount.cad.layout import Envelope
+
+    a = max(float(s.clear_semi_diameter) for s in p.surfaces)
+    allowance = _clamp(0.06 * a, 0.3, 2.0)
+    chamfer = _round(min(0.1, allowance / 8), 3)
+    wall = _round(_clamp(0.15 * a, 0.8, 4.0), 1)
+    lip = _round(_clamp(0.1 * a, 0.5, 2.0), 1)
+    field = p.max_field_deg
+    exclusion = field + SUN_MARGIN_DEG
+    a1 = float(p.surfaces[0].clear_semi_diameter)
+    spread = math.tan(math.radians(exclusion)) - math.tan(math.radians(field))
+    hood_length = _round(_clamp(2 * a1 / spread, a1, MAX_HOOD_DIAMETERS * 2 * a1), 1)
+    vane_room = _clamp(0.2 * a1, 0.8, 4.0)
+    beam_at_mouth = Envelope(p, -hood_length - 10.0, 0.0, step=0.5).max_over(-hood_length - 10.0, 0.0)
+    hood_radius = beam_at_mouth + 0.1 + vane_room
+    vanes = int(_clamp(round(hood_length / (2 * hood_radius)), 1, 4))
+    width, height = detector_size(p)
+    contact = _round(min(0.2, allowance / 4), 3)
+    edge = {"style": "chamfered", "chamfer_mm": chamfer, "allowance_mm": _round(allowance, 3),
+            "contact_margin_mm": contact}
+    min_thickness = _round(_clamp(0.04 * a, 0.2, MountSpec().checks.min_thickness_mm), 2)
+    retainer = _round(_clamp(0.05 * a, 0.3, 3.0), 1)
+    semi, seat_of = _edges_and_seats(p, allowance, chamfer, contact, min_thickness, retainer, 0.1, widen)
+    if semi:
+        edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
+    return {
+        "name": f"{name} mount",
+        "barrel": {"wall_mm": wall, "radial_clearance_mm": 0.03, "lip_mm": lip},
+        "lens_edge": edge,
+        "seats": {"front": "retainer", "rear": "shoulder", "default": "spacer"}
+        | ({"element": {str(k): v for k, v in seat_of.items()}} if seat_of else {}),
+        "spacers": {"aperture_margin_mm": 0.1},
+        "retainer": {"thickness_mm": retainer},
+        "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05},
+        "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": 0.1, "edge_width_mm": 0.05,
+                  "thickness_mm": _round(_clamp(0.05 * a, 0.3, 1.0), 1)},
+        "hood": {"length_mm": hood_length, "inner_diameter_mm": _round(2 * hood_radius, 1),
+                 "exclusion_deg": _round(exclusion, 2)},
+        "housing": {"detector_width_mm": width, "detector_height_mm": height,
+                    "detector_clearance_mm": _round(_clamp(0.1 * max(width, height), 0.3, 2.0), 1),
+                    "back_gap_mm": _round(_clamp(0.1 * a, 1.0, 5.0), 1), "wall_mm": wall},
+        "checks": {"min_thickness_mm": min_thickness},
+        "tessellation": {"linear_tolerance_mm": _round(_clamp(0.002 * a, 0.005, 0.05), 3),
+                         "angular_tolerance_deg": 6.0},
+    }
+
+
+def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
+    """The seed paper's case 2 for this lens: the sun at the hood's exclusion angle."""
+    sun = mount["hood"]["exclusion_deg"]
+    width, height = mount["housing"]["detector_width_mm"], mount["housing"]["detector_height_mm"]
+    nx = 360
+    ny = max(1, int(round(nx * height / width)))
+    return {
+        "description": f"The seed paper's case 2 on {name}: the sun at {sun:g}° ({SUN_MARGIN_DEG:g}° outside the "
+                       "field); every mount face and lens edge Lambertian 5 %, diaphragm edge absorbing",
+        "source": {"type": "sun", "off_axis_deg": sun, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
+                   "limb_darkening": False},
+        "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
+        "effects": {"scatter": True, "ghosts": False, "direct": False},
+        "coatings": {"default": "perfect-ar"},
+        "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}},
+        "assign": {"*": "lambert-5", "role:diaphragm-edge": "absorber"},
+        "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05},
+    }
+
+
+__all__ = ["starter_mount", "case2_scene", "detector_size", "image_height"]

@@ -1,0 +1,178 @@
+"""`lensmount init DIR --lens FILE`: a design folder whose mount.toml and case-2 scene are
+derived from the lens, for the public corpus (tests/optics/corpus, SOURCES.md).
+
+Slow: every refractive corpus file → init → regenerate (STEP re-imported by CadQuery,
+every part a valid solid) → the realised entrance pupil is the design's and is set
+by the diaphragm, and real rays of the full field meet no mount triangle → simulate
+the generated case-2 scene on a tiny budget. Files the chain cannot take yet are
+xfail(strict) with the cause, so one that starts passing is noticed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+from lensmount.design.lens import load_lens
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = ROOT / "tests" / "optics" / "corpus"
+MIRRORS = ("HoO-V2C18Ex03", "HoO-V2C18Ex27-utf16", "US05331467-1")
+REFRACTIVE = sorted(p for p in CORPUS.glob("*.zmx") if p.stem not in MIRRORS)
+# the shipped examples' lenses (the Cooke triplet also as its .zmx), started from their lens alone
+EXAMPLE_LENSES = [ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx",
+                  ROOT / "examples" / "double-gauss-360" / "lens.toml"]
+# What stops each corpus file today, by the message it stops with (causes in the report).
+KNOWN = {
+    "US05831776-1": "cross each other",           # load_lens: the lithography lens's surfaces 15/16 cross
+    "optiland-lens_floa": "miss surface 1",       # load_lens: the floating stop overfills R = 20 mm
+    "thorlabs-AL1815-C-latin1": "does not lie in an air gap",  # layout: a singlet, stop on its front face
+    "US00583336-2-scaled": "lens-1 is too thin",  # the patent's element 1 has no edge at its clear aperture
+    "optiland-lens1": "spacer-2 between lens-2 and diaphragm would be",  # stop 0.75 mm behind a convex face
+    "US08427765-1": "spacer-2 between lens-2 and diaphragm would be",    # same; lens-3/4 nearly touch too
+}
+
+
+def _init(tmp_path: Path, lens: Path):
+    design = tmp_path / "design"
+    result = CliRunner().invoke(app, ["init", str(design), "--lens", str(lens)])
+    return design, result
+
+
+def test_mirror_lens_is_refused_in_one_paragraph_and_nothing_is_written(tmp_path):
+    design, result = _init(tmp_path, CORPUS / "HoO-V2C18Ex03.zmx")
+    assert result.exit_code == 2
+    err = result.output.strip()
+    assert "\n" not in err and "mirror" in err and "surfaces 2, 3" in err and "Traceback" not in err
+    assert not design.exists()
+
+
+def test_derived_mount_and_scene_load_and_follow_the_lens(tmp_path):
+    lens = EXAMPLE_LENSES[0]
+    design, result = _init(tmp_path, lens)
+    assert result.exit_code == 0, result.output
+    assert (design / "lens.zmx").read_bytes() == lens.read_bytes()
+    from lensmount.design.folder import load_design
+    from lensmount.design.scene import load_scene
+
+    d = load_design(design)                              # mount.toml validates (unknown keys are errors)
+    scene_file = d.scenes["case2-lambertian"]
+    load_scene(scene_file)
+    p = d.prescription
+    # sun 5° outside the field, at the hood's exclusion angle
+    raw = tomllib.loads(scene_file.read_text())
+    assert raw["source"]["off_axis_deg"] == pytest.approx(p.max_field_deg + 5.0, abs=0.01)
+    assert d.mount.exclusion_deg(p.max_field_deg) == pytest.approx(p.max_field_deg + 5.0, abs=0.01)
+    # detector: 3:2 with its corners on the image circle. Independent estimate: the paraxial
+    # image height f·tan(θ) of the Cooke triplet, within its few % of distortion
+    from lensmount.optics.paraxial import paraxial
+
+    w, h = d.mount.housing.detector_width_mm, d.mount.housing.detector_height_mm
+    assert w / h == pytest.approx(1.5, rel=0.01)
+    y = paraxial(p).efl * math.tan(math.radians(p.max_field_deg))
+    assert 0.5 * math.hypot(w, h) == pytest.approx(y, rel=0.05)
+    assert (raw["detector"]["width_mm"], raw["detector"]["height_mm"]) == (w, h)
+    # every element's edge is outside its clear aperture by at least the contact margin
+    clear = [s.clear_semi_diameter for s in p.surfaces]
+    for n, g in enumerate(p.lens_groups(), start=1):
+        R = d.mount.lens_edge.semi_diameter_mm.get(n, max(clear[i] for i in g) + d.mount.lens_edge.allowance_mm)
+        assert R > max(clear[i] for i in g) + d.mount.lens_edge.contact_margin_mm
+
+
+def _full_field_hits(p, mesh) -> list[str]:
+    """Parts met by real rays of fields 0..max over the pupil rim (0.995), every colour, at 4 azimuths."""
+    import trimesh
+
+    from lensmount.optics.realrays import aim, trace
+
+    part_of = np.array([t.part for t in mesh.tag_table])[mesh.tags]
+    keep = ~np.char.startswith(part_of.astype(str), "lens-")
+    tm = trimesh.Trimesh(mesh.vertices, mesh.triangles[keep], process=False)
+    parts = part_of[keep]
+    fields = np.linspace(0.0, p.max_field_deg, 6)
+    phi = np.linspace(0.0, 2 * np.pi, 48, endpoint=False)
+    pupil = 0.995 * np.column_stack([np.cos(phi), np.sin(phi)])
+    met = set()
+    for wl in p.wavelengths_um:
+        o, d = aim(p, fields, pupil, wl)
+        r = trace(p, o, d, wl, clip=False)
+        lines = np.concatenate([(o - 200.0 * d)[None], r.points], axis=0)
+        for az in (0.0, 37.0, 101.0, 223.0):
+            a_ = np.radians(az)
+            rot = np.array([[np.cos(a_), -np.sin(a_), 0], [np.sin(a_), np.cos(a_), 0], [0, 0, 1]])
+            pts = lines @ rot.T
+            for k in range(len(pts) - 1):
+                seg = pts[k + 1] - pts[k]
+                length = np.linalg.norm(seg, axis=1)
+                ok = length > 1e-9
+                dirs = seg[ok] / length[ok, None]
+                tri, ray, loc = tm.ray.intersects_id(pts[k][ok], dirs, multiple_hits=False, return_locations=True)
+                dist = np.einsum("ij,ij->i", loc - pts[k][ok][ray], dirs[ray])
+                inside = (dist > 1e-6) & (dist < length[ok][ray] - 1e-6)
+                met |= {str(parts[t]) for t in tri[inside]}
+    return sorted(met)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lens", REFRACTIVE + EXAMPLE_LENSES, ids=[p.stem for p in REFRACTIVE] + ["example-cooke-triplet-zmx", "example-double-gauss-360"])
+def test_refractive_corpus_lens_gets_a_mount_that_builds_clears_the_beam_and_simulates(lens, tmp_path):
+    design, result = _init(tmp_path, lens)
+    if lens.stem in KNOWN:
+        out = result.output
+        if result.exit_code == 0:
+            out = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"]).output
+        assert KNOWN[lens.stem] in out, out
+        pytest.xfail(f"{lens.stem}: {out.strip()[:300]}")
+    assert result.exit_code == 0, result.output
+    reg = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert reg.exit_code == 0, reg.output
+
+    import cadquery as cq
+
+    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pupil import realised_entrance_pupil
+
+    build = design / "build"
+    manifest = json.loads((build / "manifest.json").read_text())
+    assert len(manifest["parts"]) >= 2
+    for part in manifest["parts"]:
+        shape = cq.importers.importStep(str(build / part["step"])).val()
+        assert shape.isValid() and shape.Volume() == pytest.approx(part["volume_mm3"], rel=1e-6)
+    assert len(cq.importers.importStep(str(build / "assembly.step")).solids().vals()) == len(manifest["parts"])
+
+    p = load_lens(design)
+    mesh = TaggedMesh.load(build / "mesh.npz")
+    assert _full_field_hits(p, mesh) == []
+    pupil = realised_entrance_pupil(p, mesh, azimuths=12)
+    assert abs(pupil.relative_error) < 0.01
+    assert set(pupil.limited_by) == {"diaphragm"}
+
+    scene = design / "scenes" / "case2-lambertian.toml"
+    import tomli_w
+
+    doc = tomllib.loads(scene.read_text())
+    doc["detector"]["pixels"] = [max(1, n // 10) for n in doc["detector"]["pixels"]]   # a small detector
+    scene.write_text(tomli_w.dumps(doc))
+    sim = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(scene), "--photons-per-pass", "2000",
+                                   "--passes", "2", "--workers", "1", "--out", str(tmp_path / "run")])
+    assert sim.exit_code == 0, sim.output
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert all(math.isfinite(v) for v in _numbers(summary))
+
+
+def _numbers(tree):
+    if isinstance(tree, dict):
+        for v in tree.values():
+            yield from _numbers(v)
+    elif isinstance(tree, list):
+        for v in tree:
+            yield from _numbers(v)
+    elif isinstance(tree, float):
+        yield tree
