@@ -143,10 +143,12 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     """mount.toml as a dict of tables, every dimension derived from the lens (module docstring),
     and why the mount cannot be built (None when it can).
 
-    Two seatings are tried, checked with the layout planner (no CAD): spacers with widened
-    edges, then shoulders and rings where a spacer cannot reach; the first that plans wins.
+    Two seatings are tried, checked with the layout planner and the profile checks that
+    `regenerate` runs (no CAD): spacers with widened edges, then shoulders and rings where
+    a spacer cannot reach; the first that passes wins.
     When neither does, the first is returned with the planner's error for the user.
     """
+    from lensmount.cad.checks import check_layout
     from lensmount.cad.layout import plan
     from lensmount.design.mount import parse_mount
     from lensmount.errors import InputError
@@ -155,7 +157,9 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     for widen in (True, False):
         mount = _mount(p, name, widen)
         try:
-            plan(p, parse_mount(mount))
+            spec = parse_mount(mount)
+            layout = plan(p, spec)
+            check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
             return mount, None
         except InputError as error:
             first = first or (mount, error.paragraph())
@@ -171,21 +175,22 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     wall = _round(_clamp(0.15 * a, 0.8, 4.0), 1)
     lip = _round(_clamp(0.1 * a, 0.5, 2.0), 1)
     field = p.max_field_deg
+    margin = _round(_clamp(0.04 * a, 0.1, 1.0), 2)   # bores of spacers, vanes, housing above the beam
     exclusion = field + SUN_MARGIN_DEG
     a1 = float(p.surfaces[0].clear_semi_diameter)
     spread = math.tan(math.radians(exclusion)) - math.tan(math.radians(field))
     hood_length = _round(_clamp(2 * a1 / spread, a1, MAX_HOOD_DIAMETERS * 2 * a1), 1)
     vane_room = _clamp(0.2 * a1, 0.8, 4.0)
     beam_at_mouth = Envelope(p, -hood_length - 10.0, 0.0, step=0.5).max_over(-hood_length - 10.0, 0.0)
-    hood_radius = beam_at_mouth + 0.1 + vane_room
+    hood_radius = beam_at_mouth + margin + vane_room
     vanes = int(_clamp(round(hood_length / (2 * hood_radius)), 1, 4))
     width, height = detector_size(p)
-    contact = _round(min(0.2, allowance / 4), 3)
+    contact = _round(min(0.5, allowance / 4), 3)
     edge = {"style": "chamfered", "chamfer_mm": chamfer, "allowance_mm": _round(allowance, 3),
             "contact_margin_mm": contact}
     min_thickness = _round(_clamp(0.04 * a, 0.2, MountSpec().checks.min_thickness_mm), 2)
     retainer = _round(_clamp(0.05 * a, 0.3, 3.0), 1)
-    semi, seat_of = _edges_and_seats(p, allowance, chamfer, contact, min_thickness, retainer, 0.1, widen)
+    semi, seat_of = _edges_and_seats(p, allowance, chamfer, contact, min_thickness, retainer, margin, widen)
     if semi:
         edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
     return {
@@ -194,10 +199,10 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         "lens_edge": edge,
         "seats": {"front": "retainer", "rear": "shoulder", "default": "spacer"}
         | ({"element": {str(k): v for k, v in seat_of.items()}} if seat_of else {}),
-        "spacers": {"aperture_margin_mm": 0.1},
+        "spacers": {"aperture_margin_mm": margin},
         "retainer": {"thickness_mm": retainer},
         "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05},
-        "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": 0.1, "edge_width_mm": 0.05,
+        "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": margin, "edge_width_mm": 0.05,
                   "thickness_mm": _round(_clamp(0.05 * a, 0.3, 1.0), 1)},
         "hood": {"length_mm": hood_length, "inner_diameter_mm": _round(2 * hood_radius, 1),
                  "exclusion_deg": _round(exclusion, 2)},
