@@ -89,6 +89,9 @@ def test_cooke_triplet_at_25_degrees_agrees_with_forward(cooke, forward_referenc
     h, h_se = f_parts["housing"]
     h_sigma = math.hypot(acc.part_flux_std_error[k] + part_bias[k], h_se)
     assert abs(acc.part_flux[k] - h) <= 3 * h_sigma, (acc.part_flux[k], acc.part_flux_std_error[k], part_bias[k], h)
+    print(f"cooke 25°: bidirectional {acc.flux:.5g} ± {acc.flux_std_error:.2g} (bias bound {bias:.2g}), "
+          f"forward {f:.5g} ± {f_se:.2g}; housing {acc.part_flux[k]:.5g} ± {acc.part_flux_std_error[k]:.2g} "
+          f"(bound {part_bias[k]:.2g}) vs {h:.5g} ± {h_se:.2g}")
     assert acc.flux_std_error + bias < 0.1 * acc.flux  # an error bar that says something
 
 
@@ -100,4 +103,5 @@ def test_reported_2_sigma_covers_the_forward_reference_in_18_of_20_seeds(cooke, 
         acc = _bidirectional(scene, tracer, 1000 + seed, 5, 20_000)
         sigma = acc.flux_std_error + acc.bias_bound()[0]
         inside += abs(acc.flux - f) <= 2 * sigma
+    print(f"cooke 25°: forward {f:.5g} ± {f_se:.2g} inside the reported 2σ in {inside} of 20 seeds")
     assert inside >= 18, inside
