@@ -254,6 +254,15 @@ def _die_with_parent_plugin():
     return DieWithParent()
 
 
+def local_cluster_size(cluster: str) -> int:
+    """N of 'local:N'; InputError for anything else (checked before a run builds anything)."""
+    kind, _, n = cluster.partition(":")
+    if kind != "local" or not n.isdigit() or int(n) < 1:
+        raise InputError(f"cluster '{cluster}' is not understood", field="--cluster",
+                         valid="local:N with N ≥ 1, e.g. local:4")
+    return int(n)
+
+
 def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | None = None) -> Executor:
     """The executor the options ask for (see the module docstring)."""
     scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
@@ -263,16 +272,13 @@ def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | 
     if scheduler:
         return DaskCluster(address=scheduler)
     if cluster:
-        kind, _, n = cluster.partition(":")
-        if kind != "local" or not n.isdigit() or int(n) < 1:
-            raise InputError(f"cluster '{cluster}' is not understood", field="--cluster",
-                             valid="local:N with N ≥ 1, e.g. local:4")
-        return DaskCluster(local_workers=int(n))
+        return DaskCluster(local_workers=local_cluster_size(cluster))
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}", field="--workers",
                          valid="an integer ≥ 1 (0 in the CLI means one per core)")
     return InProcess() if workers == 1 else LocalProcesses(workers)
 
 
-__all__ = ["Executor", "InProcess", "LocalProcesses", "DaskCluster", "executor_for", "die_with_parent",
+__all__ = ["Executor", "InProcess", "LocalProcesses", "DaskCluster", "executor_for", "local_cluster_size",
+           "die_with_parent",
            "resolve", "SCHEDULER_ENV"]

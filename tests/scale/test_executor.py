@@ -93,3 +93,15 @@ def test_killed_run_resumes_identically_and_leaves_no_process(tmp_path, how):
     straight, _ = _run(tmp_path, 10, 2, name="straight.npz")
     assert resumed["flux"] == straight["flux"]
     assert resumed["elapsed_s"] > 0.6  # the time before the kill is counted too (3 passes × 0.2 s)
+
+
+def test_bad_cluster_is_refused_before_anything_is_built(tmp_path):
+    from lensmount.errors import InputError
+    from lensmount.loop.simulate import SimulateOptions, check_options
+
+    for bad in ("local", "local:0", "remote:3", "local:x"):
+        with pytest.raises(InputError) as e:
+            check_options(SimulateOptions(tmp_path, tmp_path / "s.toml", cluster=bad))
+        assert e.value.field == "--cluster"
+    with pytest.raises(InputError):
+        check_options(SimulateOptions(tmp_path, tmp_path / "s.toml", cluster="local:2", scheduler="tcp://h:8786"))

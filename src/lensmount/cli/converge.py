@@ -31,7 +31,7 @@ def converge(
     reference: Optional[str] = typer.Option(None, "--reference",
                                             help="Reference stray fraction: a number, or a long run's summary.json."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
-                                                   help="Photons per pass (default: the scene's [run])."),
+                                                   help="Photons per pass (default: the scene's run table)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed (default: the scene's)."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/converge-<scene name>)."),

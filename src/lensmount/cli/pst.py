@@ -20,10 +20,10 @@ def pst(
     azimuth: Optional[float] = typer.Option(None, "--azimuth",
                                             help="Direction of the tilt in degrees (default: the scene's)."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
-    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per angle (default: the scene's [run])."),
+    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per angle (default: the scene's run table)."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
-                                                   help="Photons per pass (default: the scene's [run])."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's [run] seed)."),
+                                                   help="Photons per pass (default: the scene's run table)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's run table seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/pst-<scene name>)."),
 ) -> None:
     """Point source transmittance (detector irradiance over the irradiance on the entrance

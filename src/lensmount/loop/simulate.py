@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
+from lensmount.executor import local_cluster_size
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
@@ -125,6 +126,11 @@ def check_options(o: SimulateOptions) -> None:
         raise InputError("need at least one sample per pixel", field="--samples-per-pixel", valid="an integer ≥ 1")
     if o.seed is not None and o.seed < 0:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
+    if o.cluster is not None:
+        local_cluster_size(o.cluster)
+    if o.scheduler is not None and o.cluster is not None:
+        raise InputError("give either a scheduler address or a local cluster, not both", field="--cluster",
+                         valid="--scheduler ADDRESS (or LENSMOUNT_SCHEDULER) | --cluster local:N")
 
 
 def check_writable(folder: Path, field: str = "--out") -> None:
