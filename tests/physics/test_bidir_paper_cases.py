@@ -74,10 +74,13 @@ def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
     assert lit == {"diaphragm"}, parts
 
 
-@pytest.mark.parametrize("case,spp,fw_photons", [("case1-diaphragm-edge", 16, 1_000_000),
-                                                 ("case2-lambertian", 16, 200_000), ("case3-gaussian", 1, 200_000)])
+@pytest.mark.parametrize("case,spp,fw_photons", [("case2-lambertian", 16, 200_000), ("case3-gaussian", 1, 200_000)])
 def test_bidirectional_agrees_with_forward_on_the_reference_design(reference, case, spp, fw_photons):
-    """Issue 13: the default radius schedule (not s = 1), within 3σ of (standard error + bias bound)."""
+    """Issue 13: the default radius schedule (not s = 1), within 3σ of (standard error + bias bound).
+
+    Case 1 is not here: forward tracing sees no photon from the 50 µm edge in 8 × 10⁶ photons
+    (bidirectional reads 3.3e-5 ± 0.5e-5 mm², bias bound 0.2e-5), so a forward reference for it
+    is beyond a test's budget (docs/accuracy.md)."""
     scene = _scene(reference, case)
     bi = _run(scene, "bidirectional", 8, 200_000, schedule=True, samples_per_pixel=spp)
     fw = _run(scene, "forward", 8, fw_photons, seed=2)
