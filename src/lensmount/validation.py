@@ -12,9 +12,26 @@ import re
 import tomllib
 from typing import get_args
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, PrivateAttr, ValidationError
 
 from lensmount.errors import InputError
+
+
+class ReadFromFile(BaseModel):
+    """A spec that remembers the file it was read from and its text, so that errors found later
+    (a mount finish checked against a scene, a selector checked against the mesh) can name their line."""
+
+    _file: str | None = PrivateAttr(None)
+    _text: str | None = PrivateAttr(None)
+
+    @property
+    def source_file(self) -> str | None:
+        """The file this spec was read from (None for a spec built in code)."""
+        return self._file
+
+    @property
+    def source_text(self) -> str | None:
+        return self._text
 
 
 def parse_toml(text: str, file: str, valid: str = "TOML syntax (https://toml.io)") -> dict:

@@ -7,7 +7,6 @@ or runs that do not measure the same thing.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Optional
 
@@ -15,7 +14,7 @@ import typer
 
 from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
-from lensmount.cli.simulate import TerminalObserver, _duration
+from lensmount.cli.simulate import duration, observed
 from lensmount.errors import InputError
 from lensmount.loop.compare import CompareOptions, compare as run_compare, verdict_row
 
@@ -60,17 +59,13 @@ def compare(
     from rich.console import Console
     from rich.table import Table
 
-    observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,
                                  photons_per_pass, time_s)
-        result = run_compare(options, observer)
     except InputError as error:
-        observer.close()
         fail(error)
-    finally:
-        observer.close()
+    result = observed(run_compare, options)
     v = result.verdict
     console = Console()
     for note in result.notes:
@@ -88,6 +83,6 @@ def compare(
     typer.echo(f"verdict: {v.verdict}" + (f" — {v.note}" if v.note else ""))
     if v.verdict == UNDECIDED and v.more_photons is not None:
         typer.echo(f"to decide: about {v.more_photons:,} more photons over both runs "
-                   f"(~{_duration(v.more_time_s)} at their speed)")
+                   f"(~{duration(v.more_time_s)} at their speed)")
     typer.echo("wrote " + ", ".join(str(p) for p in result.paths.values()))
     raise typer.Exit(code=result.exit_code)

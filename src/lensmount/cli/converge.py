@@ -8,17 +8,8 @@ from typing import Optional
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.cli.simulate import duration
 from lensmount.errors import InputError
-
-
-def _duration(seconds: float | None) -> str:
-    if seconds is None:
-        return "unknown (no error bar yet)"
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 @app.command()
@@ -66,6 +57,6 @@ def converge(
                        "uncertain by ±25 % or more (a smaller --photons-per-pass gives more passes)")
         slope = "—" if c.slope is None else f"{c.slope:+.2f}"
         rate = "at the fitted slope" if c.halving_rate == "fitted" else "at the 1/√t rate (fitted slope implausible)"
-        typer.echo(f"  slope {slope} (ideal −0.50); halving the error once more takes ~{_duration(c.next_halving_s)}"
+        typer.echo(f"  slope {slope} (ideal −0.50); halving the error once more takes ~{duration(c.next_halving_s, 'unknown (no error bar yet)')}"
                    + (f" {rate}" if c.next_halving_s is not None else ""))
     typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))

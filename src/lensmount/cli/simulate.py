@@ -19,9 +19,10 @@ from lensmount.loop import Observer, PassStatus, SimulateOptions, simulate as ru
 from lensmount.loop.progress import next_halving_s
 
 
-def _duration(seconds: float | None) -> str:
+def duration(seconds: float | None, unknown: str = "—") -> str:
+    """A time as an engineer reads it: s below 90 s, min below 90 min, else h."""
     if seconds is None:
-        return "—"
+        return unknown
     if seconds < 90:
         return f"{seconds:.0f} s"
     if seconds < 5400:
@@ -37,7 +38,7 @@ def describe(s: PassStatus) -> str:
     if s.error_slope is not None:
         text += f" (∝ t^{s.error_slope:+.2f})"
     if s.target_rel_error is not None:
-        text += f" · target {100 * s.target_rel_error:g} % in ~{_duration(s.eta_s)}"
+        text += f" · target {100 * s.target_rel_error:g} % in ~{duration(s.eta_s)}"
     return text
 
 
@@ -97,6 +98,18 @@ class TerminalObserver(Observer):
         self._close()
 
 
+def observed(call, *args):
+    """call(*args, observer) with progress on stderr; an InputError becomes the one-paragraph exit 2."""
+    observer = TerminalObserver(live=sys.stderr.isatty())
+    try:
+        return call(*args, observer)
+    except InputError as error:
+        observer.close()
+        fail(error)
+    finally:
+        observer.close()
+
+
 @app.command()
 def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
@@ -133,16 +146,9 @@ def simulate(
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
                               photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
                               not no_record, list(sys.argv), scheduler, cluster)
-    observer = TerminalObserver(live=sys.stderr.isatty())
-    try:
-        result = run_simulation(options, observer)
-    except InputError as error:
-        observer.close()
-        fail(error)
-    finally:
-        observer.close()
+    result = observed(run_simulation, options)
     print_summary(result.summary, result.paths)
-    typer.echo(f"one more halving of the error: about {_duration(next_halving_s(result.summary['time_s']))} more")
+    typer.echo(f"one more halving of the error: about {duration(next_halving_s(result.summary['time_s']))} more")
     if result.run_id is not None:
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
     if result.interrupted:

@@ -9,7 +9,7 @@ from typing import List, Optional
 import typer
 
 from lensmount.cli import app, fail
-from lensmount.cli.simulate import TerminalObserver
+from lensmount.cli.simulate import observed
 from lensmount.errors import InputError
 from lensmount.loop import SimulateOptions
 from lensmount.loop.sweep import Param, SweepOptions, sweep as run_sweep
@@ -40,18 +40,14 @@ def sweep(
 
     Writes OUT/variants/NN/ (design copy, geometry, results), OUT/sweep.csv and OUT/sweep.png.
     """
-    observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         params = tuple(Param.parse(p) for p in param)
-        base = SimulateOptions(design, scene, method=method, seed=seed, photons_per_pass=photons_per_pass,
-                               passes=passes, time_s=time_s, target_rel_error=target_rel_error, workers=workers,
-                               argv=list(sys.argv), scheduler=scheduler, cluster=cluster, record=False)
-        result = run_sweep(SweepOptions(design, scene, params, out, base, confidence), observer)
     except InputError as error:
-        observer.close()
         fail(error)
-    finally:
-        observer.close()
+    base = SimulateOptions(design, scene, method=method, seed=seed, photons_per_pass=photons_per_pass,
+                           passes=passes, time_s=time_s, target_rel_error=target_rel_error, workers=workers,
+                           argv=list(sys.argv), scheduler=scheduler, cluster=cluster, record=False)
+    result = observed(run_sweep, SweepOptions(design, scene, params, out, base, confidence))
     _print(result, params)
 
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from lensmount.validation import did_you_mean, input_error, line_of_key, parse_toml
+from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, parse_toml
 from lensmount.errors import InputError
 
 SeatStyle = Literal["spacer", "shoulder", "retainer"]
@@ -147,7 +147,7 @@ class Tessellation(_Strict):
     angular_tolerance_deg: float = Field(6.0, gt=0, le=45)
 
 
-class MountSpec(_Strict):
+class MountSpec(ReadFromFile, _Strict):
     """The whole mount.toml."""
 
     name: str = "mount"
@@ -174,8 +174,6 @@ class MountSpec(_Strict):
                 raise ValueError(f"unknown part kind {k!r}; valid: {', '.join(KNOWN_KINDS)}")
         return v
 
-    _file: str | None = PrivateAttr(None)
-    _text: str | None = PrivateAttr(None)
 
     def exclusion_deg(self, max_field_deg: float) -> float:
         """The smallest sun angle off the axis: [hood] exclusion_deg, else the largest field + 5°."""
@@ -188,16 +186,6 @@ class MountSpec(_Strict):
         """Every finish the file names: field path ('barrel.finish', 'finishes.vane-2') → finish."""
         out = {f"{table}.finish": getattr(self, table).finish for table in FINISH_TABLES}
         return out | {f"finishes.{part}": name for part, name in self.finishes.items()}
-
-    @property
-    def source_file(self) -> str | None:
-        """The mount.toml this spec was read from (None for a spec built in code)."""
-        return self._file
-
-    @property
-    def source_text(self) -> str | None:
-        """The file's text, so errors found later (against a scene) can name their line."""
-        return self._text
 
 
 def check_finish_parts(mount: MountSpec, part_names) -> None:

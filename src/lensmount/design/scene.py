@@ -54,9 +54,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from lensmount.validation import did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
+from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
 from lensmount.errors import InputError
 from lensmount.scene.finishes import check_rules, finish_library
 from lensmount.trace.interfaces import parse_coating
@@ -142,7 +142,7 @@ class ObjectSpec(_Strict):
         return self
 
 
-class SceneSpec(_Strict):
+class SceneSpec(ReadFromFile, _Strict):
     """A validated scene file (see the module docstring for every key)."""
 
     description: str = ""
@@ -157,18 +157,6 @@ class SceneSpec(_Strict):
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
-    _file: str | None = PrivateAttr(None)
-    _text: str | None = PrivateAttr(None)
-
-    @property
-    def source_file(self) -> str | None:
-        """The scene file this spec was read from (None for a spec built in code)."""
-        return self._file
-
-    @property
-    def source_text(self) -> str | None:
-        """The scene file's text, so errors found later (scene.build) can name their line."""
-        return self._text
 
     @field_validator("coatings")
     @classmethod
