@@ -61,7 +61,7 @@ def gather_cores(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_th
     for t, b in enumerate(bsdf_of_tag):
         if b is None or b.is_black or b.is_delta:
             continue
-        if float(getattr(b, "lobe_half_width_deg", math.inf)) >= threshold_deg:
+        if float(b.lobe_half_width_deg) >= threshold_deg:
             core[t] = 0.0
         elif gatherable_share(b, cone) >= min_share:
             core[t] = cone

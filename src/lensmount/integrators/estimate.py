@@ -84,7 +84,7 @@ class Film:
         self._n_pix = det.nx * det.ny
         self._flux = np.zeros(len(self.channels) * self._n_pix)  # Σ Φ·response per (channel, pixel)
         self._images = np.zeros((len(self.channels), det.ny, det.nx))  # gathered E/E_sun
-        response = getattr(det, "spectral_weight", None)
+        response = det.spectral_weight
         self._response = None if response is None else np.asarray(response, np.float64)
 
     def channel(self, part: np.ndarray, reflections: np.ndarray) -> np.ndarray:

@@ -154,7 +154,7 @@ def _pilot(scene, tracer, det, broad, seed, rim, n_rays):
     if rim is None or len(tags) == 0:
         return None
     rng = stream(seed, "pilot", 0)
-    n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
+    n_wl = len(scene.wavelengths_um)
     r_max = math.hypot(det.width / 2, det.height / 2)
     # Stage 1: the paraxial annulus. Stage 2: the stage-1 fit with a band twice the final one.
     proposal = rim

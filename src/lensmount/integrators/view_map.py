@@ -64,14 +64,14 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
 def exit_disc(scene, det: Detector, margin: float = 0.05) -> ExitDisc | None:
     """Disc covering the optical surface nearest the detector, in the plane of its point nearest
     the detector, radius = clear semi-diameter · (1 + margin) + 0.5 mm. None without optics."""
-    optical = list(getattr(scene, "optical", []) or [])
+    optical = list(scene.optical)
     if not optical:
         return None
     facing = -1.0 if det.z >= max(s.z_vertex for s in optical) else 1.0
     last = max(optical, key=lambda s: facing * -s.z_vertex)
     h = float(last.clear_semi_diameter)
     if not math.isfinite(h) or h <= 0:
-        h = float(getattr(last, "mechanical_semi_diameter", math.inf))
+        h = float(last.mechanical_semi_diameter)
     if not math.isfinite(h) or h <= 0:
         return None  # unknown size: the hemisphere alone
     sag_edge = float(last.profile.sag(np.array([h * h]))[0])
@@ -92,7 +92,7 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
     """
     mesh = scene.mesh
     edge_tags = [k for k, t in enumerate(mesh.tag_table) if t.role == "diaphragm-edge" and k < len(broad) and broad[k]]
-    optical = sorted(getattr(scene, "optical", []) or [], key=lambda s: s.z_vertex)
+    optical = sorted(scene.optical, key=lambda s: s.z_vertex)
     if not edge_tags or not optical:
         return None
     tri = mesh.triangles[np.isin(mesh.tags, edge_tags)]
@@ -155,7 +155,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     paths = ray_streams(rng, n)
     u = paths.random((n, 6))
     x = det.sample_points(pixel, u[:, 0:2])
-    n_wl = len(getattr(scene, "wavelengths_um", [0.5876]))
+    n_wl = len(scene.wavelengths_um)
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)  # drawn first: the learned target depends on it
     disc = exit_disc(scene, det)
     learned = None
@@ -171,7 +171,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
             else:
                 targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
     omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
-    response = getattr(scene.detector, "spectral_weight", None)
+    response = scene.detector.spectral_weight
     if response is not None:  # the detector's spectral response weights each sample's wavelength
         w = w * np.asarray(response, np.float64)[wl]
     live = w > 0
