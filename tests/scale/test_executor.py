@@ -92,7 +92,8 @@ def test_killed_run_resumes_identically_and_leaves_no_process(tmp_path, how):
     resumed, _ = _run(tmp_path, 10, 2, "--resume")
     straight, _ = _run(tmp_path, 10, 2, name="straight.npz")
     assert resumed["flux"] == straight["flux"]
-    assert resumed["elapsed_s"] > 0.6  # the time before the kill is counted too (3 passes × 0.2 s)
+    # The time before the kill is counted too: "merged 3" is printed after two 0.2 s pauses.
+    assert resumed["elapsed_s"] > 0.4
 
 
 def test_bad_cluster_is_refused_before_anything_is_built(tmp_path):
