@@ -116,6 +116,7 @@ def _edge_tau(scene, tracer, pilot_seed, passes, spp=300):
     return np.array(out)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_edge_view_map_is_unbiased_and_far_denser_with_the_learned_band(case1):
     scene, tracer = case1
     broad, _ = classify(scene.bsdf_of_tag)
@@ -133,6 +134,7 @@ def test_edge_view_map_is_unbiased_and_far_denser_with_the_learned_band(case1):
     assert s_new < s_old
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_same_seed_same_pass_whatever_the_order(case1):
     scene, tracer = case1
     T._CACHE.clear()

@@ -53,6 +53,7 @@ def test_a_0_05_degree_gaussian_lobe():
     assert bi[0] > 0 and _covers(bi, fw), (bi, fw)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 @pytest.mark.parametrize("rho", [1e-6, 1.0])
 def test_extreme_reflectance(rho):
     bi, fw = _bidir_vs_forward(singlet_barrel(make_bsdf("lambertian", reflectance=rho)))
@@ -104,6 +105,7 @@ def test_sun_at_89_degrees_agrees_with_forward():
     assert _covers(bi, fw), (bi, fw)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_hit_points_on_the_50_um_diaphragm_edge():
     """Case 1 geometry: only the edge's channel lights up, and halving the edge halves it."""
     out = {}

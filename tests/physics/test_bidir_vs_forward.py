@@ -37,6 +37,7 @@ def _agree(a, b, k=3.0):
     return abs(ma - mb) <= k * math.hypot(sa, sb)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_lambertian_barrel_agrees_with_forward():
     scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.1))
     tracer = Tracer(scene)
@@ -47,6 +48,7 @@ def test_lambertian_barrel_agrees_with_forward():
     assert _agree(bi, fw), (bi, fw)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_glossy_rule_on_a_5_degree_gaussian_barrel_agrees_with_forward():
     """5° lobe < the 15° threshold: its light is counted by the photons (last-vertex rule)."""
     scene = singlet_barrel(make_bsdf("gaussian", reflectance=0.1, half_width_deg=5.0))
@@ -59,6 +61,7 @@ def test_glossy_rule_on_a_5_degree_gaussian_barrel_agrees_with_forward():
     assert _agree(ga, fw), (ga, fw)
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_relative_error_does_not_grow_as_the_tis_falls():
     """The seed paper's claim is about cost: at a fixed number of photons the bidirectional
     estimate's relative error does not depend on the TIS (an analog forward tracer's grows as

@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from lens_scenes import singlet_barrel  # noqa: E402
@@ -46,6 +47,7 @@ def _mean_se(values):
     return v.mean(), v.std(ddof=1) / math.sqrt(len(v))
 
 
+@pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_three_wavelengths_with_source_weights_and_detector_response():
     base = singlet_barrel(make_bsdf("lambertian", reflectance=0.1))
     scene = _three_wavelengths(base)
