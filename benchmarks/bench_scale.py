@@ -14,7 +14,6 @@ import os
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,19 +22,12 @@ PHOTONS = 100_000
 
 
 def _scene():
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
-    from lensmount.design.folder import load_design
-    from lensmount.design.scene import scene_from_dict
-    from lensmount.scene.build import build_scene
+    """Case 2 at 150 × 150 px, through the loop's own first half (validated inputs, cached geometry)."""
+    from lensmount.loop.prepare import build, read_inputs
 
-    out = Path(tempfile.gettempdir()) / "lensmount-bench-geometry"
-    manifest = regenerate(DESIGN, out)
-    path = DESIGN / "scenes" / "case2-lambertian.toml"
-    doc = tomllib.loads(path.read_text())
-    doc["detector"]["pixels"] = [150, 150]
-    spec = scene_from_dict(doc, base_dir=str(path.parent))
-    return build_scene(load_design(DESIGN).prescription, TaggedMesh.load(out / manifest.mesh), spec)
+    design, spec = read_inputs(DESIGN, DESIGN / "scenes" / "case2-lambertian.toml")
+    spec = spec.model_copy(update={"detector": spec.detector.model_copy(update={"pixels": (150, 150)})})
+    return build(design, spec, Path(tempfile.gettempdir()) / "lensmount-bench-geometry").scene
 
 
 def _timed(scene, executor, passes: int):
