@@ -75,6 +75,7 @@ class PlanarScene:
             table.append(FaceTag(f.part, "barrel", "mount", "x", face=t))
         self.mesh = TaggedMesh(np.array(verts), np.array(tris), np.array(tags), table)
         self.bsdf_of_tag = self.bsdfs
+        self.finish_of_tag = ["x"] * len(table)  # Scene's contract: the finish each face has
         self.solid_index_of_tag = np.ones((len(table), len(self.wavelengths_um)))  # no glass: Scene's contract
 
 

@@ -18,8 +18,8 @@ pixels = [600, 600]          # [nx, ny]
 # spectral_weight = [1.0]    # one per lens wavelength (relative response)
 
 [effects]
-scatter = true
-ghosts = false
+scatter = true               # true | false | ["part:NAME", "role:ROLE", "kind:KIND", "finish:NAME", ...]
+ghosts = false               # true | false | { order = 2 } (2 or 3 reflections)
 direct = false
 
 [coatings]
@@ -103,10 +103,45 @@ class DetectorSpec(_Strict):
         return v
 
 
+SCATTER_SELECTORS = ("part", "role", "kind", "finish")
+
+
+class GhostsSpec(_Strict):
+    order: Literal[2, 3] = 2
+
+
 class EffectsSpec(_Strict):
-    scatter: bool = True
-    ghosts: bool = False
+    """`scatter`: true (every mechanical face scatters with its finish), false (every one absorbs),
+    or the faces that scatter as selectors (`part:NAME`, `role:ROLE`, `kind:KIND`, `finish:NAME`,
+    the finish the scene gives the face); every other mechanical face ends the path. The
+    selectors are checked against the built assembly (`scene.build.check_scatterers`).
+    `ghosts`: true (= order 2), false, or `{ order = 2 | 3 }`: Fresnel reflections at glass up to
+    that many per path. `direct`: unscattered light on the detector."""
+
+    scatter: bool | tuple[str, ...] = True
+    ghosts: bool | GhostsSpec = False
     direct: bool = False
+
+    @field_validator("scatter")
+    @classmethod
+    def _selectors(cls, v):
+        if isinstance(v, bool):
+            return v
+        if not v:
+            raise ValueError("an empty list selects no face; write scatter = false for no scattering")
+        for sel in v:
+            prefix, _, value = sel.partition(":")
+            if prefix not in SCATTER_SELECTORS or not value:
+                raise ValueError(f"scatter selector '{sel}' is not understood: use "
+                                 + ", ".join(f'"{p}:NAME"' for p in SCATTER_SELECTORS))
+        return v
+
+    @property
+    def ghost_order(self) -> int:
+        """Reflections per ghost path: 0 with ghosts off."""
+        if isinstance(self.ghosts, GhostsSpec):
+            return self.ghosts.order
+        return 2 if self.ghosts else 0
 
 
 class RunSpec(_Strict):
@@ -270,5 +305,5 @@ def _valid_keys(loc) -> str:
     return ", ".join(keys_at(SceneSpec, tuple(loc)))
 
 
-__all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "RunSpec", "ObjectSpec", "load_scene",
+__all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
            "scene_from_dict", "check_mount_finishes"]

@@ -14,7 +14,7 @@ One walk, bounce by bounce (pbrt's SPPM photon phase):
    left outside the lobe's core), which counts it instead.
 4. *Yield* the bounce (the bidirectional integrator gathers the photons at faces here).
 5. *Scatter* at mechanical faces by the face's BSDF, Φ ← Φ · f cos θo / pdf; absorbers (and
-   every face when `effects.scatter` is off) end the photon. From `roulette_after` scatterings
+   every face when `effects.scatter` is off, or outside its `scatterers`) end the photon. From `roulette_after` scatterings
    on, Russian roulette keeps a photon with q = min(1, Φ / (roulette_level · Φ0)) and divides
    Φ by q (unbiased). At `max_bounces` scatterings the walk stops.
 
@@ -32,6 +32,7 @@ import numpy as np
 from lensmount.integrators.estimate import EnergyLedger, Film
 from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
+from lensmount.scene.scene import scatterer_mask
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import Streams
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
@@ -69,9 +70,10 @@ def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int
 
 
 def scattering_tags(scene) -> np.ndarray:
-    """(n_tags,) bool: faces where a photon scatters on (BSDF neither missing nor black, scatter on)."""
+    """(n_tags,) bool: faces where a photon scatters on (BSDF neither missing nor black, and a
+    scatterer of the scene's effects: `scene.scatterer_mask`)."""
     on = np.array([b is not None and not b.is_black for b in scene.bsdf_of_tag], bool)
-    return on & bool(scene.effects.scatter)
+    return on & scatterer_mask(scene.effects, scene.mesh.tag_table, scene.finish_of_tag)
 
 
 def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings: EstimatorSettings, film: Film,

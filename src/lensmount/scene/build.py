@@ -23,7 +23,7 @@ from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
 from lensmount.scene.finishes import finish_library, finish_of
-from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene
+from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
 from lensmount.trace.detector import Detector
 from lensmount.trace.sources import CollimatedSource, SunSource, emission_disc, source_direction
 
@@ -152,9 +152,13 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                                  valid=f"{len(wavelengths)} non-negative numbers"), spec.source_file, spec.source_text)
     detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight)
     source = make_source(spec.source, opening, mesh, detector, tuple(prescription.wavelength_weights))
-    e = spec.effects
+    effects = effects_of(spec.effects)
+    try:
+        check_scatterers(effects, mesh, finishes)
+    except InputError as exc:
+        raise located(exc, spec.source_file, spec.source_text) from None
     return Scene(mesh=mesh, optical=optical, bsdf_of_tag=bsdfs, source=source, detector=detector,
-                 wavelengths_um=wavelengths, effects=Effects(e.scatter, e.ghosts, e.direct),
+                 wavelengths_um=wavelengths, effects=effects,
                  entrance_pupil_area_mm2=entrance_pupil_area(prescription),
                  solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths),
                  front_opening=opening, finish_of_tag=finishes, description=spec.description,
@@ -180,6 +184,30 @@ def entrance_pupil_area(prescription: Prescription) -> float:
         raise InputError(f"the entrance pupil diameter comes out as {epd:g} mm", field="aperture",
                          valid="a lens whose paraxial entrance pupil diameter is finite and > 0")
     return area
+
+
+def effects_of(spec) -> Effects:
+    """The Scene's Effects from a validated EffectsSpec."""
+    selectors = () if isinstance(spec.scatter, bool) else tuple(spec.scatter)
+    return Effects(scatter=bool(spec.scatter), ghosts=spec.ghost_order > 0, direct=bool(spec.direct),
+                   scatterers=selectors, ghost_order=spec.ghost_order or 2)
+
+
+def check_scatterers(effects: Effects, mesh: TaggedMesh, finishes: list[str]) -> None:
+    """InputError for a scatter selector that names no mechanical face: a misspelt one would
+    otherwise turn every face of the run into an absorber without a word."""
+    mechanical = [k for k, t in enumerate(mesh.tag_table) if t.role != "optical"]
+    for sel in effects.scatterers:
+        if faces_selected(sel, mesh.tag_table, finishes).any():
+            continue
+        prefix = sel.partition(":")[0]
+        names = [finishes[k] for k in mechanical] if prefix == "finish" else \
+            [str(getattr(mesh.tag_table[k], prefix)) for k in mechanical]
+        present = sorted(set(names))
+        guess = did_you_mean(sel.partition(":")[2], present)
+        hint = f" (did you mean '{prefix}:{guess}'?)" if guess else ""
+        raise InputError(f"scatter selector '{sel}' names no face of the assembly{hint}", field="effects.scatter",
+                         valid=f"{prefix}: " + ", ".join(present) + "; or scatter = true for every face")
 
 
 def check_object_names(objects, parts) -> None:
@@ -282,5 +310,5 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
+__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
            "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]

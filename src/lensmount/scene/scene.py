@@ -23,16 +23,49 @@ from lensmount.trace.interfaces import Coating
 
 @dataclass(frozen=True)
 class Effects:
-    """Which light paths a run builds (DESIGN.md, "Effects").
+    """Which light paths a run builds (DESIGN.md, "Effects"; the planner, `integrators.plan`).
 
     scatter: mechanical faces scatter with their finish (else every mechanical face absorbs).
-    ghosts: Fresnel reflections at glass (a reflection branch chosen with probability R).
+    ghosts: Fresnel reflections at glass are followed (else the ray transmits with weight T).
     direct: photons reaching the detector without scattering are recorded.
+    scatterers: with scatter on, the faces that scatter as selectors ("part:NAME", "role:ROLE",
+        "kind:KIND", "finish:NAME"); every other mechanical face ends the path. () = every face.
+    ghost_order: with ghosts on, the most Fresnel reflections a ghost path has (2 or 3).
     """
 
     scatter: bool = True
     ghosts: bool = False
     direct: bool = False
+    scatterers: tuple[str, ...] = ()
+    ghost_order: int = 2
+
+    def __post_init__(self):
+        if self.ghost_order not in (2, 3):
+            raise ValueError(f"Effects.ghost_order must be 2 or 3, got {self.ghost_order}")
+
+
+def faces_selected(selector: str, tag_table, finish_of_tag) -> np.ndarray:
+    """(n_tags,) bool: the mechanical faces one scatter selector names. `finish:` matches the
+    finish the scene gives the face (`finish_of_tag`), the one that scatters."""
+    prefix, _, value = selector.partition(":")
+    if prefix == "finish":
+        names = list(finish_of_tag) or [t.finish for t in tag_table]
+    else:
+        names = [str(getattr(t, prefix)) for t in tag_table]
+    return np.array([n == value and t.role != "optical" for n, t in zip(names, tag_table)], bool)
+
+
+def scatterer_mask(effects: Effects, tag_table, finish_of_tag) -> np.ndarray:
+    """(n_tags,) bool: faces the effects let scatter (all with `scatterers` empty; none with scatter off)."""
+    n = len(tag_table)
+    if not effects.scatter:
+        return np.zeros(n, bool)
+    if not effects.scatterers:
+        return np.ones(n, bool)
+    mask = np.zeros(n, bool)
+    for sel in effects.scatterers:
+        mask |= faces_selected(sel, tag_table, finish_of_tag)
+    return mask
 
 
 @dataclass(frozen=True, eq=False)
