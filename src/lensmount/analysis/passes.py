@@ -33,10 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lensmount.analysis.paths import PathSums
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import PassEstimate
 
-_STATE_VERSION = 5  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius scale
+_STATE_VERSION = 6  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
+# scale; 6: path signatures and per-face light (`analysis.paths.PathSums`)
 MIN_PASSES = 3  # below this the spread of the passes is no error bar (std error: inf)
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
 
@@ -74,6 +76,7 @@ class Accumulator:
     diagnostics : Σ over the passes of each count in `PassEstimate.diagnostics`
     last_pass : index of the last pass added (-1 before any)
     elapsed_s : wall time spent on the passes, summed over resumed parts of a run
+    paths : per path signature and per CAD face sums (`analysis.paths.PathSums`) of the passes that carry them
     """
 
     part_names: list[str]
@@ -92,6 +95,7 @@ class Accumulator:
     diagnostics: dict[str, float] = field(default_factory=dict)
     pass_part_flux_half: list[np.ndarray] = field(default_factory=list)
     pass_radius_scale: list[float] = field(default_factory=list)
+    paths: PathSums = field(default_factory=PathSums)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -131,6 +135,8 @@ class Accumulator:
         self.pass_part_flux.append(part_flux)
         self.pass_part_flux_half.append(half)
         self.pass_radius_scale.append(float(estimate.radius_scale))
+        if estimate.paths is not None:
+            self.paths.add(estimate.paths, estimate.faces)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
 
     # -- the answer ------------------------------------------------------------------------
@@ -259,6 +265,7 @@ class Accumulator:
             diagnostics_values=np.array([self.diagnostics[k] for k in sorted(self.diagnostics)], dtype=np.float64),
             pass_part_flux_half=np.asarray(self.pass_part_flux_half, dtype=np.float64).reshape(-1, len(self.part_names)),
             pass_radius_scale=np.asarray(self.pass_radius_scale, dtype=np.float64),
+            **self.paths.arrays(),
         )
         for key, value in meta.items():
             arrays[f"meta_{key}"] = np.array(value)
@@ -280,7 +287,8 @@ class Accumulator:
                       ledger={str(k): float(v) for k, v in zip(z["ledger_keys"], z["ledger_values"])},
                       diagnostics={str(k): float(v) for k, v in zip(z["diagnostics_keys"], z["diagnostics_values"])},
                       pass_part_flux_half=[row.copy() for row in z["pass_part_flux_half"]],
-                      pass_radius_scale=[float(v) for v in z["pass_radius_scale"]])
+                      pass_radius_scale=[float(v) for v in z["pass_radius_scale"]],
+                      paths=PathSums.from_arrays(z))
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 

@@ -36,7 +36,7 @@ def fail(error: InputError) -> None:
 
 # Modules that define commands; each does `@app.command()` at import.
 COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "history", "pst", "converge", "sweep",
-                   "ghosts", "fit_abg")
+                   "ghosts", "fit_abg", "paths")
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"lensmount.cli.{_name}")

@@ -9,7 +9,11 @@ One pass = three phases, as pbrt-v4's SPPM reads:
    every scattering face they meet they deposit into the hit points on the same face
    within r (`photon_gather.Gatherer`: Σ f Φ / (π r²)), then continue by sampling the
    BSDF, with Russian roulette on the throughput, so inter-reflections count.
-3. Update: pixel E_j = Σ_hit τ L_o, split by the part of the hit point's face.
+3. Update: pixel E_j = Σ_hit τ L_o, split by the part of the hit point's face, and by the
+   gathered photon's path signature (its scatter faces, then the hit point's face).
+
+The view map's backward samples also say which face the detector sees first from each pixel,
+whatever its finish (`Film.faces`: critical faces); the photons, which faces they reach (lit).
 
 The last-vertex rule (docs/bidirectional.md): every stray path is counted exactly once,
 by its LAST scattering vertex before the detector. Broad (Lambertian, or a lobe ≥
@@ -125,9 +129,10 @@ class Bidirectional:
                               view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel), broad=broad,
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
-                              neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics)
+                              neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
+                              faces=film.faces)
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
-                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0))
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on.
@@ -140,7 +145,8 @@ class Bidirectional:
             if at_face.any():
                 f = np.flatnonzero(at_face)
                 gatherer.gather(PhotonHits(ev.position[f], ev.direction[f], ev.normal[f], ev.weight[f],
-                                           ev.tag[f].astype(np.int32), ev.wavelength[f]))
+                                           ev.tag[f].astype(np.int32), ev.wavelength[f],
+                                           film.paths.extend(step.signature[f], ev.tag[f])))
 
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))

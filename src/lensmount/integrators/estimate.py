@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lensmount.integrators.paths import FaceTally, PassFaces, PassPaths, PathTally
+
 DIRECT, GHOSTS = "direct", "ghosts"
 
 
@@ -37,6 +39,8 @@ class PassEstimate:
     part_flux_half : (P,) per-part flux (mm²) of the same pass with every gather radius halved
         (same photons and hit points; None when the pass has no density estimate). The
         difference to `part_flux` measures the kernel bias (`Accumulator.bias_bound`).
+    paths : the same light by path signature (`integrators.paths`: ordered scatter faces, ghosts)
+    faces : light per CAD face: flux arriving (illuminated), étendue seen by the detector (critical)
     """
 
     image: np.ndarray
@@ -48,6 +52,8 @@ class PassEstimate:
     diagnostics: dict[str, float] = field(default_factory=dict)
     radius_scale: float = 0.0
     part_flux_half: np.ndarray | None = None
+    paths: PassPaths | None = None
+    faces: PassFaces | None = None
 
     @property
     def flux(self) -> float:
@@ -86,6 +92,8 @@ class Film:
         self._images = np.zeros((len(self.channels), det.ny, det.nx))  # gathered E/E_sun
         response = det.spectral_weight
         self._response = None if response is None else np.asarray(response, np.float64)
+        self.paths = PathTally(det.shape, det.pixel_area)
+        self.faces = FaceTally(len(scene.mesh.tag_table), det.shape, det.pixel_area, self.paths.block)
 
     def channel(self, part: np.ndarray, reflections: np.ndarray) -> np.ndarray:
         """(N,) channel of paths whose last scattering part is `part` (-1: none) after `reflections`
@@ -96,12 +104,15 @@ class Film:
             ch = np.where(unscattered & (reflections > 0), self._ghosts, ch)
         return ch.astype(np.int64)
 
-    def deposit(self, pixel: np.ndarray, flux: np.ndarray, wavelength: np.ndarray, channel: np.ndarray) -> None:
-        """Photons of flux (N,) [E_sun·mm²] landing in flat pixels (N,) (>= 0), into channels (N,) (>= 0)."""
+    def deposit(self, pixel: np.ndarray, flux: np.ndarray, wavelength: np.ndarray, channel: np.ndarray,
+                signature: np.ndarray) -> None:
+        """Photons of flux (N,) [E_sun·mm²] landing in flat pixels (N,) (>= 0), into channels (N,) (>= 0),
+        by paths `signature` (N,) (`integrators.paths`)."""
         if not len(pixel):
             return
         value = flux if self._response is None else flux * self._response[np.asarray(wavelength, np.int64)]
         self._flux += np.bincount(channel * self._n_pix + pixel, weights=value, minlength=len(self._flux))
+        self.paths.add(signature, pixel, value / self.detector.pixel_area)
 
     def add_images(self, per_channel: np.ndarray) -> None:
         """Irradiance images (channels, ny, nx) E/E_sun estimated otherwise (the gather)."""
@@ -117,7 +128,7 @@ class Film:
                                      f"y={iy}) ({int(bad.sum())} values in all)")
         return PassEstimate(image=per_part.sum(axis=0), per_part=per_part, part_names=list(self.channels),
                             pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict(),
-                            diagnostics=dict(diagnostics or {}))
+                            diagnostics=dict(diagnostics or {}), paths=self.paths.finish(), faces=self.faces.finish())
 
 
 class EnergyLedger:

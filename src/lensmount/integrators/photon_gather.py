@@ -85,6 +85,8 @@ class PhotonHits:
     position : (M, 3); direction : (M, 3) travel direction (toward the surface);
     normal : (M, 3) unit, on the side the photon came from; flux : (M,) Φ in E_sun·mm²;
     tag : (M,) int32; wavelength : (M,) int32
+    signature : (M,) int64 path signature ending with the scatter at this face (`integrators.paths`);
+        the empty path when the caller does not follow paths
     """
 
     position: np.ndarray
@@ -93,6 +95,11 @@ class PhotonHits:
     flux: np.ndarray
     tag: np.ndarray
     wavelength: np.ndarray
+    signature: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.signature is None:
+            self.signature = np.zeros(len(self.flux), np.int64)
 
 
 def outside_core(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, core) -> np.ndarray:
@@ -138,14 +145,18 @@ class Gatherer:
         count themselves on a glossy finish (`bidirectional.gather_cores`); f is gathered only
         outside it (`outside_core`). None or 0: the whole lobe is gathered.
 
+    paths : a `paths.PathTally` that gets every photon–hit-point contribution to the detector
+        irradiance (τ f Φ / A into the hit point's pixel) under the photon's signature; None: not kept.
+
     `radiance_half` is the same estimate over the disc of radius r/2 (same photons, area
     `area_half`): the difference between the two measures the kernel bias of the pass
     (`analysis.passes.Accumulator.bias_bound`).
     """
 
     def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = EstimatorSettings.normal_limit_deg, chunk: int = 100_000,
-                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None):
+                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None, paths=None):
         self.hits = hits
+        self.paths = paths
         self.chunk = int(chunk)
         self.bsdf_of_tag = bsdf_of_tag
         self.core_of_tag = core_of_tag
@@ -211,6 +222,8 @@ class Gatherer:
                                          f"{int(np.sum(~np.isfinite(value)))} photon-hit pairs (the finish's "
                                          f"BSDF value or the hit point's area is not finite)")
             self.radiance += np.bincount(hi, weights=value, minlength=len(h))
+            if self.paths is not None:
+                self.paths.add(photons.signature[pj], h.pixel[hi], h.weight[hi] * value)
             self.radiance_half += np.bincount(hi[half], weights=value_half, minlength=len(h))
 
     def part_flux_half(self, part_of_tag: np.ndarray, n_parts: int) -> np.ndarray:

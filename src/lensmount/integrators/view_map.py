@@ -135,12 +135,14 @@ def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixe
 def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
-                   radius_cap_mm: float = 5.0, stats: dict | None = None) -> HitPoints:
+                   radius_cap_mm: float = 5.0, stats: dict | None = None, faces=None) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     rng : `view_map_streams(...)` (one stream per sample), or a Generator (keys drawn from it)
     stats : when given, gets `view_map_samples` and `view_map_lost_samples` (backward rays ended by
         the tracer's numerical guards: their pixels see nothing this pass) added to it
+    faces : when given (a `paths.FaceTally`), gets the projected solid angle (τ / n_wl, sr) of every
+        sample at the first face it meets, whatever the finish (the faces the detector sees: critical)
 
     broad : (n_tags,) bool, tags where hit points are made
     half_widths : (n_tags,) the cap on r_0 per face (`radius.radius_caps`)
@@ -184,6 +186,11 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         stats["view_map_samples"] = stats.get("view_map_samples", 0) + n
         stats["view_map_lost_samples"] = stats.get("view_map_lost_samples", 0) + int(step.lost.sum())
     tag = step.tag
+    if faces is not None:
+        met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
+        # τ carries n_wl (a sample gathers one wavelength's photons): the solid angle is τ / n_wl.
+        faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air_radiance_factor(
+            scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met]))
     ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
     ok[ok] &= broad[tag[ok]]
     ok &= (step.weight > 0) & np.isfinite(step.weight)

@@ -9,7 +9,8 @@ One walk, bounce by bounce (pbrt's SPPM photon phase):
    mechanical face, the detector, or out; its random numbers are keyed by
    (seed, purpose, photon, bounce).
 3. *Detector*: a photon landing on the detector goes into the film channel of its last
-   scattering part (or `direct` / `ghosts`), unless the caller gathers its last scattering
+   scattering part (or `direct` / `ghosts`) and under its path signature (`integrators.paths`:
+   the faces it scattered at and its ghost reflections, in order), unless the caller gathers its last scattering
    (`gathered`: the bidirectional last-vertex rule; on a glossy finish only a scatter that
    left outside the lobe's core), which counts it instead.
 4. *Yield* the bounce (the bidirectional integrator gathers the photons at faces here).
@@ -30,6 +31,7 @@ from typing import Iterator
 import numpy as np
 
 from lensmount.integrators.estimate import EnergyLedger, Film
+from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.scene.scene import scatterer_mask
@@ -52,12 +54,14 @@ class Bounce:
     part : (N,) int32 part (into mesh.parts) of the last scattering vertex before it, -1 = none
     reflections : (N,) Fresnel reflections so far along the path (ghosts)
     scatterings : scattering events so far (the same for every photon of the step)
+    signature : (N,) int64 path signature up to the event (`integrators.paths`), not yet the face reached
     """
 
     events: Events
     part: np.ndarray
     reflections: np.ndarray
     scatterings: int
+    signature: np.ndarray
 
 
 def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int) -> RayBatch:
@@ -96,6 +100,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
     part = np.full(len(rays), -1, np.int32)
     by_gather = np.zeros(len(rays), bool)  # the last scatter is the gather's to count
     reflections = np.zeros(len(rays), np.int32)
+    signature = np.full(len(rays), EMPTY, np.int64)
     start_normal = None  # photons start in free space; after a scatter, on the face they left
     for bounce in range(settings.max_bounces + 1):
         if len(rays) == 0:
@@ -103,15 +108,20 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         streams = Streams(seed, purpose, rays.id, step=bounce)
         ev = tracer.next_event(rays, streams, start_normal)
         reflections = reflections + ev.reflections
+        ghost = np.flatnonzero(ev.reflections > 0)
+        if len(ghost):
+            signature = signature.copy()
+            signature[ghost] = film.paths.extend(signature[ghost], ghost_code(ev.reflections[ghost]))
         ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off)
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
-        _to_film(film, ledger, ev, part, by_gather, reflections)
-        yield Bounce(ev, part, reflections, bounce)
+        _to_film(film, ledger, ev, part, by_gather, reflections, signature)
+        yield Bounce(ev, part, reflections, bounce, signature)
 
         face = np.flatnonzero(ev.kind == FACE)
         tag = ev.tag[face]
         w_in = ev.weight[face]
+        film.faces.add_lit(tag, w_in)
         if bounce == settings.max_bounces:
             ledger.add("lost/bounce_limit", w_in)
             return
@@ -140,10 +150,11 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         else:
             by_gather = np.zeros(len(keep), bool)
         reflections = reflections[keep]
+        signature = film.paths.extend(signature[keep], tag[ok])
         w0 = w0[keep]
 
 
-def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, reflections) -> None:
+def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, reflections, signature) -> None:
     """Photons on the detector: onto the film by channel, or to the gather's account, or effect off."""
     hit = ev.kind == DETECTOR
     if not hit.any():
@@ -153,7 +164,8 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, 
     channel = film.channel(part, reflections)
     by_gather = hit & gathered_last
     counted = hit & ~by_gather & (channel >= 0)
-    film.deposit(ev.pixel[counted], ev.weight[counted], ev.wavelength[counted], channel[counted])
+    film.deposit(ev.pixel[counted], ev.weight[counted], ev.wavelength[counted], channel[counted],
+                 signature[counted])
     ledger.add_by("detector", film.channels, channel[counted], ev.weight[counted])
     ledger.add_by("detector_gathered", film.channels, channel[by_gather], ev.weight[by_gather])
     ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted])

@@ -21,6 +21,7 @@ from lensmount.loop.provenance import collect
 
 METHODS = ("bidirectional", "forward")
 CHECKPOINT = "checkpoint.npz"
+PATHS = "paths.npz"  # per-path and per-face sums for `lensmount paths` (analysis.paths.write_paths)
 
 
 @dataclass(frozen=True)
@@ -203,7 +204,11 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     if o.resume:
         if not checkpoint.exists():
             raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
-        acc, meta = Accumulator.load(checkpoint)
+        try:
+            acc, meta = Accumulator.load(checkpoint)
+        except ValueError as error:  # another lensmount version's layout: say so, no traceback
+            raise InputError(f"the checkpoint cannot be resumed: {error}", file=str(checkpoint),
+                             valid="a checkpoint this lensmount version wrote; run again without --resume") from None
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
                          list(design.template_paths.values()), o.argv)
@@ -214,6 +219,7 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
     from lensmount.analysis.passes import Accumulator
+    from lensmount.analysis.paths import face_areas, face_report, scene_tags, top_paths, write_paths
     from lensmount.analysis.summary import build_summary
     from lensmount.executor import executor_for
     from lensmount.integrators.estimate import film_channels
@@ -256,18 +262,23 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
     runner.run(stopping)
 
+    tags, areas = scene_tags(sc), face_areas(sc.mesh)
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
                             aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
                                    "no_light_enters": no_light,
+                                   "top_paths": top_paths(acc.paths, tags, aperture),
+                                   "faces": face_report(acc.paths, tags, areas, aperture),
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
     det = sc.detector
     paths = write_run(out, acc, summary, extent_mm=(-det.width / 2, det.width / 2, -det.height / 2, det.height / 2),
                       field_radius_mm=_field_radius(design.prescription))
+    paths["paths"] = out / PATHS
+    write_paths(paths["paths"], acc.paths, tags, areas, aperture, (-det.width / 2, det.width / 2, -det.height / 2, det.height / 2))
     result = SimulateResult(out, summary, paths, runner.interrupted, runner.terminated, warnings=warnings)
     if o.record and not runner.interrupted:
         from lensmount.store import Store, default_path
