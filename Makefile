@@ -39,12 +39,16 @@ browser:
 	  fi; \
 	fi
 
+# Two pytest workers, one per core; a test file stays on one worker (its module fixtures are built once).
+# PYTEST_WORKERS= (empty) runs in one process.
+PYTEST_WORKERS ?= -n 2 --dist loadfile
+
 # CI subset: everything but the tests marked slow.
 test: install-test browser
-	$(PY) -m pytest -m "not slow" -q
+	$(PY) -m pytest -m "not slow" -q $(PYTEST_WORKERS)
 
 test-all: install-test browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_WORKERS)
 
 bench: install-test
 	$(PY) -m pip install --quiet -e '.[test,bench]'
