@@ -123,7 +123,8 @@ class PlanarTracer:
         prim = np.where(kind == FACE, 2 * which, -1).astype(np.int64)  # each face is two triangles
         pixel = np.where(kind == DETECTOR, det.pixel_of(pos), -1)
         return Events(kind, pos, d.copy(), nrm, tag, prim, pixel, np.where(rays.alive, rays.weight, 0.0),
-                      rays.wavelength.copy(), rays.id.copy(), np.zeros(n, bool), np.zeros(n, np.int32))
+                      rays.wavelength.copy(), rays.id.copy(), np.zeros(n, bool), np.zeros(n, np.int32),
+                      np.full((n, 2), -1, np.int32))
 
 
 class Lambert:

@@ -5,16 +5,21 @@ sample standard deviation over the per-pass series, block sums of dense images.
 """
 
 import math
+import sys
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from lensmount.analysis.passes import Accumulator, t_factor
-from lensmount.analysis.paths import PathSums, signature_from_hex, top_paths
-from lensmount.cad.mesh import FaceTag
-from lensmount.integrators.estimate import PassEstimate
-from lensmount.integrators.paths import EMPTY, FaceTally, PathTally, ghost_code, signature_of
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lens_scenes import singlet_barrel  # noqa: E402
+
+from lensmount.analysis.passes import Accumulator, t_factor  # noqa: E402
+from lensmount.analysis.paths import PathSums, signature_from_hex, top_paths  # noqa: E402
+from lensmount.cad.mesh import FaceTag  # noqa: E402
+from lensmount.integrators.estimate import PassEstimate  # noqa: E402
+from lensmount.integrators.paths import EMPTY, FaceTally, PathTally, ghost_code, ghost_of, signature_of  # noqa: E402
 
 
 def _sig(codes):
@@ -44,8 +49,10 @@ def test_tally_records_events_and_sums_flux_and_binned_images():
     tally = PathTally(shape, area, max_side=3)  # block 2: a 2 × 3 binned image
     assert tally.block == 2
     a = tally.extend(np.zeros(3, np.int64), np.array([4, 4, 9]))
-    b = tally.extend(a[:2], ghost_code(np.array([2, 2])))
-    assert tally.events[int(a[0])] == (4,) and tally.events[int(b[0])] == (4, -2)
+    g = ghost_code(np.array([2, 2]), np.array([5, 5]), np.array([2, 2]))
+    b = tally.extend(a[:2], g)
+    assert tally.events[int(a[0])] == (4,) and tally.events[int(b[0])] == (4, int(g[0]))
+    assert ghost_of(int(g[0])) == (2, 5, 2) and ghost_of(int(ghost_code([1], [0], [-1])[0])) == (1, 0, -1)
     rng = np.random.default_rng(0)
     sig = rng.choice(np.array([a[0], a[2], b[0]]), 500)
     pixel = rng.integers(0, 24, 500)
@@ -143,3 +150,23 @@ def test_an_old_checkpoint_is_refused_with_its_version(tmp_path):
     with pytest.raises(ValueError, match="version 5"):
         Accumulator.load(tmp_path / "old.npz")
     assert not math.isnan(acc.flux)
+
+
+def test_a_singlet_ghost_is_named_by_its_surface_pair_and_fills_the_ghosts_channel():
+    """Uncoated singlet, black barrel, sun on axis: the only two-reflection ghost reaching the
+    detector reflects at surface 2 (back toward the sun), then at surface 1 (1-based)."""
+    from lensmount.integrators.forward import forward_pass
+    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.trace.tracer import Tracer
+
+    scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=0.0, ghosts=True, coating="uncoated", detector_mm=40.0)
+    est = forward_pass(scene, Tracer(scene), 50_000, 3, 0)
+    paths = est.paths
+    ghosts = est.part_flux[est.part_names.index("ghosts")]
+    assert ghosts > 0
+    tags = list(scene.mesh.tag_table)
+    from lensmount.analysis.paths import describe_event
+
+    named = {tuple(describe_event(c, tags)["name"] for c in paths.events[int(s)]): f
+             for s, f in zip(paths.signature, paths.flux)}
+    assert named == {("ghost S2–S1",): pytest.approx(ghosts, rel=1e-12)}

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
-from lensmount.integrators.paths import EMPTY, PassFaces, PassPaths, binned_pixel, binned_shape
+from lensmount.integrators.paths import EMPTY, PassFaces, ghost_of, PassPaths, binned_pixel, binned_shape
 
 KEPT_IMAGES = 48  # paths whose images the run keeps (the most flux so far)
 FACE_LIST = 10  # faces per list in the report
@@ -178,7 +178,10 @@ class PathSums:
 def describe_event(code: int, tag_table) -> dict:
     """One event in the CAD's words."""
     if code < 0:
-        return {"ghost_reflections": -int(code), "role": "ghost", "name": f"ghost ({-int(code)} reflections)"}
+        n, first, second = ghost_of(code)
+        pair = [s + 1 for s in (first, second) if s >= 0]  # 1-based, as Zemax and the ghost report
+        return {"ghost_reflections": n, "ghost_pair": pair, "role": "ghost",
+                "name": f"ghost {'–'.join(f'S{s}' for s in pair)}" + (f" ({n} reflections)" if n != 2 else "")}
     t = tag_table[code]
     return {"part": t.part, "face": int(t.face), "role": t.role, "kind": t.kind, "finish": t.finish, "tag": int(code),
             "name": f"{t.part} face {int(t.face)} ({t.role})"}

@@ -5,7 +5,8 @@ An optics engineer asks "where does this stray light come from?" in the words of
 carries that sequence as one int64, its *signature*:
 
 - codes: a scatter at mesh tag t (one CAD face of one part, `cad.mesh.FaceTag`) is code t ≥ 0;
-  a stretch of propagation with n Fresnel (ghost) reflections is code `ghost_code(n)` < 0;
+  a stretch of propagation with n Fresnel (ghost) reflections, the first two at prescription
+  surfaces i and j (0-based; j = −1 for one), is code `ghost_code(n, i, j)` < 0 (`ghost_of` decodes);
 - `signature_of(parent, code)`: a 64-bit hash of (parent signature, code), built as the photons
   walk, one vectorised call per event; the empty path (the direct image) is `EMPTY` = 0.
 
@@ -32,9 +33,21 @@ _M1, _M2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
 _CODE_OFFSET = np.uint64(1 << 32)  # codes ≥ −2³² stay distinct after the shift
 
 
-def ghost_code(reflections: np.ndarray) -> np.ndarray:
-    """Code of a propagation stretch with n ≥ 1 Fresnel reflections: −n."""
-    return -np.asarray(reflections, np.int64)
+_SURFACES = 1024  # prescription surfaces a ghost code can name
+
+
+def ghost_code(reflections: np.ndarray, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """(N,) code of a propagation stretch with n ≥ 1 Fresnel reflections, the first two at surfaces
+    `first` and `second` (0-based prescription indices, −1 none): −(1 + (i+1) + S (j+1) + S² min(n, 63))."""
+    n = np.minimum(np.asarray(reflections, np.int64), 63)
+    return -(1 + (np.asarray(first, np.int64) + 1) + _SURFACES * (np.asarray(second, np.int64) + 1)
+             + _SURFACES * _SURFACES * n)
+
+
+def ghost_of(code: int) -> tuple[int, int, int]:
+    """(reflections, first surface, second surface) of a ghost code (surfaces 0-based, −1 none)."""
+    x = -int(code) - 1
+    return x // (_SURFACES * _SURFACES), x % _SURFACES - 1, (x // _SURFACES) % _SURFACES - 1
 
 
 def signature_of(parent: np.ndarray, code: np.ndarray) -> np.ndarray:
@@ -195,5 +208,5 @@ class FaceTally:
         return PassFaces(self.lit.copy(), None if self.seen is None else self.seen.copy(), *self._images)
 
 
-__all__ = ["EMPTY", "PATH_IMAGE_MAX", "ghost_code", "signature_of", "binning", "binned_shape", "binned_pixel",
+__all__ = ["EMPTY", "PATH_IMAGE_MAX", "ghost_code", "ghost_of", "signature_of", "binning", "binned_shape", "binned_pixel",
            "PassPaths", "PathTally", "PassFaces", "FaceTally"]

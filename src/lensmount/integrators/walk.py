@@ -93,6 +93,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
     parts = list(mesh.parts)
     part_of_tag = mesh.part_of_tag() if mesh.tag_table else np.zeros(0, np.int32)
     scatters = scattering_tags(scene)
+    surface_index = np.array([s.index for s in scene.optical] + [-1], np.int64)  # [-1]: position -1 → none
     rays = rays.subset(rays.alive & (rays.weight > 0))
     _require_finite(rays.weight, "emitted photon flux", "the source")
     ledger.add("source", rays.weight)
@@ -111,7 +112,9 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         ghost = np.flatnonzero(ev.reflections > 0)
         if len(ghost):
             signature = signature.copy()
-            signature[ghost] = film.paths.extend(signature[ghost], ghost_code(ev.reflections[ghost]))
+            pair = surface_index[ev.ghost_pair[ghost]]
+            signature[ghost] = film.paths.extend(signature[ghost], ghost_code(ev.reflections[ghost], pair[:, 0],
+                                                                              pair[:, 1]))
         ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off)
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])

@@ -90,6 +90,8 @@ class Events:
     wavelength, id : (N,) carried through
     lost : (N,) bool, ended by a numerical guard (its weight is the lost flux)
     reflections : (N,) int32 Fresnel (ghost) reflections during this call (TIR not counted)
+    ghost_pair : (N, 2) int32 the optical surfaces (positions in `scene.optical`) of the first two of
+        them, in order; -1 where fewer happened (the path signature's ghost pair)
     """
 
     kind: np.ndarray
@@ -104,6 +106,7 @@ class Events:
     id: np.ndarray
     lost: np.ndarray
     reflections: np.ndarray
+    ghost_pair: np.ndarray
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -507,6 +510,7 @@ class Tracer:
         tag = np.full(n, -1, np.int32)
         prim = np.full(n, -1, np.int64)
         reflections = np.zeros(n, np.int32)
+        ghost_pair = np.full((n, 2), -1, np.int32)
         ghosts = bool(self.scene.effects.ghosts)
         streams = ray_streams(rng, n) if ghosts and rng is not None else None
         left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
@@ -539,6 +543,10 @@ class Tracer:
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.normal[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, u)
                 reflections[gi] += refl
+                r, s = gi[refl > 0], h.surface[glass][refl > 0]
+                slot = np.where(ghost_pair[r, 0] < 0, 0, 1)
+                free = ghost_pair[r, slot] < 0
+                ghost_pair[r[free], slot[free]] = s[free]
                 leaving[gi] = True  # it leaves glass: metal touching it is a hit at t = 0
                 left_n[gi] = 0.0
                 left_s[gi] = h.surface[glass]
@@ -555,7 +563,7 @@ class Tracer:
         d = np.where(np.all(np.isfinite(d), axis=1, keepdims=True), d, 0.0)
         w = np.where(np.isfinite(w) & rays.alive, w, 0.0)
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
-                      reflections)
+                      reflections, ghost_pair)
 
     def _interface(self, surf, nrm, d, w, wl, ghosts: bool, u):
         """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical) with
