@@ -18,7 +18,6 @@ import math
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -29,18 +28,12 @@ TARGET = 0.05
 
 
 def _case1_scene():
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
-    from lensmount.design.folder import load_design
-    from lensmount.design.scene import scene_from_dict
-    from lensmount.scene.build import build_scene
+    """Case 1 as `lensmount simulate` builds it: loop.prepare's read_inputs + build (the scene file's
+    checks included), geometry cached in the temp folder the other benchmarks share."""
+    from lensmount.loop.prepare import build, read_inputs
 
-    out = Path(tempfile.gettempdir()) / "lensmount-bench-geometry"
-    manifest = regenerate(DESIGN, out)
-    mesh = TaggedMesh.load(out / manifest.mesh)
-    path = DESIGN / "scenes" / "case1-diaphragm-edge.toml"
-    spec = scene_from_dict(tomllib.loads(path.read_text()), base_dir=str(path.parent))
-    return build_scene(load_design(DESIGN).prescription, mesh, spec)
+    design, spec = read_inputs(DESIGN, DESIGN / "scenes" / "case1-diaphragm-edge.toml")
+    return build(design, spec, Path(tempfile.gettempdir()) / "lensmount-bench-geometry").scene
 
 
 def _time_to_target(run_pass, budget_s: float, min_passes: int = 4):

@@ -16,7 +16,7 @@ import numpy as np
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.scene.build import optical_surfaces, solid_index_of_tag
+from lensmount.scene.build import imaged_field_deg, optical_surfaces, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
 from lensmount.trace.bsdf import make_bsdf
 from lensmount.trace.detector import Detector
@@ -148,7 +148,8 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
                  source=SunSource(off_axis_deg, 90.0, disc),
                  detector=Detector(detector_mm, detector_mm, *pixels, z_img), wavelengths_um=wl,
                  effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h,
-                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
+                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                 field_of_view_deg=imaged_field_deg(lens, Detector(detector_mm, detector_mm, 1, 1, z_img)))
 
 
 def glass_rim(off_axis_deg=20.0, *, material="N-BK7", barrel_gap=0.2, pixels=(16, 16), detector_mm=80.0):

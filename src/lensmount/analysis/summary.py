@@ -10,7 +10,7 @@ import numpy as np
 
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
 from lensmount.analysis.passes import Accumulator
-from lensmount.integrators.estimate import ledger_residual
+from lensmount.integrators.estimate import TIME_PREFIX, ledger_residual
 
 
 def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list[str], effects_skipped: list[str],
@@ -64,7 +64,8 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "per_part": per_part,
         "estimator_settings": dict(estimator_settings),
         "energy_ledger": energy_ledger(acc),
-        "diagnostics": {k: finite_or_none(v) for k, v in sorted(acc.diagnostics.items())},
+        "diagnostics": {k: finite_or_none(v) for k, v in sorted(acc.diagnostics.items())
+                        if not k.startswith(TIME_PREFIX)},  # seconds vary run to run: the plan block has them
         "input_hash": input_hash,
         "units": {"irradiance": "E/E_sun", "flux": "mm² (flux / E_sun)"},
     }

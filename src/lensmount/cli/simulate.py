@@ -19,6 +19,24 @@ from lensmount.loop import Observer, PassStatus, SimulateOptions, simulate as ru
 from lensmount.loop.progress import next_halving_s
 
 
+def print_plan(console, block: dict | None) -> None:
+    """The plan block of summary.json: what ran, what was skipped and why, seconds per phase."""
+    from rich.table import Table
+
+    if not block:
+        return
+    table = Table(title="plan: what ran, what was skipped and why", title_justify="left", show_header=False)
+    table.add_column(style="bold")
+    table.add_column()
+    for item in block["ran"]:
+        table.add_row(item["what"], item["why"])
+    for item in block["skipped"]:
+        table.add_row(f"{item['what']} (skipped)", item["why"], style="dim")
+    for phase, seconds in block["time_s"].items():
+        table.add_row(f"time: {phase}", f"{seconds:.2f} s")
+    console.print(table)
+
+
 def duration(seconds: float | None, unknown: str = "—") -> str:
     """A time as an engineer reads it: s below 90 s, min below 90 min, else h."""
     if seconds is None:
@@ -195,6 +213,7 @@ def print_summary(summary: dict, paths: dict) -> None:
     if summary.get("lost_flux"):
         table.add_row("lost flux (mm²)", f"{summary['lost_flux']:.3g}")
     console.print(table)
+    print_plan(console, summary.get("plan"))
     parts = sorted(((v["fraction"], name, v["std_error"]) for name, v in summary["per_part"].items()
                     if v["fraction"] > 0), reverse=True)
     if parts:

@@ -34,11 +34,12 @@ whichever worker runs it.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
-from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels
-from lensmount.integrators.photon_gather import Gatherer, PhotonHits, gatherable_share
+from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
+from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
@@ -123,30 +124,37 @@ class Bidirectional:
         broad = np.isfinite(core)
         film, ledger = Film(scene), EnergyLedger()
 
-        # Phase 1: the view map.
+        # Phase 1: the view map (none without a face to gather at: the plan's "scatter" is off).
         diagnostics: dict[str, float] = {}
+        clock = time.perf_counter()
         hits = build_view_map(scene, tracer, scene.detector,
                               view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel), broad=broad,
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
-                              faces=film.faces)
+                              faces=film.faces) if broad.any() else HitPoints.empty()
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
                             detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
+        view_map_s, gather_s = time.perf_counter() - clock, 0.0
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on.
+        clock = time.perf_counter()
         scatters = scattering_tags(scene)
         rays = emit_photons(scene, seed, self.purpose, int(pass_index) * int(photons), photons, photons)
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE
             at_face[at_face] &= scatters[ev.tag[at_face]] & (ev.weight[at_face] > 0)
-            if at_face.any():
+            if at_face.any() and len(hits.weight):
+                start = time.perf_counter()
                 f = np.flatnonzero(at_face)
                 gatherer.gather(PhotonHits(ev.position[f], ev.direction[f], ev.normal[f], ev.weight[f],
                                            ev.tag[f].astype(np.int32), ev.wavelength[f],
                                            film.paths.extend(step.signature[f], ev.tag[f])))
+                gather_s += time.perf_counter() - start
+        diagnostics.update(phase_times(view_map=view_map_s, gather=gather_s,
+                                       walk=time.perf_counter() - clock - gather_s))
 
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))

@@ -34,7 +34,8 @@ class PassEstimate:
     photons : photons traced in this pass
     ledger : the pass's energy ledger (`EnergyLedger.as_dict`), mm² (flux / E_sun)
     diagnostics : counts that are not flux, e.g. `view_map_samples`, `view_map_lost_samples`
-        (backward rays ended by the tracer's numerical guards)
+        (backward rays ended by the tracer's numerical guards), and `time/<phase>` seconds
+        (`phase_times`; the plan's times, kept out of summary.json's diagnostics)
     radius_scale : s_i, the pass's gather radius relative to r_0 (0: no density estimate, no kernel bias)
     part_flux_half : (P,) per-part flux (mm²) of the same pass with every gather radius halved
         (same photons and hit points; None when the pass has no density estimate). The
@@ -69,6 +70,16 @@ class PassEstimate:
     def lost_flux(self) -> float:
         """Flux the walk could not follow to its end (the ledger's `lost/…` entries), mm²."""
         return float(sum(v for k, v in self.ledger.items() if k.startswith("lost/")))
+
+
+TIME_PREFIX = "time/"  # diagnostics keys holding seconds per phase, summed over passes (the plan's times)
+PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
+          "walk": "photon walk (scatter, direct and ghosts together)"}
+
+
+def phase_times(**seconds: float) -> dict[str, float]:
+    """Diagnostics entries for the seconds a pass spent per phase (`PHASES`: which effect it serves)."""
+    return {TIME_PREFIX + PHASES[k]: float(v) for k, v in seconds.items()}
 
 
 def film_channels(scene) -> list[str]:
@@ -168,4 +179,5 @@ def ledger_residual(ledger: dict[str, float]) -> float:
     return (source - rest) / source if source else 0.0
 
 
-__all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "ledger_residual", "DIRECT", "GHOSTS"]
+__all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "ledger_residual", "phase_times", "DIRECT",
+           "GHOSTS", "TIME_PREFIX", "PHASES"]

@@ -12,7 +12,9 @@ of 2 passes of 200 000, and the internal batch size changes nothing.
 
 from __future__ import annotations
 
-from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels
+import time
+
+from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.walk import emit_photons, photon_walk
 
@@ -38,12 +40,13 @@ class Forward:
         """One independent pass of N = `photons` photons (radius_scale: unused, nothing is gathered)."""
         film, ledger = Film(scene), EnergyLedger()
         first = int(pass_index) * int(photons)
+        clock = time.perf_counter()
         for start in range(0, photons, self.batch):
             n = min(self.batch, photons - start)
             rays = emit_photons(scene, seed, self.purpose, first + start, n, photons)
             for _ in photon_walk(scene, tracer, rays, seed, self.purpose, self.settings, film, ledger):
                 pass
-        return film.estimate(photons, ledger)
+        return film.estimate(photons, ledger, phase_times(walk=time.perf_counter() - clock))
 
 
 def forward_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, *, batch: int = BATCH,

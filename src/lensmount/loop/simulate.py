@@ -223,6 +223,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.analysis.summary import build_summary
     from lensmount.executor import executor_for
     from lensmount.integrators.estimate import film_channels
+    from lensmount.integrators.plan import plan
     from lensmount.loop.progress import status_of
     from lensmount.results import write_run
     from lensmount.runner import PassJob, Runner, Stopping, default_workers
@@ -236,6 +237,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         passes = spec.run.passes if target is None else None
     stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target, max_passes=passes or 10_000)
 
+    work = plan(sc)  # what is traced and what is skipped (integrators.plan); its scene is what the passes trace
+    obs.stage("plan: " + "; ".join(f"{d.what} {'yes' if d.ran else 'skipped'}" for d in work.decisions))
     if acc is None:
         names = film_channels(sc)
         acc = Accumulator.empty((sc.detector.ny, sc.detector.nx), names, sc.detector.pixel_area)
@@ -258,7 +261,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history))
 
     obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, on {executor.description}")
-    runner = Runner(sc, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
+    runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
     runner.run(stopping)
 
@@ -268,7 +271,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                             aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
-                                   "no_light_enters": no_light,
+                                   "no_light_enters": no_light, "plan": work.as_dict(acc.diagnostics),
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
                                    "geometry": str(built.folder.resolve()),

@@ -162,7 +162,24 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                  entrance_pupil_area_mm2=entrance_pupil_area(prescription),
                  solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths),
                  front_opening=opening, finish_of_tag=finishes, description=spec.description,
-                 warnings=detector_warnings(mesh, detector))
+                 warnings=detector_warnings(mesh, detector),
+                 field_of_view_deg=imaged_field_deg(prescription, detector))
+
+
+def imaged_field_deg(prescription: Prescription, detector: Detector) -> float:
+    """The largest off-axis angle the detector images, degrees: the lens's field, or the angle whose
+    paraxial image lands at the detector's corner (half diagonal / focal length), the larger;
+    180 for a lens without a finite focal length."""
+    from lensmount.optics.paraxial import paraxial
+
+    try:
+        efl = abs(float(paraxial(prescription).efl))
+    except (ArithmeticError, ValueError):  # InputError included: no paraxial image, nothing to bound
+        return 180.0
+    if not (math.isfinite(efl) and efl > 0.0):
+        return 180.0
+    corner = math.degrees(math.atan(0.5 * math.hypot(detector.width, detector.height) / efl))
+    return float(max(prescription.max_field_deg, corner))
 
 
 def entrance_pupil_area(prescription: Prescription) -> float:
@@ -310,5 +327,5 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area",
+__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg",
            "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]

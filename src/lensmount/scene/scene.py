@@ -125,6 +125,9 @@ class Scene:
     description: the scene file's description.
     warnings: legal but suspicious inputs noticed while building (printed and written to
         summary.json by the CLI).
+    field_of_view_deg: the largest off-axis angle the detector images (the lens's field or the
+        detector's half diagonal through the focal length, the larger; `scene.build.imaged_field_deg`),
+        180 when unknown; the planner skips the direct path for a source well beyond it. (addition)
     """
 
     mesh: TaggedMesh
@@ -140,6 +143,7 @@ class Scene:
     finish_of_tag: list[str] = field(default_factory=list)
     description: str = ""
     warnings: list[str] = field(default_factory=list)
+    field_of_view_deg: float = 180.0
 
     def __post_init__(self):
         n_tags = len(self.mesh.tag_table)

@@ -1,0 +1,201 @@
+"""The effects planner: the scene's `[effects]` → the work the integrators do, as data.
+
+`plan(scene)` decides once per run, before any photon, what is traced and what is not, and
+why. Every decision is exact: a skipped piece of work is one that provably adds nothing to
+any channel the run reports, so a restricted run and a run with everything on agree on the
+channels they share (tests/integrators/test_plan_effects.py measures it).
+
+- *Scatter.* Photons scatter on at the faces `walk.scattering_tags` gives (a non-black
+  finish, named by `effects.scatter`); the view map makes hit points only there. Every other
+  mechanical face ends the photon where it lands.
+- *Where a photon ends.* At the first event after which no counted path is possible:
+  an absorber, a face outside the scatterers, the detector, or leaving the assembly. This is
+  provably safe, and nothing earlier is: a counted path is a sequence of scatterings at the
+  scatterers (`scatter`), or no scattering at all (`direct`, `ghosts`), so a face outside
+  the set ends every path through it. Before its next event a photon may still reach a
+  scatterer through glass (refraction bends it anywhere behind a lens, and a scatterer seen
+  in a lens reflection is reachable too), so no geometric test may end it earlier.
+- *Reflection branch at glass.* Only with ghosts on and a surface that reflects (not every
+  surface perfect-ar). Without it the ray transmits with weight T = 1 − R and R goes to the
+  ledger's `glass`.
+- *One wavelength.* When nothing along any path depends on the wavelength, tracing W
+  wavelengths only dilutes the gather (a hit point gathers photons of its own wavelength):
+  the planned scene traces one, with the detector's response replaced by its mean over the
+  source's spectrum, Σ p_w r_w, which is what the W-wavelength run converges to. That is so
+  when every refractive index the tracer reads (both sides of every optical surface, the solid
+  behind every face) is the same at every wavelength — no dispersion — and no coating's R
+  depends on the wavelength at a given index (perfect-ar, uncoated, constant R; not the
+  MgF2 quarter wave). BSDFs and sources here have no wavelength dependence of their own.
+  A real glass lens disperses: a scene with glass keeps all its wavelengths.
+- *Direct.* Skipped when the source's nearest edge lies more than `DIRECT_MARGIN_DEG` beyond
+  the field the detector can image (`Scene.field_of_view_deg`: the larger of the lens's
+  field and the detector's half diagonal seen through the focal length). Unscattered light
+  at that angle would need that much distortion to land on the detector; the direct channel
+  reads 0 with nothing spent on it.
+
+`Plan.as_dict(times)` is the `plan` block of summary.json: what ran, what was skipped and why,
+and the time each phase took (`time/<phase>` in the passes' diagnostics).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from lensmount.integrators.estimate import TIME_PREFIX
+from lensmount.integrators.walk import scattering_tags
+
+DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
+_WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One line of the plan: `what` ran (or was skipped) and why."""
+
+    what: str
+    ran: bool
+    why: str
+
+
+@dataclass(eq=False)
+class Plan:
+    """What a run traces.
+
+    scene : the Scene the integrators get (the input scene, or it with one wavelength)
+    scatters : (n_tags,) bool, faces where photons scatter on (and hit points may be made)
+    reflect_at_glass : the tracer follows Fresnel reflections (ghosts on, some surface reflects)
+    direct : unscattered light can reach the detector and is counted
+    decisions : the lines of the plan, in the order they are printed
+    """
+
+    scene: object
+    scatters: np.ndarray
+    reflect_at_glass: bool
+    direct: bool
+    decisions: list[Decision] = field(default_factory=list)
+
+    def as_dict(self, diagnostics: dict | None = None) -> dict:
+        """The summary.json block: ran / skipped (what, why) and seconds per phase."""
+        times = {k[len(TIME_PREFIX):]: round(float(v), 3) for k, v in sorted((diagnostics or {}).items())
+                 if k.startswith(TIME_PREFIX)}
+        return {"ran": [{"what": d.what, "why": d.why} for d in self.decisions if d.ran],
+                "skipped": [{"what": d.what, "why": d.why} for d in self.decisions if not d.ran],
+                "time_s": times}
+
+
+def plan(scene) -> Plan:
+    """The plan of a run on `scene` (see the module docstring)."""
+    scatters = scattering_tags(scene)
+    decisions = [_scatter(scene, scatters), _photon_ends(scene, scatters)]
+    reflect = bool(scene.effects.ghosts) and any(_reflects(s) for s in scene.optical)
+    decisions.append(_ghosts(scene, reflect))
+    direct, why = _direct(scene)
+    decisions.append(Decision("direct", direct, why))
+    traced, decision = _wavelengths(scene)
+    decisions.append(decision)
+    return Plan(traced, scatters, reflect, direct, decisions)
+
+
+def _faces(scene, mask: np.ndarray) -> str:
+    """'diaphragm (diaphragm-edge), housing (mount)': the parts and roles of the tags in mask."""
+    seen: dict[str, list[str]] = {}
+    for k in np.flatnonzero(mask):
+        t = scene.mesh.tag_table[k]
+        roles = seen.setdefault(t.part, [])
+        if t.role not in roles:
+            roles.append(t.role)
+    return ", ".join(f"{p} ({'/'.join(r)})" for p, r in seen.items()) or "none"
+
+
+def _scatter(scene, scatters: np.ndarray) -> Decision:
+    e = scene.effects
+    if not e.scatter:
+        return Decision("scatter", False, "scatter = false: every mechanical face absorbs, no hit points")
+    if not scatters.any():
+        return Decision("scatter", False, "no face the scene lets scatter has a scattering finish (all absorbers)"
+                        + (f" among {', '.join(e.scatterers)}" if e.scatterers else ""))
+    named = f"the faces {', '.join(e.scatterers)} name" if e.scatterers else "every face with a scattering finish"
+    return Decision("scatter", True, f"photons scatter and hit points are made on {named}: {_faces(scene, scatters)}")
+
+
+def _photon_ends(scene, scatters: np.ndarray) -> Decision:
+    mechanical = np.array([t.role != "optical" for t in scene.mesh.tag_table], bool)
+    black = np.array([b is not None and b.is_black for b in scene.bsdf_of_tag], bool)
+    outside = mechanical & ~black & ~scatters
+    why = (f"photons end where no counted path goes on: {int((mechanical & black).sum())} absorbing faces"
+           + (f", {int(outside.sum())} faces outside the scatterers ({_faces(scene, outside)})" if outside.any() else "")
+           + ", the detector, leaving the assembly")
+    return Decision("photon walk past non-scatterers", False, why)
+
+
+def _reflects(surface) -> bool:
+    """Can this surface send a ghost reflection? (TIR and mirrors are not ghosts: always traced.)"""
+    c = surface.coating
+    return not surface.mirror and not (c.kind == "perfect-ar" or (c.kind == "constant" and c.reflectance == 0.0))
+
+
+def _ghosts(scene, reflect: bool) -> Decision:
+    e = scene.effects
+    if not e.ghosts:
+        return Decision("ghosts (reflection branch at glass)", False,
+                        "ghosts = false: rays transmit with weight T = 1 − R; R goes to the ledger's 'glass'")
+    if not reflect:
+        return Decision("ghosts (reflection branch at glass)", False,
+                        "every optical surface is perfect-ar (R = 0): no ghost light exists, the channel reads 0")
+    return Decision("ghosts (reflection branch at glass)", True,
+                    f"order {e.ghost_order}: Fresnel reflections followed with probability R")
+
+
+def source_edge_deg(source) -> float:
+    """Off-axis angle of the source's edge nearest the axis, degrees."""
+    return float(source.off_axis_deg) - math.degrees(float(source.half_angle_rad))
+
+
+def _direct(scene) -> tuple[bool, str]:
+    if not scene.effects.direct:
+        return False, "direct = false: unscattered light on the detector is not counted"
+    edge, fov = source_edge_deg(scene.source), float(scene.field_of_view_deg)
+    if edge > fov + DIRECT_MARGIN_DEG:
+        return False, (f"the source's nearest edge ({edge:.2f}°) lies beyond what the detector images "
+                       f"({fov:.2f}° + {DIRECT_MARGIN_DEG:g}°): the channel reads 0")
+    return True, f"the source ({edge:.2f}°) lies within {fov:.2f}° + {DIRECT_MARGIN_DEG:g}° of what the detector images"
+
+
+def dispersion_free(scene) -> bool:
+    """Nothing the tracer reads depends on the wavelength (see the module docstring)."""
+    def flat(a) -> bool:
+        a = np.asarray(a, np.float64)
+        return bool(np.all(a == a[..., :1]))
+
+    return (all(flat(s.n_before) and flat(s.n_after) and (s.mirror or s.coating.kind in _WAVELENGTH_FREE_COATINGS)
+                for s in scene.optical) and flat(scene.solid_index_of_tag))
+
+
+def _wavelengths(scene) -> tuple[object, Decision]:
+    wl = np.asarray(scene.wavelengths_um, np.float64)
+    what = "one wavelength for all"
+    if len(wl) == 1:
+        return scene, Decision(what, True, f"the scene has one wavelength ({wl[0]:.4f} µm)")
+    names = ", ".join(f"{w:.4f}" for w in wl)
+    if not dispersion_free(scene):
+        return scene, Decision(what, False, f"{len(wl)} wavelengths ({names} µm) traced: a refractive index "
+                               "or a coating changes with the wavelength")
+    p = np.asarray(scene.source.wavelength_weights, np.float64)
+    p = p / p.sum()
+    keep = int(np.argmax(p))
+    response = scene.detector.spectral_weight
+    detector = scene.detector if response is None else \
+        replace(scene.detector, spectral_weight=(float(np.dot(p, np.asarray(response, np.float64))),))
+    one = replace(scene, wavelengths_um=wl[keep:keep + 1], detector=detector,
+                  source=replace(scene.source, wavelength_weights=(1.0,)),
+                  optical=[replace(s, n_before=np.atleast_1d(s.n_before)[keep:keep + 1],
+                                   n_after=np.atleast_1d(s.n_after)[keep:keep + 1]) for s in scene.optical],
+                  solid_index_of_tag=np.asarray(scene.solid_index_of_tag)[:, keep:keep + 1])
+    return one, Decision(what, True, f"traced at {wl[keep]:.4f} µm for all {len(wl)} ({names} µm): no index or "
+                         "coating changes with the wavelength; the detector response is its mean over the spectrum")
+
+
+__all__ = ["Plan", "Decision", "plan", "dispersion_free", "source_edge_deg", "DIRECT_MARGIN_DEG"]
