@@ -46,12 +46,14 @@ def _init(tmp_path: Path, lens: Path):
     return design, result
 
 
-def test_mirror_lens_is_refused_in_one_paragraph_and_nothing_is_written(tmp_path):
+def test_mirror_lens_gets_a_catadioptric_mount_toml_and_a_scene_without_a_diaphragm_rule(tmp_path):
     design, result = _init(tmp_path, CORPUS / "HoO-V2C18Ex03.zmx")
-    assert result.exit_code == 2
-    err = result.output.strip()
-    assert "\n" not in err and "mirror" in err and "surfaces 2, 3" in err and "Traceback" not in err
-    assert not design.exists()
+    assert result.exit_code == 0, result.output
+    mount = tomllib.loads((design / "mount.toml").read_text())
+    assert "does not build" not in (design / "mount.toml").read_text()   # the planner and checks passed
+    assert mount["hood"]["enabled"] is False and mount["housing"]["enabled"] is False
+    scene = tomllib.loads((design / "scenes" / "case2-lambertian.toml").read_text())
+    assert scene["assign"] == {"*": "lambert-5"}   # no diaphragm in a catadioptric mount
 
 
 def test_derived_mount_and_scene_load_and_follow_the_lens(tmp_path):

@@ -97,6 +97,9 @@ def check_interference(outlines: dict[str, np.ndarray]) -> None:
 
 def check_beam(layout: Layout, outlines: dict[str, np.ndarray]) -> None:
     """No mechanical part's profile reaches into the beam envelope (diaphragm edge excepted)."""
+    if layout.beam is not None:  # a folded path: the rays themselves, past the central obscuration
+        layout.beam.check(layout, outlines)
+        return
     env = layout.envelope
     z_lo, z_hi = env.z[0], env.z[-1]
     for plan in layout.parts:

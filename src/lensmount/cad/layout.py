@@ -63,6 +63,7 @@ class Layout:
     contacts: list[Contact]
     envelope: "Envelope"
     notes: list[str] = field(default_factory=list)
+    beam: object = None  # a folded path's rays (cad.catadioptric.BeamPaths): the beam check runs on them
 
     def part(self, name: str) -> PartPlan:
         for p in self.parts:
@@ -208,6 +209,10 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     p = prescription
     if any(s.clear_semi_diameter is None for s in p.surfaces):
         p = with_clear_semi_diameters(p)
+    if p.has_mirrors:
+        from lensmount.cad.catadioptric import plan_catadioptric
+
+        return plan_catadioptric(p, spec)
     surf, zv = p.surfaces, p.vertex_z
     clear = [float(s.clear_semi_diameter) for s in surf]
     edge = spec.lens_edge

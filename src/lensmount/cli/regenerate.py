@@ -82,7 +82,7 @@ def init(
     example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),
     lens: Optional[Path] = typer.Option(
         None, "--lens", "-l", help="start from this lens (.zmx or lens.toml) instead of an example: mount.toml "
-        "and a case-2 scene are derived from it (refractive lenses; mirrors are not mounted yet)"),
+        "and a case-2 scene are derived from it (mirrors included: cells in a straight barrel)"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
 ) -> None:
     """Scaffold a design folder (lens file, mount.toml, scenes/) from an example or from a lens file."""
@@ -124,13 +124,6 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
     from lensmount.design.starter import case2_scene, starter_mount
 
     prescription = load_lens(lens)
-    if prescription.has_mirrors:
-        mirrors = [i + 1 for i, s in enumerate(prescription.surfaces) if s.mirror]
-        raise InputError(f"the lens has mirrors (surface{'s' if len(mirrors) > 1 else ''} "
-                         f"{', '.join(map(str, mirrors))}); lensmount builds mounts for refractive lenses only "
-                         "today (a mirror needs a cell with a back support, which the mount templates do not "
-                         "have yet), so there is no mount.toml to derive", file=str(lens), field="GLAS MIRROR",
-                         valid="a lens without mirrors; `lensmount inspect` still analyses this one")
     name = prescription.name if prescription.name not in ("", "lens") else lens.stem
     mount, problem = starter_mount(prescription, name)
     scene = case2_scene(prescription, mount, name)

@@ -18,7 +18,9 @@ dimension follows from the lens itself, in the mount layer's own keys
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
 - the housing's detector is a 3:2 frame inscribed in the image circle (real chief
-  ray of the largest field).
+  ray of the largest field);
+- a lens with mirrors gets cells in a straight barrel (lensmount.cad.catadioptric),
+  with the same wall, lip, margin and allowance rules and no hood or housing yet.
 
 The case-2 scene is the seed paper's: the sun 5° outside the field, every mount face
 and lens edge Lambertian 5 %, the diaphragm edge absorbing, on that detector.
@@ -190,7 +192,10 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
             "contact_margin_mm": contact}
     min_thickness = _round(_clamp(0.04 * a, 0.2, MountSpec().checks.min_thickness_mm), 2)
     retainer = _round(_clamp(0.05 * a, 0.3, 3.0), 1)
-    semi, seat_of = _edges_and_seats(p, allowance, chamfer, contact, min_thickness, retainer, margin, widen)
+    # a lens with mirrors is laid out in cells (lensmount.cad.catadioptric): no seats or edges to choose,
+    # and no hood or housing yet (the hood and housing tables keep the exclusion angle and the detector)
+    semi, seat_of = ({}, {}) if p.has_mirrors else _edges_and_seats(p, allowance, chamfer, contact, min_thickness,
+                                                                     retainer, margin, widen)
     if semi:
         edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
     return {
@@ -205,8 +210,9 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": margin, "edge_width_mm": 0.05,
                   "thickness_mm": _round(_clamp(0.05 * a, 0.3, 1.0), 1)},
         "hood": {"length_mm": hood_length, "inner_diameter_mm": _round(2 * hood_radius, 1),
-                 "exclusion_deg": _round(exclusion, 2)},
-        "housing": {"detector_width_mm": width, "detector_height_mm": height,
+                 "exclusion_deg": _round(exclusion, 2)} | ({"enabled": False} if p.has_mirrors else {}),
+        "housing": ({"enabled": False} if p.has_mirrors else {}) | {
+                    "detector_width_mm": width, "detector_height_mm": height,
                     "detector_clearance_mm": _round(_clamp(0.1 * max(width, height), 0.3, 2.0), 1),
                     "back_gap_mm": _round(_clamp(0.1 * a, 1.0, 5.0), 1), "wall_mm": wall},
         "checks": {"min_thickness_mm": min_thickness},
@@ -221,16 +227,19 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
     width, height = mount["housing"]["detector_width_mm"], mount["housing"]["detector_height_mm"]
     nx = 360
     ny = max(1, int(round(nx * height / width)))
+    # a catadioptric mount has no diaphragm: the mirrors' coated zones are the stop
+    edge = {} if p.has_mirrors else {"role:diaphragm-edge": "absorber"}
     return {
         "description": f"The seed paper's case 2 on {name}: the sun at {sun:g}° ({SUN_MARGIN_DEG:g}° outside the "
-                       "field); every mount face and lens edge Lambertian 5 %, diaphragm edge absorbing",
+                       "field); every mount face and lens edge Lambertian 5 %"
+                       + ("" if p.has_mirrors else ", diaphragm edge absorbing"),
         "source": {"type": "sun", "off_axis_deg": sun, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
                    "limb_darkening": False},
         "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
         "effects": {"scatter": True, "ghosts": False, "direct": False},
         "coatings": {"default": "perfect-ar"},
         "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}},
-        "assign": {"*": "lambert-5", "role:diaphragm-edge": "absorber"},
+        "assign": {"*": "lambert-5"} | edge,
         "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05},
     }
 

@@ -95,13 +95,23 @@ class Profile:
         disc = b * b - a * cc
         ok = disc >= 0.0
         root = np.sqrt(np.where(ok, disc, 0.0))
-        # -C / (B + sign(B) sqrt(disc)) is the vertex-sheet root and stays exact as c -> 0.
+        # -C / (B + sign(B) sqrt(disc)) and (B + sign(B) sqrt(disc)) / -A are the two roots without
+        # cancellation (the first stays exact as c -> 0). The hit is the one on the vertex sheet
+        # nearest the vertex plane: light travelling -z after a mirror meets a hyperboloid's
+        # vertex sheet through the second root, and a ray can cross a paraboloid twice.
         den = b + np.where(b >= 0.0, root, -root)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(ok & (den != 0.0), -cc / np.where(den != 0.0, den, 1.0), np.inf)
-        z = o[:, 2] + t * d[:, 2]
-        on_vertex_sheet = k1 * c * z <= 1.0 + 1e-12
-        return np.where(ok & on_vertex_sheet & np.isfinite(t), t, np.inf)
+            t1 = np.where(ok & (den != 0.0), -cc / np.where(den != 0.0, den, 1.0), np.inf)
+            t2 = np.where(ok & (a != 0.0), -den / np.where(a != 0.0, a, 1.0), np.inf)
+        t0 = -o[:, 2] / _safe(d[:, 2])
+
+        def valid(t):
+            z = o[:, 2] + np.where(np.isfinite(t), t, 0.0) * d[:, 2]
+            return np.isfinite(t) & (k1 * c * z <= 1.0 + 1e-12)
+
+        v1, v2 = valid(t1), valid(t2)
+        take2 = v2 & (~v1 | (np.abs(t2 - t0) < np.abs(t1 - t0)))
+        return np.where(take2, t2, np.where(v1, t1, np.inf))
 
     def _newton(self, o, d, t):
         t = t.copy()

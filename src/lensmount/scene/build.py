@@ -35,10 +35,13 @@ def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coa
 
     coating_of = coating_of or (lambda i, c: parse_coating(c))
     zs = prescription.vertex_z
+    travel = (1,) + prescription.travel
     out = []
     for i, s in enumerate(prescription.surfaces):
         n_before = refractive_index(prescription.material_before(i), wavelengths_um)
         n_after = refractive_index(s.material, wavelengths_um)
+        if travel[i] < 0:  # reached travelling -z (after a mirror): the medium it came from lies on the +z side
+            n_before, n_after = n_after, n_before
         clear = s.clear_semi_diameter if s.clear_semi_diameter is not None else math.inf
         mech = s.mechanical_semi_diameter if s.mechanical_semi_diameter is not None else clear
         out.append(OpticalSurface(i, float(zs[i]), Profile.of(s), float(clear), np.atleast_1d(n_before),

@@ -76,10 +76,12 @@ class OpticalSurface:
     z_vertex: vertex z in the assembly frame, mm.
     profile: sag/normal/intersect in the local frame (vertex at the origin).
     clear_semi_diameter, mechanical_semi_diameter: mm.
-    n_before, n_after: (W,) refractive index in front of / behind the surface per scene wavelength.
+    n_before, n_after: (W,) refractive index on the −z / +z side of the surface per scene wavelength
+        (for a surface the light reaches travelling −z, after a mirror, "before" is the file's medium
+        after it: the tracer picks the pair by the sign of d·n, not by the order in the file).
     coating: how much it reflects.
-    mirror: the surface reflects every ray (Zemax GLAS MIRROR): R from a constant coating
-        (`R=0.9`), 1 otherwise; nothing is transmitted.
+    mirror: the surface reflects every ray (Zemax GLAS MIRROR) with reflectance
+        `trace.interfaces.mirror_reflectance(coating)`; nothing is transmitted.
     """
 
     index: int

@@ -64,6 +64,15 @@ def parse_coating(text: str | None, *, file: str | None = None, field: str | Non
     raise InputError(f"unknown coating '{text}'", file=file, field=field, valid=COATING_NAMES)
 
 
+PROTECTED_ALUMINIUM_R = 0.90  # a mirror's reflectance unless a constant coating (R=0.95) says otherwise
+
+
+def mirror_reflectance(coating: Coating) -> float:
+    """Reflectance of a mirror surface: a constant coating's R, else protected aluminium's
+    (about 0.90 over the visible; Fresnel names such as perfect-ar describe glass, not a mirror)."""
+    return coating.reflectance if coating.kind == "constant" else PROTECTED_ALUMINIUM_R
+
+
 def refract(d: np.ndarray, n: np.ndarray, eta: np.ndarray):
     """Vector Snell's law.
 
@@ -159,4 +168,5 @@ def reflectance(n1, n2, cos_i, coating: Coating, wavelength_um) -> np.ndarray:
     return 0.5 * (rs + rp)
 
 
-__all__ = ["Coating", "parse_coating", "refract", "reflect", "fresnel_rt", "reflectance", "COATING_NAMES"]
+__all__ = ["Coating", "parse_coating", "mirror_reflectance", "PROTECTED_ALUMINIUM_R", "refract", "reflect",
+           "fresnel_rt", "reflectance", "COATING_NAMES"]

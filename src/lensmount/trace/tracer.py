@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.trace.interfaces import reflect, reflectance, refract
+from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import ray_streams
@@ -163,8 +163,7 @@ class Tracer:
         self._n_after = np.array([np.broadcast_to(s.n_after, (w,)) for s in scene.optical] or [np.ones(w)])
         self._wavelengths = np.asarray(scene.wavelengths_um, np.float64)
         self._mirror = np.array([s.mirror for s in scene.optical] or [False])
-        self._mirror_r = np.array([s.coating.reflectance if s.coating.kind == "constant" else 1.0
-                                   for s in scene.optical] or [1.0])
+        self._mirror_r = np.array([mirror_reflectance(s.coating) for s in scene.optical] or [1.0])
         self._tolerance = self._facet_tolerance()
         # Two Embree scenes: glass facets (refined against the analytic surfaces) and the
         # mechanical faces (decided exactly in float64, lensmount.trace.mechanical). Apart,

@@ -1,0 +1,458 @@
+"""Layout of a lens with mirrors: cells in a straight barrel, spiders for the cells in the beam.
+
+A folded path crosses the same z more than once, so "the beam envelope at z" (the largest
+radius of any ray there, `optics.apertures.beam_envelope`) only sizes the barrel. What may
+stand where is decided on the rays themselves, as polylines in (r, z):
+
+* Elements. Physical surfaces are the prescription's surfaces with the return passes
+  folded onto the surface they retrace (a Mangin's front face, met twice). Glass between
+  two physical surfaces is a lens element (`LensElement`, or `MirrorElement` when one face
+  reflects or a central hole is needed); a mirror in air is a front-surface mirror blank
+  a third of its radius thick on the side away from the light. Glass pieces sharing a
+  surface, or whose edges leave no room for a lip between them, are held as one unit.
+* Cells. Each unit sits in a ring (`Cell`) with a front lip and a back support, everywhere
+  `seats.clearance_mm` off the glass; the lips stand at the clear semi-diameter plus the
+  contact margin on an optical face, at half the radius on a mirror blank's flat back.
+* Outer and central units. A unit no ray passes outside of, and no other element's body,
+  is an *outer* unit: its ring runs out to the barrel. The others stand in the beam (a
+  Cassegrain's secondary, a relay in its shadow). Neighbouring lens units are joined by a
+  tube where the light between them stays inside its bore, so a relay hangs on the cell
+  that reaches the barrel; a central unit with no such join stands on a spider
+  (`SpiderCell`: three thin vanes to the barrel, the only part not of revolution).
+* Obscuration. A ray that on some pass crosses a central unit's ring (not interacting
+  with it) is obscured by design, as the secondary's shadow is. Every other ray of the
+  full field must pass every part (spider vanes excepted): `BeamPaths.check`, which the
+  profile checks run in place of the envelope test. An element that another pass of the
+  light crosses gets a central hole as wide as that light plus the aperture margin.
+
+No hood, vanes or detector housing are built for a catadioptric lens yet (a note says so):
+the barrel is the light tube and the detector stands where the scene puts it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from lensmount.design.mount import MountSpec
+from lensmount.errors import GeometryError
+from lensmount.optics.prescription import Prescription
+from lensmount.templates.barrel import Barrel
+from lensmount.templates.cell import Cell, SpiderCell
+from lensmount.templates.lens_element import LensElement, OpticalFace
+from lensmount.templates.mirror import MirrorElement
+
+BLANK_RATIO = 1.0 / 3.0   # a mirror blank's thickness over its radius (diameter : thickness = 6 : 1)
+SPIDER_VANES = 3
+_SAMPLE_MM = 0.25         # z step of the ray samples for the beam check
+_BEAM_TOL_MM = 1e-3
+
+
+def physical_surfaces(p: Prescription) -> list[int]:
+    """For each surface, the first surface with the same vertex and shape (a return pass)."""
+    zv, out = p.vertex_z, []
+    for i, s in enumerate(p.surfaces):
+        twin = next((j for j in range(i) if abs(zv[j] - zv[i]) < 1e-9 and not s.mirror
+                     and not p.surfaces[j].mirror and p.surfaces[j].curvature == s.curvature
+                     and p.surfaces[j].conic == s.conic and p.surfaces[j].aspheric == s.aspheric), i)
+        out.append(twin)
+    return out
+
+
+@dataclass
+class _Unit:
+    """Elements held together: names, templates, physical surfaces, radius."""
+
+    pieces: list[tuple[int, int]]            # (front surface, back surface) per glass piece; (i, -1) a blank
+    radius: float
+    surfaces: set[int]
+    mirror: bool
+    inner: bool = False
+    hole: float = 0.0
+    names: list[str] = field(default_factory=list)
+    templates: list = field(default_factory=list)
+    z0: float = 0.0                           # the cell's z range
+    z1: float = 0.0
+    cell: object = None
+    cell_name: str = ""
+    lips: list = field(default_factory=list)     # front and back lip thickness
+    r_out: float = 0.0                             # the cell's outside radius
+    hf: float = 0.0                                # lip bores, front and back
+    hb: float = 0.0
+    tube: tuple | None = None                      # (r_in, r_out, z0, z1) of the tube to the unit behind
+    holder: object = None                          # the unit that tube ends on
+
+
+class BeamPaths:
+    """The rays of the full field as (r, z) polylines, each segment knowing the physical
+    surfaces it runs between; `check` tests mechanical profiles against the unobscured ones."""
+
+    def __init__(self, p: Prescription, phys: list[int], z_front: float):
+        from lensmount.optics.apertures import ENVELOPE_FIELDS, _beam, _field_samples
+        from lensmount.optics.realrays import pupil_rings
+
+        fields = _field_samples(p, min(ENVELOPE_FIELDS, 5))
+        pupil = pupil_rings(8, 24, half=False)
+        polys, ends = [], []
+        for rays in _beam(p, fields, pupil, clip=True):
+            ok = ~rays.vignetted   # the file's own apertures stop the others (the designer's vignetting)
+            o, d = rays.origins[ok], rays.start_directions[ok]
+            s = (z_front - o[:, 2]) / np.where(np.abs(d[:, 2]) > 1e-12, d[:, 2], 1e-12)
+            start = o + np.minimum(s, 0.0)[:, None] * d
+            polys.append(np.concatenate([start[None], rays.points[:, ok]], axis=0))
+        self.points = np.concatenate(polys, axis=1) if polys else np.zeros((len(p.surfaces) + 2, 0, 3))
+        n = len(p.surfaces)
+        # segment k runs from node k-1 to node k: node -1 the start, node n the image plane
+        self.ends = [(-1 if k == 0 else phys[k - 1], phys[k] if k < n else -2) for k in range(n + 1)]
+        self.obscured = np.zeros(self.points.shape[1], bool)
+
+    def crossing(self, k: int, za: float, zb: float):
+        """Rays' segment k over z in [za, zb]: (crosses (N,), r_min (N,), r_max (N,))."""
+        p0, p1 = self.points[k], self.points[k + 1]
+        z0, z1 = p0[:, 2], p1[:, 2]
+        dz = np.where(np.abs(z1 - z0) > 1e-12, z1 - z0, 1e-12)
+        ta = np.clip((za - z0) / dz, 0.0, 1.0)
+        tb = np.clip((zb - z0) / dz, 0.0, 1.0)
+        lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        crosses = (np.maximum(z0, z1) >= za) & (np.minimum(z0, z1) <= zb)
+        a, b = p0[:, :2], p1[:, :2] - p0[:, :2]
+        t_min = np.clip(-np.einsum("ij,ij->i", a, b) / np.maximum(np.einsum("ij,ij->i", b, b), 1e-300), lo, hi)
+        r_at = lambda t: np.hypot(*(a + t[:, None] * b).T)  # noqa: E731
+        return crosses, r_at(t_min), np.maximum(r_at(lo), r_at(hi))
+
+    def passing(self, surfaces: set[int], za: float, zb: float, unobscured: bool):
+        """(r_min, r_max) over the segments that cross [za, zb] without meeting `surfaces`, per ray
+        (inf, -inf where none)."""
+        n = self.points.shape[1]
+        r_lo, r_hi = np.full(n, np.inf), np.full(n, -np.inf)
+        for k, (a, b) in enumerate(self.ends):
+            if a in surfaces or b in surfaces:
+                continue
+            c, lo, hi = self.crossing(k, za, zb)
+            if unobscured:
+                c &= ~self.obscured
+            r_lo = np.where(c, np.minimum(r_lo, lo), r_lo)
+            r_hi = np.where(c, np.maximum(r_hi, hi), r_hi)
+        return r_lo, r_hi
+
+    def meeting(self, surface: int, za: float, zb: float) -> float:
+        """Largest radius over z in [za, zb] of the light arriving at or leaving physical `surface`."""
+        r = -np.inf
+        for k, (a, b) in enumerate(self.ends):
+            if surface in (a, b):
+                c, _, hi = self.crossing(k, za, zb)
+                if c.any():
+                    r = max(r, float(hi[c].max()))
+        return r
+
+    def between(self, first: set[int], second: set[int], za: float, zb: float) -> float:
+        """Largest radius over z in [za, zb] of the light going from `first` to `second` (or back)."""
+        r = 0.0
+        for k, (a, b) in enumerate(self.ends):
+            if (a in first and b in second) or (a in second and b in first):
+                c, _, hi = self.crossing(k, za, zb)
+                if c.any():
+                    r = max(r, float(hi[c].max()))
+        return r
+
+    def radius_on(self, surfaces: set[int]) -> float:
+        """Smallest radius at which an unobscured ray meets one of the physical `surfaces`."""
+        keep = ~self.obscured
+        r = [np.hypot(*self.points[k + 1][keep][:, :2].T) for k, (_, b) in enumerate(self.ends) if b in surfaces]
+        r = np.concatenate(r) if r else np.zeros(0)
+        return float(r.min()) if r.size else np.inf
+
+    def check(self, layout, outlines: dict[str, np.ndarray]) -> None:
+        """No unobscured ray passes through a mechanical part (spider vanes are not in the outlines)."""
+        keep = ~self.obscured
+        pts = self.points[:, keep]
+        for plan in layout.parts:
+            if plan.kind in ("lens", "mirror") or plan.name not in outlines:
+                continue
+            poly = outlines[plan.name]
+            path = MplPath(poly)
+            (r_min, z_min), (r_max, z_max) = poly.min(0), poly.max(0)
+            for k in range(len(pts) - 1):
+                p0, p1 = pts[k], pts[k + 1]
+                length = np.maximum(np.abs(p1[:, 2] - p0[:, 2]), 1e-9)
+                m = int(min(4000, np.ceil(length.max() / _SAMPLE_MM))) + 1
+                t = np.linspace(0.0, 1.0, m)
+                q = p0[None] + t[:, None, None] * (p1 - p0)[None]        # (m, N, 3)
+                rz = np.stack([np.hypot(q[..., 0], q[..., 1]), q[..., 2]], axis=-1).reshape(-1, 2)
+                near = (rz[:, 0] >= r_min - 1) & (rz[:, 0] <= r_max + 1) & (rz[:, 1] >= z_min) & (rz[:, 1] <= z_max)
+                if not near.any():
+                    continue
+                inside = path.contains_points(rz[near], radius=-_BEAM_TOL_MM)
+                if inside.any():
+                    r, z = rz[near][inside][0]
+                    raise GeometryError(
+                        f"{plan.name} stands in the light of the full field at r = {r:.3f} mm, z = {z:.3f} mm "
+                        f"(segment {k} of the folded path, a ray the central obscuration does not stop)",
+                        field=plan.kind, valid="larger bores or holes, or a smaller edge allowance")
+
+
+def plan_catadioptric(p: Prescription, spec: MountSpec):
+    """The Layout of a lens with mirrors (module docstring). Raises GeometryError."""
+    from lensmount.cad.layout import Layout, Envelope, PartPlan
+
+    surf, zv, travel = p.surfaces, p.vertex_z, p.travel
+    phys = physical_surfaces(p)
+    clear = [float(s.clear_semi_diameter) for s in surf]
+    edge, min_t = spec.lens_edge, spec.checks.min_thickness_mm
+    c_glass, c_bore, c_sp = spec.seats.clearance_mm, spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
+    lip, margin, cm = spec.barrel.lip_mm, spec.spacers.aperture_margin_mm, edge.contact_margin_mm
+    notes = ["catadioptric lens: no hood, vanes or detector housing are built (the barrel is the light tube)"]
+
+    def face(i: int) -> OpticalFace:
+        s = surf[i]
+        return OpticalFace(i, float(zv[i]), s.curvature, s.conic, tuple(s.aspheric))
+
+    def clear_of(j: int) -> float:   # a physical surface's clear semi-diameter over all its passes
+        return max(clear[i] for i in range(len(surf)) if phys[i] == j)
+
+    def mech_of(j: int) -> float:
+        mech = [surf[i].mechanical_semi_diameter or 0.0 for i in range(len(surf)) if phys[i] == j]
+        return max([clear_of(j) + edge.allowance_mm] + mech)
+
+    # ---- units: glass pieces and mirror blanks ------------------------------------------
+    pieces = set()
+    for i, s in enumerate(surf[:-1]):
+        if not s.is_air_after and phys[i] != phys[i + 1]:
+            a, b = sorted((phys[i], phys[i + 1]), key=lambda j: zv[j])
+            pieces.add((a, b))
+    units: list[_Unit] = []
+    for a, b in sorted(pieces, key=lambda ab: zv[ab[0]]):
+        joined = [u for u in units if u.pieces[0][1] != -1 and ({a, b} & u.surfaces)]
+        if joined:
+            u = joined[0]
+            u.pieces.append((a, b))
+            u.surfaces |= {a, b}
+            u.radius = max(u.radius, mech_of(a), mech_of(b))
+            u.mirror |= surf[a].mirror or surf[b].mirror
+        else:
+            units.append(_Unit([(a, b)], max(mech_of(a), mech_of(b)), {a, b}, surf[a].mirror or surf[b].mirror))
+    for i, s in enumerate(surf):
+        if s.mirror and s.is_air_after and p.material_before(i).upper() == "AIR":
+            units.append(_Unit([(i, -1)], mech_of(i), {i}, True))
+    if not units:
+        raise GeometryError("the prescription has neither glass nor mirrors: nothing to mount", field="surfaces")
+
+    def side(i: int) -> int:   # the direction light arrives at surface i from
+        return 1 if i == 0 else travel[i - 1]
+
+    def build_templates(u: _Unit) -> None:
+        u.templates = []
+        R, h = u.radius, u.hole
+        for a, b in u.pieces:
+            if b == -1:   # a front-surface mirror blank on the side away from the light
+                rs = np.linspace(h, R, 65)
+                zs = face(a).z(rs)
+                t = max(min(BLANK_RATIO * R, 0.4 * room(u, a)), 2 * min_t)
+                if side(a) > 0:
+                    el = MirrorElement(face(a), None, R, h, front_coated=clear[a], back_z_flat=float(zs.max()) + t)
+                else:
+                    el = MirrorElement(None, face(a), R, h, back_coated=clear[a], front_z_flat=float(zs.min()) - t)
+            elif u.mirror or h > 0:
+                el = MirrorElement(face(a), face(b), R, h, front_coated=clear_of(a) if surf[a].mirror else None,
+                                   back_coated=clear_of(b) if surf[b].mirror else None)
+            else:
+                el = LensElement(face(a), face(b), R)
+            u.templates.append(el)
+
+    def extent(u: _Unit):
+        rs = np.linspace(u.hole, u.radius, 65)
+        return (min(float(np.min(t.front_z(rs))) for t in u.templates),
+                max(float(np.max(t.back_z(rs))) for t in u.templates))
+
+    def room(u: _Unit, a: int) -> float:
+        """Axial room behind mirror surface a (away from the light) to the nearest glass."""
+        zs = face(a).z(np.linspace(u.hole, u.radius, 65))
+        edge = float(zs.max()) if side(a) > 0 else float(zs.min())
+        gaps = [(w_lo - edge) if side(a) > 0 else (edge - w_hi) for w in units if w is not u and w.templates
+                for w_lo, w_hi in [extent(w)]]
+        gaps = [g for g in gaps if g > 0]
+        return min(gaps) if gaps else np.inf
+
+    def fit_radius(u: _Unit) -> None:
+        """Cut the unit's radius back where a glass piece's edge would be thinner than min_t."""
+        floor = max(clear_of(j) for j in u.surfaces) + cm + min_t
+        while True:
+            build_templates(u)
+            thin = [t for t, (a, b) in zip(u.templates, u.pieces) if b != -1
+                    and float(t.back_z(u.radius) - t.front_z(u.radius)) < min_t]
+            if not thin or u.radius - 0.05 < floor:
+                break
+            u.radius -= 0.05
+
+    for u in sorted(units, key=lambda w: w.pieces[0][1] == -1):   # glass first: blanks fit the room it leaves
+        fit_radius(u)
+
+    # units whose edges leave no room for a lip between them are held as one
+    units.sort(key=lambda u: extent(u)[0])
+    merged: list[_Unit] = []
+    for u in units:
+        if merged and not u.mirror and not merged[-1].mirror:
+            prev = merged[-1]
+            gap = extent(u)[0] - extent(prev)[1]
+            if gap < 2 * min_t + 3 * c_glass:
+                prev.pieces += u.pieces
+                prev.surfaces |= u.surfaces
+                prev.radius = max(prev.radius, u.radius)
+                fit_radius(prev)
+                continue
+        merged.append(u)
+    units = merged
+    # lips: as thick as the barrel's, or half the gap to the neighbour's glass
+    for u in units:
+        u.lips = [lip, lip]
+    for prev in units:   # with the nearest unit wholly behind it (a relay nested in a hole has none)
+        behind = [u for u in units if extent(u)[0] >= extent(prev)[1]]
+        if behind:
+            u = min(behind, key=lambda w: extent(w)[0])
+            share = 0.5 * (extent(u)[0] - extent(prev)[1]) - 1.5 * c_glass
+            prev.lips[1] = min(prev.lips[1], share)
+            u.lips[0] = min(u.lips[0], share)
+    for u in units:
+        if min(u.lips) < min_t:
+            raise GeometryError(f"surfaces {'/'.join(str(j + 1) for j in sorted(u.surfaces))}: no room for a cell lip "
+                                f"{min_t} mm thick next to the neighbouring element", field="checks.min_thickness_mm",
+                                valid="a thinner minimum wall or a larger air gap")
+
+    z_lo = min(extent(u)[0] for u in units) - 4 * lip - 10.0
+    beam = BeamPaths(p, phys, z_lo)
+    env = Envelope(p, z_lo, max(p.image_z, max(extent(u)[1] for u in units)) + lip)
+
+    # ---- cells ---------------------------------------------------------------------------
+    def lip_radius(t, front: bool, R: float, h: float) -> float:
+        f = t.front if front else t.back
+        if f is None:   # a blank's flat back: a ring support at half the radius
+            return max(0.5 * R, h + margin + min_t)
+        z = float(f.z(R))
+        za, zb = (z - 2 * lip, z) if front else (z, z + 2 * lip)
+        beam_near = beam.meeting(phys[f.index], za, zb) + margin
+        return min(max(clear_of(f.index) + cm, beam_near), R + c_bore)
+
+    def cell_outline(u: _Unit, r_out: float):
+        first, last = u.templates[0], u.templates[-1]
+        R = u.radius
+        hf, hb = lip_radius(first, True, R, u.hole), lip_radius(last, False, R, u.hole)
+        rf, rb = np.linspace(hf, R, 65), np.linspace(hb, R, 65)
+        zf = float(np.min(first.front_z(rf))) - c_glass
+        zb = float(np.max(last.back_z(rb))) + c_glass
+        # a front-surface mirror's coated face gets no lip: the light it returns leaves at any
+        # height, so the ring stops level with the blank's edge there (the back support holds it)
+        lf, lb = u.lips
+        if u.pieces[0][1] == -1 and first.front is not None:
+            hf, zf, lf = R + c_bore, float(first.front_z(R)), 0.0
+        if u.pieces[-1][1] == -1 and last.back is not None:
+            hb, zb, lb = R + c_bore, float(last.back_z(R)), 0.0
+        u.z0, u.z1, u.hf, u.hb, u.r_out = zf - lf, zb + lb, hf, hb, r_out
+        return ((hf, zf - lf), (r_out, zf - lf), (r_out, zb + lb), (hb, zb + lb), (hb, zb),
+                (R + c_bore, zb), (R + c_bore, zf), (hf, zf))
+
+    r_bore = max(max(u.radius for u in units) + c_bore + min_t + c_sp, float(env.r.max()) + margin)
+    for u in units:
+        cell_outline(u, r_bore)
+    # central units: light passes outside them, or another element's body does
+    for u in units:
+        r_lo, r_hi = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False)
+        body = any(w is not u and extent(w)[0] < extent(u)[1] and extent(w)[1] > extent(u)[0]
+                   and w.radius > u.radius for w in units)
+        u.inner = bool(np.any(r_hi > u.radius)) or body
+    cell_wall = max(2 * min_t, lip)
+    for u in units:
+        if u.inner:
+            cell_outline(u, u.radius + c_bore + cell_wall)
+    # a central lens unit hangs on a tube from the lens unit behind it where the light between
+    # them stays inside the tube's bore (a relay cantilevered from the cell that reaches the barrel)
+    for u in sorted(units, key=lambda x: -extent(x)[0]):   # from the back: the unit behind is final
+        if not u.inner or u.mirror:
+            continue
+        behind = [w for w in units if not w.mirror and extent(w)[0] >= extent(u)[1]]
+        if not behind:
+            continue
+        w = min(behind, key=lambda x: extent(x)[0])
+        r_in = max(u.hb, w.hf, beam.between(u.surfaces, w.surfaces, u.z1, w.z0) + margin)
+        r_out = max(u.r_out, r_in + cell_wall)
+        if w.inner:
+            r_out = min(r_out, w.r_out)
+        if r_out - r_in >= min_t:
+            cell_outline(u, r_out)
+            u.tube, u.holder = (r_in, r_out, u.z1, w.z0), w
+    for u in units:
+        if u.inner:
+            c_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False)
+            beam.obscured |= np.isfinite(c_lo) & (c_lo < u.r_out)
+    # holes: the unobscured light another pass brings through an outer unit, and the central parts
+    for u in units:
+        if u.inner:
+            continue
+        za, zb = extent(u)
+        _, r_hi = beam.passing(u.surfaces, za, zb, unobscured=True)
+        through = [float(r_hi[np.isfinite(r_hi)].max())] if np.isfinite(r_hi).any() else []
+        through += [w.r_out for w in units if w.inner and w.z0 < zb and w.z1 > za]
+        through += [w.tube[1] for w in units if w.tube and w.holder is not u and w.tube[2] < zb and w.tube[3] > za]
+        if through:
+            u.hole = max(through) + margin
+            build_templates(u)
+            cell_outline(u, r_bore)
+            used = beam.radius_on(u.surfaces)
+            if used < u.hole + cm:
+                raise GeometryError(
+                    f"{'/'.join(str(j + 1) for j in sorted(u.surfaces))}: the central hole the returning light "
+                    f"needs ({u.hole:.3f} mm) reaches into the zone the unobscured light uses (from {used:.3f} mm)",
+                    field="spacers.aperture_margin_mm", valid="a smaller aperture margin or contact margin")
+    # a unit that hangs on a tube from one that hangs on the barrel needs no spider
+    held = {id(u) for u in units if not u.inner}
+    for _ in units:
+        held |= {id(u) for u in units if u.holder is not None and id(u.holder) in held}
+
+    # ---- parts ---------------------------------------------------------------------------
+    parts: list = []
+    n_lens = n_mirror = 0
+    for u in units:
+        u.names = []
+        for (a, b), t in zip(u.pieces, u.templates):
+            if b == -1:
+                n_mirror += 1
+                u.names.append(f"mirror-{n_mirror}")
+                parts.append(PartPlan(u.names[-1], "mirror", spec.finish_of(u.names[-1], edge.finish), t))
+            else:
+                n_lens += 1
+                u.names.append(f"lens-{n_lens}")
+                parts.append(PartPlan(u.names[-1], "lens", spec.finish_of(u.names[-1], edge.finish), t))
+    for k, u in enumerate(units, start=1):
+        u.cell_name = f"cell-{k}"
+        if not u.inner:
+            u.cell = Cell(cell_outline(u, r_bore - c_sp))
+        elif id(u) in held:
+            u.cell = Cell(cell_outline(u, u.r_out))
+        else:
+            outline = cell_outline(u, u.r_out)
+            clash = [w.names[0] for w in units if w is not u and extent(w)[0] < u.z1 and extent(w)[1] > u.z0
+                     and w.radius > u.r_out]
+            if clash:
+                raise GeometryError(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam and its spider to the "
+                                    f"barrel would cut {clash[0]}", field="lens_edge.allowance_mm",
+                                    valid="a lens whose central elements a tube can join to one behind them")
+            u.cell = SpiderCell(outline, SPIDER_VANES, spec.vanes.thickness_mm, r_bore, u.z0, u.z1)
+            notes.append(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam on {SPIDER_VANES} vanes "
+                         f"{spec.vanes.thickness_mm} mm thick")
+        parts.append(PartPlan(u.cell_name, "cell", spec.finish_of(u.cell_name, spec.retainer.finish), u.cell))
+        if u.tube:
+            r_in, r_out, z0, z1 = u.tube
+            name = f"tube-{k}"
+            parts.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish),
+                                  Cell(((r_in, z0), (r_out, z0), (r_out, z1), (r_in, z1)))))
+    z_front = min(u.z0 for u in units) - lip
+    z_back = max(u.z1 for u in units) + lip
+    barrel = Barrel(((r_bore, z_front), (r_bore, z_back)), float(r_bore + spec.barrel.wall_mm))
+    parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
+    layout = Layout(p, parts, [], env, notes)
+    layout.beam = beam
+    return layout
+
+
+__all__ = ["plan_catadioptric", "physical_surfaces", "BeamPaths"]
