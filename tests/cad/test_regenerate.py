@@ -144,6 +144,7 @@ def test_changing_vane_count_rewrites_only_vane_steps(reference, tmp_path):
     shutil.copytree(out, o2)
     old_bytes = {p.name: (o2 / p.step).read_bytes() for p in manifest.parts}
     old_mtime = {p.name: os.stat(o2 / p.step).st_mtime_ns for p in manifest.parts}
+    old_drawing = {p.name: os.stat(o2 / p.dxf).st_mtime_ns for p in manifest.parts}
     text = (d2 / "mount.toml").read_text().replace("count = 3 ", "count = 4 ")
     assert "count = 4" in text
     (d2 / "mount.toml").write_text(text)
@@ -157,6 +158,8 @@ def test_changing_vane_count_rewrites_only_vane_steps(reference, tmp_path):
         elif os.stat(o2 / p.step).st_mtime_ns != old_mtime[p.name]:
             changed.add(p.name + " (rewritten)")
     assert changed and all(n.startswith("vane-") for n in changed), changed
+    redrawn = {p.name for p in new.parts if os.stat(o2 / p.dxf).st_mtime_ns != old_drawing.get(p.name)}
+    assert redrawn and all(n.startswith("vane-") for n in redrawn), redrawn  # drawings cached like STEP
     assert sum(p.kind == "vane" for p in new.parts) == sum(p.kind == "vane" for p in manifest.parts) + 1
     # and back: the earlier outputs come from the content-addressed cache
     (d2 / "mount.toml").write_text(text.replace("count = 4 ", "count = 3 "))

@@ -2,8 +2,8 @@
 
 Key: `Design.input_hash` (lens file, mount.toml, user templates, lensmount version).
 Store: `OUT/.cache/<key>/` holds a complete copy of the outputs (hard links where
-the file system allows, so no extra space) — assembly.step, parts/*.step, mesh.npz,
-manifest.json. A re-run with the same key restores OUT from there without touching
+the file system allows, so no extra space) — assembly.step, parts/*.step and the part
+drawings (parts/*.svg, *.dxf), mesh.npz, bom.csv, manifest.json. A re-run with the same key restores OUT from there without touching
 the CAD kernel; switching a parameter back and forth restores the earlier outputs.
 Delete `OUT/.cache` to empty it.
 """
@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 CACHE_DIR = ".cache"
+PART_SUFFIXES = (".step", ".svg", ".dxf")  # per-part files in OUT/parts: the STEP and its drawings
 
 
 def cache_dir(out_dir: Path, key: str) -> Path:
@@ -76,11 +77,11 @@ def restore(out_dir: Path, key: str) -> bool:
         if rel.name == "manifest.json":
             continue
         _place(src / rel, Path(out_dir) / rel)
-    for old in (Path(out_dir) / "parts").glob("*.step"):  # parts the cached design does not have
-        if old.relative_to(out_dir) not in wanted:
+    for old in (Path(out_dir) / "parts").glob("*.*"):  # parts the cached design does not have
+        if old.suffix in PART_SUFFIXES and old.relative_to(out_dir) not in wanted:
             old.unlink()
     _place(src / "manifest.json", Path(out_dir) / "manifest.json")  # last: a complete OUT is marked complete
     return True
 
 
-__all__ = ["cache_dir", "store", "restore", "CACHE_DIR"]
+__all__ = ["cache_dir", "store", "restore", "CACHE_DIR", "PART_SUFFIXES"]

@@ -161,6 +161,7 @@ def check_thickness(layout: Layout, spec: MountSpec) -> None:
             "housing": lambda: ("wall", t.wall),
             "retainer": lambda: ("thickness", t.thickness),
             "barrel": lambda: ("wall", t.outer_radius - max(r for r, _ in t.bore)),
+            "baffle": lambda: ("wall", t.outer_radius - max(r for r, _ in t.bore)),
         }
         if plan.kind not in sizes:
             continue

@@ -62,17 +62,28 @@ def write_assembly_step(parts, path: Path) -> None:
     _atomic_step(assembly, path)
 
 
-__all__ = ["write_part_step", "write_assembly_step", "STEP_TIMESTAMP", "colour_of"]
+__all__ = ["write_part_step", "write_assembly_step", "STEP_TIMESTAMP", "colour_of", "material_of", "bom_csv"]
 
 
 GLASS_DENSITY_DEFAULT = 2.51  # g/cm³, N-BK7: the weight of a glass the BOM has no density for
 
 
+def material_of(kind: str, template, prescription, spec) -> tuple[str, float, str]:
+    """(material, density g/cm³, note) of a part: a lens's glass is the one after its front
+    surface (prescription), every other part is `[bom] metal`."""
+    if kind != "lens":
+        return spec.bom.metal, spec.bom.metal_density_g_cm3, ""
+    material = prescription.surfaces[template.front.index].material
+    density = spec.bom.glass_density_g_cm3.get(material)
+    if density is None:
+        return material, GLASS_DENSITY_DEFAULT, "density of N-BK7 assumed: give [bom] glass_density_g_cm3"
+    return material, density, ""
+
+
 def bom_csv(rows, prescription, spec) -> str:
     """bom.csv text: part, kind, material, finish, volume (mm³), density (g/cm³), mass (g), note.
 
-    rows: (name, kind, finish, volume_mm3, template) per part; a lens's material is the glass
-    after its front surface (prescription), every other part's is `[bom] metal`.
+    rows: (name, kind, finish, volume_mm3, template) per part (materials: `material_of`).
     """
     import csv
     import io
@@ -81,13 +92,6 @@ def bom_csv(rows, prescription, spec) -> str:
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["part", "kind", "material", "finish", "volume_mm3", "density_g_cm3", "mass_g", "note"])
     for name, kind, finish, volume, template in rows:
-        note = ""
-        if kind == "lens":
-            material = prescription.surfaces[template.front.index].material
-            density = spec.bom.glass_density_g_cm3.get(material)
-            if density is None:
-                density, note = GLASS_DENSITY_DEFAULT, "density of N-BK7 assumed: give [bom] glass_density_g_cm3"
-        else:
-            material, density = spec.bom.metal, spec.bom.metal_density_g_cm3
+        material, density, note = material_of(kind, template, prescription, spec)
         w.writerow([name, kind, material, finish, f"{volume:.3f}", f"{density:g}", f"{volume * density * 1e-3:.3f}", note])
     return out.getvalue()

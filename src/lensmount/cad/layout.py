@@ -504,7 +504,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     aperture = (clear[i0], float(el0.front_z(clear[i0])))
     hood_part, vane_parts = hood_and_vanes(spec, env, z_front, r_barrel, bore_pts[0][0], spacers, notes,
                                            aperture, spec.exclusion_deg(p.max_field_deg))
-    housing_part = housing(spec, env, p.image_z, z_back, r_barrel, bore_pts[-1][0], notes)
+    housing_part, rear_baffle = housing(spec, env, p.image_z, z_back, r_barrel, bore_pts[-1][0], notes)
 
     ordered = [parts[0]] + [pp for grp in lens_parts for pp in grp] + retainers + spacers + parts[1:]
     if hood_part:
@@ -512,6 +512,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     ordered += vane_parts
     if housing_part:
         ordered.append(housing_part)
+    if rear_baffle:
+        ordered.append(rear_baffle)
     return Layout(p, ordered, contacts, env, notes)
 
 

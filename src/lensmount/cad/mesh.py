@@ -15,7 +15,7 @@ import numpy as np
 from lensmount.atomic import write_npz
 
 ROLES = ("optical", "lens-edge", "bevel", "mount", "diaphragm-edge", "vane-edge", "object")
-KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "object")
+KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "baffle", "object")
 
 
 @dataclass(frozen=True)

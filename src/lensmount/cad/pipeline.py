@@ -1,15 +1,18 @@
-"""`regenerate`: design folder → assembly.step, parts/NAME.step, mesh.npz, bom.csv, manifest.json.
+"""`regenerate`: design folder → assembly.step, parts/NAME.step (+ NAME.svg, NAME.dxf drawings),
+mesh.npz, bom.csv, manifest.json.
 
 manifest.json:
 
     {"input_hash": "<sha256>", "lensmount_version": "0.1.0",
      "assembly": "assembly.step", "mesh": "mesh.npz",
      "tessellation": {"linear_tolerance_mm": .., "angular_tolerance_deg": ..},
-     "parts": [{"name", "kind", "finish", "step", "volume_mm3", "triangles", "hash"}, ...],
+     "parts": [{"name", "kind", "finish", "step", "volume_mm3", "triangles", "hash",
+                "svg", "dxf", "drawing_hash"}, ...],
      "notes": [...]}
 
 A part's STEP file is rewritten only when its own hash (its template parameters,
-finish, user template) changed, so changing one parameter changes only the
+finish, user template) changed, its drawings only when that hash, `[drawing]` or its
+material changed, so changing one parameter changes only the
 affected parts' files (and assembly.step, mesh.npz, manifest.json). A run whose
 input hash is cached returns from the cache (lensmount.cad.cache).
 """
@@ -43,6 +46,9 @@ class PartEntry:
     volume_mm3: float
     triangles: int
     hash: str
+    svg: str
+    dxf: str
+    drawing_hash: str
 
 
 @dataclass
@@ -118,7 +124,7 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     if use_cache:
         prev = _previous(out)
         files_ok = prev is not None and prev.input_hash == key and (out / ASSEMBLY).is_file() and \
-            (out / MESH).is_file() and all((out / p.step).is_file() for p in prev.parts)
+            (out / MESH).is_file() and all((out / f).is_file() for p in prev.parts for f in (p.step, p.svg, p.dxf))
         if files_ok:
             prev.cached = True
             return prev
@@ -136,18 +142,20 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
 
     prev = _previous(out)
     prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
+    prev_drawing = {p.name: p.drawing_hash for p in prev.parts} if prev else {}
     entries = []
     for k, bp in enumerate(parts):
         rel = f"parts/{bp.name}.step"
         if prev_hash.get(bp.name) != bp.hash or not (out / rel).is_file():
             write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, out / rel)
+        svg, dxf, d_hash = _drawings(out, bp, layout, spec, prev_drawing.get(bp.name))
         entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
-                                 triangles[bp.name], bp.hash))
+                                 triangles[bp.name], bp.hash, svg, dxf, d_hash))
         if progress:
             progress("export", k + 1, len(parts) + 2)
-    # parts that no longer exist (e.g. fewer vanes) leave the folder
-    for old in (out / "parts").glob("*.step"):
-        if old.stem not in triangles:
+    # parts that no longer exist (e.g. fewer vanes) leave the folder, drawings too
+    for old in (out / "parts").glob("*.*"):
+        if old.suffix in cache.PART_SUFFIXES and old.stem not in triangles:
             old.unlink()
     write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], out / ASSEMBLY)
     mesh.save(out / MESH)
@@ -157,8 +165,30 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     write_text(out / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume), bp.plan.template)
                                    for bp in parts], layout.prescription, spec))
     write_text(out / MANIFEST, manifest.to_json())
-    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [e.step for e in entries])
+    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [f for e in entries for f in (e.step, e.svg, e.dxf)])
     return manifest
+
+
+def _drawings(out: Path, bp, layout, spec, previous_hash: str | None) -> tuple[str, str, str]:
+    """parts/NAME.svg and .dxf (lensmount.cad.drawing), rewritten only when what they show changed.
+
+    A user-template part is drawn as its section with no template dimensions: the template's
+    numbers describe the built-in part it replaces, not the user's solid.
+    """
+    from lensmount.cad.drawing import dimensions, title_block, write_drawing
+    from lensmount.cad.export import material_of
+
+    material = material_of(bp.plan.kind, bp.plan.template, layout.prescription, spec)[0]
+    payload = json.dumps([bp.hash, material, spec.drawing.model_dump()], sort_keys=True)
+    d_hash = hashlib.sha256(payload.encode()).hexdigest()
+    svg, dxf = f"parts/{bp.name}.svg", f"parts/{bp.name}.dxf"
+    if d_hash != previous_hash or not (out / svg).is_file() or not (out / dxf).is_file():
+        dims = [] if bp.user_template is not None else dimensions(bp.plan, spec.drawing)
+        title = title_block(bp.name, bp.plan.kind, material, bp.plan.finish, spec.drawing)
+        if bp.user_template is not None:
+            title.append(f"user template {bp.user_template.name}: section only, dimension from the STEP file")
+        write_drawing(bp.solid, dims, title, out / svg, out / dxf)
+    return svg, dxf, d_hash
 
 
 __all__ = ["regenerate", "Manifest", "PartEntry", "STEPS"]

@@ -17,7 +17,7 @@ from lensmount.errors import InputError
 
 SeatStyle = Literal["spacer", "shoulder", "retainer"]
 ContactStyle = Literal["sharp", "tangent"]
-KNOWN_KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing")
+KNOWN_KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "baffle")
 FINISH_TABLES = ("barrel", "lens_edge", "spacers", "retainer", "diaphragm", "vanes", "hood", "housing")
 
 
@@ -123,6 +123,12 @@ class Housing(_Strict):
     detector_clearance_mm: float = Field(2.0, ge=0, description="radial room around the detector corners")
     back_gap_mm: float = Field(5.0, gt=0, description="image plane to the housing's back wall")
     wall_mm: float = Field(3.0, gt=0)
+    rear_baffle: bool = Field(False, description="a cold-stop style tube (part rear-baffle, kind baffle) "
+                              "from the barrel to the detector whose bore follows the beam")
+    rear_baffle_margin_mm: float = Field(0.5, ge=0, description="rear baffle bore above the beam envelope")
+    rear_baffle_gap_mm: float = Field(1.0, gt=0, description="rear baffle's back end to the image plane")
+    rear_baffle_wall_mm: float = Field(1.0, gt=0, description="thinnest radial wall of the rear baffle "
+                                       "(the housing's bore grows to make room)")
     finish: str = "black-anodised"
 
 
@@ -140,6 +146,15 @@ class Bom(_Strict):
     glass_density_g_cm3: dict[str, float] = Field(
         default_factory=dict, description="glass name → density (g/cm³); a glass not listed weighs "
         "as N-BK7 (2.51) and the BOM says so")
+
+
+class Drawing(_Strict):
+    """Tolerances on the shop drawings (parts/NAME.svg, .dxf), ± each."""
+
+    diameter_mm: float = Field(0.02, gt=0, description="bores and outside diameters")
+    length_mm: float = Field(0.05, gt=0, description="axial lengths and thicknesses")
+    land_mm: float = Field(0.01, gt=0, description="width of a knife-edge land (diaphragm, vanes)")
+    angle_deg: float = Field(0.5, gt=0, description="bevel angles")
 
 
 class Tessellation(_Strict):
@@ -163,6 +178,7 @@ class MountSpec(ReadFromFile, _Strict):
     checks: Checks = Checks()
     tessellation: Tessellation = Tessellation()
     bom: Bom = Bom()
+    drawing: Drawing = Drawing()
     finishes: dict[str, str] = Field(default_factory=dict, description="part name → finish override")
     templates: dict[str, str] = Field(default_factory=dict, description="part kind → user template .py")
 
