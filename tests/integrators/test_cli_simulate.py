@@ -81,6 +81,28 @@ def test_resume_mismatch_names_what_the_checkpoint_holds(tmp_path):
     assert not (design / "build").exists()
 
 
+def test_resume_of_a_checkpoint_of_an_older_layout_is_one_paragraph(tmp_path):
+    from lensmount.analysis.passes import Accumulator
+
+    out = tmp_path / "out"
+    Accumulator.empty((2, 2), ["barrel"], 1.0).save(out / "checkpoint.npz", seed=1)
+    with np.load(out / "checkpoint.npz") as z:
+        arrays = {k: z[k] for k in z.files if not k.startswith(("paths_", "faces_"))}
+    arrays["version"] = np.int64(5)  # before path signatures
+    np.savez(out / "checkpoint.npz", **arrays)
+    result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(out), "--resume"])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "version 5" in text and "checkpoint.npz" in text and "without --resume" in text
+    assert "Traceback" not in text
+
+
+def test_paths_of_a_folder_without_path_data_is_one_paragraph(tmp_path):
+    result = CliRunner().invoke(app, ["paths", str(tmp_path)])
+    assert result.exit_code == 2, result.output
+    assert "paths.npz" in " ".join(result.output.split()) and "Traceback" not in result.output
+
+
 def test_resume_without_checkpoint_is_an_input_error(tmp_path):
     result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(tmp_path),
                                       "--resume"])
