@@ -70,7 +70,7 @@ def test_perfect_ar_means_no_ghost_and_no_rays_traced(monkeypatch):
     def fail(*args, **kwargs):
         raise AssertionError("a pair with no reflectance was traced")
 
-    monkeypatch.setattr(ghosts, "_trace_pair", fail)
+    monkeypatch.setattr(ghosts, "trace_routes", fail)
     scene, _ = _scene("perfect-ar")
     report = ghost_report(scene)
     assert report.pairs == [] and report.skipped == [(1, 2)] and report.total_fraction == 0.0
@@ -107,9 +107,72 @@ def test_ghost_report_agrees_with_the_forward_estimators_ghost_channel():
     tracer = Tracer(scene)
     report = ghost_report(scene, tracer)
     ghost = scene.mesh.parts.__len__()  # the channel after the parts: `ghosts` (direct is off)
-    flux = [forward_pass(scene, tracer, 1_500_000, 7, i).part_flux[ghost] for i in range(8)]
+    flux = [forward_pass(scene, tracer, 1_500_000, 7, i, ghost_routes=False).part_flux[ghost] for i in range(8)]
     aperture = scene.entrance_pupil_area_mm2 * math.cos(math.radians(2.0))
     mean, se = np.mean(flux) / aperture, np.std(flux, ddof=1) / math.sqrt(len(flux)) / aperture
     assert report.total_fraction == pytest.approx(mean, abs=4 * se)
     assert se < 0.1 * mean  # the comparison has teeth: without the barrel the report reads ~6x more
     assert abs(ghost_report(scene).total_fraction - mean) > 10 * se
+
+
+DOUBLET = [(60.0, 4.0, "N-BK7"), (-45.0, 1.0, "AIR"), (-44.0, 2.5, "F2"), (-150.0, None, "AIR")]  # air-spaced
+
+
+def _paraxial_route(n_glass: list[float], reflect_at: list[int]):
+    """Lab-frame paraxial trace (slopes m = dy/dz, surfaces at their vertices) of a unit-height ray
+    parallel to the axis, reflecting at the 0-based surfaces `reflect_at` in that order.
+    Refraction keeps n (m + c y) (the tangential direction); reflection turns m into −m − 2 c y.
+    Returns (y, m, z) after the last surface and the Fresnel product (normal incidence)."""
+    z = np.cumsum([0.0] + [t for _, t, _ in DOUBLET[:-1]])
+    c = [1.0 / r for r, _, _ in DOUBLET]
+    n = [1.0] + n_glass  # n[k]: in front of surface k; n[k + 1]: behind it
+    y, m, zc, k, step, todo, product = 1.0, 0.0, 0.0, 0, 1, list(reflect_at), 1.0
+    while k < len(DOUBLET):
+        assert k >= 0, "the route leaves through the front"
+        y, zc = y + m * (z[k] - zc), z[k]
+        n1, n2 = (n[k], n[k + 1]) if step > 0 else (n[k + 1], n[k])
+        r = ((n1 - n2) / (n1 + n2)) ** 2
+        if todo and todo[0] == k:
+            todo.pop(0)
+            m, step, product = -m - 2.0 * c[k] * y, -step, product * r
+        else:
+            m, product = (n1 * (m + c[k] * y) - n2 * c[k] * y) / n2, product * (1.0 - r)
+        k += step
+    return y, m, zc, product
+
+
+def test_doublet_strongest_ghost_and_its_focus_match_the_paraxial_hand_calculation():
+    """Uncoated air-spaced doublet at f/33 on axis: by hand, each ghost (i, j) is a y–u trace of the
+    two-reflection path; a defocused ghost spreads the pupil's light over a disc of radius |y_det|
+    (per unit entrance height), so its irradiance is R-product / y_det². The report's first pair
+    (ranked by peak irradiance) must be the hand calculation's, with the same focus."""
+    n_glass = [float(refractive_index(m, np.array([WL]))[0]) for _, _, m in DOUBLET]
+    y, m, z_last, _ = _paraxial_route(n_glass, [])
+    bfl = -y / m
+    lens = Prescription(tuple(Surface(r, t if t is not None else bfl, mat, is_stop=k == 0, clear_semi_diameter=H,
+                                      mechanical_semi_diameter=H) for k, (r, t, mat) in enumerate(DOUBLET)),
+                        Aperture("epd", 2 * H), (WL,), (1.0,), 0, (0.0,), "doublet")
+    z_image = z_last + bfl
+    assert lens.image_z == pytest.approx(z_image, abs=1e-9)
+    hand = {}
+    for j in range(4):
+        for i in range(j):
+            y, m, z_last, product = _paraxial_route(n_glass, [j, i])
+            y_det = y + m * (z_image - z_last)
+            hand[(i + 1, j + 1)] = (product / y_det ** 2, z_last - y / m - z_image, product)
+    ranked = sorted(hand, key=lambda k: hand[k][0], reverse=True)
+    assert ranked[0] == (2, 3) and hand[ranked[0]][0] > 10 * hand[ranked[1]][0]  # the hand result, round numbers
+    assert hand[(2, 3)][1] == pytest.approx(-35.0, abs=0.1)
+
+    wl = np.array([WL])
+    c = parse_coating("uncoated")
+    scene = SimpleNamespace(optical=optical_surfaces(lens, wl, lambda i, _: c),
+                            source=CollimatedSource(0.0, 90.0, EmissionDisc((0.0, 0.0, -100.0), 10.0)),
+                            detector=Detector(30.0, 30.0, 300, 300, z_image), wavelengths_um=wl,
+                            entrance_pupil_area_mm2=math.pi * H * H)
+    report = ghost_report(scene, rays_across=61)
+    top = report.pairs[0]
+    assert (top.first, top.second) == ranked[0]
+    assert top.focus_from_detector_mm == pytest.approx(hand[ranked[0]][1], rel=2e-3)
+    assert top.fraction == pytest.approx(hand[ranked[0]][2], rel=1e-2)  # lattice over a round pupil: ~0.5 %
+    assert top.peak_irradiance == pytest.approx(hand[ranked[0]][0], rel=0.3)  # a uniform disc by hand

@@ -26,9 +26,11 @@ from lensmount.trace.tracer import Tracer  # noqa: E402
 
 
 def _forward_run(scene, tracer, passes, per_pass, *, batch=200_000, seed=3):
+    """Photons only: the ghosts channel from the stochastic branch (deterministic routes off)."""
     acc = Accumulator.empty(scene.detector.shape, Forward().channels(scene), scene.detector.pixel_area)
+    photons_only = EstimatorSettings(ghost_routes=False)
     for i in range(passes):
-        acc.add(Forward(batch=batch).run_pass(scene, tracer, i, per_pass, seed), i)
+        acc.add(Forward(photons_only, batch=batch).run_pass(scene, tracer, i, per_pass, seed), i)
     return acc
 
 

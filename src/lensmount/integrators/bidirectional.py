@@ -23,7 +23,8 @@ estimator does), because a narrow lobe after the optics is nearly specular and p
 follow it efficiently while a density estimate would need an enormous number of photons
 in its lobe. A narrow lobe with wide wings (black-paint ABg) is split by direction
 (`gather_cores`): the gather counts the scatter outside its core, the photons the core. Paths with no scattering at all (direct image, pure ghosts)
-are counted the same forward way when the scene turns `direct` or `ghosts` on.
+are counted the same forward way when the scene turns `direct` or `ghosts` on, except the two-
+(four-) reflection ghosts, which the deterministic routes count (`ghost_routes`).
 
 Photons are walked by the same code as the forward estimator (`walk.photon_walk`), photon k
 of pass i being photon i·N + k of the run with its numbers keyed by that index; backward
@@ -39,6 +40,7 @@ import time
 import numpy as np
 
 from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
+from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
@@ -122,7 +124,8 @@ class Bidirectional:
         core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
         core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
         broad = np.isfinite(core)
-        film, ledger = Film(scene), EnergyLedger()
+        by_routes = route_reflections(scene, cfg)
+        film, ledger = Film(scene, by_routes), EnergyLedger()
 
         # Phase 1: the view map (none without a face to gather at: the plan's "scatter" is off).
         diagnostics: dict[str, float] = {}
@@ -155,6 +158,11 @@ class Bidirectional:
                 gather_s += time.perf_counter() - start
         diagnostics.update(phase_times(view_map=view_map_s, gather=gather_s,
                                        walk=time.perf_counter() - clock - gather_s))
+
+        if by_routes:  # the ghosts channel's two- (four-) reflection light, deterministically
+            clock = time.perf_counter()
+            ghost_routes_pass(scene, tracer, film, pass_index, seed, cfg.ghost_rays_across)
+            diagnostics.update(phase_times(ghost_routes=time.perf_counter() - clock))
 
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))

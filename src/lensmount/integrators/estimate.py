@@ -18,9 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lensmount.integrators.paths import FaceTally, PassFaces, PassPaths, PathTally
+from lensmount.integrators.paths import EMPTY, FaceTally, PassFaces, PassPaths, PathTally, ghost_code
 
 DIRECT, GHOSTS = "direct", "ghosts"
+BY_ROUTES = -2  # `Film.channel` of a photon whose path the deterministic ghost routes count instead
 
 
 @dataclass
@@ -74,7 +75,8 @@ class PassEstimate:
 
 TIME_PREFIX = "time/"  # diagnostics keys holding seconds per phase, summed over passes (the plan's times)
 PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
-          "walk": "photon walk (scatter, direct and ghosts together)"}
+          "walk": "photon walk (scatter, direct and ghosts together)",
+          "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}
 
 
 def phase_times(**seconds: float) -> dict[str, float]:
@@ -89,14 +91,18 @@ def film_channels(scene) -> list[str]:
 
 
 class Film:
-    """The detector image of one pass, by channel (see the module docstring)."""
+    """The detector image of one pass, by channel (see the module docstring).
 
-    def __init__(self, scene):
+    by_routes : Fresnel reflection counts whose unscattered light the deterministic ghost routes
+        count (`ghost_routes.route_reflections`); photons on such paths get channel BY_ROUTES."""
+
+    def __init__(self, scene, by_routes: tuple[int, ...] = ()):
         self.detector = scene.detector
         self.channels = film_channels(scene)
         self.n_parts = len(scene.mesh.parts)
         self._direct = self.channels.index(DIRECT) if DIRECT in self.channels else -1
         self._ghosts = self.channels.index(GHOSTS) if GHOSTS in self.channels else -1
+        self.by_routes = tuple(by_routes)
         det = self.detector
         self._n_pix = det.nx * det.ny
         self._flux = np.zeros(len(self.channels) * self._n_pix)  # Σ Φ·response per (channel, pixel)
@@ -113,6 +119,7 @@ class Film:
         ch = np.where(unscattered, self._direct, part)
         if self._ghosts >= 0:
             ch = np.where(unscattered & (reflections > 0), self._ghosts, ch)
+            ch = np.where(unscattered & np.isin(reflections, self.by_routes), BY_ROUTES, ch)
         return ch.astype(np.int64)
 
     def deposit(self, pixel: np.ndarray, flux: np.ndarray, wavelength: np.ndarray, channel: np.ndarray,
@@ -124,6 +131,15 @@ class Film:
         value = flux if self._response is None else flux * self._response[np.asarray(wavelength, np.int64)]
         self._flux += np.bincount(channel * self._n_pix + pixel, weights=value, minlength=len(self._flux))
         self.paths.add(signature, pixel, value / self.detector.pixel_area)
+
+    def deposit_route(self, route: tuple[int, ...], pixel: np.ndarray, flux: np.ndarray,
+                      wavelength: np.ndarray) -> None:
+        """Rays of one deterministic ghost route (`trace.ghosts`, 1-based reflecting surfaces) landing in
+        flat pixels (N,) (>= 0): into the `ghosts` channel, under the route's path signature."""
+        n = len(pixel)  # the photons' ghost code: reflection count and the first two surfaces (0-based)
+        code = ghost_code(np.full(n, len(route)), np.full(n, route[0] - 1), np.full(n, route[1] - 1))
+        signature = self.paths.extend(np.full(n, EMPTY), code)
+        self.deposit(pixel, flux, wavelength, np.full(len(pixel), self._ghosts), signature)
 
     def add_images(self, per_channel: np.ndarray) -> None:
         """Irradiance images (channels, ny, nx) E/E_sun estimated otherwise (the gather)."""
@@ -147,7 +163,8 @@ class EnergyLedger:
 
     Entries: `source`; `detector/<channel>` (photons the film counts), `detector_gathered/<channel>`
     (bidirectional: photons whose last vertex is gathered, so the image counts them through the
-    gather instead), `detector_effect_off` (direct or ghost light the scene turned off);
+    gather instead), `detector_effect_off` (direct or ghost light the scene turned off),
+    `detector_ghost_routes` (photons on ghost paths the deterministic routes count instead);
     `absorbed/<part>` (arriving minus scattered flux, per sample); `escaped` (left the assembly, or
     hit the detector's back); `glass` (what the optics took: Fresnel reflection discarded when
     ghosts are off); `lost/bounce_limit`, `lost/tracer_guard`; `roulette_balance` (flux of the
@@ -180,4 +197,4 @@ def ledger_residual(ledger: dict[str, float]) -> float:
 
 
 __all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "ledger_residual", "phase_times", "DIRECT",
-           "GHOSTS", "TIME_PREFIX", "PHASES"]
+           "GHOSTS", "BY_ROUTES", "TIME_PREFIX", "PHASES"]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import time
 
 from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
+from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.walk import emit_photons, photon_walk
 
@@ -38,7 +39,8 @@ class Forward:
     def run_pass(self, scene, tracer, pass_index: int, photons: int, seed: int,
                  radius_scale: float | None = None) -> PassEstimate:
         """One independent pass of N = `photons` photons (radius_scale: unused, nothing is gathered)."""
-        film, ledger = Film(scene), EnergyLedger()
+        by_routes = route_reflections(scene, self.settings)
+        film, ledger = Film(scene, by_routes), EnergyLedger()
         first = int(pass_index) * int(photons)
         clock = time.perf_counter()
         for start in range(0, photons, self.batch):
@@ -46,7 +48,12 @@ class Forward:
             rays = emit_photons(scene, seed, self.purpose, first + start, n, photons)
             for _ in photon_walk(scene, tracer, rays, seed, self.purpose, self.settings, film, ledger):
                 pass
-        return film.estimate(photons, ledger, phase_times(walk=time.perf_counter() - clock))
+        times = {"walk": time.perf_counter() - clock}
+        if by_routes:
+            clock = time.perf_counter()
+            ghost_routes_pass(scene, tracer, film, pass_index, seed, self.settings.ghost_rays_across)
+            times["ghost_routes"] = time.perf_counter() - clock
+        return film.estimate(photons, ledger, phase_times(**times))
 
 
 def forward_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, *, batch: int = BATCH,

@@ -29,6 +29,9 @@ class EstimatorSettings:
         normal_limit_deg: a photon is gathered only where its face normal is within this of the hit point's.
         neighbours: the k-th nearest hit point on the same face sets the initial radius r_0.
         radius_cap_mm: upper bound of r_0 (mm), before the per-face strip limit.
+        ghost_routes: with ghosts on, the `ghosts` channel's two- (and four-) reflection light comes
+            from deterministic ghost routes (`integrators.ghost_routes`), not from photons.
+        ghost_rays_across: lattice points per pass across the first surface for those routes.
     """
 
     max_bounces: int = 64
@@ -42,6 +45,8 @@ class EstimatorSettings:
     normal_limit_deg: float = 30.0
     neighbours: int = 8
     radius_cap_mm: float = 5.0
+    ghost_routes: bool = True
+    ghost_rays_across: int = 33
 
     def __post_init__(self):
         checks = {
@@ -56,6 +61,7 @@ class EstimatorSettings:
             "normal_limit_deg": (0.0 < self.normal_limit_deg <= 90.0, "0 < normal_limit_deg <= 90"),
             "neighbours": (self.neighbours >= 1, "an integer >= 1"),
             "radius_cap_mm": (0.0 < self.radius_cap_mm < math.inf, "a positive length in mm"),
+            "ghost_rays_across": (self.ghost_rays_across >= 3, "an integer >= 3"),
         }
         for name, (ok, valid) in checks.items():
             if not ok:

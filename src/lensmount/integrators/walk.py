@@ -30,7 +30,7 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.integrators.estimate import EnergyLedger, Film
+from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
@@ -167,11 +167,13 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, 
     channel = film.channel(part, reflections)
     by_gather = hit & gathered_last
     counted = hit & ~by_gather & (channel >= 0)
+    by_routes = hit & (channel == BY_ROUTES)  # unscattered: never the gather's
     film.deposit(ev.pixel[counted], ev.weight[counted], ev.wavelength[counted], channel[counted],
                  signature[counted])
     ledger.add_by("detector", film.channels, channel[counted], ev.weight[counted])
     ledger.add_by("detector_gathered", film.channels, channel[by_gather], ev.weight[by_gather])
-    ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted])
+    ledger.add("detector_ghost_routes", ev.weight[by_routes])
+    ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted & ~by_routes])
 
 
 def _sample_bsdf(scene, tag, wi, n, streams: Streams, rows):

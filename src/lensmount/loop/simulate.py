@@ -219,7 +219,7 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
     from lensmount.analysis.passes import Accumulator
-    from lensmount.analysis.paths import face_areas, face_report, scene_tags, top_paths, write_paths
+    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
     from lensmount.analysis.summary import build_summary
     from lensmount.executor import executor_for
     from lensmount.integrators.estimate import film_channels
@@ -273,6 +273,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                                    "provenance": provenance.to_dict(), "warnings": warnings,
                                    "no_light_enters": no_light, "plan": work.as_dict(acc.diagnostics),
                                    "top_paths": top_paths(acc.paths, tags, aperture),
+                                   "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,

@@ -64,7 +64,7 @@ def entering_fraction(off_axis_deg: float, half_angle_rad: float = 0.0, limb_dar
         return 0.0
     st = _sin_deg(off_axis_deg)
     # Midpoint rule over equal-brightness annuli (inverse CDF of the radius) and azimuth.
-    s = _disc_radius_fraction((np.arange(256) + 0.5) / 256, limb_darkening)[:, None]
+    s = disc_radius_fraction((np.arange(256) + 0.5) / 256, limb_darkening)[:, None]
     psi = 2.0 * np.pi * (np.arange(512) + 0.5) / 512
     rho = s * half_angle_rad
     dz = np.cos(rho) * ct + np.sin(rho) * np.cos(psi)[None, :] * st  # ψ from the tilt toward +z
@@ -197,7 +197,7 @@ def _emit(source, n: int, rng: np.random.Generator, alpha: float, limb: bool) ->
               + (r * np.sin(phi))[:, None] * e2)
     # Direction: inside the source's cone of half-angle alpha.
     if alpha > 0.0:
-        rho = _disc_radius_fraction(u[:, 2], limb) * alpha  # small angle: uniform disc in angle space
+        rho = disc_radius_fraction(u[:, 2], limb) * alpha  # small angle: uniform disc in angle space
         psi = 2.0 * np.pi * u[:, 3]
         direction = (np.cos(rho)[:, None] * d0 + (np.sin(rho) * np.cos(psi))[:, None] * e1
                      + (np.sin(rho) * np.sin(psi))[:, None] * e2)
@@ -212,7 +212,7 @@ def _emit(source, n: int, rng: np.random.Generator, alpha: float, limb: bool) ->
 _GRID = np.linspace(0.0, 1.0, 2049)
 
 
-def _disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
+def disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
     """Radius on the unit solar disc for uniforms u: uniform area, or limb-darkened brightness."""
     if not limb:
         return np.sqrt(u)
@@ -224,4 +224,4 @@ def _disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
 
 
 __all__ = ["SunSource", "CollimatedSource", "EmissionDisc", "emission_disc", "source_direction",
-           "orthonormal_basis", "entering_fraction", "no_light_enters_reason"]
+           "orthonormal_basis", "entering_fraction", "no_light_enters_reason", "disc_radius_fraction"]

@@ -1,0 +1,52 @@
+"""The `ghosts` channel of a pass from deterministic ghost routes instead of the stochastic branch.
+
+The channel keeps its meaning: light that reaches the detector unscattered after at least one
+Fresnel reflection. It is split by the number of reflections. Routes of 2 (ghost order 2) or 2
+and 4 (order 3) reflections are traced deterministically (`trace.ghosts`: every route, the real
+reflectance per ray and wavelength, the mount's walls); the photons of the walk that arrive
+unscattered with exactly those counts are left to them (ledger `detector_ghost_routes`), those
+with more reflections still go into the channel as photons. The tracer keeps its reflection
+branch: light reflected at glass that then scatters belongs to the part channels, not here.
+
+Why (benchmarks/bench_ghosts.py): on the uncoated Cooke triplet the stochastic branch needs about
+a thousand times longer for the same error of this channel, since a photon makes a two-reflection
+ghost with probability ~R² ≈ 2e-3.
+
+The error bar is honest: each pass traces the routes on a lattice whose offset (and the sun's
+direction sequence) is shifted by uniform random numbers keyed by (seed, pass), randomised
+quasi-Monte Carlo. Every pass is then an unbiased, independent estimate, so the spread of the
+passes — the one error bar the accumulator computes for every channel — is the stratification
+error of the lattice, and it shrinks as passes accumulate. Same seed, same numbers.
+"""
+
+from __future__ import annotations
+
+from lensmount.trace.ghosts import Walls, launch, reflecting, reflections_of_order, trace_routes
+from lensmount.trace.sampler import stream
+
+PURPOSE = "ghost-routes"
+
+
+def route_reflections(scene, settings) -> tuple[int, ...]:
+    """The Fresnel reflection counts the routes count for `scene` ((2,) or (2, 4)); () when the
+    stochastic branch keeps the whole channel (ghosts off, deterministic routes off in the settings,
+    or fewer than two surfaces that can reflect: then no ghost exists at all)."""
+    if not (scene.effects.ghosts and settings.ghost_routes) or reflecting(scene).sum() < 2:
+        return ()
+    return tuple(range(2, reflections_of_order(scene.effects.ghost_order) + 1, 2))
+
+
+def ghost_routes_pass(scene, tracer, film, pass_index: int, seed: int, rays_across: int) -> None:
+    """One pass of the deterministic routes into `film` (`Film.deposit_route`: the ghosts channel, each
+    route's path signature and flux)."""
+    det = scene.detector
+    shift = stream(seed, PURPOSE, pass_index).random(4)
+    rays = launch(scene, rays_across, shift, walls=True)
+    for a in trace_routes(scene, rays, reflections_of_order(scene.effects.ghost_order), Walls(tracer)):
+        pix = det.pixel_of(a.points)
+        on = pix >= 0
+        if on.any():
+            film.deposit_route(a.route, pix[on], a.flux[on], a.wavelength[on])
+
+
+__all__ = ["route_reflections", "ghost_routes_pass", "PURPOSE"]

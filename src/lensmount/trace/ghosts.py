@@ -1,0 +1,279 @@
+"""Ghost paths traced deterministically: every route of Fresnel reflections between optical surfaces.
+
+A route is the ordered list of surfaces where the light reflects. The classic two-reflection ghost
+(j, i), j > i, crosses surfaces 1 … j, reflects at j, goes back through j−1 … i+1, reflects at i and
+crosses i+1 … S to the detector. An odd number of reflections sends the light back out of the front,
+so the next routes that reach the detector have four reflections (j, i, l, k); `max_reflections`
+= 2 or 4 (ghost order 2 or 3, `reflections_of_order`).
+
+How: a bundle of rays (a lattice over the first surface × the scene's wavelengths, `launch`) walks the
+surfaces in sequence; at every surface that can reflect, the walk branches: the transmitted bundle
+carries T = 1 − R, the reflected one R, with R the real unpolarised Fresnel or coating reflectance
+(R_s + R_p)/2 per ray and wavelength, the quantity the tracer's reflection branch draws against.
+Branches share their prefix, so the S³/6 two-reflection routes cost about S³/6 surface crossings
+instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fresnel reflection).
+
+What a route does not follow: total internal reflection on one of its steps ends the ray (the tracer
+reflects it without counting a Fresnel reflection, so that light is no ghost of this route; a
+ghost that meets glass beyond the critical angle is rare); a dummy surface (the same medium on
+both sides, e.g. the stop plane in air) is no interface: with the mount it is skipped (the tracer
+has no facets there), without it its clear aperture clips (the stop).
+
+Walls (`Walls`): given the scene's tracer, every straight segment of a route is checked against the
+mount's mechanical faces with the tracer's own exact query (`MechanicalFaces.occluded`, then
+`nearest`), the first one from the source's emission plane, so hoods, vanes, spacers and the
+diaphragm vignette ghost light where they vignette photons; the glass then ends at its mechanical
+semi-diameter (where the mesh's optical face ends). Without walls, every surface clips at its clear
+semi-diameter (the lens as the prescription describes it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from lensmount.trace.interfaces import reflect, reflectance, refract
+from lensmount.trace.sources import disc_radius_fraction, orthonormal_basis
+
+_R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
+CENTRED = (0.0, 0.0, 0.5, 0.5)  # lattice through the axis, R2 sequence from its usual start: the report's
+
+
+def reflections_of_order(order: int) -> int:
+    """Most Fresnel reflections traced for ghost order 2 (two) or 3 (four: three go back out the front)."""
+    return 2 * (int(order) - 1)
+
+
+@dataclass
+class Launch:
+    """Rays entering the lens: origins, directions (N, 3), flux (N,) E_sun·mm², wavelength (N,) index,
+    positions: lattice points per wavelength (N = positions × W), spacing_mm: the lattice pitch."""
+
+    origins: np.ndarray
+    directions: np.ndarray
+    flux: np.ndarray
+    wavelength: np.ndarray
+    positions: int
+    spacing_mm: float
+
+
+@dataclass
+class Arrival:
+    """The rays of one route on the detector plane. route: 1-based surfaces where it reflects, in order;
+    points, directions (n, 3); flux (n,) E_sun·mm²; wavelength (n,) index into the scene's wavelengths."""
+
+    route: tuple[int, ...]
+    points: np.ndarray
+    directions: np.ndarray
+    flux: np.ndarray
+    wavelength: np.ndarray
+
+
+def reflecting(scene) -> np.ndarray:
+    """(S,) bool per optical surface (sequence order): can it make a ghost? Not perfect AR nor R = 0,
+    not a dummy surface with the same medium on both sides, not a mirror (which reflects everything)."""
+    out = []
+    for s in scene.optical:
+        c = s.coating
+        dark = c.kind == "perfect-ar" or (c.kind == "constant" and c.reflectance == 0.0)
+        out.append(not (dark or s.mirror or np.array_equal(s.n_before, s.n_after)))
+    return np.array(out, bool)
+
+
+def launch(scene, rays_across: int, shift=CENTRED, walls: bool = False) -> Launch:
+    """A square lattice over the first surface (pitch: its aperture over rays_across) × wavelengths.
+
+    shift (4,) in [0, 1): lattice offset in pitches (2) and R2-sequence offset (2) of the sun's
+    directions. A uniformly random shift makes the sum an unbiased estimate of the flux (randomised
+    quasi-Monte Carlo), so independent shifts give independent passes and an honest error bar.
+    Each ray carries pitch² · d_z · p_λ (the irradiance crossing a plane z = const, times the
+    source's spectral share). walls: start on the source's emission plane (so the mount in front of
+    the lens can block), else just in front of the first surface.
+    """
+    surfaces = sorted(scene.optical, key=lambda s: s.index)
+    first = surfaces[0]
+    radius = _clip_radius(first, walls)
+    source = scene.source
+    d0 = np.asarray(source.direction, np.float64)
+    sag = first.profile.sag(np.array([0.0, radius * radius]))
+    z_start = first.z_vertex + min(float(sag.min()), 0.0) - 1.0
+    depth = first.z_vertex + max(float(sag.max()), 0.0) - z_start
+    tilt = math.sqrt(max(0.0, 1.0 - d0[2] ** 2)) / max(d0[2], 1e-6) + math.tan(source.half_angle_rad)
+    reach = radius + depth * tilt  # lattice points farther out cannot meet the first surface
+    h = 2.0 * radius / max(int(rays_across) - 1, 1)
+    m = int(math.ceil(reach / h)) + 1
+    g = (np.arange(-m, m + 1) + shift[0]) * h, (np.arange(-m, m + 1) + shift[1]) * h
+    x, y = np.meshgrid(*g)
+    keep = x * x + y * y <= reach * reach
+    x, y = x[keep], y[keep]
+    n = len(x)
+    directions = _directions(source, d0, n, shift[2:])
+    p = np.column_stack([x, y, np.full(n, z_start)])
+    if walls:  # back along each ray to the emission plane (through the disc's centre, normal to d0)
+        back = ((p - np.asarray(source.disc.centre)) @ d0) / (directions @ d0)
+        origins = p - back[:, None] * directions
+    else:
+        origins = p - directions
+    weights = np.asarray(source.wavelength_weights, np.float64)
+    n_wl = len(scene.wavelengths_um)
+    share = weights / weights.sum() if len(weights) == n_wl and weights.sum() > 0 else np.full(n_wl, 1.0 / n_wl)
+    flux = np.concatenate([h * h * np.maximum(directions[:, 2], 0.0) * s for s in share])
+    return Launch(np.tile(origins, (n_wl, 1)), np.tile(directions, (n_wl, 1)), flux,
+                  np.repeat(np.arange(n_wl), n), n, h)
+
+
+def _directions(source, d0: np.ndarray, n: int, shift) -> np.ndarray:
+    """n directions over the source's angular disc (shifted R2 sequence, the source's brightness law)."""
+    alpha = float(source.half_angle_rad)
+    if alpha <= 0.0:
+        return np.tile(d0, (n, 1))
+    k = np.arange(1, n + 1)
+    u1, u2 = (shift[0] + _R2[0] * k) % 1.0, (shift[1] + _R2[1] * k) % 1.0
+    rho = alpha * disc_radius_fraction(u1, source.limb_darkening)
+    psi = 2.0 * math.pi * u2
+    e1, e2 = orthonormal_basis(d0)
+    d = (np.cos(rho)[:, None] * d0 + (np.sin(rho) * np.cos(psi))[:, None] * e1
+         + (np.sin(rho) * np.sin(psi))[:, None] * e2)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _clip_radius(surface, walls: bool) -> float:
+    """Where the glass ends for a route: the mesh's optical face (mechanical semi-diameter) when the
+    mount is there to block the rest, else the clear aperture."""
+    r = surface.mechanical_semi_diameter if walls else surface.clear_semi_diameter
+    return float(r if math.isfinite(r) else surface.clear_semi_diameter)
+
+
+@dataclass
+class _Bundle:
+    o: np.ndarray
+    d: np.ndarray
+    w: np.ndarray
+    wl: np.ndarray
+    on_glass: np.ndarray  # (n,) bool: the ray starts on glass (metal touching it is met at t = 0)
+
+
+def trace_routes(scene, rays: Launch, max_reflections: int = 2, walls=None) -> Iterator[Arrival]:
+    """Every route with an even number 2 … max_reflections of Fresnel reflections (see the module
+    docstring) that brings light to the detector plane, as an `Arrival` (rays with flux > 0 only).
+
+    walls : `Walls(tracer)` (the mount blocks) or None (clear apertures only).
+    """
+    surfaces = sorted(scene.optical, key=lambda s: s.index)
+    ctx = _Context(scene, surfaces, reflecting(scene), walls, max_reflections)
+    start = _Bundle(rays.origins, rays.directions, rays.flux.copy(), rays.wavelength, np.zeros(len(rays.flux), bool))
+    yield from ctx.walk(_alive(start), -1, 1, ())
+
+
+class _Context:
+    def __init__(self, scene, surfaces, reflects, walls, max_reflections):
+        self.scene, self.surfaces, self.reflects, self.walls = scene, surfaces, reflects, walls
+        self.max_reflections = int(max_reflections)
+        self.lam = np.asarray(scene.wavelengths_um, np.float64)
+        self.dummy = [np.array_equal(s.n_before, s.n_after) and not s.mirror for s in surfaces]
+
+    def walk(self, b: _Bundle, left: int, step: int, route: tuple[int, ...]) -> Iterator[Arrival]:
+        """Bundle b has just left surface `left`, travelling `step` (+1: in sequence order)."""
+        if len(b.w) == 0:
+            return
+        m = left + step
+        if m < 0:
+            return  # out through the front
+        if m == len(self.surfaces):
+            if route and len(route) % 2 == 0:
+                arrival = self._to_detector(b, route)
+                if arrival is not None:
+                    yield arrival
+            return
+        s = self.surfaces[m]
+        if self.dummy[m] and self.walls is not None:
+            yield from self.walk(b, m, step, route)  # no interface the tracer would see
+            return
+        p, nrm, w = self._meet(s, b, self.walls is not None)
+        if self.dummy[m]:
+            yield from self.walk(_alive(_Bundle(p, b.d, w, b.wl, b.on_glass)), m, step, route)
+            return
+        glass = np.ones(len(w), bool)
+        if s.mirror:
+            r = s.coating.reflectance if s.coating.kind == "constant" else 1.0
+            yield from self.walk(_alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass)), m, step, route)
+            return
+        forward = step > 0
+        n1 = s.n_before[b.wl] if forward else s.n_after[b.wl]
+        n2 = s.n_after[b.wl] if forward else s.n_before[b.wl]
+        t_dir, tir, cos_i, _ = refract(b.d, nrm, n1 / n2)
+        r = np.where(tir, 0.0, np.clip(reflectance(n1, n2, cos_i, s.coating, self.lam[b.wl]), 0.0, 1.0))
+        trans = np.where(tir, 0.0, w * (1.0 - r))
+        if self.reflects[m] and len(route) < self.max_reflections:
+            bounced = _alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass))
+            yield from self.walk(bounced, m, -step, route + (s.index + 1,))
+        yield from self.walk(_alive(_Bundle(p, t_dir, trans, b.wl, glass)), m, step, route)
+
+    def _meet(self, s, b: _Bundle, walls: bool):
+        """Hit points, normals and the flux that gets there within the glass (and past the walls)."""
+        shift = np.array([0.0, 0.0, s.z_vertex])
+        local = b.o - shift
+        t = s.profile.intersect(local, b.d)
+        hit = np.isfinite(t) & (t > 1e-9)
+        q = local + np.where(hit, t, 0.0)[:, None] * b.d
+        radius = _clip_radius(s, walls)
+        hit &= q[:, 0] ** 2 + q[:, 1] ** 2 <= radius * radius
+        p = q + shift
+        w = np.where(hit, b.w, 0.0)
+        if self.walls is not None:
+            w = np.where(self.walls.blocked(b.o, p, b.on_glass, w > 0), 0.0, w)
+        return p, s.profile.normal(q), w
+
+    def _to_detector(self, b: _Bundle, route) -> Arrival | None:
+        det = self.scene.detector
+        dz = b.d[:, 2]
+        toward = dz > 1e-12  # the detector records light arriving from the lens side only
+        t = np.where(toward, (det.z - b.o[:, 2]) / np.where(toward, dz, 1.0), -1.0)
+        w = np.where(t > 0, b.w, 0.0)
+        p = b.o + np.maximum(t, 0.0)[:, None] * b.d
+        if self.walls is not None:
+            w = np.where(self.walls.blocked(b.o, p, b.on_glass, w > 0), 0.0, w)
+        live = w > 0
+        if not live.any():
+            return None
+        return Arrival(tuple(route), p[live], b.d[live], w[live], b.wl[live])
+
+
+def _alive(b: _Bundle) -> _Bundle:
+    """Only the rays still carrying light: most ghost rays are vignetted early."""
+    live = b.w > 0
+    if live.all():
+        return b
+    return _Bundle(b.o[live], b.d[live], b.w[live], b.wl[live], b.on_glass[live])
+
+
+class Walls:
+    """The mount as ghost light meets it: a segment is blocked where a mechanical face of the scene's
+    mesh lies on it, decided by the tracer's own exact query (glass never blocks: routes say where
+    the light meets glass)."""
+
+    def __init__(self, tracer):
+        self.faces = tracer.mechanical
+
+    def blocked(self, start: np.ndarray, end: np.ndarray, on_glass: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """(N,) bool: a mechanical face lies on the segment start → end of a live ray (a face at the
+        segment's very end too: there the tracer's nearest hit is the metal, not the glass)."""
+        out = np.zeros(len(start), bool)
+        seg = end - start
+        length = np.linalg.norm(seg, axis=1)
+        idx = np.flatnonzero(live & (length > 0))
+        if idx.size == 0:
+            return out
+        d = seg[idx] / length[idx, None]
+        maybe = self.faces.occluded(start[idx], d, length[idx], on_glass[idx])
+        idx, d = idx[maybe], d[maybe]
+        if idx.size:
+            t, _, lost = self.faces.nearest(start[idx], d, on_glass[idx], np.zeros((len(idx), 3)))
+            out[idx] = lost | (t <= length[idx])
+        return out
+
+
+__all__ = ["Arrival", "Launch", "Walls", "launch", "reflecting", "reflections_of_order", "trace_routes", "CENTRED"]
