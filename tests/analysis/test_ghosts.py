@@ -64,6 +64,20 @@ def test_singlet_ghost_flux_is_the_fresnel_product_at_normal_incidence():
     assert g.share == 1.0
 
 
+def test_order_3_adds_the_four_reflection_ghost_with_its_fresnel_product():
+    """Singlet, order 3: besides the pair, the one four-reflection route (S2, S1, S2, S1: twice round the
+    glass) reaches the detector with (1 − R)² R⁴ of the pupil's light at normal incidence (f/33)."""
+    scene, _ = _scene("uncoated", detector_mm=400.0, pixels=100)
+    n = float(refractive_index("N-BK7", np.array([WL]))[0])
+    r = ((n - 1.0) / (n + 1.0)) ** 2
+    report = ghost_report(scene, order=3)
+    routes = {g.surfaces: g for g in report.pairs}
+    assert set(routes) == {(2, 1), (2, 1, 2, 1)} and report.order == 3
+    assert routes[(2, 1, 2, 1)].fraction == pytest.approx((1 - r) ** 2 * r ** 4, rel=2e-3)
+    assert routes[(2, 1)].fraction == pytest.approx((1 - r) ** 2 * r ** 2, rel=2e-3)
+    assert routes[(2, 1, 2, 1)].label == "2→1→2→1" and routes[(2, 1)].label == "1–2"
+
+
 def test_perfect_ar_means_no_ghost_and_no_rays_traced(monkeypatch):
     import lensmount.analysis.ghosts as ghosts
 

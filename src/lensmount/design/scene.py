@@ -19,7 +19,7 @@ pixels = [600, 600]          # [nx, ny]
 
 [effects]
 scatter = true               # true | false | ["part:NAME", "role:ROLE", "kind:KIND", "finish:NAME", ...]
-ghosts = false               # true | false | { order = 2 } (2 or 3 reflections)
+ghosts = false               # true | false | { order = 2 } (2: two-reflection ghosts, 3: four too)
 direct = false
 
 [coatings]
@@ -115,8 +115,9 @@ class EffectsSpec(_Strict):
     or the faces that scatter as selectors (`part:NAME`, `role:ROLE`, `kind:KIND`, `finish:NAME`,
     the finish the scene gives the face); every other mechanical face ends the path. The
     selectors are checked against the built assembly (`scene.build.check_scatterers`).
-    `ghosts`: true (= order 2), false, or `{ order = 2 | 3 }`: Fresnel reflections at glass up to
-    that many per path. `direct`: unscattered light on the detector."""
+    `ghosts`: true (= order 2), false, or `{ order = 2 | 3 }`: order 2 counts the two-reflection
+    ghosts, order 3 the four-reflection ones too (three reflections send the light back out of the
+    front). `direct`: unscattered light on the detector."""
 
     scatter: bool | tuple[str, ...] = True
     ghosts: bool | GhostsSpec = False
@@ -138,7 +139,7 @@ class EffectsSpec(_Strict):
 
     @property
     def ghost_order(self) -> int:
-        """Reflections per ghost path: 0 with ghosts off."""
+        """Ghost order (2: two reflections, 3: four too): 0 with ghosts off."""
         if isinstance(self.ghosts, GhostsSpec):
             return self.ghosts.order
         return 2 if self.ghosts else 0

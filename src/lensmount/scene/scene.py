@@ -30,7 +30,8 @@ class Effects:
     direct: photons reaching the detector without scattering are recorded.
     scatterers: with scatter on, the faces that scatter as selectors ("part:NAME", "role:ROLE",
         "kind:KIND", "finish:NAME"); every other mechanical face ends the path. () = every face.
-    ghost_order: with ghosts on, the most Fresnel reflections a ghost path has (2 or 3).
+    ghost_order: with ghosts on, 2 (two-reflection ghosts) or 3 (four-reflection ones too: three
+        reflections send the light back out of the front; `trace.ghosts.reflections_of_order`).
     """
 
     scatter: bool = True
