@@ -14,20 +14,31 @@ from lensmount.analysis.ghosts import ghost_report  # noqa: E402
 from lensmount.integrators.estimate import Film, film_channels  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections  # noqa: E402
-from lensmount.integrators.paths import ghost_code, ghost_route_code, route_of_code  # noqa: E402
+from lensmount.analysis.paths import PathSums, ghost_pairs  # noqa: E402
+from lensmount.integrators.paths import ghost_code, ghost_of  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.trace.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 
-def test_a_route_code_names_its_surfaces_and_no_other_code_does():
-    for route in [(2, 3), (6, 1), (3, 1, 3, 2), (63, 62)]:
-        assert route_of_code(ghost_route_code(route)) == route
-    assert len({ghost_route_code(r) for r in [(2, 1), (1, 2), (2, 1, 2, 1), (1, 2, 1, 2)]}) == 4
-    for code in (*ghost_code(np.array([1, 2, 6])).tolist(), 0, 5):  # photons' reflection stretches, faces
-        assert route_of_code(code) is None
-    with pytest.raises(ValueError):
-        ghost_route_code((64, 1))
+def test_route_deposits_carry_the_photons_ghost_code_and_ghost_pairs_split_the_channel():
+    """A route's deposits are the path a photon on it would make (reflection count, first two surfaces);
+    `ghost_pairs` over a few passes sums to the ghosts channel and names the singlet's one pair."""
+    scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=2.0, ghosts=True, coating="uncoated",
+                           detector_mm=60.0)
+    tracer = Tracer(scene)
+    sums, channel = PathSums(), []
+    for i in range(3):
+        estimate = Forward().run_pass(scene, tracer, i, 2000, 1)
+        sums.add(estimate.paths, estimate.faces)
+        channel.append(estimate.part_flux[estimate.part_names.index("ghosts")])
+    codes = {c for cs in sums.events.values() for c in cs}
+    assert int(ghost_code(np.array([2]), np.array([1]), np.array([0]))[0]) in codes  # S2 then S1, 0-based
+    assert ghost_of(int(ghost_code(np.array([2]), np.array([1]), np.array([0]))[0])) == (2, 1, 0)
+    aperture = scene.entrance_pupil_area_mm2 * scene.source.entering_fraction
+    table = ghost_pairs(sums, aperture)
+    assert table[0]["surfaces"] == [2, 1] and table[0]["reflections"] == 2 and table[0]["std_error"] is not None
+    assert sum(r["fraction"] for r in table) == pytest.approx(np.mean(channel) / aperture, rel=1e-9)
 
 
 def _ghost_flux(scene, tracer, pass_index, rays_across):
@@ -72,4 +83,4 @@ def test_perfect_ar_means_no_ghost_route_work(monkeypatch):
     assert route_reflections(scene, EstimatorSettings()) == ()
     estimate = Forward().run_pass(scene, Tracer(scene), 0, 2000, 1)
     assert estimate.part_flux[estimate.part_names.index("ghosts")] == 0.0
-    assert all(route_of_code(c) is None for codes in estimate.paths.events.values() for c in codes)
+    assert all(c >= 0 for codes in estimate.paths.events.values() for c in codes)  # no ghost path at all
