@@ -70,17 +70,21 @@ def test_randomised_lattices_are_unbiased_and_their_spread_is_the_error():
 
 
 def test_perfect_ar_means_no_ghost_route_work(monkeypatch):
-    """Ghosts on, every surface perfect AR: no route is traced, the ghosts channel reads 0 and no ghost
-    path is in the pass's paths."""
+    """Ghosts on, every surface perfect AR: the tracer draws no reflection branch, no route is traced,
+    the ghosts channel reads 0 and no ghost path is in the pass's paths."""
     import lensmount.integrators.ghost_routes as routes
+    import lensmount.trace.tracer as tracer_module
 
     def fail(*args, **kwargs):
-        raise AssertionError("ghost routes traced for a lens that cannot reflect")
+        raise AssertionError("ghost work for a lens that cannot reflect")
 
     monkeypatch.setattr(routes, "trace_routes", fail)
     monkeypatch.setattr(routes, "launch", fail)
+    monkeypatch.setattr(tracer_module, "ray_streams", fail)  # the Fresnel branch's random numbers
     scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=2.0, ghosts=True, coating="perfect-ar")
     assert route_reflections(scene, EstimatorSettings()) == ()
-    estimate = Forward().run_pass(scene, Tracer(scene), 0, 2000, 1)
+    tracer = Tracer(scene)
+    assert not tracer.fresnel_branch
+    estimate = Forward().run_pass(scene, tracer, 0, 2000, 1)
     assert estimate.part_flux[estimate.part_names.index("ghosts")] == 0.0
     assert all(c >= 0 for codes in estimate.paths.events.values() for c in codes)  # no ghost path at all

@@ -46,6 +46,7 @@ import numpy as np
 
 from lensmount.integrators.estimate import TIME_PREFIX
 from lensmount.integrators.walk import scattering_tags
+from lensmount.trace.ghosts import reflecting
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
 _WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
@@ -90,7 +91,7 @@ def plan(scene) -> Plan:
     """The plan of a run on `scene` (see the module docstring)."""
     scatters = scattering_tags(scene)
     decisions = [_scatter(scene, scatters), _photon_ends(scene, scatters)]
-    reflect = bool(scene.effects.ghosts) and any(_reflects(s) for s in scene.optical)
+    reflect = bool(scene.effects.ghosts) and bool(reflecting(scene).any())  # as `Tracer.fresnel_branch`
     decisions.append(_ghosts(scene, reflect))
     direct, why = _direct(scene)
     decisions.append(Decision("direct", direct, why))
@@ -129,12 +130,6 @@ def _photon_ends(scene, scatters: np.ndarray) -> Decision:
            + (f", {int(outside.sum())} faces outside the scatterers ({_faces(scene, outside)})" if outside.any() else "")
            + ", the detector, leaving the assembly")
     return Decision("photon walk past non-scatterers", False, why)
-
-
-def _reflects(surface) -> bool:
-    """Can this surface send a ghost reflection? (TIR and mirrors are not ghosts: always traced.)"""
-    c = surface.coating
-    return not surface.mirror and not (c.kind == "perfect-ar" or (c.kind == "constant" and c.reflectance == 0.0))
 
 
 def _ghosts(scene, reflect: bool) -> Decision:

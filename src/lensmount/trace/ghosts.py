@@ -35,7 +35,7 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.trace.interfaces import reflect, reflectance, refract
+from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.sources import disc_radius_fraction, orthonormal_basis
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
@@ -198,12 +198,12 @@ class _Context:
             return
         glass = np.ones(len(w), bool)
         if s.mirror:
-            r = s.coating.reflectance if s.coating.kind == "constant" else 1.0
+            r = mirror_reflectance(s.coating)
             yield from self.walk(_alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass)), m, step, route)
             return
-        forward = step > 0
-        n1 = s.n_before[b.wl] if forward else s.n_after[b.wl]
-        n2 = s.n_after[b.wl] if forward else s.n_before[b.wl]
+        forward = np.einsum("ij,ij->i", b.d, nrm) >= 0.0  # media by the side the ray comes from, as the tracer
+        n1 = np.where(forward, s.n_before[b.wl], s.n_after[b.wl])
+        n2 = np.where(forward, s.n_after[b.wl], s.n_before[b.wl])
         t_dir, tir, cos_i, _ = refract(b.d, nrm, n1 / n2)
         r = np.where(tir, 0.0, np.clip(reflectance(n1, n2, cos_i, s.coating, self.lam[b.wl]), 0.0, 1.0))
         trans = np.where(tir, 0.0, w * (1.0 - r))

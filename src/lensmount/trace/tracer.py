@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.trace.ghosts import reflecting
 from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.trace.rays import RayBatch
@@ -164,6 +165,9 @@ class Tracer:
         self._wavelengths = np.asarray(scene.wavelengths_um, np.float64)
         self._mirror = np.array([s.mirror for s in scene.optical] or [False])
         self._mirror_r = np.array([mirror_reflectance(s.coating) for s in scene.optical] or [1.0])
+        # The reflection branch only where a ghost can exist (the planner's "ghosts" line): with every
+        # surface perfect AR it would draw a number per crossing and never reflect.
+        self.fresnel_branch = bool(scene.effects.ghosts) and bool(reflecting(scene).any())
         self._tolerance = self._facet_tolerance()
         # Two Embree scenes: glass facets (refined against the analytic surfaces) and the
         # mechanical faces (decided exactly in float64, lensmount.trace.mechanical). Apart,
@@ -487,8 +491,8 @@ class Tracer:
 
         At every optical hit: media from the prescription, Snell refraction with the
         wavelength's index, total internal reflection, and the coating's reflectance R. With
-        `effects.ghosts` off the ray transmits and its weight is multiplied by T = 1 − R; with
-        ghosts on it reflects with probability R (weight unchanged) using `rng`: a
+        `effects.ghosts` off (or no surface that can reflect, `fresnel_branch`) the ray transmits and its
+        weight is multiplied by T = 1 − R; with ghosts on it reflects with probability R (weight unchanged) using `rng`: a
         `sampler.Streams` aligned with `rays` (ray i's k-th interface in this call draws dimension
         FRESNEL_DIM + k of its own stream, so the branch does not depend on the batch), or a
         Generator. The input batch is not modified.
@@ -510,7 +514,7 @@ class Tracer:
         prim = np.full(n, -1, np.int64)
         reflections = np.zeros(n, np.int32)
         ghost_pair = np.full((n, 2), -1, np.int32)
-        ghosts = bool(self.scene.effects.ghosts)
+        ghosts = self.fresnel_branch
         streams = ray_streams(rng, n) if ghosts and rng is not None else None
         left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
         leaving = np.any(left_n != 0.0, axis=1)
