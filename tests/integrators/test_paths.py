@@ -114,6 +114,11 @@ def test_sums_over_passes_give_the_mean_and_the_spread_of_each_path(tmp_path):
     assert first["fraction"] == pytest.approx(np.mean([1.0, 2.0, 1.5, 1.2]) / 10)
     listed = sum(r["fraction"] for r in report["paths"]) + report["other"]["fraction"]
     assert listed == pytest.approx(acc.flux / 10) == pytest.approx(report["total_fraction"])
+    # the run's report.html shows them
+    from lensmount.report import run_report
+
+    html = run_report({"top_paths": report}, {})
+    assert "part-0 face 0 (mount) → part-1 face 1 (mount)" in html and "1 other paths" in html
     # the checkpoint keeps all of it
     acc.save(tmp_path / "c.npz")
     back, _ = Accumulator.load(tmp_path / "c.npz")

@@ -101,6 +101,23 @@ def part_rows(per_part: dict) -> tuple[list[str], list[list]]:
     return headers, rows
 
 
+def path_rows(top_paths: dict) -> list[list]:
+    """`summary.json`'s top_paths as rows: rank, events in order, fraction ± error, share."""
+    rows = [[str(r["rank"]), " → ".join(e["name"] for e in r["events"]), fmt(r["fraction"], r["std_error"]),
+             "—" if r.get("share") is None else f"{100 * r['share']:.1f} %"] for r in top_paths.get("paths", [])]
+    other = top_paths.get("other") or {}
+    if other.get("paths"):
+        rows.append(["", f"{other['paths']} other paths", fmt(other.get("fraction"), other.get("std_error")), ""])
+    return rows
+
+
+def face_rows(faces: dict) -> list[list]:
+    """Critical ∩ illuminated faces as rows: CAD face, role, finish, area, E, G, G·E/π."""
+    return [[str(k), f"{r['part']} face {r['face']}", r["role"], r["finish"], fmt(r["area_mm2"]), fmt(r["irradiance"]),
+             fmt(r["etendue_mm2_sr"]), fmt(r["product_fraction"])]
+            for k, r in enumerate(faces.get("critical_and_illuminated", []), 1)]
+
+
 def provenance_rows(summary: dict) -> list[list]:
     """Every scalar the summary carries beyond the figures (hashes, commit, version, command),
     flattening one level of nested tables such as {"hashes": {"lens": ...}}."""
@@ -132,6 +149,15 @@ def run_blocks(summary: dict, images: dict[str, bytes | str | os.PathLike]) -> l
     headers, rows = part_rows(summary.get("per_part", {}))
     if rows:
         blocks.append(section("Stray fraction by part (last scattering surface)", table_block(headers, rows)))
+    paths = path_rows(summary.get("top_paths") or {})
+    if paths:
+        blocks.append(section("Paths carrying most stray light (scatter events in order; `lensmount paths`)",
+                              table_block(["rank", "events", "stray fraction ± std. error", "share"], paths)))
+    faces = face_rows(summary.get("faces") or {})
+    if faces:
+        blocks.append(section("Faces seen by the detector and lit by the source (`lensmount paths --faces`)",
+                              table_block(["rank", "CAD face", "role", "finish", "area mm²", "E/E_sun", "G mm²·sr",
+                                           "G·E/π / aperture flux"], faces)))
     blocks.append(section("Inputs and provenance", table_block(["field", "value"], provenance_rows(summary))))
     return blocks
 
@@ -174,4 +200,4 @@ def write_report(path: str | os.PathLike, document: str) -> Path:
 
 
 __all__ = ["run_report", "comparison_report", "write_report", "page", "section", "image_block", "table_block",
-           "run_blocks", "provenance_rows", "fmt"]
+           "run_blocks", "provenance_rows", "fmt", "path_rows", "face_rows"]
