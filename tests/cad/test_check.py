@@ -52,3 +52,10 @@ def test_hood_without_vanes_sun_just_outside_the_field(tmp_path, design_copier):
     res = CliRunner().invoke(app, ["check", str(d), "--exclusion-deg", "5.5"])
     assert res.exit_code == 1
     assert "housing face 0" in res.output
+
+
+def test_unknown_view_is_an_input_error(tmp_path, design_copier):
+    d = design_copier("double-gauss-360", tmp_path / "d")
+    res = CliRunner().invoke(app, ["check", str(d), "--from", "moon"])
+    assert res.exit_code == 2 and "--from" in res.output and "aperture" in res.output
+    assert "Traceback" not in res.output and not (d / "build").exists()  # refused before the build

@@ -5,9 +5,16 @@ exclusion angle, reaches it directly: straight in, or refracted through the lens
 scatter on the way) and *visible* (the detector sees it: straight, or through the lens).
 Both sets come from deterministic ray grids through the real tracer (`trace.tracer.Tracer`):
 
-* visible: backward rays from a grid over the detector's area toward a grid over twice the
-  exit pupil (so the walls just outside the beam, the ones vanes must hide, are looked at);
-  the first mechanical face each ray meets is seen;
+* visible (`view = "detector"`): backward rays from a grid over the detector's area toward a
+  grid over twice the exit pupil (so the walls just outside the beam are looked at); the
+  first mechanical face each ray meets is seen. Through the lens the detector sees only what
+  lies inside the field's beam (a line of sight passes the stop), so hood walls and vanes,
+  which clear the beam, are never seen this way;
+* visible (`view = "aperture"`): what the entrance aperture sees, the classic baffle
+  criterion: rays from a grid over the first surface's clear aperture into the whole
+  half space in front of it. A lit wall seen from there sends light onto the first lens,
+  whose scatter (and the mount behind it) can bring it to the detector: the walls the
+  line-of-sight vane construction hides;
 * lit: forward rays on a square grid covering the front opening, from the sun at the
   exclusion angle and at a ladder of larger angles up to 89°; the first mechanical face
   each ray meets is lit.
@@ -36,6 +43,9 @@ PUPIL_SCALE = 2.0
 SUN_GRID = 120  # per side of the square over the front opening
 SUN_STEPS_DEG = (0.0, 0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0)
 SUN_AZIMUTHS_DEG = (0.0, 45.0)  # two, so a facet pattern cannot hide a lit band
+APERTURE_RINGS, APERTURE_SPOKES = 8, 24
+LOOK_POLAR, LOOK_AZIMUTHS = 45, 48  # directions over the half space in front of the aperture
+VIEWS = ("detector", "aperture")
 
 
 @dataclass
@@ -53,11 +63,13 @@ class LitWall:
 @dataclass
 class SightlineReport:
     exclusion_deg: float
+    view: str
     walls: list[LitWall]
     visible_points: np.ndarray  # (n, 2) (r, z) of backward hits on mechanical faces
     lit_points: np.ndarray      # (m, 2) (r, z) of forward hits
     both_points: np.ndarray     # (k, 2) cell centres both lit and seen
     rays: dict = field(default_factory=dict)
+    edges: list[LitWall] = field(default_factory=list)  # lit vane edges seen from the aperture (not failures)
 
     @property
     def passed(self) -> bool:
@@ -89,18 +101,56 @@ def _cells(tags, points):
     return np.column_stack([tags, np.floor(r / CELL_MM), np.floor(points[:, 2] / CELL_MM)]).astype(np.int64)
 
 
+def _aperture_rays(prescription: Prescription):
+    """(origins, directions): a grid over surface 1's clear aperture, just in front of it, looking
+    into object space: every direction on the air side of the surface's tangent plane there (a
+    chord across a convex front surface would look through the glass, not into the hood)."""
+    from lensmount.optics.profiles import Profile
+
+    s = prescription.surfaces[0]
+    prof = Profile(s.curvature, s.conic, tuple(s.aspheric))
+    rho = np.sqrt((np.arange(APERTURE_RINGS) + 0.5) / APERTURE_RINGS) * float(s.clear_semi_diameter)
+    phi = np.arange(APERTURE_SPOKES) * 2 * np.pi / APERTURE_SPOKES
+    rr, pp = (g.ravel() for g in np.meshgrid(rho, phi))
+    local = np.column_stack([rr * np.cos(pp), rr * np.sin(pp), prof.sag(rr * rr)])
+    theta = np.radians(np.linspace(0.0, 89.5, LOOK_POLAR))
+    psi = np.arange(LOOK_AZIMUTHS) * 2 * np.pi / LOOK_AZIMUTHS
+    tt, qq = (g.ravel() for g in np.meshgrid(theta, psi))
+    looks = np.column_stack([np.sin(tt) * np.cos(qq), np.sin(tt) * np.sin(qq), -np.cos(tt)])
+    o = np.repeat(local + [0.0, 0.0, prescription.vertex_z[0] - 1e-4], len(looks), axis=0)
+    d = np.tile(looks, (len(local), 1))
+    air_side = (d * np.repeat(prof.normal(local), len(looks), axis=0)).sum(axis=1) < -1e-9  # normal points +z
+    return o[air_side], d[air_side]
+
+
 def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tuple[float, float],
-                   exclusion_deg: float) -> SightlineReport:
-    """Every mount face both lit by the sun at >= exclusion_deg and seen by the detector."""
-    from lensmount.trace.sources import orthonormal_basis, source_direction
+                   exclusion_deg: float, view: str = "detector") -> SightlineReport:
+    """Every mount face both lit by the sun at >= exclusion_deg and seen from `view`: the
+    detector (through the lens) or the entrance aperture (VIEWS; module docstring). Seen from
+    the aperture, lit vane edges are unavoidable (every edge is both): they are listed in
+    `report.edges`, not as failures."""
+    from lensmount.optics.apertures import with_clear_semi_diameters
     from lensmount.trace.tracer import Tracer
 
+    if view not in VIEWS:
+        raise ValueError(f"view {view!r} is not one of {VIEWS}")
     p = prescription
+    if p.surfaces[0].clear_semi_diameter is None:
+        p = with_clear_semi_diameters(p)
     w, h = detector_mm
     scene = _scene(p, mesh, w, h, exclusion_deg)
     tracer = Tracer(scene)
-    par = paraxial(p)
-    # ---- visible: detector grid x (enlarged) exit pupil grid, traced backward --------------
+    o, d = _aperture_rays(p) if view == "aperture" else _detector_rays(scene, paraxial(p), w, h)
+    v_tags, v_pts = _first_faces(tracer, o, d)
+    report = _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, len(o))
+    if view == "aperture":
+        report.edges = [wl for wl in report.walls if wl.role == "vane-edge"]
+        report.walls = [wl for wl in report.walls if wl.role != "vane-edge"]
+    return report
+
+
+def _detector_rays(scene, par, w: float, h: float):
+    """(origins, directions): a grid over the detector toward a grid over twice the exit pupil."""
     nx, ny = DETECTOR_GRID
     gx, gy = np.meshgrid(np.linspace(-0.5 * w, 0.5 * w, nx), np.linspace(-0.5 * h, 0.5 * h, ny))
     z_det = scene.detector.z
@@ -113,7 +163,13 @@ def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tu
     o = np.repeat(det, len(pupil), axis=0)
     d = np.tile(pupil, (len(det), 1)) - o
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    v_tags, v_pts = _first_faces(tracer, o, d)
+    return o, d
+
+
+def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_rays) -> SightlineReport:
+    """Trace the sun at and beyond the exclusion angle; the faces both lit and seen, per (r, z) cell."""
+    from lensmount.trace.sources import orthonormal_basis, source_direction
+
     # ---- lit: the sun at and beyond the exclusion angle --------------------------------
     opening = scene.front_opening
     reach = float(np.linalg.norm(mesh.vertices - [0.0, 0.0, opening.z], axis=1).max()) + 1.0
@@ -157,9 +213,9 @@ def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tu
                              float(arr[:, 2].min())))
     walls.sort(key=lambda wl: -wl.area_mm2)
     both_pts = np.array([((ir + 0.5) * CELL_MM, (iz + 0.5) * CELL_MM) for (_, ir, iz) in both]).reshape(-1, 2)
-    return SightlineReport(exclusion_deg, walls, np.column_stack([np.hypot(v_pts[:, 0], v_pts[:, 1]), v_pts[:, 2]]),
+    return SightlineReport(exclusion_deg, view, walls, np.column_stack([np.hypot(v_pts[:, 0], v_pts[:, 1]), v_pts[:, 2]]),
                            np.column_stack([np.hypot(l_pts[:, 0], l_pts[:, 1]), l_pts[:, 2]]), both_pts,
-                           {"backward": int(len(o)), "forward": int(len(angles) * len(SUN_AZIMUTHS_DEG) * inside.sum())})
+                           {"backward": int(n_seen_rays), "forward": int(len(angles) * len(SUN_AZIMUTHS_DEG) * inside.sum())})
 
 
 def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
@@ -176,7 +232,7 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     ax.plot(v[:, 2], np.hypot(v[:, 0], v[:, 1]), ",", color="0.75")
     if len(report.visible_points):
         ax.plot(report.visible_points[:, 1], report.visible_points[:, 0], ".", ms=1, color="tab:blue",
-                label="seen by the detector")
+                label=f"seen from the {'entrance aperture' if report.view == 'aperture' else 'detector'}")
     if len(report.lit_points):
         ax.plot(report.lit_points[:, 1], report.lit_points[:, 0], ".", ms=1, color="tab:orange", alpha=0.4,
                 label=f"lit by the sun at ≥ {report.exclusion_deg:g}°")
@@ -193,4 +249,4 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     save_figure(fig, path)
 
 
-__all__ = ["lit_walls_seen", "plot_report", "SightlineReport", "LitWall"]
+__all__ = ["lit_walls_seen", "plot_report", "SightlineReport", "LitWall", "VIEWS"]

@@ -27,8 +27,9 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
     return spec.exclusion_deg(prescription.max_field_deg)
 
 
-def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo) -> bool:
-    """Check the geometry in `folder` (already regenerated from `design`); True when it passes."""
+def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
+    """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
+    (lensmount.analysis.sightlines.VIEWS); True when it passes."""
     from lensmount.analysis.sightlines import lit_walls_seen, plot_report
     from lensmount.atomic import write_text
     from lensmount.cad.mesh import TaggedMesh
@@ -41,27 +42,32 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     angle = exclusion_of(spec, p, exclusion)
     mesh = TaggedMesh.load(Path(folder) / "mesh.npz")
     size = (spec.housing.detector_width_mm, spec.housing.detector_height_mm)
-    report = lit_walls_seen(p, mesh, size, angle)
+    report = lit_walls_seen(p, mesh, size, angle, view)
     pupil = realised_entrance_pupil(p, mesh)
     efl = paraxial(p).efl
     limited = sorted(set(pupil.limited_by))
     echo(f"entrance pupil: realised {pupil.diameter:.3f} mm (f/{efl / pupil.diameter:.2f}), designed "
          f"{pupil.design_diameter:.3f} mm (f/{efl / pupil.design_diameter:.2f}), "
          f"{100 * pupil.relative_error:+.2f} %; limited by {', '.join(limited)}")
+    who = "the entrance aperture" if view == "aperture" else "the detector"
     if report.passed:
-        echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing the detector sees "
+        echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing {who} sees "
              f"({report.rays['backward']} backward, {report.rays['forward']} forward rays)")
     else:
-        echo(f"{len(report.walls)} lit face(s) the detector sees with the sun at {angle:g}° or beyond:")
+        echo(f"{len(report.walls)} lit face(s) {who} sees with the sun at {angle:g}° or beyond:")
         for w in report.walls:
             echo(f"  {w.part} face {w.face} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
                  f"…{w.z_range[1]:.1f} mm, r {w.r_range[0]:.1f}…{w.r_range[1]:.1f} mm, lit from "
                  f"{w.smallest_angle_deg:g}°")
+    if report.edges:
+        echo(f"  (and {len(report.edges)} lit vane edge(s), {sum(e.area_mm2 for e in report.edges):.1f} mm² in all: "
+             "seen from the aperture by design, not counted)")
     out = Path(folder) / "check"
     out.mkdir(parents=True, exist_ok=True)
     plot_report(report, mesh, out / "check.png")
-    doc = {"exclusion_deg": angle, "passed": report.passed, "rays": report.rays,
+    doc = {"exclusion_deg": angle, "seen_from": view, "passed": report.passed, "rays": report.rays,
            "lit_walls_seen": [w.__dict__ for w in report.walls],
+           "lit_vane_edges_seen": [w.__dict__ for w in report.edges],
            "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
                               "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
                               "limited_by": limited}}
@@ -77,17 +83,24 @@ def check(
         None, "--exclusion-deg", help="smallest sun angle off the axis, degrees (default: mount.toml's "
         "hood.exclusion_deg, else the largest field angle + 5°)"),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="geometry folder (default DESIGN/build)"),
+    seen_from: str = typer.Option("detector", "--from", help="whose view: 'detector' (through the lens) or "
+                                  "'aperture' (the entrance aperture: lit hood walls the vanes must hide)"),
 ) -> None:
     """Geometric stray-light check, no Monte Carlo: is any mount face both lit by the sun (at the
     exclusion angle or beyond, straight in or through the lens) and seen by the detector (over its
     area, through the exit pupil)? Lists each such face with its part, area and where it lies,
     draws check.png, and reports the entrance pupil the mount realises (real rays through the
-    mesh) against the design's. Exit 1 when a lit wall is seen, 0 when none is."""
+    mesh) against the design's. With --from aperture, the walls seen from the entrance aperture
+    instead (the classic vane criterion; lit vane edges are listed, not counted). Exit 1 when
+    a lit wall is seen, 0 when none is."""
+    from lensmount.analysis.sightlines import VIEWS
     from lensmount.loop import RegenerateOptions, regenerate as build
 
     try:
+        if seen_from not in VIEWS:
+            raise InputError(f"unknown view '{seen_from}'", field="--from", valid=" or ".join(VIEWS))
         folder = build(RegenerateOptions(design, out)).folder
-        passed = run_check(design, folder, exclusion_deg)
+        passed = run_check(design, folder, exclusion_deg, view=seen_from)
     except InputError as error:
         fail(error)
     raise typer.Exit(code=0 if passed else 1)
