@@ -175,3 +175,28 @@ def test_a_singlet_ghost_is_named_by_its_surface_pair_and_fills_the_ghosts_chann
     named = {tuple(describe_event(c, tags)["name"] for c in paths.events[int(s)]): f
              for s, f in zip(paths.signature, paths.flux)}
     assert named == {("ghost S2–S1",): pytest.approx(ghosts, rel=1e-12)}
+
+
+def test_faces_rank_critical_and_illuminated_by_etendue_times_irradiance_and_say_nothing_without_a_view_map():
+    from lensmount.analysis.paths import face_report
+    from lensmount.integrators.paths import PassFaces
+
+    tags = [FaceTag(f"part-{k}", "spacer", "mount", "black", face=k) for k in range(4)]
+    areas = np.array([1.0, 2.0, 4.0, 1.0])
+    # lit flux 1, 1, 0, 3 (irradiance 1, 0.5, 0, 3); étendue 0.2, 1.0, 0.5, 0 (mm² sr)
+    lit, seen = np.array([1.0, 1.0, 0.0, 3.0]), np.array([0.2, 1.0, 0.5, 0.0])
+    sums = PathSums()
+    tally = PathTally((1, 1), 1.0)
+    for _ in range(2):
+        sums.add(tally.finish(), PassFaces(lit, seen, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)))
+    report = face_report(sums, tags, areas, aperture_flux_mm2=1.0)
+    both = report["critical_and_illuminated"]
+    assert [r["part"] for r in both] == ["part-1", "part-0"]  # G·E/π: 0.5/π > 0.2/π
+    assert both[0]["product_mm2"] == pytest.approx(1.0 * 0.5 / math.pi)
+    assert [r["part"] for r in report["critical_unlit"]] == ["part-2"]
+    assert [r["part"] for r in report["lit_not_critical"]] == ["part-3"]
+    forward = PathSums()
+    forward.add(tally.finish(), PassFaces(lit))
+    report = face_report(forward, tags, areas, aperture_flux_mm2=1.0)
+    assert not report["view_map"] and not any(report[k] for k in ("critical_and_illuminated", "critical_unlit",
+                                                                  "lit_not_critical"))

@@ -267,9 +267,12 @@ def face_measures(sums: PathSums, areas: np.ndarray) -> dict[str, np.ndarray]:
 
 def face_report(sums: PathSums, tag_table, areas: np.ndarray, aperture_flux_mm2: float, top: int = FACE_LIST) -> dict:
     """Faces both critical (seen by the detector) and illuminated (lit by the source), ranked by G·E/π;
-    then the critical-but-unlit (by G) and lit-but-not-critical (by E). Empty lists without a view map."""
+    then the critical-but-unlit (by G) and lit-but-not-critical (by E). Empty lists without a view map
+    (forward runs, or a plan with nothing to gather): `view_map` false."""
     m = face_measures(sums, areas)
     critical, lit = m["seen"] > 0, m["lit"] > 0
+    if not sums.seen_passes:  # what the detector sees is unknown, not nothing: no list claims it
+        critical = lit = np.zeros_like(lit)
 
     def row(t: int) -> dict:
         tag = tag_table[t]

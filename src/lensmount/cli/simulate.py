@@ -227,4 +227,12 @@ def print_summary(summary: dict, paths: dict) -> None:
         if len(parts) > 10:
             by_part.add_row(f"… {len(parts) - 10} more", "", "")
         console.print(by_part)
+    top = (summary.get("top_paths") or {}).get("paths", [])[:3]
+    if top:
+        by_path = Table(title="leading stray paths (all: lensmount paths OUT --faces)", title_justify="left")
+        by_path.add_column("events, in order")
+        by_path.add_column("fraction", justify="right")
+        for row in top:
+            by_path.add_row(" → ".join(e["name"] for e in row["events"]), pm(row["fraction"], row["std_error"]))
+        console.print(by_path)
     console.print("wrote " + ", ".join(str(p) for p in paths.values()))
