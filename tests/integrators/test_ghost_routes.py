@@ -88,3 +88,38 @@ def test_perfect_ar_means_no_ghost_route_work(monkeypatch):
     estimate = Forward().run_pass(scene, tracer, 0, 2000, 1)
     assert estimate.part_flux[estimate.part_names.index("ghosts")] == 0.0
     assert all(c >= 0 for codes in estimate.paths.events.values() for c in codes)  # no ghost path at all
+
+
+def test_route_count_enumerates_the_alternating_routes():
+    """Against brute force: sequences reflecting at j1 > i1 < j2 > i2 … among the surfaces that reflect."""
+    import itertools
+
+    from lensmount.trace.ghosts import route_count
+
+    rng = np.random.default_rng(3)
+    for s in (2, 4, 7):
+        reflects = rng.random(s) < 0.8
+        for n in (2, 4):
+            brute = sum(all(reflects[k] for k in seq) and all((a > b) if i % 2 == 0 else (a < b)
+                                                               for i, (a, b) in enumerate(zip(seq, seq[1:])))
+                        for seq in itertools.product(range(s), repeat=n))
+            assert route_count(reflects, n) == brute
+    assert route_count(np.ones(6, bool), 2) == 15 and route_count(np.ones(2, bool), 4) == 1
+
+
+def test_order_3_routes_carry_the_four_reflection_ghost_and_the_plan_says_so():
+    """Singlet, order 3: the pair and the one four-reflection route (S2, S1, S2, S1) come from the routes
+    (path codes of 2 and 4 reflections), and the plan names them; photons on them are left out."""
+    from dataclasses import replace
+
+    from lensmount.integrators.plan import plan
+
+    base = singlet_barrel(make_bsdf("absorber"), off_axis_deg=0.5, ghosts=True, coating="R=0.3", detector_mm=60.0)
+    scene = replace(base, effects=replace(base.effects, ghost_order=3))
+    assert route_reflections(scene, EstimatorSettings()) == (2, 4)
+    estimate = Forward().run_pass(scene, Tracer(scene), 0, 3000, 1)
+    codes = {c for cs in estimate.paths.events.values() for c in cs if c < 0}
+    assert {ghost_of(c)[:2] for c in codes} >= {(2, 1), (4, 1)}
+    assert estimate.ledger["detector_ghost_routes"] > 0  # photons on those paths, counted by the routes
+    line = next(d for d in plan(scene).decisions if d.what == "ghosts: deterministic routes")
+    assert line.ran and "1 routes of 2 reflections and 1 routes of 4 reflections" in line.why

@@ -46,7 +46,9 @@ import numpy as np
 
 from lensmount.integrators.estimate import TIME_PREFIX
 from lensmount.integrators.walk import scattering_tags
-from lensmount.trace.ghosts import reflecting
+from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
+from lensmount.integrators.settings import EstimatorSettings
+from lensmount.trace.ghosts import reflecting, route_count
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
 _WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
@@ -87,12 +89,15 @@ class Plan:
                 "time_s": times}
 
 
-def plan(scene) -> Plan:
-    """The plan of a run on `scene` (see the module docstring)."""
+def plan(scene, settings=None) -> Plan:
+    """The plan of a run on `scene` with the estimator `settings` (default EstimatorSettings(); see the
+    module docstring)."""
     scatters = scattering_tags(scene)
     decisions = [_scatter(scene, scatters), _photon_ends(scene, scatters)]
     reflect = bool(scene.effects.ghosts) and bool(reflecting(scene).any())  # as `Tracer.fresnel_branch`
     decisions.append(_ghosts(scene, reflect))
+    if reflect:
+        decisions.append(_ghost_routes(scene, settings or EstimatorSettings()))
     direct, why = _direct(scene)
     decisions.append(Decision("direct", direct, why))
     traced, decision = _wavelengths(scene)
@@ -142,6 +147,22 @@ def _ghosts(scene, reflect: bool) -> Decision:
                         "every optical surface is perfect-ar (R = 0): no ghost light exists, the channel reads 0")
     return Decision("ghosts (reflection branch at glass)", True,
                     f"order {e.ghost_order}: Fresnel reflections followed with probability R")
+
+
+def _ghost_routes(scene, settings) -> Decision:
+    what = "ghosts: deterministic routes"
+    counts = route_reflections(scene, settings)
+    if not counts:
+        why = ("ghost_routes = false" if not settings.ghost_routes else "fewer than two surfaces reflect")
+        return Decision(what, False, why + ": photons carry the whole ghosts channel")
+    reflects = reflecting(scene)
+    routes = " and ".join(f"{route_count(reflects, n)} routes of {n} reflections" for n in counts)
+    why = (f"{routes} traced each pass on a randomised lattice ({settings.ghost_rays_across} across the first "
+           "surface, real Fresnel R per ray); photons carry the rest of the channel")
+    if scene.effects.ghost_order == 3 and 4 not in counts:
+        why += (f"; the {route_count(reflects, 4)} four-reflection routes (over {MAX_FOUR_REFLECTION_ROUTES}) "
+                "are left to the photons")
+    return Decision(what, True, why)
 
 
 def source_edge_deg(source) -> float:

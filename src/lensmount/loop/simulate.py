@@ -237,7 +237,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         passes = spec.run.passes if target is None else None
     stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target, max_passes=passes or 10_000)
 
-    work = plan(sc)  # what is traced and what is skipped (integrators.plan); its scene is what the passes trace
+    work = plan(sc, settings)  # what is traced and what is skipped (integrators.plan); its scene is what the passes trace
     obs.stage("plan: " + "; ".join(f"{d.what} {'yes' if d.ran else 'skipped'}" for d in work.decisions))
     if acc is None:
         names = film_channels(sc)

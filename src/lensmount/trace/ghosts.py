@@ -72,6 +72,18 @@ class Arrival:
     wavelength: np.ndarray
 
 
+def route_count(reflects: np.ndarray, reflections: int) -> int:
+    """How many routes of exactly `reflections` Fresnel reflections the surfaces `reflects` (S,) bool
+    allow: reflect at j1, then at i1 < j1 on the way back, at j2 > i1 on the way forward, …"""
+    ways = np.where(reflects, 1, 0).astype(np.int64)  # routes ending with a reflection at each surface
+    idx = np.arange(len(reflects))
+    for k in range(1, int(reflections)):
+        backward = k % 2 == 1  # after an odd count the light travels back: the next surface is lower
+        reach = idx[:, None] < idx[None, :] if backward else idx[:, None] > idx[None, :]
+        ways = np.where(reflects, (reach * ways[None, :]).sum(axis=1), 0)
+    return int(ways.sum())
+
+
 def reflecting(scene) -> np.ndarray:
     """(S,) bool per optical surface (sequence order): can it make a ghost? Not perfect AR nor R = 0,
     not a dummy surface with the same medium on both sides, not a mirror (which reflects everything)."""
@@ -276,4 +288,5 @@ class Walls:
         return out
 
 
-__all__ = ["Arrival", "Launch", "Walls", "launch", "reflecting", "reflections_of_order", "trace_routes", "CENTRED"]
+__all__ = ["Arrival", "Launch", "Walls", "launch", "reflecting", "reflections_of_order", "route_count", "trace_routes",
+           "CENTRED"]
