@@ -80,3 +80,33 @@ def test_drawing_tolerances_are_mount_toml_fields(examples_dir):
 
     with pytest.raises(InputError, match="drawing"):
         parse_mount({"drawing": {"diameter_mm": -1.0}})
+
+
+def test_every_built_in_kind_is_dimensioned_from_its_template():
+    """Hood, housing, tube spacer, retainer, rear baffle: the values a turner needs, from the
+    template's own numbers (no CAD kernel)."""
+    from lensmount.cad.drawing import dimensions
+    from lensmount.cad.layout import PartPlan
+    from lensmount.design.mount import Drawing
+    from lensmount.templates.hood import Hood
+    from lensmount.templates.housing import Housing
+    from lensmount.templates.rear_baffle import RearBaffle
+    from lensmount.templates.retainer import Retainer
+    from lensmount.templates.spacer import Spacer
+
+    tol = Drawing()
+
+    def values(template):
+        return {d.name: round(d.value, 6) for d in dimensions(PartPlan("p", "k", "f", template), tol)}
+
+    assert values(Hood(-120.0, -20.0, 30.0, 32.0, 25.0, 2.0)) == {
+        "bore": 60.0, "outside": 64.0, "length": 100.0, "flange bore": 50.0, "flange": 2.0}
+    assert values(Housing(10.0, 60.0, 20.0, 3.0, 15.0)) == {
+        "bore": 40.0, "outside": 46.0, "length": 53.0, "depth": 50.0, "flange bore": 30.0}
+    tube = values(Spacer(10.0, 5.0, 0.0, 9.0, 55.0, 0.0, 14.0, 12.0, 2.0))
+    assert tube == {"front bore": 20.0, "rear bore": 18.0, "outside": 28.0, "length": 50.0, "tube bore": 24.0,
+                    "lip": 2.0}
+    ring = Retainer(10.0, 5.0, 0.0, -1, 14.0, 3.0, 11.0)
+    assert values(ring) == {"contact bore": 20.0, "far bore": 22.0, "outside (thread)": 28.0, "thickness": 3.0}
+    assert values(RearBaffle(((12.0, 100.0), (10.0, 150.0)), 15.0)) == {
+        "outside": 30.0, "length": 50.0, "front bore": 24.0, "rear bore": 20.0}
