@@ -98,14 +98,13 @@ def dimensions(plan, tol, prescription=None) -> list[Dimension]:
                 _angle("bevel", t.bevel_angle_deg, t.inner_radius, t.z_front + w, tol)]
     if isinstance(t, Diaphragm):
         z0, z1 = t.z_range()
-        zl = z0 if t.bevel_side == "rear" else z1 - t.land
-        R = t.outer_radius
-        return [_dia("bore", t.inner_radius, zl, tol), _dia("outside", R, z0 + t.slope * (R - t.inner_radius), tol),
-                _len("thickness", z0, t.inner_radius, z1, t.inner_radius, tol),
-                _len("land", zl, t.inner_radius, zl + t.land, t.inner_radius, tol, tol.land_mm),
-                _angle("bevel", t.bevel_angle_deg, t.inner_radius + 0.5 * t.bevel_run(),
-                       (zl + t.land if t.bevel_side == "rear" else zl) + (0.5 if t.bevel_side == "rear" else -0.5)
-                       * (t.thickness - t.land), tol)]
+        zl = z0 if t.bevel_side == "rear" else z1 - t.land  # the land's front end
+        R, r0, run = t.outer_radius, t.inner_radius, t.bevel_run()
+        z_bevel = 0.5 * (zl + t.land + z1) if t.bevel_side == "rear" else 0.5 * (z0 + zl)  # its middle
+        return [_dia("bore", r0, zl, tol), _dia("outside", R, z0 + t.slope * (R - r0), tol),
+                _len("thickness", z0, r0, z1, r0, tol),
+                _len("land", zl, r0, zl + t.land, r0, tol, tol.land_mm),
+                _angle("bevel", t.bevel_angle_deg, r0 + 0.5 * run, z_bevel + t.slope * 0.5 * run, tol)]
     if isinstance(t, Hood):
         out = [_dia("bore", t.inner_radius, t.z_front, tol), _dia("outside", t.outer_radius, t.z_back, tol),
                _len("length", t.z_front, t.outer_radius, t.z_back, t.outer_radius, tol)]
@@ -214,8 +213,7 @@ def _layout_sheet(sections, dims: list[Dimension], z_front: float, title: list[s
     h = min(max(size / 40.0, 1.0), 4.0)  # text height: legible from a 10 mm ring to a 400 mm barrel
     gap, step, arrow = 0.5 * h, 2.2 * h, 0.8 * h
     sheet.line("axis", (x_lo - 2 * h, 0.0), (x_hi + 2 * h, 0.0))
-    n_dia = n_len = 0
-    angles = []
+    n_dia = n_len = n_note = 0
     for d in dims:
         if d.kind == "diameter":
             x = x_lo - 3 * h - n_dia * step
@@ -244,10 +242,10 @@ def _layout_sheet(sections, dims: list[Dimension], z_front: float, title: list[s
             n_len += 1
         else:  # angle, radius: a leader from the note to the feature
             p = (d.z0 - z_front, d.r0)
-            note = (x_hi + 3 * h, r_hi - len(angles) * step)
+            note = (x_hi + 3 * h, r_hi - n_note * step)
             sheet.line("dimensions", (note[0] - 0.3 * h, note[1] + 0.3 * h), p)
             sheet.texts.append((note[0], note[1], h, d.label, "start"))
-            angles.append(d)
+            n_note += 1
     y = -3 * h - (n_len + 1) * step
     for k, line in enumerate(title):
         sheet.texts.append((x_lo - 3 * h - max(n_dia - 1, 0) * step, y - k * 1.5 * h, h, line, "start"))
