@@ -125,10 +125,11 @@ def test_one_wavelength_reads_what_three_do():
     """Dispersion-free 3-wavelength scene: its one-wavelength plan and the full trace (plan bypassed)
     agree on the barrel's flux within the combined error (mean response Σ p_w r_w = 0.65)."""
     flat = _three_wavelengths(_singlet(8.0, coating="uncoated", effects=Effects(True, False, False)), False)
-    one_mean, one_se = _channel(flat, "barrel", passes=5, per_pass=15_000)
+    # The same seed: photons start alike, so the comparison isolates the wavelength handling.
+    one_mean, one_se = _channel(flat, "barrel", passes=6, per_pass=15_000, seed=7)
     tracer = Tracer(flat)
     acc = Accumulator.empty(flat.detector.shape, Forward().channels(flat), flat.detector.pixel_area)
-    for i in range(5):
+    for i in range(6):
         acc.add(Forward().run_pass(flat, tracer, i, 15_000, 7), i)
     k = acc.part_names.index("barrel")
     full_mean, full_se = float(acc.part_flux[k]), float(acc.part_flux_std_error[k])
