@@ -123,3 +123,21 @@ def test_order_3_routes_carry_the_four_reflection_ghost_and_the_plan_says_so():
     assert estimate.ledger["detector_ghost_routes"] > 0  # photons on those paths, counted by the routes
     line = next(d for d in plan(scene).decisions if d.what == "ghosts: deterministic routes")
     assert line.ran and "1 routes of 2 reflections and 1 routes of 4 reflections" in line.why
+
+
+def test_the_lattice_spans_the_beam_at_any_angle_and_nothing_enters_from_behind():
+    """Rays across the beam, not across the plane z = const: at 89.9° the first surface's shadow is no
+    wider than on axis (the plane's lattice would need ~600× the rays); from behind, no ray."""
+    from dataclasses import replace
+
+    from lensmount.trace.ghosts import launch
+    from lensmount.trace.sources import CollimatedSource
+
+    base = singlet_barrel(make_bsdf("absorber"), off_axis_deg=0.0, ghosts=True, coating="uncoated")
+    sizes = {}
+    for angle in (0.0, 60.0, 89.9, 120.0):
+        scene = replace(base, source=CollimatedSource(angle, 90.0, base.source.disc))
+        rays = launch(scene, 21)
+        sizes[angle] = rays.positions
+        assert np.all(rays.flux > 0) and np.allclose(np.linalg.norm(rays.directions, axis=1), 1.0)
+    assert sizes[120.0] == 0 and sizes[89.9] <= 1.2 * sizes[0.0] and sizes[60.0] <= 1.2 * sizes[0.0]

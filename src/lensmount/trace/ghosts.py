@@ -96,43 +96,49 @@ def reflecting(scene) -> np.ndarray:
 
 
 def launch(scene, rays_across: int, shift=CENTRED, walls: bool = False) -> Launch:
-    """A square lattice over the first surface (pitch: its aperture over rays_across) × wavelengths.
+    """A square lattice across the beam (pitch: the first surface's aperture over rays_across) × wavelengths.
 
-    shift (4,) in [0, 1): lattice offset in pitches (2) and R2-sequence offset (2) of the sun's
-    directions. A uniformly random shift makes the sum an unbiased estimate of the flux (randomised
-    quasi-Monte Carlo), so independent shifts give independent passes and an honest error bar.
-    Each ray carries pitch² · d_z · p_λ (the irradiance crossing a plane z = const, times the
-    source's spectral share). walls: start on the source's emission plane (so the mount in front of
-    the lens can block), else just in front of the first surface.
+    The lattice lies in the plane normal to the source's direction through the middle of the first
+    surface's cap, over the disc that holds the cap's shadow at any angle (its bounding sphere), so
+    an oblique or grazing beam costs no more rays than a normal one. shift (4,) in [0, 1): lattice
+    offset in pitches (2) and R2-sequence offset (2) of the sun's directions. A uniformly random
+    shift makes the sum an unbiased estimate of the flux (randomised quasi-Monte Carlo), so
+    independent shifts give independent passes and an honest error bar. Each ray carries
+    pitch² · (d · d0) · p_λ (the irradiance crossing that plane, times the source's spectral share).
+    walls: start on the source's emission plane (so the mount in front of the lens can block), else
+    just outside the cap. A source behind the entrance plane (d0_z ≤ 0) launches nothing.
     """
-    surfaces = sorted(scene.optical, key=lambda s: s.index)
-    first = surfaces[0]
+    first = min(scene.optical, key=lambda s: s.index)
     radius = _clip_radius(first, walls)
     source = scene.source
     d0 = np.asarray(source.direction, np.float64)
-    sag = first.profile.sag(np.array([0.0, radius * radius]))
-    z_start = first.z_vertex + min(float(sag.min()), 0.0) - 1.0
-    depth = first.z_vertex + max(float(sag.max()), 0.0) - z_start
-    tilt = math.sqrt(max(0.0, 1.0 - d0[2] ** 2)) / max(d0[2], 1e-6) + math.tan(source.half_angle_rad)
-    reach = radius + depth * tilt  # lattice points farther out cannot meet the first surface
+    n_wl = len(scene.wavelengths_um)
     h = 2.0 * radius / max(int(rays_across) - 1, 1)
+    if d0[2] <= 0.0:
+        return Launch(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), 0, h)
+    sag = first.profile.sag(np.array([0.0, radius * radius]))
+    z_lo, z_hi = first.z_vertex + min(float(sag.min()), 0.0), first.z_vertex + max(float(sag.max()), 0.0)
+    centre = np.array([0.0, 0.0, 0.5 * (z_lo + z_hi)])
+    bound = math.hypot(radius, 0.5 * (z_hi - z_lo))  # the cap's bounding sphere about `centre`
+    reach = bound * (1.0 + math.tan(source.half_angle_rad)) + h
     m = int(math.ceil(reach / h)) + 1
     g = (np.arange(-m, m + 1) + shift[0]) * h, (np.arange(-m, m + 1) + shift[1]) * h
     x, y = np.meshgrid(*g)
     keep = x * x + y * y <= reach * reach
     x, y = x[keep], y[keep]
     n = len(x)
+    e1, e2 = orthonormal_basis(d0)
+    p = centre + x[:, None] * e1 + y[:, None] * e2
     directions = _directions(source, d0, n, shift[2:])
-    p = np.column_stack([x, y, np.full(n, z_start)])
+    along = directions @ d0
     if walls:  # back along each ray to the emission plane (through the disc's centre, normal to d0)
-        back = ((p - np.asarray(source.disc.centre)) @ d0) / (directions @ d0)
-        origins = p - back[:, None] * directions
+        back = ((p - np.asarray(source.disc.centre)) @ d0) / along
     else:
-        origins = p - directions
+        back = np.full(n, bound + 1.0)
+    origins = p - back[:, None] * directions
     weights = np.asarray(source.wavelength_weights, np.float64)
-    n_wl = len(scene.wavelengths_um)
     share = weights / weights.sum() if len(weights) == n_wl and weights.sum() > 0 else np.full(n_wl, 1.0 / n_wl)
-    flux = np.concatenate([h * h * np.maximum(directions[:, 2], 0.0) * s for s in share])
+    flux = np.concatenate([h * h * along * s for s in share])
     return Launch(np.tile(origins, (n_wl, 1)), np.tile(directions, (n_wl, 1)), flux,
                   np.repeat(np.arange(n_wl), n), n, h)
 
