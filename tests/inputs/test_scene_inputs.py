@@ -4,6 +4,7 @@ grepping the design and scene layers): each is now an InputError naming field an
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 
 import pytest
 
@@ -73,6 +74,12 @@ def test_coating_for_a_surface_the_lens_does_not_have(tmp_path):
      "angular_diameter_deg applies to type = 'sun' only"),
     ({"objects": [{"type": "rectangle", "name": "r", "width_mm": 5.0, "height_mm": 5.0, "radius_mm": 3.0}]},
      "objects.0", "takes width_mm, height_mm, not radius_mm"),
+    ({"source": {"type": "point", "off_axis_deg": 5.0}}, "source", "off_axis_deg applies to sources at infinity"),
+    ({"source": {"type": "sun", "off_axis_deg": 5.0, "height_mm": 3.0}}, "source",
+     "height_mm applies to type = 'point' or 'disc' only"),
+    ({"source": {"type": "point", "radius_mm": 2.0}}, "source", "radius_mm applies to type = 'disc' only"),
+    ({"source": {"type": "disc"}}, "source", "a disc source needs radius_mm"),
+    ({"source": {"type": "sun"}}, "source", "needs off_axis_deg"),
 ])
 def test_values_that_would_be_ignored(tmp_path, patch, field, words):
     path = _write(tmp_path, scene_dict(**patch))
@@ -83,6 +90,18 @@ def test_values_that_would_be_ignored(tmp_path, patch, field, words):
 
 def test_a_collimated_source_without_sun_keys_is_fine():
     scene_from_dict(scene_dict(source={"type": "collimated", "off_axis_deg": 5.0}))
+
+
+def test_a_point_source_needs_a_finite_object_or_a_plane(tmp_path):
+    path = _write(tmp_path, scene_dict(source={"type": "point", "height_mm": 2.0}))
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), _mount_parts(), load_scene(path))  # the lens's object is at infinity
+    assert err.value.field == "source.z_mm" and "object at infinity" in err.value.detail
+    assert err.value.file == str(path) and err.value.line is not None
+    stopped = air_plane().with_surfaces([replace(air_plane().surfaces[0], is_stop=True, radius=100.0)])
+    scene = build_scene(stopped, _mount_parts(),
+                        scene_from_dict(scene_dict(source={"type": "point", "height_mm": 2.0, "z_mm": -300.0})))
+    assert scene.source.centre == pytest.approx((0.0, 2.0, -300.0))  # azimuth 90°: toward +y
 
 
 def test_mount_element_number_the_lens_does_not_have(tmp_path):

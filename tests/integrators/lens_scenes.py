@@ -16,7 +16,7 @@ import numpy as np
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.scene.build import imaged_field_deg, optical_surfaces, solid_index_of_tag
+from lensmount.scene.build import imaged_field_deg, optical_surfaces, solid_absorption_of_tag, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
 from lensmount.trace.bsdf import make_bsdf
 from lensmount.trace.detector import Detector
@@ -123,11 +123,12 @@ def double_gauss_case(case: int = 1, *, off_axis_deg=7.0, pixels=(60, 60), edge_
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc), detector=Detector(side, side, *pixels, z_img),
                  wavelengths_um=wl, effects=Effects(True, ghosts, False),
-                 entrance_pupil_area_mm2=math.pi * 25.715**2, solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
+                 entrance_pupil_area_mm2=math.pi * 25.715**2, solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                 solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl))
 
 
 def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0, ghosts=False, direct=False,
-                   coating="perfect-ar"):
+                   coating="perfect-ar", absorption=True):
     """A 100 mm f/4 singlet in a barrel whose inside scatters with `bsdf`: forward converges fast here."""
     h = 12.5
     lens = Prescription((Surface(51.68, 6.0, "N-BK7", is_stop=True, clear_semi_diameter=h, mechanical_semi_diameter=h),
@@ -147,8 +148,9 @@ def singlet_barrel(bsdf, *, off_axis_deg=8.0, pixels=(16, 16), detector_mm=20.0,
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc),
                  detector=Detector(detector_mm, detector_mm, *pixels, z_img), wavelengths_um=wl,
-                 effects=Effects(True, ghosts, direct), entrance_pupil_area_mm2=math.pi * h * h,
+                 effects=Effects(True, ghosts, direct, absorption=absorption), entrance_pupil_area_mm2=math.pi * h * h,
                  solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                 solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl),
                  field_of_view_deg=imaged_field_deg(lens, Detector(detector_mm, detector_mm, 1, 1, z_img)))
 
 
@@ -174,4 +176,5 @@ def glass_rim(off_axis_deg=20.0, *, material="N-BK7", barrel_gap=0.2, pixels=(16
     return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: coating), bsdf_of_tag=bsdfs,
                  source=SunSource(off_axis_deg, 90.0, disc), detector=Detector(detector_mm, detector_mm, *pixels, z_img),
                  wavelengths_um=wl, effects=Effects(True, False, False), entrance_pupil_area_mm2=math.pi * h * h,
-                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
+                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                 solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl))

@@ -77,6 +77,7 @@ class PlanarScene:
         self.bsdf_of_tag = self.bsdfs
         self.finish_of_tag = ["x"] * len(table)  # Scene's contract: the finish each face has
         self.solid_index_of_tag = np.ones((len(table), len(self.wavelengths_um)))  # no glass: Scene's contract
+        self.solid_absorption_of_tag = np.zeros((len(table), len(self.wavelengths_um)))
 
 
 class PlanarTracer:

@@ -1,7 +1,8 @@
 """The camera equation through the real tracer: a Lambertian plate imaged by a singlet.
 
 A plate of reflectance ρ under irradiance E (the sun at θ_i to its normal, E = E_sun cos θ_i)
-has radiance L = ρ E / π. Radiance is conserved through lossless optics (perfect AR, T = 1),
+has radiance L = ρ E / π. Radiance is conserved through lossless optics (perfect AR, T = 1, the
+glass's bulk absorption off: `Effects.absorption = False`),
 so the on-axis image irradiance is L times the projected solid angle of the exit pupil:
 
     E_img = π L sin²θ' = ρ E T / (4 N_w²),   N_w = 1 / (2 sin θ')
@@ -21,7 +22,7 @@ from lensmount.integrators.bidirectional import bidirectional_pass
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.scene.build import optical_surfaces, solid_index_of_tag
+from lensmount.scene.build import optical_surfaces, solid_absorption_of_tag, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
 from lensmount.trace.bsdf import make_bsdf
 from lensmount.trace.detector import Detector
@@ -55,8 +56,9 @@ def camera_scene():
     disc = EmissionDisc(tuple(float(x) for x in np.array([0, 0, -D]) - 3000.0 * d), 34.0)
     scene = Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: parse_coating("perfect-ar")),
                   bsdf_of_tag=bsdfs, source=SunSource(SUN_DEG, 90.0, disc), detector=Detector(0.4, 0.4, 2, 2, z_img),
-                  wavelengths_um=wl, effects=Effects(True, False, False),
-                  entrance_pupil_area_mm2=math.pi * H * H, solid_index_of_tag=solid_index_of_tag(lens, mesh, wl))
+                  wavelengths_um=wl, effects=Effects(True, False, False, absorption=False),
+                  entrance_pupil_area_mm2=math.pi * H * H, solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                  solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl))
     return scene, lens, par, z_img
 
 

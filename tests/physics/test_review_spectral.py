@@ -17,7 +17,7 @@ from lens_scenes import singlet_barrel  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.optics.prescription import Aperture, Prescription, Surface  # noqa: E402
-from lensmount.scene.build import optical_surfaces, solid_index_of_tag  # noqa: E402
+from lensmount.scene.build import optical_surfaces, solid_absorption_of_tag, solid_index_of_tag  # noqa: E402
 from lensmount.trace.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.detector import Detector  # noqa: E402
 from lensmount.trace.interfaces import parse_coating  # noqa: E402
@@ -37,6 +37,7 @@ def _three_wavelengths(base):
     d = base.detector
     return replace(base, optical=optical_surfaces(lens, np.array(WL), lambda i, c: coat), wavelengths_um=np.array(WL),
                    solid_index_of_tag=solid_index_of_tag(lens, base.mesh, np.array(WL)),
+                   solid_absorption_of_tag=solid_absorption_of_tag(lens, base.mesh, np.array(WL)),
                    source=replace(base.source, wavelength_weights=tuple(P)),
                    detector=Detector(d.width, d.height, d.nx, d.ny, d.z, S))
 

@@ -134,13 +134,14 @@ def test_detector_nearest_wins_and_back_side_blocks():
 
 def test_window_fresnel_weight_and_ghost_branch():
     """Plane BK7 window at normal incidence, uncoated: ghosts off -> weight T² exactly;
-    ghosts on -> the reflected share estimates the two-surface reflectance."""
+    ghosts on -> the reflected share estimates the two-surface reflectance (bulk absorption off:
+    Fresnel alone)."""
     p = window()
     n_glass = float(make_scene(p, TaggedMesh.concatenate([])).optical[0].n_after[0])
     r = ((n_glass - 1) / (n_glass + 1)) ** 2
     mesh = primitives.lens_elements(p, [20.0, 20.0], rings=4, segments=32)
     det = {"width_mm": 100, "height_mm": 100, "pixels": [1, 1]}
-    off = make_scene(p, mesh, detector=det, coatings={"default": "uncoated"})
+    off = make_scene(p, mesh, detector=det, coatings={"default": "uncoated"}, effects={"absorption": False})
     n = 40000
     o = np.column_stack([np.zeros(n), np.zeros(n), np.full(n, -10.0)])
     o[:, :2] = np.random.default_rng(1).uniform(-10, 10, (n, 2))
@@ -148,7 +149,8 @@ def test_window_fresnel_weight_and_ghost_branch():
     ev = Tracer(off).next_event(RayBatch.make(o, d))
     assert np.all(ev.kind == DETECTOR)
     np.testing.assert_allclose(ev.weight, (1 - r) ** 2, rtol=1e-12)
-    on = make_scene(p, mesh, detector=det, coatings={"default": "uncoated"}, effects={"ghosts": True})
+    on = make_scene(p, mesh, detector=det, coatings={"default": "uncoated"},
+                    effects={"ghosts": True, "absorption": False})
     ev = Tracer(on).next_event(RayBatch.make(o, d), np.random.default_rng(2))
     assert np.all(ev.weight == 1.0)
     back = ev.kind == GONE  # reflected out of the front, toward -z

@@ -18,7 +18,8 @@ def _mesh():
 def _kwargs(**over):
     kw = dict(mesh=_mesh(), optical=[], bsdf_of_tag=[None], source=None, detector=Detector(1, 1, 1, 1, 10.0),
               wavelengths_um=np.array([0.55]), effects=Effects(True, False, False),
-              entrance_pupil_area_mm2=math.pi, solid_index_of_tag=np.ones((1, 1)))
+              entrance_pupil_area_mm2=math.pi, solid_index_of_tag=np.ones((1, 1)),
+              solid_absorption_of_tag=np.zeros((1, 1)))
     kw.update(over)
     return kw
 
@@ -28,7 +29,7 @@ def test_a_complete_scene_builds_with_no_warnings():
     assert scene.warnings == [] and scene.solid_index_of_tag.shape == (1, 1)
 
 
-@pytest.mark.parametrize("missing", ["solid_index_of_tag", "entrance_pupil_area_mm2", "effects"])
+@pytest.mark.parametrize("missing", ["solid_index_of_tag", "solid_absorption_of_tag", "entrance_pupil_area_mm2", "effects"])
 def test_fields_the_physics_needs_have_no_default(missing):
     kw = _kwargs()
     del kw[missing]
@@ -41,6 +42,9 @@ def test_fields_the_physics_needs_have_no_default(missing):
     {"solid_index_of_tag": np.ones((1, 3))},           # one column per wavelength
     {"solid_index_of_tag": np.full((1, 1), 0.5)},      # an index below 1
     {"solid_index_of_tag": np.full((1, 1), np.nan)},
+    {"solid_absorption_of_tag": np.zeros((2, 1))},
+    {"solid_absorption_of_tag": np.full((1, 1), -1e-3)},  # absorption cannot add light
+    {"solid_absorption_of_tag": np.full((1, 1), np.inf)},
     {"entrance_pupil_area_mm2": 0.0},                   # would read as a stray fraction of 0
     {"entrance_pupil_area_mm2": float("nan")},
     {"bsdf_of_tag": []},

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lensmount.errors import InputError
 from lensmount.trace.ghosts import CENTRED, Walls, launch, reflecting, reflections_of_order, trace_routes
 
 RAYS_ACROSS = 151  # lattice points across the first clear aperture
@@ -92,6 +93,12 @@ def ghost_report(scene, tracer=None, rays_across: int = RAYS_ACROSS, order: int 
     tracer : the scene's `Tracer`, whose mesh blocks ghost light where the mount's walls do;
         None traces the prescription alone (clear apertures only).
     """
+    from lensmount.trace.sources import ObjectSource
+
+    if isinstance(scene.source, ObjectSource):
+        raise InputError("the ghost analysis launches a collimated beam from a source at infinity; this scene's "
+                         "source is at a finite distance", field="source.type",
+                         valid="a scene whose source is type = 'sun' or 'collimated'")
     surfaces = sorted(scene.optical, key=lambda s: s.index)
     d0 = np.asarray(scene.source.direction, np.float64)
     aperture = scene.entrance_pupil_area_mm2 * scene.source.entering_fraction

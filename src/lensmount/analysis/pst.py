@@ -111,6 +111,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     from lensmount.loop.provenance import collect
     from lensmount.runner import PassJob, run_pass
     from lensmount.scene.build import make_source
+    from lensmount.scene.scene import EFFECT_NAMES
     from lensmount.trace.tracer import Tracer
 
     o = options
@@ -123,6 +124,10 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     if o.seed is not None and o.seed < 0:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
     design, spec = read_inputs(o.design, o.scene)
+    if not spec.source.at_infinity:
+        raise InputError(f"pst sweeps the angle of a source at infinity; this scene's source is a {spec.source.type} "
+                         "at a finite distance", file=str(o.scene), field="source.type",
+                         valid="a scene whose source is type = 'sun' or 'collimated'")
     seed = spec.run.seed if o.seed is None else o.seed
     passes = o.passes or spec.run.passes
     per_pass = o.photons_per_pass or spec.run.photons
@@ -137,13 +142,13 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     area = det.width * det.height
     field_edge = float(design.prescription.max_field_deg)
     settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
-    weights = tuple(design.prescription.wavelength_weights)
 
     points = []
     names = None
     for angle in o.angles_deg:
         source_spec = spec.source.model_copy(update={"off_axis_deg": float(angle), "azimuth_deg": azimuth})
-        scene = dataclasses.replace(base, source=make_source(source_spec, base.front_opening, base.mesh, det, weights))
+        scene = dataclasses.replace(base, source=make_source(source_spec, base.front_opening, base.mesh, det,
+                                                                  design.prescription))
         start = time.perf_counter()
         acc = None
         for i in range(passes):
@@ -159,7 +164,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
         err = f" ± {se:.2g}" if se is not None else ""
         say(f"{angle:g}°: PST {value:.4g}{err} ({'in' if point.in_field else 'outside'} the field, "
             f"{point.time_s:.1f} s)")
-    effects = [k for k in ("scatter", "ghosts", "direct") if getattr(base.effects, k)]
+    effects = [k for k in EFFECT_NAMES if getattr(base.effects, k)]
     return PstResult(points, field_edge, azimuth, o.method, effects, provenance)
 
 

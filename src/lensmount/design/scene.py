@@ -4,11 +4,14 @@
 description = "Seed paper case 1: only the 50 µm diaphragm edge scatters"
 
 [source]
-type = "sun"                 # "sun" | "collimated"
-off_axis_deg = 7.0
+type = "sun"                 # "sun" | "collimated" (at infinity) | "point" | "disc" (finite distance)
+off_axis_deg = 7.0           # sun, collimated
 azimuth_deg = 90.0           # 90 = source displaced toward +y (its light travels toward -y)
 angular_diameter_deg = 0.53  # sun only
 limb_darkening = false       # sun only
+# height_mm = 0.0            # point, disc: centre's distance from the axis (toward azimuth_deg)
+# radius_mm = 5.0            # disc only: a Lambertian disc facing the lens
+# z_mm = -500.0              # point, disc: default the lens's object plane (finite conjugates)
 
 [detector]
 width_mm = 44.5
@@ -21,6 +24,7 @@ pixels = [600, 600]          # [nx, ny]
 scatter = true               # true | false | ["part:NAME", "role:ROLE", "kind:KIND", "finish:NAME", ...]
 ghosts = false               # true | false | { order = 2 } (2: two-reflection ghosts, 3: four too)
 direct = false
+absorption = true            # bulk absorption in the glass (catalogue data); false: lossless glass
 
 [coatings]
 default = "perfect-ar"       # perfect-ar | uncoated | mgf2-quarter-wave | R=0.01
@@ -67,17 +71,40 @@ class _Strict(BaseModel):
 
 
 class SourceSpec(_Strict):
-    type: Literal["sun", "collimated"] = "sun"
-    off_axis_deg: float = Field(ge=0.0, le=180.0)
+    type: Literal["sun", "collimated", "point", "disc"] = "sun"
+    off_axis_deg: float | None = Field(default=None, ge=0.0, le=180.0)
     azimuth_deg: float = 90.0
     angular_diameter_deg: float = Field(default=0.53, ge=0.0, le=10.0)
     limb_darkening: bool = False
+    height_mm: float = Field(default=0.0, ge=0.0)
+    radius_mm: float | None = Field(default=None, gt=0.0)
+    z_mm: float | None = None
+
+    @property
+    def at_infinity(self) -> bool:
+        return self.type in ("sun", "collimated")
 
     @model_validator(mode="after")
-    def _sun_only(self):
+    def _keys_of_the_type(self):
         sun_only = {"limb_darkening", "angular_diameter_deg"} & self.model_fields_set
-        if self.type == "collimated" and sun_only:  # would be ignored without a word
-            raise ValueError(f"{', '.join(sorted(sun_only))} applies to type = 'sun' only")
+        finite_only = {"height_mm", "radius_mm", "z_mm"} & self.model_fields_set
+        if self.at_infinity:
+            if self.off_axis_deg is None:
+                raise ValueError(f"type = '{self.type}' (a source at infinity) needs off_axis_deg")
+            if self.type == "collimated" and sun_only:  # would be ignored without a word
+                raise ValueError(f"{', '.join(sorted(sun_only))} applies to type = 'sun' only")
+            if finite_only:
+                raise ValueError(f"{', '.join(sorted(finite_only))} applies to type = 'point' or 'disc' only "
+                                 "(a source at a finite distance)")
+            return self
+        wrong = sun_only | ({"off_axis_deg"} & self.model_fields_set)
+        if wrong:
+            raise ValueError(f"{', '.join(sorted(wrong))} applies to sources at infinity (sun, collimated); "
+                             f"a {self.type} source sits at height_mm on its plane z_mm")
+        if self.type == "disc" and self.radius_mm is None:
+            raise ValueError("a disc source needs radius_mm")
+        if self.type == "point" and self.radius_mm is not None:
+            raise ValueError("radius_mm applies to type = 'disc' only (a point has none)")
         return self
 
 
@@ -117,11 +144,13 @@ class EffectsSpec(_Strict):
     selectors are checked against the built assembly (`scene.build.check_scatterers`).
     `ghosts`: true (= order 2), false, or `{ order = 2 | 3 }`: order 2 counts the two-reflection
     ghosts, order 3 the four-reflection ones too (three reflections send the light back out of the
-    front). `direct`: unscattered light on the detector."""
+    front). `direct`: unscattered light on the detector. `absorption`: the glass's bulk absorption
+    along every path (catalogue data); false for lossless references."""
 
     scatter: bool | tuple[str, ...] = True
     ghosts: bool | GhostsSpec = False
     direct: bool = False
+    absorption: bool = True
 
     @field_validator("scatter")
     @classmethod

@@ -51,10 +51,12 @@ def _round(x: float, digits: int = 2) -> float:
 
 
 def image_height(p: Prescription) -> float:
-    """Height of the largest field's real chief ray on the image plane, mm (0 for an on-axis lens)."""
-    if p.max_field_deg <= 0.0:
+    """Height of the largest field's real chief ray on the image plane, mm (0 for an on-axis lens).
+    The largest field is an angle, or for a finite object the largest object height."""
+    field = max((abs(f) for f in p.field_values), default=0.0)
+    if field <= 0.0:
         return 0.0
-    h = float(np.abs(chief_ray(p, p.max_field_deg).image_points[..., 1]).max())
+    h = float(np.abs(chief_ray(p, field).image_points[..., 1]).max())
     return h if math.isfinite(h) else 0.0
 
 
@@ -181,7 +183,10 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     exclusion = field + SUN_MARGIN_DEG
     a1 = float(p.surfaces[0].clear_semi_diameter)
     spread = math.tan(math.radians(exclusion)) - math.tan(math.radians(field))
-    hood_length = _round(_clamp(2 * a1 / spread, a1, MAX_HOOD_DIAMETERS * 2 * a1), 1)
+    hood_length = _clamp(2 * a1 / spread, a1, MAX_HOOD_DIAMETERS * 2 * a1)
+    if p.finite_object:  # the hood stays clear of the object: its mouth at most half way to the object plane
+        hood_length = min(hood_length, 0.5 * p.object_distance)
+    hood_length = _round(hood_length, 1)
     vane_room = _clamp(0.2 * a1, 0.8, 4.0)
     beam_at_mouth = Envelope(p, -hood_length - 10.0, 0.0, step=0.5).max_over(-hood_length - 10.0, 0.0)
     hood_radius = beam_at_mouth + margin + vane_room
@@ -236,7 +241,7 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
         "source": {"type": "sun", "off_axis_deg": sun, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
                    "limb_darkening": False},
         "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
-        "effects": {"scatter": True, "ghosts": False, "direct": False},
+        "effects": {"scatter": True, "ghosts": False, "direct": False, "absorption": True},
         "coatings": {"default": "perfect-ar"},
         "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}},
         "assign": {"*": "lambert-5"} | edge,

@@ -167,7 +167,7 @@ class EnergyLedger:
     `detector_ghost_routes` (photons on ghost paths the deterministic routes count instead);
     `absorbed/<part>` (arriving minus scattered flux, per sample); `escaped` (left the assembly, or
     hit the detector's back); `glass` (what the optics took: Fresnel reflection discarded when
-    ghosts are off); `lost/bounce_limit`, `lost/tracer_guard`; `roulette_balance` (flux of the
+    ghosts are off, and bulk absorption along paths in glass); `lost/bounce_limit`, `lost/tracer_guard`; `roulette_balance` (flux of the
     photons Russian roulette killed minus what the survivors gained: zero in expectation).
     """
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from lensmount.trace.ghosts import Walls, launch, reflecting, reflections_of_order, route_count, trace_routes
 from lensmount.trace.sampler import stream
+from lensmount.trace.sources import ObjectSource
 
 PURPOSE = "ghost-routes"
 
@@ -34,7 +35,8 @@ MAX_FOUR_REFLECTION_ROUTES = 400  # beyond this the photons carry the four-refle
 def route_reflections(scene, settings) -> tuple[int, ...]:
     """The Fresnel reflection counts the routes count for `scene` ((2,) or, order 3, (2, 4)); () when
     the stochastic branch keeps the whole channel (ghosts off, deterministic routes off in the
-    settings, or fewer than two surfaces that can reflect: then no ghost exists at all).
+    settings, a source at a finite distance: the routes launch a collimated lattice, or fewer than
+    two surfaces that can reflect: then no ghost exists at all).
 
     Four-reflection routes cost per route, not per ray (~2 ms of array work per surface crossing):
     the Cooke triplet's 190 take 3.6 s a pass at 33 rays across, against 0.6 s for its 15 pairs,
@@ -42,6 +44,8 @@ def route_reflections(scene, settings) -> tuple[int, ...]:
     0.2 % of its ghost light. Beyond MAX_FOUR_REFLECTION_ROUTES the photons keep them."""
     reflects = reflecting(scene)
     if not (scene.effects.ghosts and settings.ghost_routes) or reflects.sum() < 2:
+        return ()
+    if isinstance(scene.source, ObjectSource):
         return ()
     most = reflections_of_order(scene.effects.ghost_order)
     if most >= 4 and route_count(reflects, 4) > MAX_FOUR_REFLECTION_ROUTES:

@@ -115,7 +115,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
             pair = surface_index[ev.ghost_pair[ghost]]
             signature[ghost] = film.paths.extend(signature[ghost], ghost_code(ev.reflections[ghost], pair[:, 0],
                                                                               pair[:, 1]))
-        ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off)
+        ledger.add("glass", rays.weight - ev.weight)  # Fresnel reflection discarded (ghosts off), bulk absorption
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
         _to_film(film, ledger, ev, part, by_gather, reflections, signature)

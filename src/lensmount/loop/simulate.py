@@ -227,6 +227,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.loop.progress import status_of
     from lensmount.results import write_run
     from lensmount.runner import PassJob, Runner, Stopping, default_workers
+    from lensmount.scene.scene import EFFECT_NAMES
+    from lensmount.trace.sources import ObjectSource
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
     warnings: list[str] = list(sc.warnings)  # legal but suspicious inputs (scene.build)
@@ -246,7 +248,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     def job(i: int) -> PassJob:
         return PassJob(o.method, per_pass, seed, i, settings)
 
-    effects = {k: bool(getattr(sc.effects, k)) for k in ("scatter", "ghosts", "direct")}
+    effects = {k: bool(getattr(sc.effects, k)) for k in EFFECT_NAMES}
     # Flux entering the aperture per unit E_sun: the pupil times the irradiance that crosses the
     # entrance plane (exactly 0 once the whole source is behind it, with the reason said).
     aperture = sc.entrance_pupil_area_mm2 * sc.source.entering_fraction
@@ -275,6 +277,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
+                                   **({"units": OBJECT_SOURCE_UNITS} if isinstance(sc.source, ObjectSource) else {}),
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
@@ -293,12 +296,17 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     return result
 
 
-def _field_radius(prescription) -> float | None:
-    """Image height of the full field, efl · tan(max field), for the preview outline."""
-    from lensmount.optics.paraxial import paraxial
+# A source at a finite distance is normalised to its own mean irradiance over the entrance pupil
+# (trace.sources.ObjectSource), not to the sun's.
+OBJECT_SOURCE_UNITS = {"irradiance": "E/E_ref (E_ref: the source's mean irradiance over the entrance pupil)",
+                       "flux": "mm² (flux / E_ref)"}
 
-    efl = abs(paraxial(prescription).efl)
-    r = efl * math.tan(math.radians(prescription.max_field_deg))
+
+def _field_radius(prescription) -> float | None:
+    """Image height of the full field (the real chief ray's; finite objects included), for the preview outline."""
+    from lensmount.design.starter import image_height
+
+    r = image_height(prescription)
     return r if math.isfinite(r) and r > 0 else None
 
 

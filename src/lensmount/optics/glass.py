@@ -165,21 +165,24 @@ def _absorption(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     return wl[order], alpha[order]
 
 
-def internal_transmittance(material: str, wavelength_um, path_mm) -> np.ndarray:
-    """Bulk internal transmittance exp(-a(λ) L) of `path_mm` of `material` (Beer-Lambert).
+def absorption_coefficient(material: str, wavelength_um) -> np.ndarray:
+    """Bulk absorption coefficient a(λ) of `material`, 1/mm (the tracer's exp(-a L) per path).
 
-    a(λ) comes from the catalogue's internal transmittance of a 10 mm sample, a = -ln(T10)/10,
+    a = -ln(T10)/10 from the catalogue's internal transmittance of a 10 mm sample,
     interpolated linearly in wavelength and held at the end values outside the tabulated
-    range. AIR, model glasses (n_d/V_d) and fused silica have no catalogue data and are
-    lossless (1.0). Arrays broadcast; negative paths count as 0. Never NaN.
+    range. AIR, model glasses (n_d/V_d) and fused silica have no catalogue data: 0 (lossless).
     """
     wl = np.asarray(wavelength_um, dtype=np.float64)
-    path = np.maximum(np.asarray(path_mm, dtype=np.float64), 0.0)
     table = _absorption(material)
-    if table is None:
-        return np.ones(np.broadcast_shapes(wl.shape, path.shape))
-    alpha = np.interp(wl, *table)
-    return np.exp(-alpha * path)
+    return np.zeros(wl.shape) if table is None else np.interp(wl, *table)
+
+
+def internal_transmittance(material: str, wavelength_um, path_mm) -> np.ndarray:
+    """Bulk internal transmittance exp(-a(λ) L) of `path_mm` of `material` (Beer-Lambert), with
+    a(λ) from `absorption_coefficient`. Arrays broadcast; negative paths count as 0. Never NaN.
+    """
+    path = np.maximum(np.asarray(path_mm, dtype=np.float64), 0.0)
+    return np.exp(-absorption_coefficient(material, wavelength_um) * path)
 
 
 def refractive_index(name: str, wavelength_um) -> np.ndarray:

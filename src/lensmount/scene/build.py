@@ -18,14 +18,14 @@ import numpy as np
 from lensmount.cad.mesh import FaceTag, TaggedMesh
 from lensmount.errors import InputError
 from lensmount.validation import did_you_mean, located
-from lensmount.optics.glass import refractive_index
+from lensmount.optics.glass import absorption_coefficient, refractive_index
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
 from lensmount.scene.finishes import finish_library, finish_of
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
 from lensmount.trace.detector import Detector
-from lensmount.trace.sources import CollimatedSource, SunSource, emission_disc, source_direction
+from lensmount.trace.sources import CollimatedSource, ObjectSource, SunSource, emission_disc, source_direction
 
 
 def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
@@ -38,14 +38,17 @@ def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coa
     travel = (1,) + prescription.travel
     out = []
     for i, s in enumerate(prescription.surfaces):
-        n_before = refractive_index(prescription.material_before(i), wavelengths_um)
-        n_after = refractive_index(s.material, wavelengths_um)
+        before, after = prescription.material_before(i), s.material
         if travel[i] < 0:  # reached travelling -z (after a mirror): the medium it came from lies on the +z side
-            n_before, n_after = n_after, n_before
+            before, after = after, before
+        n_before = refractive_index(before, wavelengths_um)
+        n_after = refractive_index(after, wavelengths_um)
         clear = s.clear_semi_diameter if s.clear_semi_diameter is not None else math.inf
         mech = s.mechanical_semi_diameter if s.mechanical_semi_diameter is not None else clear
         out.append(OpticalSurface(i, float(zs[i]), Profile.of(s), float(clear), np.atleast_1d(n_before),
-                                  np.atleast_1d(n_after), coating_of(i, s.coating), float(mech), s.mirror))
+                                  np.atleast_1d(n_after), coating_of(i, s.coating),
+                                  np.atleast_1d(absorption_coefficient(before, wavelengths_um)),
+                                  np.atleast_1d(absorption_coefficient(after, wavelengths_um)), float(mech), s.mirror))
     return out
 
 
@@ -154,7 +157,10 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                                  "wavelengths", field="detector.spectral_weight",
                                  valid=f"{len(wavelengths)} non-negative numbers"), spec.source_file, spec.source_text)
     detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight)
-    source = make_source(spec.source, opening, mesh, detector, tuple(prescription.wavelength_weights))
+    try:
+        source = make_source(spec.source, opening, mesh, detector, prescription)
+    except InputError as exc:
+        raise located(exc, spec.source_file, spec.source_text) from None
     effects = effects_of(spec.effects)
     try:
         check_scatterers(effects, mesh, finishes)
@@ -164,6 +170,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                  wavelengths_um=wavelengths, effects=effects,
                  entrance_pupil_area_mm2=entrance_pupil_area(prescription),
                  solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths),
+                 solid_absorption_of_tag=solid_absorption_of_tag(prescription, mesh, wavelengths),
                  front_opening=opening, finish_of_tag=finishes, description=spec.description,
                  warnings=detector_warnings(mesh, detector),
                  field_of_view_deg=imaged_field_deg(prescription, detector))
@@ -188,16 +195,10 @@ def imaged_field_deg(prescription: Prescription, detector: Detector) -> float:
 def entrance_pupil_area(prescription: Prescription) -> float:
     """π (EPD/2)², mm²: what the stray fraction is normalised by. An EPD that cannot be found
     is an error, never 0 (a zero area would read as a stray fraction of 0)."""
-    from lensmount.optics.paraxial import paraxial
-
     if prescription.aperture.kind == "epd":  # given: no paraxial trace needed (nor a stop)
         epd = float(prescription.aperture.value)
     else:
-        try:
-            epd = float(paraxial(prescription).epd)
-        except (ArithmeticError, ValueError) as exc:  # InputError included: the lens is what is wrong
-            raise InputError(f"the entrance pupil cannot be computed ({exc})", field="aperture",
-                             valid="a focal lens with a stop, or an entrance pupil diameter") from None
+        epd = float(_pupil(prescription).epd)
     with np.errstate(over="ignore"):
         area = float(np.pi * np.float64(0.5 * epd) ** 2) if math.isfinite(epd) else math.inf
     if not (math.isfinite(area) and epd > 0.0):  # a lens without power gives EPD ~1e299: area overflows
@@ -210,7 +211,8 @@ def effects_of(spec) -> Effects:
     """The Scene's Effects from a validated EffectsSpec."""
     selectors = () if isinstance(spec.scatter, bool) else tuple(spec.scatter)
     return Effects(scatter=bool(spec.scatter), ghosts=spec.ghost_order > 0, direct=bool(spec.direct),
-                   scatterers=selectors, ghost_order=spec.ghost_order or 2)
+                   scatterers=selectors, ghost_order=spec.ghost_order or 2,
+                   absorption=bool(spec.absorption))
 
 
 def check_scatterers(effects: Effects, mesh: TaggedMesh, finishes: list[str]) -> None:
@@ -228,6 +230,17 @@ def check_scatterers(effects: Effects, mesh: TaggedMesh, finishes: list[str]) ->
         hint = f" (did you mean '{prefix}:{guess}'?)" if guess else ""
         raise InputError(f"scatter selector '{sel}' names no face of the assembly{hint}", field="effects.scatter",
                          valid=f"{prefix}: " + ", ".join(present) + "; or scatter = true for every face")
+
+
+def _pupil(prescription: Prescription):
+    """The paraxial data, or an InputError when the lens has none (no stop, no power)."""
+    from lensmount.optics.paraxial import paraxial
+
+    try:
+        return paraxial(prescription)
+    except (ArithmeticError, ValueError) as exc:  # InputError included: the lens is what is wrong
+        raise InputError(f"the entrance pupil cannot be computed ({exc})", field="aperture",
+                         valid="a focal lens with a stop, or an entrance pupil diameter") from None
 
 
 def check_object_names(objects, parts) -> None:
@@ -294,7 +307,18 @@ def housing_bore_at(mesh: TaggedMesh, z: float) -> float | None:
 
 
 def solid_index_of_tag(prescription: Prescription, mesh: TaggedMesh, wavelengths_um: np.ndarray) -> np.ndarray:
-    """(n_tags, W) index inside the solid each tag bounds: a lens part's glass, 1 elsewhere.
+    """(n_tags, W) index inside the solid each tag bounds: a lens part's glass, 1 elsewhere."""
+    return _solid_property(prescription, mesh, wavelengths_um, refractive_index, 1.0)
+
+
+def solid_absorption_of_tag(prescription: Prescription, mesh: TaggedMesh, wavelengths_um: np.ndarray) -> np.ndarray:
+    """(n_tags, W) bulk absorption coefficient (1/mm) inside the solid each tag bounds: a lens
+    part's glass (`optics.glass.absorption_coefficient`), 0 elsewhere."""
+    return _solid_property(prescription, mesh, wavelengths_um, absorption_coefficient, 0.0)
+
+
+def _solid_property(prescription, mesh, wavelengths_um, of_material, outside: float) -> np.ndarray:
+    """(n_tags, W) of_material(glass, λ) for tags of a lens part, `outside` elsewhere.
 
     A lens part's glass is the material after its first optical surface (cemented
     elements included: each element's front face is its own)."""
@@ -302,10 +326,10 @@ def solid_index_of_tag(prescription: Prescription, mesh: TaggedMesh, wavelengths
     for t in mesh.tag_table:
         if t.kind == "lens" and t.role == "optical" and t.surface >= 0:
             front[t.part] = min(front.get(t.part, t.surface), t.surface)
-    out = np.ones((len(mesh.tag_table), len(wavelengths_um)))
+    out = np.full((len(mesh.tag_table), len(wavelengths_um)), outside)
     for k, t in enumerate(mesh.tag_table):
         if t.part in front:
-            out[k] = refractive_index(prescription.surfaces[front[t.part]].material, wavelengths_um)
+            out[k] = of_material(prescription.surfaces[front[t.part]].material, wavelengths_um)
     return out
 
 
@@ -319,8 +343,12 @@ def clear_distance(mesh: TaggedMesh, detector: Detector, opening: FrontOpening) 
                  + 0.5 * math.hypot(detector.width, detector.height) + 1.0)
 
 
-def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector, weights=(1.0,)):
-    """SunSource or CollimatedSource from a SourceSpec, with its emission disc placed outside the assembly."""
+def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector, prescription: Prescription):
+    """SunSource or CollimatedSource from a SourceSpec, with its emission disc placed outside the
+    assembly; ObjectSource (point, disc) at the lens's object plane unless the spec gives z_mm."""
+    weights = tuple(prescription.wavelength_weights)
+    if not src.at_infinity:
+        return object_source(src, opening, prescription, weights)
     d = source_direction(src.off_axis_deg, src.azimuth_deg)
     half = 0.5 * math.radians(src.angular_diameter_deg) if src.type == "sun" else 0.0
     disc = emission_disc(d, opening.z, opening.radius, clear_distance(mesh, detector, opening), half)
@@ -330,5 +358,29 @@ def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector
     return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names", "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg",
-           "solid_index_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source", "clear_distance"]
+def object_source(src, opening: FrontOpening, prescription: Prescription, weights) -> ObjectSource:
+    """The point or disc source of a SourceSpec, centred at height_mm toward azimuth_deg on the plane
+    z_mm (default: the lens's object plane, z = -object_distance); normalised to the paraxial
+    entrance pupil (trace.sources.ObjectSource)."""
+    if src.z_mm is not None:
+        z = float(src.z_mm)
+    elif prescription.finite_object:
+        z = -float(prescription.object_distance)
+    else:
+        raise InputError(f"a {src.type} source needs a plane: the lens has its object at infinity", field="source.z_mm",
+                         valid="z_mm (mm, surface 1's vertex at 0, the object side negative), or a lens with a "
+                               "finite object distance")
+    if z >= 0.0:
+        raise InputError(f"the {src.type} source at z = {z:g} mm is not in front of surface 1", field="source.z_mm",
+                         valid="a plane in front of the lens, z_mm < 0")
+    par = _pupil(prescription)
+    a = math.radians(src.azimuth_deg)
+    centre = (src.height_mm * math.cos(a), src.height_mm * math.sin(a), z)
+    return ObjectSource(centre, float(src.radius_mm or 0.0), float(opening.z), float(opening.radius) * 1.02 + 1e-3,
+                        float(par.entrance_pupil_z), 0.5 * float(par.epd), tuple(weights))
+
+
+__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
+           "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
+           "solid_absorption_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source",
+           "object_source", "clear_distance"]

@@ -32,6 +32,8 @@ class Effects:
         "kind:KIND", "finish:NAME"); every other mechanical face ends the path. () = every face.
     ghost_order: with ghosts on, 2 (two-reflection ghosts) or 3 (four-reflection ones too: three
         reflections send the light back out of the front; `trace.ghosts.reflections_of_order`).
+    absorption: bulk absorption of the glass along every path inside it, exp(-a(λ) L) with a
+        from the catalogue (off for comparisons with lossless references).
     """
 
     scatter: bool = True
@@ -39,10 +41,15 @@ class Effects:
     direct: bool = False
     scatterers: tuple[str, ...] = ()
     ghost_order: int = 2
+    absorption: bool = True
 
     def __post_init__(self):
         if self.ghost_order not in (2, 3):
             raise ValueError(f"Effects.ghost_order must be 2 or 3, got {self.ghost_order}")
+
+
+# The on/off switches, in the order summaries list them (scatterers and ghost_order refine them).
+EFFECT_NAMES = ("scatter", "ghosts", "direct", "absorption")
 
 
 def faces_selected(selector: str, tag_table, finish_of_tag) -> np.ndarray:
@@ -81,6 +88,8 @@ class OpticalSurface:
         (for a surface the light reaches travelling −z, after a mirror, "before" is the file's medium
         after it: the tracer picks the pair by the sign of d·n, not by the order in the file).
     coating: how much it reflects.
+    absorption_before, absorption_after: (W,) bulk absorption coefficient (1/mm) of the media
+        in front of / behind the surface (0 in air), paired with n_before / n_after.
     mirror: the surface reflects every ray (Zemax GLAS MIRROR) with reflectance
         `trace.interfaces.mirror_reflectance(coating)`; nothing is transmitted.
     """
@@ -92,6 +101,8 @@ class OpticalSurface:
     n_before: np.ndarray
     n_after: np.ndarray
     coating: Coating
+    absorption_before: np.ndarray
+    absorption_after: np.ndarray
     mechanical_semi_diameter: float = math.inf  # (addition)
     mirror: bool = False
 
@@ -123,6 +134,9 @@ class Scene:
     solid_index_of_tag: (n_tags, W) refractive index inside the solid each tag bounds (a lens
         part's glass; 1 for mechanical parts), so a scatter seen from inside glass is known
         (`scene.build.solid_index_of_tag` computes it from the prescription).
+    solid_absorption_of_tag: (n_tags, W) bulk absorption coefficient (1/mm) inside the solid
+        each tag bounds (0 for mechanical parts; `scene.build.solid_absorption_of_tag`): a path
+        that ends on a lens part's edge from inside is absorbed along its length.
     front_opening: FrontOpening, where the source's light enters (information).
     finish_of_tag: finish name per tag, for reports (empty, or one per tag).
     description: the scene file's description.
@@ -142,6 +156,7 @@ class Scene:
     effects: Effects
     entrance_pupil_area_mm2: float
     solid_index_of_tag: np.ndarray
+    solid_absorption_of_tag: np.ndarray
     front_opening: FrontOpening | None = None
     finish_of_tag: list[str] = field(default_factory=list)
     description: str = ""
@@ -163,6 +178,11 @@ class Scene:
             raise ValueError(f"Scene.solid_index_of_tag must be a finite (n_tags, W) = ({n_tags}, {w}) array "
                              f"of indices >= 1, got shape {index.shape}")
         self.solid_index_of_tag = index
+        alpha = np.asarray(self.solid_absorption_of_tag, np.float64)
+        if alpha.shape != (n_tags, w) or not np.all(np.isfinite(alpha)) or np.any(alpha < 0.0):
+            raise ValueError(f"Scene.solid_absorption_of_tag must be a finite (n_tags, W) = ({n_tags}, {w}) array "
+                             f"of coefficients >= 0 (1/mm), got shape {alpha.shape}")
+        self.solid_absorption_of_tag = alpha
         area = float(self.entrance_pupil_area_mm2)
         if not (math.isfinite(area) and area > 0.0):
             raise ValueError(f"Scene.entrance_pupil_area_mm2 must be finite and > 0, got {area}")
@@ -171,6 +191,11 @@ class Scene:
         for s in self.optical:
             if len(np.atleast_1d(s.n_before)) != w or len(np.atleast_1d(s.n_after)) != w:
                 raise ValueError(f"optical surface {s.index + 1}: n_before/n_after need one index per wavelength ({w})")
+            for a in (s.absorption_before, s.absorption_after):
+                a = np.atleast_1d(np.asarray(a, np.float64))
+                if len(a) != w or not np.all(np.isfinite(a)) or np.any(a < 0.0):
+                    raise ValueError(f"optical surface {s.index + 1}: absorption_before/after need one finite "
+                                     f"coefficient >= 0 per wavelength ({w})")
 
     @property
     def part_names(self) -> list[str]:
@@ -180,4 +205,4 @@ class Scene:
         return {s.index: s for s in self.optical}
 
 
-__all__ = ["Effects", "OpticalSurface", "FrontOpening", "Scene"]
+__all__ = ["Effects", "EFFECT_NAMES", "OpticalSurface", "FrontOpening", "Scene"]

@@ -11,7 +11,8 @@ surfaces in sequence; at every surface that can reflect, the walk branches: the 
 carries T = 1 − R, the reflected one R, with R the real unpolarised Fresnel or coating reflectance
 (R_s + R_p)/2 per ray and wavelength, the quantity the tracer's reflection branch draws against.
 Branches share their prefix, so the S³/6 two-reflection routes cost about S³/6 surface crossings
-instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fresnel reflection).
+instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fresnel reflection). With `effects.absorption` the glass
+absorbs exp(-a L) along every step, as in the tracer.
 
 What a route does not follow: total internal reflection on one of its steps ends the ray (the tracer
 reflects it without counting a Fresnel reflection, so that light is no ghost of this route; a
@@ -240,10 +241,14 @@ class _Context:
         radius = _clip_radius(s, walls)
         hit &= q[:, 0] ** 2 + q[:, 1] ** 2 <= radius * radius
         p = q + shift
+        nrm = s.profile.normal(q)
         w = np.where(hit, b.w, 0.0)
+        if self.scene.effects.absorption:  # the glass on the way there absorbs, as in the tracer
+            alpha = np.where(np.einsum("ij,ij->i", b.d, nrm) >= 0.0, s.absorption_before[b.wl], s.absorption_after[b.wl])
+            w = w * np.exp(-alpha * np.where(hit, t, 0.0))
         if self.walls is not None:
             w = np.where(self.walls.blocked(b.o, p, b.on_glass, w > 0), 0.0, w)
-        return p, s.profile.normal(q), w
+        return p, nrm, w
 
     def _to_detector(self, b: _Bundle, route) -> Arrival | None:
         det = self.scene.detector

@@ -87,7 +87,8 @@ class Events:
     tag : (N,) int32 mesh tag for FACE, else -1
     prim : (N,) int64 triangle for FACE, else -1
     pixel : (N,) int64 flat detector pixel for DETECTOR, else -1
-    weight : (N,) throughput after the optics (Fresnel transmittance when ghosts are off)
+    weight : (N,) throughput after the optics (Fresnel transmittance when ghosts are off, bulk
+        absorption in the glass when `effects.absorption` is on)
     wavelength, id : (N,) carried through
     lost : (N,) bool, ended by a numerical guard (its weight is the lost flux)
     reflections : (N,) int32 Fresnel (ghost) reflections during this call (TIR not counted)
@@ -163,6 +164,13 @@ class Tracer:
         self._n_before = np.array([np.broadcast_to(s.n_before, (w,)) for s in scene.optical] or [np.ones(w)])
         self._n_after = np.array([np.broadcast_to(s.n_after, (w,)) for s in scene.optical] or [np.ones(w)])
         self._wavelengths = np.asarray(scene.wavelengths_um, np.float64)
+        self._alpha_before = np.array([np.broadcast_to(s.absorption_before, (w,)) for s in scene.optical]
+                                      or [np.zeros(w)])
+        self._alpha_after = np.array([np.broadcast_to(s.absorption_after, (w,)) for s in scene.optical]
+                                     or [np.zeros(w)])
+        self._alpha_solid = np.asarray(scene.solid_absorption_of_tag, np.float64)
+        self._absorbs = bool(scene.effects.absorption) and bool(
+            self._alpha_before.any() or self._alpha_after.any() or self._alpha_solid.any())
         self._mirror = np.array([s.mirror for s in scene.optical] or [False])
         self._mirror_r = np.array([mirror_reflectance(s.coating) for s in scene.optical] or [1.0])
         # The reflection branch only where a ghost can exist (the planner's "ghosts" line): with every
@@ -489,7 +497,8 @@ class Tracer:
                    origin_normal: np.ndarray | None = None) -> Events:
         """Carry live rays through the optics until a mechanical face, the detector, or out.
 
-        At every optical hit: media from the prescription, Snell refraction with the
+        Along every segment inside glass the weight is multiplied by exp(-a(λ) L) (bulk
+        absorption, `effects.absorption`). At every optical hit: media from the prescription, Snell refraction with the
         wavelength's index, total internal reflection, and the coating's reflectance R. With
         `effects.ghosts` off (or no surface that can reflect, `fresnel_branch`) the ray transmits and its
         weight is multiplied by T = 1 − R; with ghosts on it reflects with probability R (weight unchanged) using `rng`: a
@@ -527,6 +536,8 @@ class Tracer:
             if work.size == 0:
                 break
             h = self._nearest(o[work], d[work], leaving[work], left_n[work], left_s[work])
+            if self._absorbs:
+                w[work] *= self._bulk_transmittance(h, d[work], wl[work])
             o[work] = h.point
             lost[work[h.lost]] = True
             det = h.detector & h.detector_front
@@ -567,6 +578,25 @@ class Tracer:
         w = np.where(np.isfinite(w) & rays.alive, w, 0.0)
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections, ghost_pair)
+
+    def _bulk_transmittance(self, h: Hits, d: np.ndarray, wl: np.ndarray) -> np.ndarray:
+        """exp(-a(λ) L) over the segment each ray just travelled (its length h.t).
+
+        The medium is read at the segment's end, like n1 in `_interface`: at a glass surface the
+        side the ray arrives from (before for d·n >= 0, else after); at a face of a lens part
+        reached from inside (d · outward normal > 0) that part's glass; else air (a = 0). So
+        photons and backward rays, direct light and stray light, are absorbed alike.
+        """
+        alpha = np.zeros(len(d))
+        found = np.isfinite(h.t)
+        glass = (h.surface >= 0) & found
+        s, wg = h.surface[glass], wl[glass]
+        forward = np.einsum("ij,ij->i", d[glass], h.normal[glass]) >= 0.0
+        alpha[glass] = np.where(forward, self._alpha_before[s, wg], self._alpha_after[s, wg])
+        face = (h.prim >= 0) & (h.surface < 0) & ~h.detector & found
+        inside = face & (np.einsum("ij,ij->i", d, h.normal) > 0.0)  # h.normal: the triangle's outward normal
+        alpha[inside] = self._alpha_solid[h.tag[inside], wl[inside]]
+        return np.exp(-alpha * np.where(found, np.maximum(h.t, 0.0), 0.0))
 
     def _interface(self, surf, nrm, d, w, wl, ghosts: bool, u):
         """Refract/reflect rays (m,) at optical surfaces `surf` (positions in scene.optical) with
