@@ -98,11 +98,14 @@ def _three_wavelengths(scene, dispersive: bool):
         if value[0] == 1.0 or not dispersive:
             return np.repeat(value[:1], 3)
         return refractive_index("N-BK7", wl)
-    optical = [replace(s, n_before=n(s, "n_before"), n_after=n(s, "n_after")) for s in scene.optical]
+    flat3 = lambda a: np.repeat(np.atleast_1d(a)[:1], 3)  # noqa: E731 - lossless glass stays so at every wavelength
+    optical = [replace(s, n_before=n(s, "n_before"), n_after=n(s, "n_after"), absorption_before=flat3(s.absorption_before),
+                       absorption_after=flat3(s.absorption_after)) for s in scene.optical]
     index = np.repeat(np.asarray(scene.solid_index_of_tag)[:, :1], 3, axis=1)
     if dispersive:
         index = np.where(index > 1.0, refractive_index("N-BK7", wl)[None, :], 1.0)
     return replace(scene, wavelengths_um=wl, optical=optical, solid_index_of_tag=index,
+                   solid_absorption_of_tag=np.repeat(np.asarray(scene.solid_absorption_of_tag)[:, :1], 3, axis=1),
                    source=replace(scene.source, wavelength_weights=(1.0, 2.0, 1.0)),
                    detector=replace(scene.detector, spectral_weight=(0.2, 1.0, 0.6)))
 
@@ -118,6 +121,9 @@ def test_one_wavelength_only_without_dispersion():
     assert one.source.wavelength_weights == (1.0,) and one.solid_index_of_tag.shape[1] == 1
     mgf2 = replace(flat, optical=[replace(s, coating=parse_coating("mgf2-quarter-wave")) for s in flat.optical])
     assert not dispersion_free(mgf2)  # its R depends on the wavelength at a given index
+    tinted = replace(flat, optical=[replace(s, absorption_after=np.array([3e-3, 2e-3, 1e-3])) for s in flat.optical])
+    assert not dispersion_free(tinted)  # the glass absorbs blue more than red
+    assert dispersion_free(replace(tinted, effects=replace(tinted.effects, absorption=False)))
 
 
 @pytest.mark.slow

@@ -23,7 +23,8 @@ channels they share (tests/integrators/test_plan_effects.py measures it).
   the planned scene traces one, with the detector's response replaced by its mean over the
   source's spectrum, Σ p_w r_w, which is what the W-wavelength run converges to. That is so
   when every refractive index the tracer reads (both sides of every optical surface, the solid
-  behind every face) is the same at every wavelength — no dispersion — and no coating's R
+  behind every face) is the same at every wavelength — no dispersion —, so is the glass's bulk
+  absorption when `effects.absorption` is on, and no coating's R
   depends on the wavelength at a given index (perfect-ar, uncoated, constant R; not the
   MgF2 quarter wave). BSDFs and sources here have no wavelength dependence of their own.
   A real glass lens disperses: a scene with glass keeps all its wavelengths.
@@ -173,6 +174,7 @@ def source_edge_deg(source) -> float:
 def _direct(scene) -> tuple[bool, str]:
     if not scene.effects.direct:
         return False, "direct = false: unscattered light on the detector is not counted"
+    # a source at a finite distance: its off_axis_deg / half_angle_rad are seen from the entrance pupil
     edge, fov = source_edge_deg(scene.source), float(scene.field_of_view_deg)
     if edge > fov + DIRECT_MARGIN_DEG:
         return False, (f"the source's nearest edge ({edge:.2f}°) lies beyond what the detector images "
@@ -186,8 +188,11 @@ def dispersion_free(scene) -> bool:
         a = np.asarray(a, np.float64)
         return bool(np.all(a == a[..., :1]))
 
+    absorbs = bool(scene.effects.absorption)
     return (all(flat(s.n_before) and flat(s.n_after) and (s.mirror or s.coating.kind in _WAVELENGTH_FREE_COATINGS)
-                for s in scene.optical) and flat(scene.solid_index_of_tag))
+                and (not absorbs or (flat(s.absorption_before) and flat(s.absorption_after)))
+                for s in scene.optical) and flat(scene.solid_index_of_tag)
+            and (not absorbs or flat(scene.solid_absorption_of_tag)))
 
 
 def _wavelengths(scene) -> tuple[object, Decision]:
@@ -208,8 +213,12 @@ def _wavelengths(scene) -> tuple[object, Decision]:
     one = replace(scene, wavelengths_um=wl[keep:keep + 1], detector=detector,
                   source=replace(scene.source, wavelength_weights=(1.0,)),
                   optical=[replace(s, n_before=np.atleast_1d(s.n_before)[keep:keep + 1],
-                                   n_after=np.atleast_1d(s.n_after)[keep:keep + 1]) for s in scene.optical],
-                  solid_index_of_tag=np.asarray(scene.solid_index_of_tag)[:, keep:keep + 1])
+                                   n_after=np.atleast_1d(s.n_after)[keep:keep + 1],
+                                   absorption_before=np.atleast_1d(s.absorption_before)[keep:keep + 1],
+                                   absorption_after=np.atleast_1d(s.absorption_after)[keep:keep + 1])
+                           for s in scene.optical],
+                  solid_index_of_tag=np.asarray(scene.solid_index_of_tag)[:, keep:keep + 1],
+                  solid_absorption_of_tag=np.asarray(scene.solid_absorption_of_tag)[:, keep:keep + 1])
     return one, Decision(what, True, f"traced at {wl[keep]:.4f} µm for all {len(wl)} ({names} µm): no index or "
                          "coating changes with the wavelength; the detector response is its mean over the spectrum")
 
