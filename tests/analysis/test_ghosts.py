@@ -12,12 +12,14 @@ from lensmount.analysis.ghosts import ghost_report
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene.build import optical_surfaces
+from lensmount.scene.scene import Effects
 from lensmount.trace.detector import Detector
 from lensmount.trace.interfaces import parse_coating
 from lensmount.trace.sources import CollimatedSource, EmissionDisc
 
 WL = 0.5875618
 R1, T, H = 51.68, 6.0, 1.5  # a plano-convex N-BK7 singlet (f ≈ 100 mm) stopped down to f/33: paraxial
+LOSSLESS = Effects(absorption=False)  # Fresnel products by hand: the glass's bulk absorption off
 
 
 def _scene(coating: str, detector_mm: float = 60.0, pixels: int = 200, off_axis_deg: float = 0.0):
@@ -29,7 +31,8 @@ def _scene(coating: str, detector_mm: float = 60.0, pixels: int = 200, off_axis_
     source = CollimatedSource(off_axis_deg, 90.0, EmissionDisc((0.0, 0.0, -100.0), 10.0))
     return SimpleNamespace(optical=optical_surfaces(lens, wl, lambda i, _: c), source=source,
                            detector=Detector(detector_mm, detector_mm, pixels, pixels, lens.image_z),
-                           wavelengths_um=wl, entrance_pupil_area_mm2=math.pi * H * H), lens
+                           wavelengths_um=wl, entrance_pupil_area_mm2=math.pi * H * H,
+                           effects=LOSSLESS), lens
 
 
 def _paraxial_ghost_focus(n: float, z_back: float) -> float:
@@ -183,7 +186,7 @@ def test_doublet_strongest_ghost_and_its_focus_match_the_paraxial_hand_calculati
     scene = SimpleNamespace(optical=optical_surfaces(lens, wl, lambda i, _: c),
                             source=CollimatedSource(0.0, 90.0, EmissionDisc((0.0, 0.0, -100.0), 10.0)),
                             detector=Detector(30.0, 30.0, 300, 300, z_image), wavelengths_um=wl,
-                            entrance_pupil_area_mm2=math.pi * H * H)
+                            entrance_pupil_area_mm2=math.pi * H * H, effects=LOSSLESS)
     report = ghost_report(scene, rays_across=61)
     top = report.pairs[0]
     assert (top.first, top.second) == ranked[0]
