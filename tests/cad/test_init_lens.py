@@ -33,10 +33,9 @@ EXAMPLE_LENSES = [ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx",
 KNOWN = {
     "US05831776-1": "cross each other",           # load_lens: the lithography lens's surfaces 15/16 cross
     "optiland-lens_floa": "miss surface 1",       # load_lens: the floating stop overfills R = 20 mm
-    "thorlabs-AL1815-C-latin1": "does not lie in an air gap",  # layout: a singlet, stop on its front face
-    "US00583336-2-scaled": "lens-1 is too thin",  # the patent's element 1 has no edge at its clear aperture
-    "optiland-lens1": "spacer-2 between lens-2 and diaphragm would be",  # stop 0.75 mm behind a convex face
-    "US08427765-1": "spacer-2 between lens-2 and diaphragm would be",    # same; lens-3/4 nearly touch too
+    "US00583336-2-scaled": "lens-1 is too thin",  # the patent's element 1 is 0.19 mm thick at its clear aperture
+    # lens-3's strongly concave front (R -8.3 mm) curls its edge forward past lens-2's edge around the stop
+    "US08427765-1": "the barrel cannot step between lens-2 and lens-3",
 }
 
 

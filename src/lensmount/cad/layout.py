@@ -175,31 +175,72 @@ def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float
     return float(np.interp(zs, pts[:, 2], np.abs(pts[:, 1])).max())
 
 
-def _diaphragm(spec, p, stop, ia, ib, A, B, od, z_stop) -> Diaphragm:
-    """The diaphragm in the gap between lens A and lens B; its land passes the designed pupil.
+def _diaphragm(spec, p, stop, od, z_stop, face=None) -> Diaphragm:
+    """The diaphragm for the stop at z_stop; its land passes the designed pupil.
 
-    A stop on a dummy surface in the gap puts the knife edge on the stop plane. A stop on
-    A's rear (B's front) face puts the land just behind (in front of) that face where the
-    face crosses the pupil's edge, the plate a cone that clears the glass outward of it
-    (`contact_slope`), so the plate limits no field more than the stop face itself.
+    face None: the knife edge on the stop plane (a dummy stop surface in an air gap).
+    face (side, glass, R): the plate follows the face glass(r) of the lens in front of it
+    (side +1) or behind it (side -1), R that lens's radius: its land sits just off the
+    glass where the face crosses the pupil's edge, the plate a cone that clears the glass
+    outward of it (`contact_slope`), so the plate limits no field more than the face itself.
+    That is the stop on a lens face, or a stop plane so close to a curved face that no
+    spacer fits between them; there the land stays on the stop plane wherever the glass
+    leaves room (the field beams cross the axis there), else as close to it as the glass allows.
     """
     ds = spec.diaphragm
     land = ds.land_mm
     args = (od, ds.thickness_mm, land, ds.bevel_angle_deg, ds.bevel_side)
-    if ia < stop < ib:
+    if face is None:
         return Diaphragm(z_stop, pupil_edge_radius(p, z_stop - 0.5 * land, z_stop + 0.5 * land), *args)
+    side, glass, R = face
     gap = spec.seats.clearance_mm  # air between glass and plate at the land
     wedge = float(np.tan(np.radians(spec.seats.wedge_deg)))
-    side, glass, R = (+1, A.back_z, A.outer_radius) if stop == ia else (-1, B.front_z, B.outer_radius)
+    on_face = abs(float(glass(0.0)) - z_stop) < 1e-9
     r0 = float(p.surfaces[stop].clear_semi_diameter)
     for _ in range(4):  # the land's z depends on its radius through the glass's sag: settle both
-        m = side * contact_slope(glass, r0, min(od, R), side, False, wedge)
-        probe = Diaphragm(0.0, r0, *args, slope=m)
-        off0, off1 = probe.z_range()  # face offsets from the land centre
-        zc = float(glass(r0)) + side * gap - (off0 if side > 0 else off1)
+        off0, off1 = Diaphragm(0.0, r0, *args).z_range()  # face offsets from the land centre
+        near = off0 if side > 0 else off1                   # the face toward the glass
+        zc = float(glass(r0)) + side * gap - near
+        if on_face or side * (z_stop - zc) <= 0.0:
+            m = side * contact_slope(glass, r0, min(od, R), side, False, wedge)
+        else:  # the stop plane is farther from the glass: the land stays on it, the plate
+            zc = z_stop  # only as steep as keeps it `gap` off the glass outward
+            rs = np.linspace(r0, max(min(od, R), r0 + 1e-6), _SLOPE_SAMPLES)[1:]
+            need = float((side * (glass(rs) + side * gap - (zc + near)) / (rs - r0)).max())
+            m = side * (max(0.0, need) + _EPS_SLOPE)
         lo = zc - 0.5 * land
         r0 = pupil_edge_radius(p, lo, lo + land)
     return Diaphragm(zc, r0, *args, slope=m)
+
+
+def _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, a, b) -> list[tuple]:
+    """Spacers between lens A and the diaphragm and between the diaphragm and lens B, as
+    `add_spacers` ends; none on the side whose face the plate follows (`hug`).
+    a, b: (contact height, contact slope, lens PartPlan) of A's rear and B's front face."""
+    (hA, mA, A), (hB, mB, B) = a, b
+    margin = spec.spacers.aperture_margin_mm
+
+    def bore(side: str, reach: float) -> float:
+        """Inner corner of the spacer on the plate's front or rear face: above the beam over the
+        millimetre next to where it meets the plate (on a cone that z moves with the corner)."""
+        r = dia.face_inner_radius(side)
+        for _ in range(20):
+            z = float(dia.face_z(side, r))
+            r_next = max(dia.face_inner_radius(side), env.max_over(z, z + reach) + margin)
+            if r_next <= r + 1e-9:
+                break
+            r = r_next
+        return r
+
+    hd0, hd1 = bore("front", -1.0), bore("rear", 1.0)
+    ends = []
+    if hug != ia:
+        ends.append((hA, float(A.template.back_z(hA)), mA, hd0, float(dia.face_z("front", hd0)),
+                     _EPS_SLOPE - dia.slope, A.name, "diaphragm"))
+    if hug != ib:
+        ends.append((hd1, float(dia.face_z("rear", hd1)), dia.slope + _EPS_SLOPE, hB,
+                     float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+    return ends
 
 
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
@@ -315,13 +356,10 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             if pb.startswith("lens"):
                 contacts.append(Contact(name, pb, ib, br, clear[ib]))
 
-    def outer_diaphragm(z_stop, od):
-        """A diaphragm on a stop in front of the first element or behind the last one."""
-        ds = spec.diaphragm
-        lo = z_stop - 0.5 * ds.land_mm
-        dia = Diaphragm(z_stop, pupil_edge_radius(p, lo, lo + ds.land_mm), od, ds.thickness_mm, ds.land_mm,
-                        ds.bevel_angle_deg, ds.bevel_side)
-        parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia))
+    def outer_diaphragm(z_stop, od, face=None):
+        """A diaphragm on a stop in front of the first element or behind the last one (or on its face)."""
+        dia = _diaphragm(spec, p, stop, od, z_stop, face)
+        parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", spec.diaphragm.finish), dia))
         return dia
 
     def lip_radius(dia, z0, z1, side):
@@ -338,17 +376,20 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     el0 = first_el(0).template
     i0 = groups[0][0]
     h0 = clear[i0] + cm
-    if stop < i0:  # a front aperture: barrel lip | diaphragm | spacer | lens 1
+    if stop <= i0:  # a front aperture: barrel lip | diaphragm | spacer | lens 1 (no spacer on lens 1's face)
         od = bores[0] - c_sp
-        dia = outer_diaphragm(float(zv[stop]), od)
-        dz0, dz1 = dia.z_range()
+        dia = outer_diaphragm(float(zv[stop]), od, (-1, el0.front_z, radii[0]) if stop == i0 else None)
+        fz = lambda r: float(dia.face_z("front", r))  # noqa: E731  (a cone on lens 1's face)
+        dz0 = min(fz(dia.inner_radius), fz(od))
         z_front = dz0 - spec.barrel.lip_mm
-        r_lip = lip_radius(dia, z_front, dz0, "front")
-        bore_pts += [(r_lip, z_front), (r_lip, dz0), (bores[0], dz0)]
-        m = contact_slope(el0.front_z, h0, min(radii[0], od), -1, tangent, wedge)
-        hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
-        add_spacers([(hd1, dz1, _EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first_el(0).name)],
-                    od, -1, i0)
+        r_lip = lip_radius(dia, z_front, max(fz(dia.inner_radius), fz(od)), "front")
+        bore_pts += [(r_lip, z_front), (r_lip, fz(r_lip)), (bores[0], fz(bores[0]))]
+        if stop < i0:
+            dz1 = dia.z_range()[1]
+            m = contact_slope(el0.front_z, h0, min(radii[0], od), -1, tangent, wedge)
+            hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
+            add_spacers([(hd1, dz1, _EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first_el(0).name)],
+                        od, -1, i0)
     elif spec.seats.front == "retainer":
         r_out = bores[0] - c_sp
         m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent, wedge)
@@ -368,7 +409,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
 
     # ---- gaps between groups --------------------------------------------------------------
-    stop_placed = stop < i0 or stop > groups[-1][-1]
+    stop_placed = stop <= i0 or stop >= groups[-1][-1]
     for gi in range(len(groups) - 1):
         A, B = last_el(gi), first_el(gi + 1)
         ia, ib = groups[gi][-1], groups[gi + 1][0]
@@ -424,22 +465,20 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         ends = []  # (front_r, front_z, front_slope, back_r, back_z, back_slope, front part, back part)
         if stop_here:
             ds = spec.diaphragm
-            dia = _diaphragm(spec, p, stop, ia, ib, A.template, B.template, od, float(zv[stop]))
-            parts_dia = PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia)
-            margin = spec.spacers.aperture_margin_mm
-            # the spacers' bores clear the beam along the plate faces (cones on a curved stop)
-            zf = sorted(float(dia.face_z("front", r)) for r in (dia.inner_radius, od))
-            zr = sorted(float(dia.face_z("rear", r)) for r in (dia.inner_radius, od))
-            hd0 = max(dia.face_inner_radius("front"), env.max_over(zf[0] - 1.0, zf[1]) + margin)
-            hd1 = max(dia.face_inner_radius("rear"), env.max_over(zr[0], zr[1] + 1.0) + margin)
-            if stop != ia:  # a spacer between lens A and the diaphragm
-                ends.append((hA, float(A.template.back_z(hA)), mA, hd0, float(dia.face_z("front", hd0)),
-                             _EPS_SLOPE - dia.slope, A.name, "diaphragm"))
-            if stop != ib:  # and one between the diaphragm and lens B
-                ends.append((hd1, float(dia.face_z("rear", hd1)), dia.slope + _EPS_SLOPE, hB,
-                             float(B.template.front_z(hB)), mB, "diaphragm", B.name))
+            faces = {ia: (+1, A.template.back_z, RA), ib: (-1, B.template.front_z, RB)}
+            # a stop on A's rear or B's front face: the plate follows that face; a stop plane with
+            # no room for a spacer between it and A (B): the plate follows A's (B's) face up to it
+            hug = stop if stop in faces else None
+            while True:
+                dia = _diaphragm(spec, p, stop, od, float(zv[stop]), faces.get(hug))
+                ends = _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, (hA, mA, A), (hB, mB, B))
+                short = [ia if e[7] == "diaphragm" else ib for e in ends
+                         if Spacer(*e[:6], od).min_length() < min_t]
+                if hug is not None or not short:
+                    break
+                hug = short[0]
             stop_placed = True
-            parts.append(parts_dia)
+            parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia))
         else:
             ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
         add_spacers(ends, od, ia, ib)
@@ -456,26 +495,30 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         bore_pts += [(bores[gi], za), (r_in, za), (r_in, zb), (bores[gi + 1], zb)]
     if not stop_placed:
         raise GeometryError(
-            f"the stop (surface {stop + 1}) does not lie in an air gap between two lens groups; "
-            "the mount layout needs one", field=f"surface[{stop + 1}]",
-            valid="a stop in an air gap: between two lens groups, in front of the first or behind the last")
+            f"the stop (surface {stop + 1}) lies inside a cemented group, where no diaphragm fits; "
+            "the mount layout needs it in an air gap or on a group's outer face", field=f"surface[{stop + 1}]",
+            valid="a stop in an air gap (between two lens groups, in front of the first or behind the last) "
+                  "or on the outer face of a lens group")
 
     # ---- rear seat ----------------------------------------------------------------------
     gl = len(groups) - 1
     elL = last_el(gl)
     iL = groups[gl][-1]
     hL = clear[iL] + cm
-    if stop > iL:  # a rear stop: lens L | spacer | diaphragm | barrel lip
+    if stop >= iL:  # a rear stop: lens L | spacer | diaphragm | barrel lip (no spacer on lens L's face)
         od = bores[gl] - c_sp
-        dia = outer_diaphragm(float(zv[stop]), od)
-        dz0, dz1 = dia.z_range()
+        dia = outer_diaphragm(float(zv[stop]), od, (+1, elL.template.back_z, radii[gl]) if stop == iL else None)
+        rz = lambda r: float(dia.face_z("rear", r))  # noqa: E731  (a cone on lens L's face)
+        dz1 = max(rz(dia.inner_radius), rz(od))
         z_back = dz1 + spec.barrel.lip_mm
-        r_lip = lip_radius(dia, dz1, z_back, "rear")
-        m = contact_slope(elL.template.back_z, hL, min(radii[gl], od), +1, tangent, wedge)
-        hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
-        add_spacers([(hL, float(elL.template.back_z(hL)), m, hd0, dz0, _EPS_SLOPE, elL.name, "diaphragm")],
-                    od, iL, -1)
-        bore_pts += [(bores[gl], dz1), (r_lip, dz1), (r_lip, z_back)]
+        r_lip = lip_radius(dia, min(rz(dia.inner_radius), rz(od)), z_back, "rear")
+        if stop > iL:
+            dz0 = dia.z_range()[0]
+            m = contact_slope(elL.template.back_z, hL, min(radii[gl], od), +1, tangent, wedge)
+            hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
+            add_spacers([(hL, float(elL.template.back_z(hL)), m, hd0, dz0, _EPS_SLOPE, elL.name, "diaphragm")],
+                        od, iL, -1)
+        bore_pts += [(bores[gl], rz(bores[gl])), (r_lip, rz(r_lip)), (r_lip, z_back)]
     elif spec.seats.rear == "shoulder":
         m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent, wedge)
         cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
