@@ -125,10 +125,7 @@ def _full_field_hits(p, mesh) -> list[str]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("lens", [pytest.param(p, id=p.stem) for p in REFRACTIVE] + [
-    pytest.param(EXAMPLE_LENSES[0], id="example-cooke-triplet-zmx", marks=pytest.mark.xfail(
-        strict=True, reason="full-field rays at 0.995 of the pupil meet the barrel's rear lip and the housing "
-        "flange (r 7.44 mm at z 17.2 mm): the file's stop DIAM 3.8 mm is under the 3.8046 mm EPD 10 needs, so "
-        "optics.apertures.beam_envelope loses its rim rays (vignetted at the stop) and gives 6.96 mm there")),
+    pytest.param(EXAMPLE_LENSES[0], id="example-cooke-triplet-zmx"),
     pytest.param(EXAMPLE_LENSES[1], id="example-double-gauss-360")])
 def test_refractive_corpus_lens_gets_a_mount_that_builds_clears_the_beam_and_simulates(lens, tmp_path):
     design, result = _init(tmp_path, lens)

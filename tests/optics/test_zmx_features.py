@@ -120,3 +120,11 @@ def test_odd_asphere_with_even_terms_only_is_the_same_sag_and_an_odd_term_is_ref
     with pytest.raises(InputError) as err:
         convert(parse_zmx("\n".join(lines), "o.zmx"), "o.zmx")
     assert err.value.line == 10 and "r^3" in err.value.paragraph()
+
+
+def test_a_vendor_coating_name_is_ignored_and_said_so():
+    # Thorlabs files name coatings of their own COATINGTHOR.DAT, which the .zmx does not carry
+    text = "\n".join(SINGLET).format(aperture="ENPD 10", ftyp=0, field=5, object="INFINITY", glass="N-BK7")
+    lens, notes = convert(parse_zmx(text.replace("  STOP\n", "  STOP\n  COAT THORA\n"), "t.zmx"), "t.zmx")
+    assert lens.surfaces[0].coating is None
+    assert any(n.kind == "ignored" and n.where == "SURF 1" and "THORA" in n.what for n in notes)

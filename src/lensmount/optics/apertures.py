@@ -14,6 +14,8 @@ azimuth psi is the meridional one rotated by psi: same radii).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from lensmount.errors import InputError
@@ -108,6 +110,15 @@ def beam_envelope(prescription: Prescription, z) -> np.ndarray:
     fields = _field_samples(prescription, ENVELOPE_FIELDS)
     pupil = pupil_rings(ENVELOPE_RINGS, ENVELOPE_SPOKES, half=True)
     env = np.zeros(len(zq))
+    # The mount's diaphragm passes the designed pupil (cad.layout.pupil_edge_radius), so a stop
+    # DIAM rounded a hair under the marginal ray (the Cooke triplet's 3.8 mm for 3.8046 mm) must
+    # not drop the rim rays, which the diaphragm lets through, from the envelope.
+    stop = prescription.surfaces[prescription.stop_index]
+    r_stop = (1.0 + 1e-6) * stop_semi_diameter(prescription)
+    if stop.clear_semi_diameter is not None and stop.clear_semi_diameter < r_stop:
+        surfaces = list(prescription.surfaces)
+        surfaces[prescription.stop_index] = replace(stop, clear_semi_diameter=r_stop)
+        prescription = prescription.with_surfaces(surfaces)
     for rays in _beam(prescription, fields, pupil, clip=True):
         env = np.maximum(env, _polyline_radius(rays, zq))
     return env

@@ -313,11 +313,14 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
         clear, mech = _semi_diameters(zs, s, notes)
+        if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
+            notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
+                                    "coating file the lens file does not carry): the scene's [coatings] apply"))
         surfaces.append(Surface(
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
             thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
             clear_semi_diameter=clear, mechanical_semi_diameter=mech, is_stop=zs.stop,
-            coating=zs.coating, mirror=zs.mirror))
+            mirror=zs.mirror))
         numbers.append(zs.number)
         medium = material
     if tilt is not None:
