@@ -51,6 +51,7 @@ def _optiland_efl(path: Path, notes) -> float:
 
 def test_the_corpus_holds_the_kinds_of_file_the_issue_names():
     texts = {p.name: p.read_bytes() for p in FILES}
+    assert len(FILES) >= 15                                                   # issue 16: at least 15 public files
     assert any(t.startswith(b"\xff\xfe") for t in texts.values())             # UTF-16 as Zemax writes it
     assert any(b"GLAS MIRROR" in t for t in texts.values())                   # mirrors
     assert any(re.search(rb"DIAM \S+ 2 ", t) for t in texts.values())          # semi-diameter pickups
