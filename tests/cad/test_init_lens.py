@@ -34,7 +34,9 @@ KNOWN = {
     "US05831776-1": "cross each other",           # load_lens: the lithography lens's surfaces 15/16 cross
     "optiland-lens_floa": "miss surface 1",       # load_lens: the floating stop overfills R = 20 mm
     "US00583336-2-scaled": "lens-1 is too thin",  # the patent's element 1 is 0.19 mm thick at its clear aperture
-    # lens-3's strongly concave front (R -8.3 mm) curls its edge forward past lens-2's edge around the stop
+    # lens-3 and lens-4 touch at their clear apertures (air 0.019 mm at h = 7 mm between R -53.59 and
+    # R -37.47, 0.22 mm on the axis): no spacer, shoulder or ring fits there, so widening lens-3 for a
+    # spacer curls its concave front (R -8.3 mm) forward past lens-2's edge; a glass seat is not built yet
     "US08427765-1": "the barrel cannot step between lens-2 and lens-3",
 }
 
