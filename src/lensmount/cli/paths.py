@@ -62,13 +62,15 @@ def _paths(out: Path, data, top: int) -> list[Path]:
         table.add_row(str(row["rank"]), " → ".join(e["name"] for e in row["events"]), _num(row["fraction"]),
                       _num(row["std_error"]), "" if row["share"] is None else f"{100 * row['share']:.1f} %")
     other = report["other"]
-    table.add_row("", f"{other['paths']} other paths", _num(other["fraction"]), _num(other["std_error"]), "")
+    if other["paths"]:
+        table.add_row("", f"{other['paths']} other paths", _num(other["fraction"]), _num(other["std_error"]), "")
     Console(width=max(Console().width, 120)).print(table)
     written: list[Path] = []
     images, names = [], []
     for row in report["paths"]:
         image = sums.path_image(signature_from_hex(row["signature"]))
-        if image is None:
+        if image is None:  # the run keeps images of its KEPT_IMAGES leading paths only
+            typer.echo(f"path #{row['rank']}: no image (outside the leading paths whose images the run keeps)")
             continue
         written.append(out / f"path-{row['rank']:02d}.png")
         write_preview(written[-1], image, extent, title=f"path #{row['rank']}: " + " → ".join(
@@ -97,6 +99,7 @@ def _faces(out: Path, data, top: int) -> list[Path]:
     if not report["view_map"]:
         console.print("no view map in this run (forward): which faces the detector sees is unknown; "
                       "run with --method bidirectional")
+        return []
     lists = (("critical_and_illuminated", "faces seen by the detector AND lit by the source, by G·E/π"),
              ("critical_unlit", "seen by the detector, not lit"), ("lit_not_critical", "lit, not seen by the detector"))
     for key, title in lists:
