@@ -315,7 +315,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         clear, mech = _semi_diameters(zs, s, notes)
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
-                                    "coating file the lens file does not carry): the scene's [coatings] apply"))
+                                    "coating file the lens file does not carry): the scene's coatings apply"))
         surfaces.append(Surface(
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
             thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
