@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from lensmount.analysis.ghosts import ghost_report
+from lensmount.integrators.estimate import film_channels
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene.build import optical_surfaces
@@ -123,7 +124,7 @@ def test_ghost_report_agrees_with_the_forward_estimators_ghost_channel():
                            ghosts=True, coating="uncoated")
     tracer = Tracer(scene)
     report = ghost_report(scene, tracer)
-    ghost = scene.mesh.parts.__len__()  # the channel after the parts: `ghosts` (direct is off)
+    ghost = film_channels(scene).index("ghosts")
     flux = [forward_pass(scene, tracer, 1_500_000, 7, i, ghost_routes=False).part_flux[ghost] for i in range(8)]
     aperture = scene.entrance_pupil_area_mm2 * math.cos(math.radians(2.0))
     mean, se = np.mean(flux) / aperture, np.std(flux, ddof=1) / math.sqrt(len(flux)) / aperture

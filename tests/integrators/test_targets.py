@@ -106,7 +106,7 @@ def _edge_tau(scene, tracer, pilot_seed, passes, spp=300):
     """Σ τ over the view map's edge hit points per pass (an estimate of ∫∫ cos θ [ray meets edge])."""
     det = scene.detector
     broad, _ = classify(scene.bsdf_of_tag)
-    hw, bnd, _, _ = _scene_tables(scene)
+    hw, bnd = _scene_tables(scene)
     out = []
     for k in range(passes):
         h = build_view_map(scene, tracer, det, stream(11, "view-map", k), broad=broad, half_widths=hw,
@@ -159,3 +159,27 @@ def test_no_edge_no_learned_target(case1):
     assert stop_rim_target(scene2, scene2.detector, broad2) is None
     assert T.learned_rim(scene2, Tracer(scene2), scene2.detector, broad2, 11, rim) is None
     assert T.learned_rim(scene1, tracer1, scene1.detector, broad1, 11, rim) is not None
+
+
+def test_view_map_in_chunks_is_the_one_batch_view_map(case1, monkeypatch):
+    """Chunking the backward samples (memory bound at any detector size) changes no hit point;
+    a case-1 film has the one scattering part as its only channel (the absorbing parts: none)."""
+    from lensmount.integrators import view_map as V
+    from lensmount.integrators.estimate import Film
+
+    scene, tracer = case1
+    broad, _ = classify(scene.bsdf_of_tag)
+    hw, bnd = _scene_tables(scene)
+
+    def hits():
+        return build_view_map(scene, tracer, scene.detector, stream(3, "view-map", 0), broad=broad, half_widths=hw,
+                              radius_scale=1.0, boundaries=bnd, samples_per_pixel=40, pilot_seed=11)
+
+    one = hits()
+    monkeypatch.setattr(V, "VIEW_MAP_CHUNK", 997)  # 10 240 samples: 11 chunks, the last one short
+    chunked = hits()
+    assert len(one.weight) > 100
+    for name in ("position", "normal", "omega_o", "weight", "pixel", "tag", "wavelength", "radius", "area"):
+        assert np.array_equal(getattr(one, name), getattr(chunked, name)), name
+    edge = {scene.mesh.tag_table[t].part for t in np.flatnonzero(broad)}
+    assert Film(scene).channels == sorted(edge) and len(scene.mesh.parts) > len(edge)

@@ -39,13 +39,14 @@ import time
 
 import numpy as np
 
-from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
+from lensmount.integrators.estimate import (EnergyLedger, Film, PassEstimate, film_channels, phase_times,
+                                            scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
-from lensmount.integrators.walk import emit_photons, photon_walk, scattering_tags
+from lensmount.integrators.walk import emit_photons, photon_walk
 from lensmount.trace.tracer import FACE
 
 _CACHE: dict[tuple, tuple] = {}
@@ -85,7 +86,7 @@ def classify(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_thresh
 
 def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
                   normal_limit_deg: float = EstimatorSettings.normal_limit_deg):
-    """Per-scene constants (radius caps, face boundaries, part table), computed once per process."""
+    """Per-scene constants (radius caps, face boundaries), computed once per process."""
     key = (id(scene), id(scene.mesh), cap_mm, normal_limit_deg)  # the entry holds the scene: ids stay unique
     if key not in _CACHE:
         m = scene.mesh
@@ -93,7 +94,7 @@ def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
         hw = radius_caps(m.vertices, m.triangles, m.tags, n_tags, cap_mm=cap_mm, max_normal_deg=normal_limit_deg)
         boundaries = FaceBoundaries(m.vertices, m.triangles, m.tags, n_tags)
         _CACHE.clear()
-        _CACHE[key] = (scene, hw, boundaries, m.part_of_tag(), list(m.parts))
+        _CACHE[key] = (scene, hw, boundaries)
     return _CACHE[key][1:]
 
 
@@ -120,7 +121,7 @@ class Bidirectional:
         """One complete, independent pass; radius_scale None: s_i of the settings' alpha schedule."""
         cfg = self.settings
         scale = radius_scale_of(pass_index, cfg) if radius_scale is None else float(radius_scale)
-        half_widths, boundaries, part_of_tag, _ = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
+        half_widths, boundaries = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
         core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
         core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
         broad = np.isfinite(core)
@@ -165,13 +166,13 @@ class Bidirectional:
             diagnostics.update(phase_times(ghost_routes=time.perf_counter() - clock))
 
         # Phase 3: the update — the gather's image plus the photons the film counted.
-        _, parts_g = gatherer.image(film.detector.shape, part_of_tag, len(film.channels))
+        _, parts_g = gatherer.image(film.detector.shape, film.channel_of_tag, len(film.channels))
         film.add_images(parts_g)
         estimate = film.estimate(photons, ledger, diagnostics)
         # The same pass with every gather radius halved (only the gathered part changes): the bias estimate.
         estimate.radius_scale = scale
         estimate.part_flux_half = (estimate.part_flux - parts_g.sum(axis=(1, 2)) * film.detector.pixel_area
-                                   + gatherer.part_flux_half(part_of_tag, len(film.channels)) * film.detector.pixel_area)
+                                   + gatherer.part_flux_half(film.channel_of_tag, len(film.channels)) * film.detector.pixel_area)
         return estimate
 
 

@@ -226,14 +226,16 @@ class Gatherer:
                 self.paths.add(photons.signature[pj], h.pixel[hi], h.weight[hi] * value)
             self.radiance_half += np.bincount(hi[half], weights=value_half, minlength=len(h))
 
-    def part_flux_half(self, part_of_tag: np.ndarray, n_parts: int) -> np.ndarray:
-        """(P,) Σ τ L_o per part with the r/2 estimate, as a sum over pixels (multiply by the pixel area)."""
+    def part_flux_half(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
+        """(C,) Σ τ L_o per channel with the r/2 estimate, as a sum over pixels (multiply by the pixel area)."""
         h = self.hits
-        part = part_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
-        return np.bincount(part.astype(np.int64), weights=h.weight * self.radiance_half, minlength=n_parts)[:n_parts]
+        ch = channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
+        return np.bincount(ch.astype(np.int64), weights=h.weight * self.radiance_half,
+                           minlength=n_channels)[:n_channels]
 
-    def image(self, shape: tuple[int, int], part_of_tag: np.ndarray, n_parts: int):
-        """(ny, nx) image and (P, ny, nx) per-part images of Σ τ L_o per pixel."""
+    def image(self, shape: tuple[int, int], channel_of_tag: np.ndarray, n_channels: int):
+        """(ny, nx) image and (C, ny, nx) per-channel images of Σ τ L_o per pixel (channel_of_tag:
+        `Film.channel_of_tag`; hit points lie on scattering faces only, so every one has a channel)."""
         ny, nx = shape
         h = self.hits
         value = h.weight * self.radiance
@@ -242,10 +244,10 @@ class Gatherer:
             raise FloatingPointError(f"non-finite hit-point value at {len(bad)} hit point(s), e.g. pixel "
                                      f"{int(h.pixel[bad[0]])} on face tag {int(h.tag[bad[0]])}")
         image = np.bincount(h.pixel, weights=value, minlength=ny * nx)[: ny * nx].reshape(ny, nx)
-        part = part_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
-        flat = part.astype(np.int64) * (ny * nx) + h.pixel
-        per_part = np.bincount(flat, weights=value, minlength=n_parts * ny * nx)[: n_parts * ny * nx]
-        return image, per_part.reshape(n_parts, ny, nx)
+        ch = channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
+        flat = ch.astype(np.int64) * (ny * nx) + h.pixel
+        per_channel = np.bincount(flat, weights=value, minlength=n_channels * ny * nx)[: n_channels * ny * nx]
+        return image, per_channel.reshape(n_channels, ny, nx)
 
 
 __all__ = ["HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]

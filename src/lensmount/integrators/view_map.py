@@ -36,6 +36,7 @@ from lensmount.trace.tracer import FACE
 LEARNED_DISC_SHARE = 0.25  # of c, for the disc when the learned edge target takes the rest
 RADIUS_SUBSAMPLE = 128  # on learned-target faces r_0 is the k-th neighbour among ≤ this many hit points
 MAX_EDGE_HITS = 16_000  # per pass on learned-target faces; beyond, kept with probability p (τ / p)
+VIEW_MAP_CHUNK = 1 << 18  # backward samples traced at once (~0.2 GB of ray arrays, whatever the detector size)
 
 
 def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: float = 1e-4, cap_mm: float = 5.0):
@@ -155,55 +156,41 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     pixel, _ = _sample_layout(det, s)
     n = len(pixel)
     paths = ray_streams(rng, n)
-    u = paths.random((n, 6))
-    x = det.sample_points(pixel, u[:, 0:2])
     n_wl = len(scene.wavelengths_um)
-    wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)  # drawn first: the learned target depends on it
     disc = exit_disc(scene, det)
-    learned = None
+    rim = stop_rim_target(scene, det, broad) if disc is not None else None
+    # The learned edge window comes from a pilot run, once per (scene, tracer, seed) (targets.learned_rim).
+    learned = (learned_rim(scene, tracer, det, broad, pilot_seed, rim)
+               if rim is not None and rim.facing == disc.facing and pilot_seed is not None else None)
     if disc is None:  # no optics: the hemisphere alone (still unbiased)
         targets, weights = [ExitDisc(z=det.z - 1.0, radius=1.0)], [0.0]
+    elif learned is not None:  # the edge's real window: replaces the paraxial annulus
+        targets, weights = [disc, learned], [mixture_c * LEARNED_DISC_SHARE, mixture_c * (1 - LEARNED_DISC_SHARE)]
+    elif rim is not None and rim.facing == disc.facing:
+        targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
     else:
         targets, weights = [disc], [mixture_c]
-        rim = stop_rim_target(scene, det, broad)
-        if rim is not None and rim.facing == disc.facing:
-            learned = None if pilot_seed is None else learned_rim(scene, tracer, det, broad, pilot_seed, rim)
-            if learned is not None:  # the edge's real window: replaces the paraxial annulus
-                targets, weights = [disc, learned], [mixture_c * LEARNED_DISC_SHARE, mixture_c * (1 - LEARNED_DISC_SHARE)]
-            else:
-                targets, weights = [disc, rim], [mixture_c / 3.0, mixture_c * 2.0 / 3.0]
-    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
-    response = scene.detector.spectral_weight
-    if response is not None:  # the detector's spectral response weights each sample's wavelength
-        w = w * np.asarray(response, np.float64)[wl]
-    live = w > 0
-    rays = RayBatch.make(x[live], omega[live], weight=w[live] * n_wl / s, wavelength=wl[live], ids=pixel[live])
-    if len(rays) == 0:
-        return HitPoints.empty()
-    paths = paths.take(live)
-    step = tracer.next_event(rays, paths)
+    # Traced in chunks: a sample's numbers and path depend on its own stream only, so the hit
+    # points are the same as from one batch, and memory stays bounded at any detector size.
+    chunks = [_trace_samples(scene, tracer, det, paths.take(slice(a, a + VIEW_MAP_CHUNK)),
+                             pixel[a:a + VIEW_MAP_CHUNK], targets, weights, broad, n_wl / s, faces)
+              for a in range(0, n, VIEW_MAP_CHUNK)]
+    lost = sum(c.pop("lost") for c in chunks)
     if stats is not None:
         stats["view_map_samples"] = stats.get("view_map_samples", 0) + n
-        stats["view_map_lost_samples"] = stats.get("view_map_lost_samples", 0) + int(step.lost.sum())
-    tag = step.tag
-    if faces is not None:
-        met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
-        # τ carries n_wl (a sample gathers one wavelength's photons): the solid angle is τ / n_wl.
-        faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air_radiance_factor(
-            scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met]))
-    ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
-    ok[ok] &= broad[tag[ok]]
-    ok &= (step.weight > 0) & np.isfinite(step.weight)
-    if not ok.any():
+        stats["view_map_lost_samples"] = stats.get("view_map_lost_samples", 0) + lost
+    hit = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+    if not len(hit["tag"]):
         return HitPoints.empty()
-    tau = step.weight
+    tag, tau = hit["tag"], hit["weight"]
+    ok = np.ones(len(tag), bool)
     if learned is not None:  # Russian roulette on the edge's hit points: their cost (area, gather) is per point
-        on_edge = ok & np.isin(tag, edge_tags(scene, broad))
+        on_edge = np.isin(tag, edge_tags(scene, broad))
         keep_p = min(1.0, MAX_EDGE_HITS / max(int(on_edge.sum()), 1))
         if keep_p < 1.0:
-            ok &= ~on_edge | (paths.at(None, 6) < keep_p)
+            ok &= ~on_edge | (hit["u_roulette"] < keep_p)
             tau = np.where(on_edge, tau / keep_p, tau)
-    pos, nrm, tg = step.position[ok], step.normal[ok], tag[ok]
+    pos, nrm, tg = hit["position"][ok], hit["normal"][ok], tag[ok]
     radius = initial_radii(pos, tg, half_widths, k=neighbours, cap_mm=radius_cap_mm)
     if learned is not None:
         radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius, k=neighbours,
@@ -214,12 +201,55 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         area = boundaries.inside_area(pos, nrm, tg, radius, detector_z=det.z)
         area_half = boundaries.inside_area(pos, nrm, tg, 0.5 * radius, detector_z=det.z)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
-    tau = tau[ok] * air_radiance_factor(scene, step.direction[ok], tg, step.prim[ok],
-                                        step.wavelength[ok])
-    return HitPoints(position=pos, normal=nrm, omega_o=-step.direction[ok], weight=tau,
-                     pixel=step.id[ok].astype(np.int64), tag=tg.astype(np.int32),
-                     wavelength=step.wavelength[ok].astype(np.int32), radius=radius, area=area,
+    direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
+    tau = tau[ok] * air_radiance_factor(scene, direction, tg, hit["prim"][ok], wavelength)
+    return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
+                     pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
+                     wavelength=wavelength.astype(np.int32), radius=radius, area=area,
                      area_half=area_half)
+
+
+def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarray, targets, weights,
+                   broad: np.ndarray, weight_scale: float, faces=None) -> dict:
+    """Backward samples of `pixel` (m,) with streams `paths`, traced to their first face: the
+    samples that end on a broad scatterer with a positive weight (position, normal, tag, weight,
+    direction, prim, wavelength, pixel, u_roulette) and `lost`, the samples the tracer's guards ended.
+    faces: as `build_view_map`'s (every sample's first face goes into it here)."""
+    m = len(pixel)
+    n_wl = len(scene.wavelengths_um)
+    u = paths.random((m, 6))
+    x = det.sample_points(pixel, u[:, 0:2])
+    wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
+    omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
+    response = scene.detector.spectral_weight
+    if response is not None:  # the detector's spectral response weights each sample's wavelength
+        w = w * np.asarray(response, np.float64)[wl]
+    live = w > 0
+    rays = RayBatch.make(x[live], omega[live], weight=w[live] * weight_scale, wavelength=wl[live], ids=pixel[live])
+    paths = paths.take(live)
+    step = tracer.next_event(rays, paths) if len(rays) else None
+    if step is None:
+        ok = np.zeros(0, bool)
+        step_lost = 0
+    else:
+        tag = step.tag
+        if faces is not None:
+            met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
+            # τ carries n_wl (a sample gathers one wavelength's photons): the solid angle is τ / n_wl.
+            faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air_radiance_factor(
+                scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met]))
+        ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
+        ok[ok] &= broad[tag[ok]]
+        ok &= (step.weight > 0) & np.isfinite(step.weight)
+        step_lost = int(step.lost.sum())
+    if not ok.any():
+        empty = np.zeros(0)
+        return dict(position=np.zeros((0, 3)), normal=np.zeros((0, 3)), tag=np.zeros(0, np.int32), weight=empty,
+                    direction=np.zeros((0, 3)), prim=np.zeros(0, np.int64), wavelength=np.zeros(0, np.int32),
+                    pixel=np.zeros(0, np.int64), u_roulette=empty, lost=step_lost)
+    return dict(position=step.position[ok], normal=step.normal[ok], tag=step.tag[ok], weight=step.weight[ok],
+                direction=step.direction[ok], prim=step.prim[ok], wavelength=step.wavelength[ok],
+                pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), lost=step_lost)
 
 
 __all__ = ["exit_disc", "build_view_map", "view_map_streams"]

@@ -30,11 +30,10 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film
+from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.scene.scene import scatterer_mask
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import Streams
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
@@ -71,13 +70,6 @@ def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int
     rays.id = ids
     rays.weight = np.where(rays.alive, rays.weight * (n / n_pass), 0.0)  # Φ = A_S / N_pass, however batched
     return rays
-
-
-def scattering_tags(scene) -> np.ndarray:
-    """(n_tags,) bool: faces where a photon scatters on (BSDF neither missing nor black, and a
-    scatterer of the scene's effects: `scene.scatterer_mask`)."""
-    on = np.array([b is not None and not b.is_black for b in scene.bsdf_of_tag], bool)
-    return on & scatterer_mask(scene.effects, scene.mesh.tag_table, scene.finish_of_tag)
 
 
 def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings: EstimatorSettings, film: Film,
@@ -205,4 +197,4 @@ def _require_finite(values: np.ndarray, what: str, where: str) -> None:
                              f"photon(s) at {where}")
 
 
-__all__ = ["photon_walk", "emit_photons", "scattering_tags", "Bounce", "NonFiniteError"]
+__all__ = ["photon_walk", "emit_photons", "Bounce", "NonFiniteError"]
