@@ -39,7 +39,7 @@ def test_a_paraboloid_mirror_sends_every_parallel_ray_through_its_focus_with_wei
     assert np.max(np.hypot(at_focus[:, 0], at_focus[:, 1])) < 1e-8
 
 
-def _mirror_scene(surfaces, caps, epd, coating_detector_z=-1.0e4, hole=False):
+def _mirror_scene(surfaces, caps, epd, detector_z=-1.0e4, hole=False, **scene):
     """A scene of analytic surfaces meshed as caps [(surface index, radius)] (no mount); hole: the
     first cap without its central fan (a hole of a quarter of its radius)."""
     p = Prescription(tuple(surfaces), Aperture("epd", epd))
@@ -56,8 +56,8 @@ def _mirror_scene(surfaces, caps, epd, coating_detector_z=-1.0e4, hole=False):
         table.append(FaceTag(f"part-{k}", "lens", "optical", "polished", surface=i, face=0))
         offset += len(v)
     mesh = TaggedMesh(np.vstack(vs), np.vstack(ts), np.concatenate(tags), table)
-    det = {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": coating_detector_z}
-    return p, make_scene(p, mesh, detector=det)
+    det = {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": detector_z}
+    return p, make_scene(p, mesh, detector=det, **scene)
 
 
 def _at_plane(position, direction, z):
@@ -121,3 +121,14 @@ def test_a_mangin_secondary_met_travelling_minus_z_refracts_with_the_files_media
     assert not seq.vignetted.any()
     np.testing.assert_allclose(_at_plane(ev.position, ev.direction, p.image_z), seq.image_points, atol=1e-8)
     np.testing.assert_allclose(ev.direction, seq.directions[-1], atol=1e-12)
+
+
+def test_the_scenes_default_coating_is_for_glass_and_leaves_a_mirror_its_reflectance():
+    mirror = Surface(radius=-200.0, thickness=-100.0, mirror=True, is_stop=True, clear_semi_diameter=30.0)
+    _, scene = _mirror_scene([mirror], [(0, 30.0)], 60.0, coatings={"default": "R=0.01"})
+    o = np.array([[1.0, 2.0, -50.0]])
+    ev = Tracer(scene).next_event(RayBatch.make(o, [[0.0, 0.0, 1.0]]))
+    np.testing.assert_allclose(ev.weight, 0.90, rtol=1e-12)
+    _, scene = _mirror_scene([mirror], [(0, 30.0)], 60.0, coatings={"default": "R=0.01", "surface-1": "R=0.8"})
+    ev = Tracer(scene).next_event(RayBatch.make(o, [[0.0, 0.0, 1.0]]))
+    np.testing.assert_allclose(ev.weight, 0.80, rtol=1e-12)

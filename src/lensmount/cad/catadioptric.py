@@ -19,8 +19,10 @@ stand where is decided on the rays themselves, as polylines in (r, z):
   tube where the light between them stays inside its bore, so a relay hangs on the cell
   that reaches the barrel; a central unit with no such join stands on a spider
   (`SpiderCell`: three thin vanes to the barrel, the only part not of revolution).
-* Obscuration. A ray that on some pass crosses a central unit's ring (not interacting
-  with it) is obscured by design, as the secondary's shadow is. Every other ray of the
+* Obscuration. A ray that on its way to the first mirror crosses a central unit's ring (not
+  interacting with it) is obscured by design, as the secondary's shadow is. Where the light
+  the mirrors return would still meet a central part, the first central cell on the way in is
+  widened into a baffle until it obscures those rays (the designer's central obscuration). Every other ray of the
   full field must pass every part (spider vanes excepted): `BeamPaths.check`, which the
   profile checks run in place of the envelope test. An element that another pass of the
   light crosses gets a central hole as wide as that light plus the aperture margin.
@@ -94,8 +96,8 @@ class BeamPaths:
         from lensmount.optics.realrays import pupil_rings
 
         fields = _field_samples(p, min(ENVELOPE_FIELDS, 5))
-        pupil = pupil_rings(8, 24, half=False)
-        polys, ends = [], []
+        pupil = pupil_rings(12, 24, half=False)
+        polys = []
         for rays in _beam(p, fields, pupil, clip=True):
             ok = ~rays.vignetted   # the file's own apertures stop the others (the designer's vignetting)
             o, d = rays.origins[ok], rays.start_directions[ok]
@@ -107,6 +109,7 @@ class BeamPaths:
         # segment k runs from node k-1 to node k: node -1 the start, node n the image plane
         self.ends = [(-1 if k == 0 else phys[k - 1], phys[k] if k < n else -2) for k in range(n + 1)]
         self.obscured = np.zeros(self.points.shape[1], bool)
+        self.first_mirror = next(i for i, s in enumerate(p.surfaces) if s.mirror)   # segment k ends on surface k
 
     def crossing(self, k: int, za: float, zb: float):
         """Rays' segment k over z in [za, zb]: (crosses (N,), r_min (N,), r_max (N,))."""
@@ -122,13 +125,14 @@ class BeamPaths:
         r_at = lambda t: np.hypot(*(a + t[:, None] * b).T)  # noqa: E731
         return crosses, r_at(t_min), np.maximum(r_at(lo), r_at(hi))
 
-    def passing(self, surfaces: set[int], za: float, zb: float, unobscured: bool):
+    def passing(self, surfaces: set[int], za: float, zb: float, unobscured: bool, leg: str = "all"):
         """(r_min, r_max) over the segments that cross [za, zb] without meeting `surfaces`, per ray
-        (inf, -inf where none)."""
+        (inf, -inf where none); leg: "incoming" (up to the first mirror), "returning" (after it) or "all"."""
         n = self.points.shape[1]
         r_lo, r_hi = np.full(n, np.inf), np.full(n, -np.inf)
         for k, (a, b) in enumerate(self.ends):
-            if a in surfaces or b in surfaces:
+            if a in surfaces or b in surfaces or (leg == "incoming" and k > self.first_mirror) \
+                    or (leg == "returning" and k <= self.first_mirror):
                 continue
             c, lo, hi = self.crossing(k, za, zb)
             if unobscured:
@@ -174,14 +178,18 @@ class BeamPaths:
             poly = outlines[plan.name]
             path = MplPath(poly)
             (r_min, z_min), (r_max, z_max) = poly.min(0), poly.max(0)
+            zq = np.linspace(z_min, z_max, int(np.ceil((z_max - z_min) / _SAMPLE_MM)) + 2)[:, None]
             for k in range(len(pts) - 1):
                 p0, p1 = pts[k], pts[k + 1]
-                length = np.maximum(np.abs(p1[:, 2] - p0[:, 2]), 1e-9)
-                m = int(min(4000, np.ceil(length.max() / _SAMPLE_MM))) + 1
-                t = np.linspace(0.0, 1.0, m)
-                q = p0[None] + t[:, None, None] * (p1 - p0)[None]        # (m, N, 3)
-                rz = np.stack([np.hypot(q[..., 0], q[..., 1]), q[..., 2]], axis=-1).reshape(-1, 2)
-                near = (rz[:, 0] >= r_min - 1) & (rz[:, 0] <= r_max + 1) & (rz[:, 1] >= z_min) & (rz[:, 1] <= z_max)
+                dz = p1[:, 2] - p0[:, 2]
+                t = (zq - p0[:, 2]) / np.where(np.abs(dz) > 1e-12, dz, 1e-12)     # (m, N): the part's z planes
+                on = (t >= 0.0) & (t <= 1.0) & (np.abs(dz) > 1e-12)
+                if not on.any():
+                    continue
+                x = p0[:, 0] + t * (p1[:, 0] - p0[:, 0])
+                y = p0[:, 1] + t * (p1[:, 1] - p0[:, 1])
+                rz = np.stack([np.hypot(x, y)[on], np.broadcast_to(zq, t.shape)[on]], axis=-1)
+                near = (rz[:, 0] >= r_min - 1) & (rz[:, 0] <= r_max + 1)
                 if not near.any():
                     continue
                 inside = path.contains_points(rz[near], radius=-_BEAM_TOL_MM)
@@ -322,7 +330,8 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
 
     z_lo = min(extent(u)[0] for u in units) - 4 * lip - 10.0
     beam = BeamPaths(p, phys, z_lo)
-    env = Envelope(p, z_lo, max(p.image_z, max(extent(u)[1] for u in units)) + lip)
+    z_hi = max(p.image_z, max(extent(u)[1] for u in units)) + lip
+    env = Envelope(p, z_lo, z_hi, step=max(0.25, (z_hi - z_lo) / 200))   # sizes the barrel only
 
     # ---- cells ---------------------------------------------------------------------------
     def lip_radius(t, front: bool, R: float, h: float) -> float:
@@ -361,10 +370,30 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
         body = any(w is not u and extent(w)[0] < extent(u)[1] and extent(w)[1] > extent(u)[0]
                    and w.radius > u.radius for w in units)
         u.inner = bool(np.any(r_hi > u.radius)) or body
-    cell_wall = max(2 * min_t, lip)
+    cell_wall = 2 * min_t
+
+    def obscure() -> None:
+        # only on the way in: a central part that stops light the mirrors return is in the beam
+        beam.obscured[:] = False
+        for u in units:
+            if u.inner:
+                c_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False, leg="incoming")
+                beam.obscured |= np.isfinite(c_lo) & (c_lo < u.r_out)
+
     for u in units:
         if u.inner:
             cell_outline(u, u.radius + c_bore + cell_wall)
+    obscure()
+    for u in units:   # a central unit's edge and cell stay inside the light that passes it
+        if not u.inner:
+            continue
+        r_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=True, leg="returning")
+        fits = float(r_lo.min()) - c_bore - cell_wall - margin
+        if fits < u.radius:
+            u.radius = max(fits, max(clear_of(j) for j in u.surfaces) + cm + min_t)
+            fit_radius(u)
+            cell_outline(u, u.radius + c_bore + cell_wall)
+    obscure()
     # a central lens unit hangs on a tube from the lens unit behind it where the light between
     # them stays inside the tube's bore (a relay cantilevered from the cell that reaches the barrel)
     for u in sorted(units, key=lambda x: -extent(x)[0]):   # from the back: the unit behind is final
@@ -381,10 +410,30 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
         if r_out - r_in >= min_t:
             cell_outline(u, r_out)
             u.tube, u.holder = (r_in, r_out, u.z1, w.z0), w
-    for u in units:
-        if u.inner:
-            c_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False)
-            beam.obscured |= np.isfinite(c_lo) & (c_lo < u.r_out)
+    obscure()
+    # The light the mirrors return passes the central parts on its way to the image; where it
+    # would meet one, the first central cell on the way in (the secondary's) is widened into a
+    # baffle that obscures those rays, as a designer sizes a Cassegrain's central obscuration.
+    inner = [u for u in units if u.inner]
+    if inner:
+        front = min(inner, key=lambda u: u.z0)
+        for _ in range(20):
+            clash = np.zeros_like(beam.obscured)
+            for u in inner:
+                spans = [(u.surfaces, u.r_out, u.z0, u.z1)]
+                if u.tube:
+                    spans.append((u.surfaces | u.holder.surfaces, u.tube[1], u.tube[2], u.tube[3]))
+                for surfaces, r_out, za, zb in spans:
+                    r_lo, _ = beam.passing(surfaces, za, zb, unobscured=True, leg="returning")
+                    clash |= r_lo < r_out + margin
+            if not clash.any():
+                break
+            r_in, _ = beam.passing(front.surfaces, front.z0, front.z1, unobscured=False, leg="incoming")
+            grown = float(r_in[clash & np.isfinite(r_in)].max(initial=front.r_out)) + _BEAM_TOL_MM
+            if grown <= front.r_out + _BEAM_TOL_MM or grown >= r_bore - min_t:
+                break   # nothing more to obscure from there: the beam check says where the light meets what
+            cell_outline(front, grown)
+            obscure()
     # holes: the unobscured light another pass brings through an outer unit, and the central parts
     for u in units:
         if u.inner:
@@ -399,7 +448,7 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
             build_templates(u)
             cell_outline(u, r_bore)
             used = beam.radius_on(u.surfaces)
-            if used < u.hole + cm:
+            if used < u.hole:
                 raise GeometryError(
                     f"{'/'.join(str(j + 1) for j in sorted(u.surfaces))}: the central hole the returning light "
                     f"needs ({u.hole:.3f} mm) reaches into the zone the unobscured light uses (from {used:.3f} mm)",

@@ -232,14 +232,16 @@ class SceneSpec(ReadFromFile, _Strict):
             parse_coating(name, field=f"coatings.{key}")
         return v
 
-    def coating_of_surface(self, index0: int, lens_coating: str | None = None):
-        """Coating of 0-based surface: the scene's per-surface entry, else the lens file's, else default."""
+    def coating_of_surface(self, index0: int, lens_coating: str | None = None, mirror: bool = False):
+        """Coating of 0-based surface: the scene's per-surface entry, else the lens file's, else default.
+        The default is a glass coating: a mirror without its own keeps its reflectance
+        (`trace.interfaces.mirror_reflectance`), so `default = "R=0.01"` for ghosts leaves mirrors alone."""
         key = f"surface-{index0 + 1}"
         if key in self.coatings:
             return parse_coating(self.coatings[key])
         if lens_coating is not None:
             return parse_coating(lens_coating)
-        return parse_coating(self.coatings.get("default", "perfect-ar"))
+        return parse_coating(None if mirror else self.coatings.get("default", "perfect-ar"))
 
 
 def load_scene(path: str | Path) -> SceneSpec:

@@ -148,7 +148,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                                      valid=f"surface-1 to surface-{len(prescription.surfaces)}"),
                           spec.source_file, spec.source_text)
     optical = optical_surfaces(prescription, wavelengths,
-                               lambda i, c: spec.coating_of_surface(i, c))
+                               lambda i, c: spec.coating_of_surface(i, c, prescription.surfaces[i].mirror))
     opening = front_opening(prescription, mesh)
     d = spec.detector
     z_det = float(prescription.image_z if d.z_mm is None else d.z_mm)
