@@ -80,10 +80,13 @@ def _chain(lens: Path, tmp_path: Path, point_height: float) -> dict:
                               "--passes", "2", "--workers", "1", "--method", "forward", "--out", str(out)])
     assert sim.exit_code == 0, sim.output
     summary = json.loads((out / "summary.json").read_text())
-    case2_run = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-lambertian.toml"),
-                                    "--photons-per-pass", "2000", "--passes", "2", "--workers", "1",
-                                    "--out", str(tmp_path / "case2")])
-    assert case2_run.exit_code == 0, case2_run.output
+    for name in ("case2-lambertian", "object-lambertian"):  # init's scenes: the sun, and the object itself
+        run = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / f"{name}.toml"),
+                                  "--photons-per-pass", "2000", "--passes", "2", "--workers", "1",
+                                  "--out", str(tmp_path / name)])
+        assert run.exit_code == 0, run.output
+        done = json.loads((tmp_path / name / "summary.json").read_text())
+        assert math.isfinite(done["stray_fraction"]), name
     return summary
 
 

@@ -101,3 +101,11 @@ def test_point_source_needs_a_plane_in_front_of_the_lens():
     z_img, _ = _by_hand()
     with pytest.raises(InputError, match="not in front of surface 1"):
         _scene({"type": "point", "z_mm": 5.0}, z_img)
+
+
+def test_the_ghost_analysis_asks_for_a_source_at_infinity():
+    from lensmount.analysis.ghosts import ghost_report
+
+    z_img, _ = _by_hand()
+    with pytest.raises(InputError, match="source at infinity"):
+        ghost_report(_scene({"type": "point"}, z_img))

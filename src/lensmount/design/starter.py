@@ -249,4 +249,22 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
     }
 
 
-__all__ = ["starter_mount", "case2_scene", "detector_size", "image_height"]
+def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
+    """For a lens with a finite object: the object itself as the source, a Lambertian disc on the
+    object plane filling the field (a point on the axis when the field is one point), with the
+    direct image on and the mount as in case 2: the veiling glare the mount adds to the object's
+    own image. None for an object at infinity."""
+    if not p.finite_object:
+        return None
+    field = max((abs(h) for h in p.object_heights_mm), default=0.0)
+    source = {"type": "disc", "radius_mm": _round(field, 3)} if field > 0.0 else {"type": "point"}
+    return case2 | {
+        "description": f"The object of {name} as the source: " + (f"a Lambertian disc of {field:g} mm radius"
+                       if field > 0.0 else "a point on the axis") + f" on the object plane "
+                       f"{p.object_distance:g} mm in front; every mount face and lens edge Lambertian 5 %",
+        "source": source,
+        "effects": case2["effects"] | {"direct": True},
+    }
+
+
+__all__ = ["starter_mount", "case2_scene", "object_scene", "detector_size", "image_height"]
