@@ -160,7 +160,8 @@ def test_mirror_lens_gets_a_mount_that_builds_clears_the_beam_traces_like_the_fi
     det = {"width_mm": 4.0, "height_mm": 4.0, "pixels": [4, 4]}
     scene = build_scene(p, mesh, scene_from_dict({
         "source": {"type": "collimated", "off_axis_deg": 0.0, "azimuth_deg": 90.0}, "detector": det,
-        "effects": {"scatter": False, "ghosts": False, "direct": True}, "assign": {"*": "absorber"}}))
+        "effects": {"scatter": False, "ghosts": False, "direct": True, "absorption": False},  # R of the mirrors alone
+        "assign": {"*": "absorber"}}))
     on_axis = np.flatnonzero((field_of == 0) & ~obscured)
     start = lines[0, on_axis]
     ev = Tracer(scene).next_event(RayBatch.make(start, lines[1, on_axis] - start, wavelength=colour[on_axis]))
