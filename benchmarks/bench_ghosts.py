@@ -12,7 +12,8 @@ the passes' relative variance / 0.01², passes being independent):
    for everything else) plus the routes;
 and the ratios 1 / 3 (end to end) and 1 / 2 (the two-reflection part alone).
 
-`python benchmarks/bench_ghosts.py [passes]` (default 6 per mode).
+`python benchmarks/bench_ghosts.py [passes] [design scene photons_per_pass]` (default 6 per mode on
+the Cooke triplet; e.g. `6 double-gauss-360 ghosts-mgf2.toml 200000` for the reference design).
 """
 
 from __future__ import annotations
@@ -25,15 +26,15 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-DESIGN = ROOT / "examples" / "cooke-triplet"
 TARGET = 0.01
 
 
-def _scene():
+def _scene(design: str, scene: str, photons: int | None):
     from lensmount.loop.prepare import prepare
 
-    prepared = prepare(DESIGN, DESIGN / "scenes" / "ghosts-uncoated.toml")
-    return prepared.scene, prepared.spec.run.photons
+    folder = ROOT / "examples" / design
+    prepared = prepare(folder, folder / "scenes" / scene)
+    return prepared.scene, photons or prepared.spec.run.photons
 
 
 def _cost(run_pass, passes: int) -> tuple[float, float, float]:
@@ -50,14 +51,16 @@ def _cost(run_pass, passes: int) -> tuple[float, float, float]:
     return per_pass, mean, per_pass * rel_var / TARGET ** 2
 
 
-def main(passes: int = 6) -> dict:
+def main(passes: int = 6, design: str = "cooke-triplet", scene_file: str = "ghosts-uncoated.toml",
+         photons: int | None = None) -> dict:
     from lensmount.integrators.estimate import EnergyLedger, Film, film_channels
     from lensmount.integrators.forward import Forward
     from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.trace.tracer import Tracer
 
-    scene, photons = _scene()
+    scene, photons = _scene(design, scene_file, photons)
+    print(f"{design} / {scene_file}: {photons:,} photons per pass, {passes} passes per mode", flush=True)
     tracer = Tracer(scene)
     ghosts = film_channels(scene).index("ghosts")
     settings = EstimatorSettings()
@@ -87,4 +90,5 @@ def main(passes: int = 6) -> dict:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 6)
+    args = sys.argv[1:]
+    main(int(args[0]) if args else 6, *(args[1:3]), *(int(a) for a in args[3:4]))

@@ -29,6 +29,15 @@ def test_ghosts_of_the_uncoated_cooke_triplet(tmp_path):
     assert peaks == sorted(peaks, reverse=True) and peaks[0] > 0
     assert abs(sum(p["share"] for p in pairs) - 1.0) < 1e-9
     assert (out / "ghosts.exr").exists() and len(list(out.glob("ghost-*.png"))) == 3
+    # Order 3: the four-reflection routes join (named in the order the light meets them), ~1.6 % more light.
+    result = CliRunner().invoke(app, ["ghosts", str(design), "--scene", str(design / "scenes" / "ghosts-uncoated.toml"),
+                                      "--out", str(tmp_path / "order3"), "--rays-across", "21", "--order", "3",
+                                      "--top", "1"])
+    assert result.exit_code == 0, result.output
+    deeper = json.loads((tmp_path / "order3" / "ghosts.json").read_text())
+    fours = [p for p in deeper["pairs"] if p["reflections"] == 4]
+    assert deeper["order"] == 3 and len(fours) > 100 and all(len(p["surfaces"]) == 4 for p in fours)
+    assert 1.005 < deeper["total_fraction"] / report["total_fraction"] < 1.05
 
 
 def test_fit_abg_prints_the_finish_lines(tmp_path):
