@@ -50,6 +50,7 @@ from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.trace.ghosts import reflecting, route_count
+from lensmount.trace.sources import ObjectSource
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
 _WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
@@ -154,7 +155,9 @@ def _ghost_routes(scene, settings) -> Decision:
     what = "ghosts: deterministic routes"
     counts = route_reflections(scene, settings)
     if not counts:
-        why = ("ghost_routes = false" if not settings.ghost_routes else "fewer than two surfaces reflect")
+        why = ("ghost_routes = false" if not settings.ghost_routes else
+               "the source is at a finite distance (routes launch a beam from infinity)"
+               if isinstance(scene.source, ObjectSource) else "fewer than two surfaces reflect")
         return Decision(what, False, why + ": photons carry the whole ghosts channel")
     reflects = reflecting(scene)
     routes = " and ".join(f"{route_count(reflects, n)} routes of {n} reflections" for n in counts)
