@@ -195,3 +195,50 @@ def _numbers(tree):
             yield from _numbers(v)
     elif isinstance(tree, float):
         yield tree
+
+
+def test_cassegrain_plan_holds_the_secondary_on_a_spider_and_opens_the_primary_for_the_returning_light():
+    """HoO-V2C18Ex03 planned without CAD: against the file's own rays, traced here."""
+    from lensmount.cad.checks import check_layout
+    from lensmount.cad.layout import plan
+    from lensmount.design.lens import load_lens
+    from lensmount.design.starter import starter_mount
+    from lensmount.design.mount import parse_mount
+    from lensmount.optics.realrays import aim, trace
+    from lensmount.templates.cell import SpiderCell
+    from lensmount.templates.mirror import MirrorElement
+
+    p = load_lens(CORPUS / "HoO-V2C18Ex03.zmx")
+    mount, problem = starter_mount(p, "cassegrain")
+    assert problem is None
+    spec = parse_mount(mount)
+    layout = plan(p, spec)
+    check_layout(layout, spec, {q.name: q.template.segments() for q in layout.parts})
+    parts = {q.name: q for q in layout.parts}
+    assert {q.kind for q in layout.parts} == {"barrel", "mirror", "cell"}
+    secondary, primary = parts["mirror-1"].template, parts["mirror-2"].template   # numbered along z
+    assert isinstance(secondary, MirrorElement) and secondary.back.index == 2 and primary.front.index == 1
+    # the coated zones end at the file's clear semi-diameters: the primary's is the stop
+    coated = {s.surface: max(r for r, _ in s.points) for q in (primary, secondary) for s in q.segments()
+              if s.role == "optical"}
+    assert coated == {1: pytest.approx(p.surfaces[1].clear_semi_diameter),
+                      2: pytest.approx(p.surfaces[2].clear_semi_diameter)}
+    # the secondary's cell stands on vanes that reach the barrel's bore
+    spider = parts["cell-1"].template
+    bore = parts["barrel"].template.bore[0][0]
+    assert isinstance(spider, SpiderCell) and spider.reach == pytest.approx(bore)
+    assert all(r_out <= bore for _, r_out, _ in spider.vane_boxes())
+    # the primary's hole passes the light from the secondary to the image (every field, colour, the pupil rim)
+    phi = np.linspace(0, 2 * np.pi, 36, endpoint=False)
+    z0, z1 = float(primary.front_z(primary.hole_radius)), primary.back_z_flat
+    widest = 0.0
+    for wl in p.wavelengths_um:
+        o, d = aim(p, [0.0, p.max_field_deg], np.column_stack([np.cos(phi), np.sin(phi)]), wl)
+        r = trace(p, o, d, wl)
+        ok = ~r.vignetted                        # the file's secondary clips a few rim rays of the 1° field
+        assert ok.mean() > 0.9
+        a, b = r.points[2][ok], r.points[3][ok]  # secondary -> image plane
+        for z in np.linspace(z0, z1, 20):
+            t = (z - a[:, 2]) / (b[:, 2] - a[:, 2])
+            widest = max(widest, float(np.hypot(*(a + t[:, None] * (b - a))[:, :2].T).max()))
+    assert widest < primary.hole_radius < p.surfaces[1].clear_semi_diameter
