@@ -33,7 +33,6 @@ EXAMPLE_LENSES = [ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx",
 # What stops each corpus file today, by the message it stops with (causes in the report).
 KNOWN = {
     "US05831776-1": "cross each other",           # load_lens: the lithography lens's surfaces 15/16 cross
-    "optiland-lens_floa": "miss surface 1",       # load_lens: the floating stop overfills R = 20 mm
     "US00583336-2-scaled": "lens-1 is too thin",  # the patent's element 1 is 0.19 mm thick at its clear aperture
     # lens-3 and lens-4 touch at their clear apertures (air 0.019 mm at h = 7 mm between R -53.59 and
     # R -37.47, 0.22 mm on the axis): no spacer, shoulder or ring fits there, so widening lens-3 for a

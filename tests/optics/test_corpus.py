@@ -28,6 +28,7 @@ from lensmount.optics.paraxial import paraxial
 CORPUS = Path(__file__).parent / "corpus"
 FILES = sorted(p for p in CORPUS.glob("*.zmx"))
 OUT_OF_SCOPE = sorted((CORPUS / "out_of_scope").glob("*.zmx"))
+REFUSED_FILES = sorted((CORPUS / "refused").glob("*.zmx"))
 D_LINE = 0.5875618
 
 
@@ -56,7 +57,8 @@ def test_the_corpus_holds_the_kinds_of_file_the_issue_names():
     assert any(b"GLAS MIRROR" in t for t in texts.values())                   # mirrors
     assert any(re.search(rb"DIAM \S+ 2 ", t) for t in texts.values())          # semi-diameter pickups
     assert any(re.search(rb"OBNA", t) for t in texts.values())                 # finite conjugate
-    assert (CORPUS / "SOURCES.md").read_text(encoding="utf-8").count(".zmx") >= len(FILES) + len(OUT_OF_SCOPE)
+    assert (CORPUS / "SOURCES.md").read_text(encoding="utf-8").count(".zmx") >= len(FILES) + len(OUT_OF_SCOPE) + len(
+        REFUSED_FILES)
 
 
 @pytest.mark.parametrize("path", FILES, ids=[p.stem for p in FILES])
@@ -80,13 +82,11 @@ def test_corpus_file_efl_matches_optiland(path):
     assert efl == pytest.approx(reference, rel=1e-4)
 
 
-# Two published files describe lenses that cannot be built as written; the loader must say so.
+# A published file whose lens cannot be built as written: the loader must say so.
 REFUSED = {
     # 248 nm lithography lens: between surfaces 15 and 16 (41.227 mm of silica on the axis) the
     # faces meet before the file's own semi-diameters (negative edge thickness).
     "US05831776-1": "surfaces 15 and 16 cross each other",
-    # optiland's FLOA fixture: the stop size makes an F/0.5 beam wider than its R = 20 mm lens.
-    "optiland-lens_floa": "miss surface 1",
 }
 
 
@@ -105,17 +105,32 @@ def test_corpus_file_loads_with_real_ray_semi_diameters_or_is_refused_for_its_ge
     with pytest.raises(InputError) as err:
         load_lens(path)
     assert REFUSED[path.stem] in err.value.paragraph()
-    if path.stem == "US05831776-1":  # edge thickness from the file's numbers, by the sphere's sag
-        h = 1.184252812325e2       # DIAM of surface 16 (the smaller of the two)
-        edge = 41.227 + _sphere_sag(-4.410343667209579800e-3, h) - _sphere_sag(1.588451323497642800e-3, h)
-        assert edge < 0.0
-    else:  # by hand: the paraxial ray that fills the 8.5 mm stop enters higher than the R = 20 mm sphere reaches
-        n, r1, r2, t, gap, stop = 1.5168, 20.0, -20.0, 5.0, 10.0, 8.5   # N-BK7 at the d line; the file's numbers
-        u1 = -(n - 1.0) / (n * r1)                # slope in glass per unit entrance height
-        y2 = 1.0 + t * u1
-        u2 = n * u1 - y2 * (1.0 - n) / r2         # slope in air after surface 2
-        entrance_height = stop / (y2 + gap * u2)
-        assert entrance_height > abs(r1)
+    h = 1.184252812325e2       # DIAM of surface 16 (the smaller of the two); edge thickness by the sphere's sag
+    edge = 41.227 + _sphere_sag(-4.410343667209579800e-3, h) - _sphere_sag(1.588451323497642800e-3, h)
+    assert edge < 0.0
+
+
+def test_refused_folder_holds_the_floating_stop_fixture():
+    assert [p.name for p in REFUSED_FILES] == ["optiland-lens_floa.zmx"]
+
+
+def test_floating_stop_wider_than_its_lens_is_refused_in_one_paragraph_naming_surface_1():
+    """optiland's FLOA fixture (refused/, SOURCES.md) is no real lens: the 8.5 mm stop 10 mm behind an
+    R = ±20 mm, 5 mm thick N-BK7 biconvex lens needs a beam that enters higher than the sphere reaches,
+    and the two faces meet at h = 9.68 mm anyway (sags 2.5 + 2.5 mm = the 5 mm centre thickness)."""
+    n, r1, r2, t, gap, stop = 1.5168, 20.0, -20.0, 5.0, 10.0, 8.5   # N-BK7 at the d line; the file's numbers
+    u1 = -(n - 1.0) / (n * r1)                # paraxial slope in glass per unit entrance height
+    y2 = 1.0 + t * u1
+    u2 = n * u1 - y2 * (1.0 - n) / r2         # slope in air after surface 2
+    assert stop / (y2 + gap * u2) > abs(r1)   # the entrance height that fills the stop
+    assert np.sqrt(r1**2 - (abs(r1) - t / 2) ** 2) == pytest.approx(9.68, abs=0.01)   # where the faces meet
+    path = CORPUS / "refused" / "optiland-lens_floa.zmx"
+    with pytest.raises(InputError) as err:
+        load_lens(path)
+    assert "\n" not in err.value.paragraph() and "miss surface 1" in err.value.paragraph()
+    result = CliRunner().invoke(app, ["inspect", str(path)])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert "surface 1" in result.output and "radius" in result.output
 
 
 @pytest.mark.parametrize("path", OUT_OF_SCOPE, ids=[p.stem for p in OUT_OF_SCOPE])

@@ -15,6 +15,7 @@ azimuth psi is the meridional one rotated by psi: same radii).
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -107,9 +108,19 @@ def beam_envelope(prescription: Prescription, z) -> np.ndarray:
         (n,) radius in mm (all wavelengths, fields 0..max, full pupil).
     """
     zq = np.atleast_1d(np.asarray(z, dtype=np.float64))
+    env = np.zeros(len(zq))
+    for rays in _envelope_beam(prescription):
+        env = np.maximum(env, _polyline_radius(rays, zq))
+    return env
+
+
+@lru_cache(maxsize=8)
+def _envelope_beam(prescription: Prescription) -> tuple:
+    """The envelope's traced rays, kept per prescription (frozen, so equal lenses share them): the
+    layout, the starter mount and the checks ask for the envelope of one lens a dozen times at
+    different z, and the real-ray aiming is most of a regenerate's time. Callers only read them."""
     fields = _field_samples(prescription, ENVELOPE_FIELDS)
     pupil = pupil_rings(ENVELOPE_RINGS, ENVELOPE_SPOKES, half=True)
-    env = np.zeros(len(zq))
     # The mount's diaphragm passes the designed pupil (cad.layout.pupil_edge_radius), so a stop
     # DIAM rounded a hair under the marginal ray (the Cooke triplet's 3.8 mm for 3.8046 mm) must
     # not drop the rim rays, which the diaphragm lets through, from the envelope.
@@ -119,9 +130,12 @@ def beam_envelope(prescription: Prescription, z) -> np.ndarray:
         surfaces = list(prescription.surfaces)
         surfaces[prescription.stop_index] = replace(stop, clear_semi_diameter=r_stop)
         prescription = prescription.with_surfaces(surfaces)
-    for rays in _beam(prescription, fields, pupil, clip=True):
-        env = np.maximum(env, _polyline_radius(rays, zq))
-    return env
+    beam = tuple(_beam(prescription, fields, pupil, clip=True))
+    for rays in beam:
+        for value in vars(rays).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+    return beam
 
 
 def _polyline_radius(rays, zq: np.ndarray) -> np.ndarray:
