@@ -157,3 +157,32 @@ def test_object_named_like_a_part_would_refinish_it(tmp_path, names):
         build_scene(air_plane(), _mount_parts(), load_scene(path))
     assert err.value.field == f"objects.{len(names) - 1}.name" and err.value.line is not None
     assert f"'{names[-1]}' is already taken" in err.value.detail
+
+
+def test_detector_without_a_size_takes_the_housing_size_with_square_pixels(tmp_path):
+    """A scene that leaves out [detector] width and height gets the size mount.toml's [housing]
+    was built for, and 600 square pixels along the longer side; one of the two alone is an error."""
+    from lensmount.loop.prepare import read_inputs
+
+    design = tmp_path / "cooke"
+    shutil.copytree(EXAMPLES / "cooke-triplet", design)
+    text = (design / "scenes" / "case2-lambertian.toml").read_text()
+    text = text.replace("pixels = [360, 240]\n", "")
+    scene = design / "scenes" / "no-size.toml"
+    scene.write_text(text)
+    loaded, spec = read_inputs(design, scene)
+    housing = loaded.mount.housing
+    assert (spec.detector.width_mm, spec.detector.height_mm) == (housing.detector_width_mm, housing.detector_height_mm)
+    nx, ny = spec.detector.pixels
+    assert max(nx, ny) == 600
+    assert spec.detector.width_mm / nx == pytest.approx(spec.detector.height_mm / ny, rel=2e-3)
+    assert spec.source_file == str(scene)  # errors found later still name the file
+    # Outside a design folder there is no housing to take the size from.
+    with pytest.raises(InputError) as err:
+        build_scene(air_plane(), _mount_parts(), load_scene(scene))
+    assert err.value.field == "detector.width_mm" and err.value.file == str(scene)
+
+    scene.write_text(text.replace("[detector]\n", "[detector]\nwidth_mm = 30.0\n"))
+    with pytest.raises(InputError) as err:
+        load_scene(scene)
+    assert "detector" in err.value.field and "neither" in str(err.value)

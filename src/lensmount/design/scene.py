@@ -14,9 +14,9 @@ limb_darkening = false       # sun only
 # z_mm = -500.0              # point, disc: default the lens's object plane (finite conjugates)
 
 [detector]
-width_mm = 44.5
+width_mm = 44.5              # width and height: default the size mount.toml's [housing] was built for
 height_mm = 44.5
-pixels = [600, 600]          # [nx, ny]
+pixels = [600, 600]          # [nx, ny]; default 600 along the longer side, square pixels
 # z_mm = 400.0               # default: the prescription's image plane
 # spectral_weight = [1.0]    # one per lens wavelength (relative response)
 
@@ -108,10 +108,17 @@ class SourceSpec(_Strict):
         return self
 
 
+DETECTOR_PIXELS_LONG_SIDE = 600
+
+
 class DetectorSpec(_Strict):
-    width_mm: float = Field(gt=0.0)
-    height_mm: float = Field(gt=0.0)
-    pixels: tuple[int, int] = (600, 600)
+    """Width and height may both be left out: the detector then takes the size the mount's housing
+    was built for (`mount.toml [housing] detector_width_mm, detector_height_mm`, filled in by
+    `fit_detector_to_housing`). Pixels left out: 600 along the longer side, square pixels."""
+
+    width_mm: float | None = Field(default=None, gt=0.0)
+    height_mm: float | None = Field(default=None, gt=0.0)
+    pixels: tuple[int, int] | None = None
     z_mm: float | None = None
     spectral_weight: tuple[float, ...] | None = None
 
@@ -128,6 +135,22 @@ class DetectorSpec(_Strict):
         if v is not None and (any(w < 0 for w in v) or not any(w > 0 for w in v)):
             raise ValueError("spectral_weight must be non-negative with at least one positive value")
         return v
+
+    @model_validator(mode="after")
+    def _size(self):
+        if (self.width_mm is None) != (self.height_mm is None):
+            raise ValueError("give both width_mm and height_mm, or neither (the housing's detector size)")
+        return self
+
+    def fitted(self, width_mm: float, height_mm: float) -> "DetectorSpec":
+        """This detector with the size given where the file left it out, and its pixels."""
+        width = self.width_mm if self.width_mm is not None else width_mm
+        height = self.height_mm if self.height_mm is not None else height_mm
+        pixels = self.pixels
+        if pixels is None:
+            pitch = max(width, height) / DETECTOR_PIXELS_LONG_SIDE
+            pixels = (max(1, round(width / pitch)), max(1, round(height / pitch)))
+        return self.model_copy(update={"width_mm": width, "height_mm": height, "pixels": pixels})
 
 
 SCATTER_SELECTORS = ("part", "role", "kind", "finish")
@@ -309,6 +332,15 @@ def _measured_table(name: str, params: dict, base_dir: str) -> dict:
         raise InputError(f"{exc.detail} (measured BRDF {path})", field=f"finishes.{name}.file",
                          valid=exc.valid) from None
     return {"model": "tabulated", "rho": rho.tolist(), "brdf": brdf.tolist()}
+
+
+def fit_detector_to_housing(spec: SceneSpec, mount) -> SceneSpec:
+    """The scene with its detector sized for the mount's housing where `[detector]` gives no size."""
+    housing = mount.housing
+    fitted = spec.model_copy(update={"detector": spec.detector.fitted(housing.detector_width_mm,
+                                                                      housing.detector_height_mm)})
+    fitted._file, fitted._text = spec._file, spec._text
+    return fitted
 
 
 def check_mount_finishes(spec: SceneSpec, mount) -> None:

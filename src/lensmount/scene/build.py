@@ -151,6 +151,12 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                                lambda i, c: spec.coating_of_surface(i, c, prescription.surfaces[i].mirror))
     opening = front_opening(prescription, mesh)
     d = spec.detector
+    if d.width_mm is None:
+        raise located(InputError("the detector has no size", field="detector.width_mm",
+                                 valid="width_mm and height_mm in the scene's [detector], or a scene read "
+                                       "with its design folder (the housing's detector size)"),
+                      spec.source_file, spec.source_text)
+    d = d.fitted(d.width_mm, d.height_mm)
     z_det = float(prescription.image_z if d.z_mm is None else d.z_mm)
     if d.spectral_weight is not None and len(d.spectral_weight) != len(wavelengths):
         raise located(InputError(f"spectral_weight has {len(d.spectral_weight)} values for {len(wavelengths)} "
