@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.trace import kernels
 from lensmount.trace.ghosts import reflecting
 from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
@@ -272,24 +273,9 @@ class Tracer:
     def _conic_roots(self, k, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
         """Both float64 crossings (n,) of rays with conic surface k (an int, or (n,) per ray);
         inf where none, behind t_min or off the vertex sheet."""
-        c, k1 = self._curvature[k], 1.0 + self._conic[k]
-        ox, oy, oz = o[:, 0], o[:, 1], o[:, 2] - self._z_vertex[k]
-        dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
-        a = c * (dx * dx + dy * dy + k1 * dz * dz)
-        b = c * (ox * dx + oy * dy + k1 * oz * dz) - dz
-        cc = c * (ox * ox + oy * oy + k1 * oz * oz) - 2.0 * oz
-        disc = b * b - a * cc
-        ok = disc >= 0.0
-        q = b + np.copysign(np.sqrt(np.where(ok, disc, 0.0)), b)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = np.where(ok & (q != 0.0), -cc / np.where(q != 0.0, q, 1.0), np.inf)
-            t2 = np.where(ok & (a != 0.0), -q / np.where(a != 0.0, a, 1.0), np.inf)
-        out = []
-        for t in (t1, t2):
-            fin = np.isfinite(t)
-            z = oz + np.where(fin, t, 0.0) * dz
-            out.append(np.where(fin & (t > self.t_min) & (k1 * c * z <= 1.0 + 1e-12), t, np.inf))
-        return out
+        n = len(o)
+        per_ray = [np.broadcast_to(v[k], (n,)) for v in (self._curvature, 1.0 + self._conic, self._z_vertex)]
+        return list(kernels.conic_roots(*per_ray, self.t_min, o, d))
 
     def _optical_root(self, k: int, o: np.ndarray, d: np.ndarray, t_guess: np.ndarray) -> np.ndarray:
         """Float64 crossing of rays (n,) with optical surface k nearest to the facet hit t_guess.
@@ -320,49 +306,9 @@ class Tracer:
         safe radius; elsewhere (near a rim, other slabs in the way, aspheres) the step declines.
         Returns (sure (n,) bool, t (n,) inf = no optical hit before t_stop, surface (n,)).
         """
-        n = len(o)
-        sure = np.zeros(n, bool)
-        t_best = np.full(n, np.inf)
-        s_best = np.full(n, -1, np.int64)
         safe, slab, up, down = self._faces
-        k_n = len(self._profiles)
-        kk = np.clip(left, 0, k_n - 1)
-        nxt = np.where(d[:, 2] > 0.0, up[kk], down[kk])
-        ok = (left >= 0) & (nxt >= 0)
-        ok &= (safe[kk] > 0) & (safe[np.clip(nxt, 0, k_n - 1)] > 0)
-        idx = np.flatnonzero(ok)
-        if idx.size == 0:
-            return sure, t_best, s_best
-        oo, dd, ts = o[idx], d[idx], t_stop[idx]
-        good = np.ones(idx.size, bool)
-        tb = np.full(idx.size, np.inf)
-        sb = np.full(idx.size, -1, np.int64)
-        for k in (left[idx], nxt[idx]):
-            for t in self._conic_roots(k, oo, dd):
-                before = t < ts
-                tt = np.where(before, t, 0.0)
-                rho2 = (oo[:, 0] + tt * dd[:, 0]) ** 2 + (oo[:, 1] + tt * dd[:, 1]) ** 2
-                inside = rho2 <= safe[k] ** 2
-                # A crossing past the safe radius may or may not be on the glass: decline.
-                good &= ~(before & ~inside)
-                take = before & inside & (t < tb)
-                tb = np.where(take, t, tb)
-                sb = np.where(take, k, sb)
-        # The path up to the hit (or the metal) must not enter any other surface's slab.
-        t_end = np.minimum(tb, t_stop[idx])
-        z0 = oo[:, 2]
-        z1 = np.where(np.isfinite(t_end), z0 + np.where(np.isfinite(t_end), t_end, 0.0) * dd[:, 2],
-                      np.where(dd[:, 2] > 0, np.inf, -np.inf))
-        lo, hi = np.minimum(z0, z1), np.maximum(z0, z1)
-        crosses = (lo[:, None] <= slab[None, :k_n, 1]) & (hi[:, None] >= slab[None, :k_n, 0])
-        rows = np.arange(idx.size)
-        crosses[rows, left[idx]] = False
-        crosses[rows, nxt[idx]] = False
-        good &= ~crosses.any(axis=1)
-        sure[idx] = good
-        t_best[idx] = np.where(good, tb, np.inf)
-        s_best[idx] = np.where(good, sb, -1)
-        return sure, t_best, s_best
+        return kernels.sequential_step(np.asarray(left, np.int64), o, d, np.asarray(t_stop, np.float64), up, down,
+                                       safe, slab, self._z_vertex, self._curvature, self._conic, self.t_min)
 
     def _optical_nearest(self, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
         """Nearest analytic optical hit of rays (n,) before t_stop: (t, prim, normal, lost).

@@ -1,0 +1,110 @@
+"""Compiled per-ray kernels of the tracer's analytic steps (numba).
+
+Why compiled: the profile of `Tracer.next_event` (docs/performance.md) showed Embree itself a
+small share; the time went to numpy temporaries around each query — the sequential step alone
+built ~60 (n,) float64 arrays per call to find one conic crossing per ray. Here each ray is one
+loop iteration over a few scalars: the same arithmetic, in the same order, as the numpy
+formulas it replaces (no fastmath), so the crossings are the same numbers.
+
+`cache=True`: a worker loads the compiled code from `__pycache__` instead of compiling again.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def _conic_root_pair(c, k1, zv, t_min, ox, oy, oz0, dx, dy, dz):
+    """Both float64 crossings of one ray with a conic (curvature c, 1 + conic k1, vertex zv): inf
+    where none, behind t_min or off the vertex sheet (as `Tracer._conic_roots`)."""
+    oz = oz0 - zv
+    a = c * (dx * dx + dy * dy + k1 * dz * dz)
+    b = c * (ox * dx + oy * dy + k1 * oz * dz) - dz
+    cc = c * (ox * ox + oy * oy + k1 * oz * oz) - 2.0 * oz
+    disc = b * b - a * cc
+    ok = disc >= 0.0
+    q = b + math.copysign(math.sqrt(disc if ok else 0.0), b)
+    t1 = -cc / q if (ok and q != 0.0) else np.inf
+    t2 = -q / a if (ok and a != 0.0) else np.inf
+    if not (math.isfinite(t1) and t1 > t_min and k1 * c * (oz + t1 * dz) <= 1.0 + 1e-12):
+        t1 = np.inf
+    if not (math.isfinite(t2) and t2 > t_min and k1 * c * (oz + t2 * dz) <= 1.0 + 1e-12):
+        t2 = np.inf
+    return t1, t2
+
+
+@njit(cache=True)
+def conic_roots(c, k1, zv, t_min, o, d):
+    """(t1, t2) (n,) of rays o, d (n, 3) with one conic surface per ray (c, k1, zv (n,))."""
+    n = o.shape[0]
+    t1 = np.empty(n)
+    t2 = np.empty(n)
+    for i in range(n):
+        t1[i], t2[i] = _conic_root_pair(c[i], k1[i], zv[i], t_min, o[i, 0], o[i, 1], o[i, 2],
+                                        d[i, 0], d[i, 1], d[i, 2])
+    return t1, t2
+
+
+@njit(cache=True)
+def sequential_step(left, o, d, t_stop, up, down, safe, slab, z_vertex, curvature, conic, t_min):
+    """`Tracer._sequential_step` per ray: (sure (n,) bool, t (n,), surface (n,) int64).
+
+    left (n,): the optical surface each ray just left (-1: none); up/down (k_n,): the next faceted
+    surface above/below; safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range.
+    """
+    n = o.shape[0]
+    k_n = curvature.shape[0]
+    sure = np.zeros(n, np.bool_)
+    t_best = np.full(n, np.inf)
+    s_best = np.full(n, -1, np.int64)
+    for i in range(n):
+        lk = left[i]
+        if lk < 0:
+            continue
+        kk = min(lk, k_n - 1)
+        nxt = up[kk] if d[i, 2] > 0.0 else down[kk]
+        if nxt < 0 or not (safe[kk] > 0.0) or not (safe[min(nxt, k_n - 1)] > 0.0):
+            continue
+        ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
+        ts = t_stop[i]
+        good = True
+        tb = np.inf
+        sb = -1
+        for j in range(2):
+            k = lk if j == 0 else nxt
+            r1, r2 = _conic_root_pair(curvature[k], 1.0 + conic[k], z_vertex[k], t_min, ox, oy, oz, dx, dy, dz)
+            for m in range(2):
+                t = r1 if m == 0 else r2
+                before = t < ts
+                tt = t if before else 0.0
+                px = ox + tt * dx
+                py = oy + tt * dy
+                inside = px * px + py * py <= safe[k] * safe[k]
+                if before and not inside:  # past the safe radius it may or may not be glass: decline
+                    good = False
+                if before and inside and t < tb:
+                    tb = t
+                    sb = k
+        # The path up to the hit (or the metal) must not enter any other surface's slab.
+        t_end = min(tb, ts)
+        if math.isfinite(t_end):
+            z1 = oz + t_end * dz
+        else:
+            z1 = np.inf if dz > 0 else -np.inf
+        lo, hi = min(oz, z1), max(oz, z1)
+        for k in range(k_n):
+            if k != lk and k != nxt and lo <= slab[k, 1] and hi >= slab[k, 0]:
+                good = False
+                break
+        if good:
+            sure[i] = True
+            t_best[i] = tb
+            s_best[i] = sb
+    return sure, t_best, s_best
+
+
+__all__ = ["conic_roots", "sequential_step"]
