@@ -3,6 +3,7 @@ parts/NAME.dxf with ezdxf; the dimensions they carry equal the part's geometry a
 layout planned it (bores, lengths, land width, bevel, tolerances from mount.toml), and the
 drawn half section spans the part's real extent."""
 
+import math
 import xml.etree.ElementTree as ET
 
 import ezdxf
@@ -110,3 +111,25 @@ def test_every_built_in_kind_is_dimensioned_from_its_template():
     assert values(ring) == {"contact bore": 20.0, "far bore": 22.0, "outside (thread)": 28.0, "thickness": 3.0}
     assert values(RearBaffle(((12.0, 100.0), (10.0, 150.0)), 15.0)) == {
         "outside": 30.0, "length": 50.0, "front bore": 24.0, "rear bore": 20.0}
+
+
+def test_catadioptric_parts_are_dimensioned_from_their_templates():
+    """A mirror blank with a hole, a cell and a spider cell (lensmount.cad.catadioptric)."""
+    from lensmount.cad.drawing import dimensions
+    from lensmount.cad.layout import PartPlan
+    from lensmount.design.mount import Drawing
+    from lensmount.templates.cell import Cell, SpiderCell
+    from lensmount.templates.lens_element import OpticalFace
+    from lensmount.templates.mirror import MirrorElement
+
+    tol = Drawing()
+
+    def values(template):
+        return {d.name: round(d.value, 6) for d in dimensions(PartPlan("p", "k", "f", template), tol)}
+
+    flat = MirrorElement(OpticalFace(1, 10.0), None, 20.0, 3.0, front_coated=18.0, back_z_flat=16.0)
+    assert values(flat) == {"edge": 40.0, "edge thickness": 6.0, "hole": 6.0, "R1": math.inf}
+    ring = ((5.0, 0.0), (12.0, 0.0), (12.0, 4.0), (5.0, 4.0))
+    assert values(Cell(ring)) == {"outside": 24.0, "bore": 10.0, "length": 4.0}
+    assert values(SpiderCell(ring, 3, 0.5, 30.0, 0.0, 4.0)) == {"outside": 24.0, "bore": 10.0, "length": 4.0,
+                                                               "vane tips": 60.0}

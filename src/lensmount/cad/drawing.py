@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import io
 import math
+
+import numpy as np
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,7 +85,9 @@ def dimensions(plan, tol, prescription=None) -> list[Dimension]:
     from lensmount.templates.diaphragm import Diaphragm
     from lensmount.templates.hood import Hood
     from lensmount.templates.housing import Housing
+    from lensmount.templates.cell import Cell, SpiderCell
     from lensmount.templates.lens_element import LensElement
+    from lensmount.templates.mirror import MirrorElement
     from lensmount.templates.rear_baffle import RearBaffle
     from lensmount.templates.retainer import Retainer
     from lensmount.templates.spacer import Spacer
@@ -159,6 +163,24 @@ def dimensions(plan, tol, prescription=None) -> list[Dimension]:
         for name, face in (("R1", t.front), ("R2", t.back)):
             radius = math.inf if face.curvature == 0 else 1.0 / face.curvature
             out.append(Dimension(name, "radius", radius, 0.0, face.z_vertex, 0.0))
+        return out
+    if isinstance(t, MirrorElement):
+        R, h = t.outer_radius, t.hole_radius
+        zf, zb = float(t.front_z(R)), float(t.back_z(R))
+        out = [_dia("edge", R, 0.5 * (zf + zb), tol), _len("edge thickness", zf, R, zb, R, tol)]
+        if h > 0:
+            out.append(_dia("hole", h, 0.5 * (float(t.front_z(h)) + float(t.back_z(h))), tol))
+        for name, face in (("R1", t.front), ("R2", t.back)):
+            if face is not None:
+                radius = math.inf if face.curvature == 0 else 1.0 / face.curvature
+                out.append(Dimension(name, "radius", radius, 0.0, face.z_vertex, 0.0))
+        return out
+    if isinstance(t, Cell):
+        pts = np.asarray(t.outline, dtype=np.float64)
+        (r_in, z0), (r_out, z1) = pts.min(0), pts.max(0)
+        out = [_dia("outside", r_out, z0, tol), _dia("bore", r_in, z0, tol), _len("length", z0, r_out, z1, r_out, tol)]
+        if isinstance(t, SpiderCell):
+            out.append(_dia("vane tips", t.reach, 0.5 * (z0 + z1), tol))
         return out
     return []  # a kind with no template dimensions: the drawing still shows its section
 

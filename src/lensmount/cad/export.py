@@ -70,7 +70,11 @@ GLASS_DENSITY_DEFAULT = 2.51  # g/cm³, N-BK7: the weight of a glass the BOM has
 
 def material_of(kind: str, template, prescription, spec) -> tuple[str, float, str]:
     """(material, density g/cm³, note) of a part: a lens's glass is the one after its front
-    surface (prescription), every other part is `[bom] metal`."""
+    surface (prescription), a front-surface mirror's blank N-BK7 (a lens file names no blank
+    material), every other part is `[bom] metal`."""
+    if kind == "mirror":
+        return ("N-BK7", spec.bom.glass_density_g_cm3.get("N-BK7", GLASS_DENSITY_DEFAULT),
+                "mirror blank: the lens file names no blank material, N-BK7 assumed")
     if kind != "lens":
         return spec.bom.metal, spec.bom.metal_density_g_cm3, ""
     material = prescription.surfaces[template.front.index].material
