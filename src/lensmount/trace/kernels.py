@@ -107,4 +107,49 @@ def sequential_step(left, o, d, t_stop, up, down, safe, slab, z_vertex, curvatur
     return sure, t_best, s_best
 
 
-__all__ = ["conic_roots", "sequential_step"]
+
+
+
+@njit(cache=True)
+def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_tol, bary_tol):
+    """Float64 Möller–Trumbore of rays o, d (m, 3) with triangles `local` (m,) (corner a, edges e1,
+    e2, unit normal), and which crossings are real hits (`MechanicalFaces._crossing` and `_valid`):
+    (t (m,) inf where parallel, λ (m, 3) barycentrics, valid (m,) bool)."""
+    m = local.shape[0]
+    t_out = np.empty(m)
+    lam = np.empty((m, 3))
+    valid = np.zeros(m, np.bool_)
+    for i in range(m):
+        j = local[i]
+        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+        ax, ay, az = e1[j, 0], e1[j, 1], e1[j, 2]
+        bx, by, bz = e2[j, 0], e2[j, 1], e2[j, 2]
+        px, py, pz = dy * bz - dz * by, dz * bx - dx * bz, dx * by - dy * bx  # d × e2
+        det = ax * px + ay * py + az * pz
+        ok = abs(det) > 1e-300
+        inv = 1.0 / det if ok else 0.0
+        tx, ty, tz = o[i, 0] - a[j, 0], o[i, 1] - a[j, 1], o[i, 2] - a[j, 2]
+        u = (tx * px + ty * py + tz * pz) * inv
+        qx, qy, qz = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax  # tvec × e1
+        v = (dx * qx + dy * qy + dz * qz) * inv
+        t = (bx * qx + by * qy + bz * qz) * inv if ok else np.inf
+        l0 = 1.0 - u - v
+        t_out[i] = t
+        lam[i, 0], lam[i, 1], lam[i, 2] = l0, u, v
+        inside = l0 >= -bary_tol and u >= -bary_tol and v >= -bary_tol and math.isfinite(t)
+        if not inside:
+            continue
+        if t > t_tol:
+            valid[i] = True
+            continue
+        # At the ray's origin: a hit only for a ray leaving a face, entering this one, and this one
+        # not coplanar with the face it leaves.
+        if not (abs(t) <= t_tol and leaving[i]):
+            continue
+        nx, ny, nz = normal[j, 0], normal[j, 1], normal[j, 2]
+        enters = nx * dx + ny * dy + nz * dz < 0.0
+        coplanar = (abs(nx * left_normal[i, 0] + ny * left_normal[i, 1] + nz * left_normal[i, 2]) > 1.0 - 1e-9
+                    and abs(nx * tx + ny * ty + nz * tz) <= t_tol)
+        valid[i] = enters and not coplanar
+    return t_out, lam, valid
+__all__ = ["conic_roots", "sequential_step", "triangle_crossings"]

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lensmount.trace import kernels
+
 _MARGIN_REL = 5e-7     # float32 candidate margin and relaunch step, relative to the assembly size
 _BARY_TOL = 1e-12      # float64 inside test: barycentric tolerance (closes seams exactly)
 _MAX_ROUNDS = 32
@@ -86,30 +88,11 @@ class MechanicalFaces:
 
     # ------------------------------------------------------------------ float64 geometry
 
-    def _crossing(self, local, o, d):
-        """Float64 Möller–Trumbore of rays (m,) with local triangles (m,): (t, λ (m, 3)); t = inf if parallel."""
-        e1, e2 = self._e1[local], self._e2[local]
-        pvec = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", e1, pvec)
-        ok = np.abs(det) > 1e-300
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        tvec = o - self._a[local]
-        u = np.einsum("ij,ij->i", tvec, pvec) * inv
-        qvec = np.cross(tvec, e1)
-        v = np.einsum("ij,ij->i", d, qvec) * inv
-        t = np.where(ok, np.einsum("ij,ij->i", e2, qvec) * inv, np.inf)
-        return t, np.column_stack([1.0 - u - v, u, v])
-
-    def _valid(self, local, t, lam, o, d, leaving, left_normal):
-        """Which float64 crossings (m,) are real hits (see rule 4 of the module docstring)."""
-        inside = np.all(lam >= -_BARY_TOL, axis=1) & np.isfinite(t)
-        n = self._n[local]
-        at_start = np.abs(t) <= self.t_tol
-        enters = np.einsum("ij,ij->i", n, d) < 0.0
-        coplanar_left = (np.abs(np.einsum("ij,ij->i", n, left_normal)) > 1.0 - 1e-9) \
-            & (np.abs(np.einsum("ij,ij->i", n, o - self._a[local])) <= self.t_tol)
-        start_ok = leaving & enters & ~coplanar_left
-        return inside & ((t > self.t_tol) | (at_start & start_ok))
+    def _crossings(self, local, o, d, leaving, left_normal):
+        """Float64 Möller–Trumbore of rays (m,) with local triangles (m,), and which crossings are
+        real hits (rule 4 of the module docstring): (t (m,) inf if parallel, λ (m, 3), valid (m,))."""
+        return kernels.triangle_crossings(np.asarray(local, np.int64), o, d, np.asarray(leaving, np.bool_),
+                                          left_normal, self._a, self._e1, self._e2, self._n, self.t_tol, _BARY_TOL)
 
     def _ring(self, local):
         """Flattened ring of local triangles (m,): (row (k,), triangle (k,))."""
@@ -172,8 +155,8 @@ class MechanicalFaces:
             loc = np.full(len(todo), -1, np.int64)
             # 2. The candidate alone, when the float64 line crosses it well inside its edges (a
             # self-hit there is simply skipped).
-            tc, lam = self._crossing(cand, oo, dd)
-            ok = hit & self._valid(cand, tc, lam, oo, dd, leaving[todo], left_normal[todo])
+            tc, lam, valid = self._crossings(cand, oo, dd, leaving[todo], left_normal[todo])
+            ok = hit & valid
             clear = hit & np.all(lam * self._alt[cand] >= self.margin, axis=1)
             t64[clear & ok], loc[clear & ok] = tc[clear & ok], cand[clear & ok]
             # ... else (near or outside its edges) its ring: the nearest float64 hit among them
@@ -183,8 +166,7 @@ class MechanicalFaces:
             if near.size:
                 row, tri = self._ring(cand[near])
                 r = near[row]
-                tr, lr = self._crossing(tri, oo[r], dd[r])
-                good = self._valid(tri, tr, lr, oo[r], dd[r], leaving[todo[r]], left_normal[todo[r]])
+                tr, _, good = self._crossings(tri, oo[r], dd[r], leaving[todo[r]], left_normal[todo[r]])
                 good &= tr <= te[r] + 2.0 * step
                 tr = np.where(good, tr, np.inf)
                 best = np.full(len(todo), np.inf)
