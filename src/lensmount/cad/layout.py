@@ -18,6 +18,7 @@ vane bores. Geometry rules, all in the (r, z) half plane of the solids of revolu
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -84,16 +85,11 @@ class Envelope:
         n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
         self.prescription = prescription
         self.z = np.linspace(z_min, z_max, n)
-        self.r = self.exact(self.z)
+        self.r = _envelope_grid(prescription, float(z_min), float(z_max), n)
 
     def exact(self, z) -> np.ndarray:
         """The real-ray envelope at each z (slow: traces the beam), (n,)."""
-        from lensmount.optics.apertures import beam_envelope
-
-        z = np.atleast_1d(np.asarray(z, dtype=np.float64))
-        if not len(z):
-            return np.zeros(0)
-        return np.nan_to_num(beam_envelope(self.prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
+        return _exact_envelope(self.prescription, z)
 
     def at(self, z) -> np.ndarray:
         """Envelope at each z by linear interpolation: (n,)."""
@@ -105,6 +101,24 @@ class Envelope:
         inside = self.r[(self.z > a) & (self.z < b)]
         ends = self.at([a, b])
         return float(max(ends.max(), inside.max() if len(inside) else 0.0))
+
+
+@lru_cache(maxsize=8)
+def _envelope_grid(prescription: Prescription, z_min: float, z_max: float, n: int) -> np.ndarray:
+    """Envelope radii on a grid, kept per lens and grid (read-only): `init` checks the starter mount
+    with the same layout that `regenerate` then plans, and a design loop replans one lens often."""
+    r = _exact_envelope(prescription, np.linspace(z_min, z_max, n))
+    r.flags.writeable = False
+    return r
+
+
+def _exact_envelope(prescription: Prescription, z) -> np.ndarray:
+    from lensmount.optics.apertures import beam_envelope
+
+    z = np.atleast_1d(np.asarray(z, dtype=np.float64))
+    if not len(z):
+        return np.zeros(0)
+    return np.nan_to_num(beam_envelope(prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool, wedge: float) -> float:

@@ -49,6 +49,7 @@ def _beam(prescription: Prescription, fields, pupil, clip: bool):
     return out
 
 
+@lru_cache(maxsize=8)  # a pure function of a frozen lens: init, regenerate and simulate each load it
 def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0) -> Prescription:
     """The prescription with automatic clear semi-diameters where it gives none.
 
@@ -143,61 +144,46 @@ def _polyline_radius(rays, zq: np.ndarray) -> np.ndarray:
     pts = rays.points  # (S+1, N, 3): surfaces then image plane
     nseg = len(pts) - 1
     last_ok = np.where(rays.vignetted_at < 0, nseg, rays.vignetted_at)  # segments j < last_ok exist
-    env = np.zeros(len(zq))
+    env2 = np.zeros(len(zq))  # squared: the root is taken once, at the end
 
-    def update(sel, radius_fn):
-        # Only the queries inside a piece's z range are evaluated; chunked to keep (chunk, N) small.
-        idx = np.flatnonzero(sel)
-        chunk = max(1, int(2_000_000 // max(1, pts.shape[1])))
+    def update(sel, origin, slope, lo, hi):
+        """Rays x = origin + z·slope (x, y per ray) for lo <= z <= hi; only the queries inside the
+        rays' z range are evaluated, chunked to keep (chunk, N) small."""
+        idx = np.flatnonzero(sel & (zq >= lo.min()) & (zq <= hi.max()))
+        chunk = max(1, int(2_000_000 // max(1, len(lo))))
         for a in range(0, len(idx), chunk):
             part = idx[a:a + chunk]
-            env[part] = np.maximum(env[part], radius_fn(zq[part][:, None]).max(axis=1))
+            zc = zq[part][:, None]
+            x = origin[:, 0] + zc * slope[:, 0]
+            y = origin[:, 1] + zc * slope[:, 1]
+            r2 = np.where((zc >= lo) & (zc <= hi), x * x + y * y, 0.0)
+            env2[part] = np.maximum(env2[part], r2.max(axis=1))
+
+    def straight(p, d, keep, lo, hi):
+        """Straight rays p + s·d (the launch before surface 1, the last leg after the image plane)."""
+        p, d, lo, hi = p[keep], d[keep], lo[keep], hi[keep]
+        dz = np.where(np.abs(d[:, 2]) > 1e-15, d[:, 2], 1e-15)
+        slope = d[:, :2] / dz[:, None]
+        update(np.ones(len(zq), bool), p[:, :2] - p[:, 2:3] * slope, slope, lo, hi)
 
     # before the first surface: straight lines along the launch direction
-    z_first = pts[0][:, 2]
-    update(zq <= z_first.max(),
-           lambda zc: _ray_radius_at(pts[0], rays.start_directions, zc, upper=z_first))
+    n = pts.shape[1]
+    straight(pts[0], rays.start_directions, np.ones(n, bool), np.full(n, -np.inf), pts[0][:, 2])
     # after the image plane: straight on
-    z_last = pts[-1][:, 2]
     arrived = rays.vignetted_at < 0
     if arrived.any():
-        update(zq >= z_last[arrived].min(),
-               lambda zc: _ray_radius_at(pts[-1], rays.directions[-1], zc, lower=z_last, valid=arrived))
+        straight(pts[-1], rays.directions[-1], arrived, pts[-1][:, 2], np.full(n, np.inf))
     for j in range(nseg):
-        p0, p1 = pts[j], pts[j + 1]
-        z0, z1 = p0[:, 2], p1[:, 2]
-        lo, hi = np.minimum(z0, z1), np.maximum(z0, z1)
         exists = j < last_ok
         if not exists.any():
             continue
+        p0, p1 = pts[j][exists], pts[j + 1][exists]
+        z0, z1 = p0[:, 2], p1[:, 2]
         dz = z1 - z0
-        flat = np.abs(dz) <= 1e-15
-        dz = np.where(flat, 1.0, dz)
-
-        def radius(zc, p0=p0, p1=p1, z0=z0, lo=lo, hi=hi, dz=dz, flat=flat, exists=exists):
-            inside = (zc >= lo) & (zc <= hi) & exists
-            frac = np.where(flat, 0.0, (zc - z0) / dz)
-            x = p0[:, 0] + frac * (p1[:, 0] - p0[:, 0])
-            y = p0[:, 1] + frac * (p1[:, 1] - p0[:, 1])
-            return np.where(inside, np.hypot(x, y), 0.0)
-
-        update((zq >= lo[exists].min()) & (zq <= hi[exists].max()), radius)
-    return env
-
-
-def _ray_radius_at(p, d, zc, upper=None, lower=None, valid=None):
-    """Radius of straight rays p + s·d at z (only where z <= upper or z >= lower): (n, N)."""
-    dz = np.where(np.abs(d[:, 2]) > 1e-15, d[:, 2], 1e-15)
-    s = (zc - p[:, 2]) / dz
-    x, y = p[:, 0] + s * d[:, 0], p[:, 1] + s * d[:, 1]
-    mask = np.ones(np.broadcast_shapes(zc.shape, s.shape), bool)
-    if upper is not None:
-        mask &= zc <= upper
-    if lower is not None:
-        mask &= zc >= lower
-    if valid is not None:
-        mask &= valid
-    return np.where(mask, np.hypot(x, y), 0.0)
+        flat = np.abs(dz) <= 1e-15   # met only at z0 itself, at p0
+        slope = np.where(flat[:, None], 0.0, (p1[:, :2] - p0[:, :2]) / np.where(flat, 1.0, dz)[:, None])
+        update(np.ones(len(zq), bool), p0[:, :2] - z0[:, None] * slope, slope, np.minimum(z0, z1), np.maximum(z0, z1))
+    return np.sqrt(env2)
 
 
 __all__ = ["with_clear_semi_diameters", "beam_envelope"]
