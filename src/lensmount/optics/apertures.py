@@ -115,7 +115,7 @@ def beam_envelope(prescription: Prescription, z) -> np.ndarray:
     return env
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=4)  # ~14 MB a lens (3 colours x 8000 rays x 12 surfaces)
 def _envelope_beam(prescription: Prescription) -> tuple:
     """The envelope's traced rays, kept per prescription (frozen, so equal lenses share them): the
     layout, the starter mount and the checks ask for the envelope of one lens a dozen times at
