@@ -38,15 +38,6 @@ KNOWN = {
     # cross (-0.38 mm). A flat bevel (front face flat from 6.3 mm out) gives 0.318 mm there, 0.184 mm
     # after the two 0.067 mm protective chamfers: under the 0.3 mm minimum up to a 8.5 mm rim
     "US00583336-2-scaled": "lens-1 is too thin",
-    # lens-3 and lens-4 touch at their clear apertures (air 0.019 mm at h = 7 mm between R -53.59 and
-    # R -37.47, 0.22 mm on the axis): no spacer, shoulder or ring fits there, so widening lens-3 for a
-    # spacer curls its concave front (R -8.3 mm) forward past lens-2's edge; a glass seat is not built yet.
-    # The faces meet at h = 7.325 mm, inside surface 8's file semi-diameter (7.53 mm; the beam would need
-    # 7.46 there, 7.475 on surface 7, whose 7.0 mm DIAM vignettes it): lens-3 nests in lens-4's concave
-    # front, its rear rim (R < 7.325) resting on lens-4's polished face outside the light surface 7 passes.
-    # Building that seat needs: no part in the gap, the barrel stepping at lens-4's front rim (in front of
-    # lens-3's rear rim), and a contact check against the envelope rather than the file's 7.53 mm
-    "US08427765-1": "the barrel cannot step between lens-2 and lens-3",
 }
 
 

@@ -257,6 +257,28 @@ def _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, a, b) -> list[tuple]
     return ends
 
 
+BEAM_CLEAR_MM = 0.01  # a glass seat's contact at least this far outside the light
+
+
+def _glass_seat(A, B, RA, RB, bore_a, bore_b, c_glass, element_no) -> list[tuple[float, float]]:
+    """Barrel bore points where lens A and lens B sit on each other (seat "glass"): the bore steps
+    from the smaller element's to the larger's `c_glass` clear of the larger's glass outside the
+    smaller's bore; the smaller element's edge cylinder must start before that step (the bore holds it)."""
+    if RA < RB:   # A nests into B's front: step just in front of B's glass outside A's bore
+        rs = _radii(min(bore_a, RB), RB, B.template.front_chamfer)
+        z = float(B.template.front_z(rs).min()) - c_glass
+        inside = z > A.template.edge_z()[0]
+    else:         # B nests into A's rear
+        rs = _radii(min(bore_b, RA), RA, A.template.back_chamfer)
+        z = float(A.template.back_z(rs).max()) + c_glass
+        inside = z < B.template.edge_z()[1]
+    if not inside:
+        raise GeometryError(f"{A.name} and {B.name} cannot sit on each other: the barrel step between their "
+                            "bores would pass the smaller one's whole edge", field=f"seats.element.{element_no}",
+                            valid="'spacer' or 'shoulder'")
+    return [(bore_a, z), (bore_b, z)]
+
+
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     """Place every part. Raises GeometryError for a mount that cannot be built."""
     from lensmount.optics.apertures import with_clear_semi_diameters
@@ -457,6 +479,27 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
             bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (r_sh, z_sh), (bores[gi + 1], z_sh)]
             contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact(name, B.name, ib, hB, clear[ib])]
+            continue
+        if seat == "glass":
+            bore_pts += _glass_seat(A, B, RA, RB, bores[gi], bores[gi + 1], c_glass, element_no)
+            # the rim corner that rests on the other face; that face is touched where no light
+            # reaches it (the envelope there), which may lie inside the file's semi-diameter
+            small, big, i_big = (A, B, ib) if RA < RB else (B, A, ia)
+            rim = small.template.outer_radius - (small.template.back_chamfer if small is A
+                                                 else small.template.front_chamfer)
+            z_rim = float((small.template.back_z if small is A else small.template.front_z)(rim))
+            gap = (float(B.template.front_z(rim)) - z_rim) if small is A else (z_rim - float(A.template.back_z(rim)))
+            if gap > c_glass:
+                raise GeometryError(
+                    f"{small.name} would rest on {big.name} but its rim corner at r = {rim:.3f} mm stays "
+                    f"{gap:.3f} mm off that face", field=f"lens_edge.semi_diameter_mm.{small.name.split('-')[1]}",
+                    valid=f"the radius where the faces meet plus the chamfer, or seat 'spacer' or 'shoulder'")
+            light = float(env.exact([z_rim])[0])
+            contacts.append(Contact(small.name, big.name, i_big, rim, min(light, clear[i_big])))
+            if rim < light + BEAM_CLEAR_MM:
+                raise GeometryError(
+                    f"{small.name} would rest on {big.name} at r = {rim:.3f} mm, inside the beam there "
+                    f"({light:.3f} mm)", field=f"seats.element.{element_no}", valid="'spacer' or 'shoulder'")
             continue
         if seat == "shoulder":
             mA = contact_slope(A.template.back_z, hA, RA, +1, tangent, wedge)

@@ -56,9 +56,10 @@ class Seats(_Strict):
     front: Literal["retainer", "shoulder"] = "retainer"
     rear: Literal["retainer", "shoulder"] = "shoulder"
     default: Literal["spacer", "shoulder"] = "spacer"
-    element: dict[int, Literal["spacer", "shoulder", "retainer"]] = Field(
+    element: dict[int, Literal["spacer", "shoulder", "retainer", "glass"]] = Field(
         default_factory=dict, description="1-based element number → seat on its object side "
-        "(retainer: a ring holds it, a barrel shoulder holds the element in front)")
+        "(retainer: a ring holds it, a barrel shoulder holds the element in front; glass: the "
+        "element with the smaller edge rests its rim on the other's face, no part between them)")
     wedge_deg: float = Field(1.0, gt=0, lt=45, description="smallest angle at which a sharp-contact "
                              "end face leaves the glass it touches (no sub-micrometre sliver beside a contact)")
     clearance_mm: float = Field(0.01, gt=0, description="glass to metal where the metal does not hold "

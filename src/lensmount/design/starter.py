@@ -13,7 +13,9 @@ dimension follows from the lens itself, in the mount layer's own keys
   centre (a meniscus or a strong positive lens) or where it would meet its
   neighbour's edge across the air gap; where a spacer could not reach both
   neighbours' contacts, a barrel shoulder seats the element (similar contact heights)
-  or a shoulder behind the one and a ring in front of the other (far apart);
+  or a shoulder behind the one and a ring in front of the other (far apart); where two
+  faces meet outside the smaller element's clear aperture plus contact margin (and not
+  at the diaphragm), the smaller element ends there and rests on the other (seat "glass");
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -103,12 +105,22 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     natural = [max(clear[i] for i in g) + allowance for g in groups]
     floor = [max(clear[i] for i in g) + contact + chamfer + 0.01 for g in groups]
     seats = {}
+    radii_fixed = {}
     stop = p.stop_index
     for k in range(len(groups) - 1):
         ia, ib = groups[k][-1], groups[k + 1][0]
         wall = max(clear[ia], clear[ib]) + contact + min_thickness + 0.02   # a spacer's outside
         if wall <= min(natural[k], natural[k + 1]):
             continue
+        meet = _faces_meet(face(ia), face(ib), min(clear[ia], clear[ib]) + contact, max(natural[k], natural[k + 1]))
+        if not ia <= stop <= ib and meet is not None:
+            # the faces meet just outside the light: the smaller element rests its rim there on the
+            # other's face (compact camera lenses), its chamfer starting where they meet
+            small = k if natural[k] <= natural[k + 1] else k + 1
+            if floor[small] <= meet + chamfer <= natural[small] + chamfer:
+                radii_fixed[small] = floor[small] = meet + chamfer
+                seats[int(numbers[k + 1])] = "glass"
+                continue
         if ia <= stop <= ib or (widen and not any(thin(j, wall) for j in (k, k + 1) if natural[j] < wall)):
             # widen the smaller edge(s) so that a spacer fits (the diaphragm's gap always has spacers)
             floor[k], floor[k + 1] = max(floor[k], wall), max(floor[k + 1], wall)
@@ -121,12 +133,14 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
         zc = float(face(i0).z(clear[i0] + contact))
         beam = Envelope(p, zc - retainer - 1.0, zc, step=0.1).max_over(zc - retainer - 1.0, zc)
         floor[0] = max(floor[0], beam + margin + min_thickness + 0.02)
-    radii = [max(n, f) for n, f in zip(natural, floor)]
+    radii = [radii_fixed.get(k, max(n, f)) for k, (n, f) in enumerate(zip(natural, floor))]
     for k in range(len(groups)):   # thick enough at the edge
         while radii[k] - step >= floor[k] and thin(k, radii[k]):
             radii[k] -= step
     for k in range(len(groups) - 1):      # room for the barrel's step between neighbouring edges
         ia, ib = groups[k][-1], groups[k + 1][0]
+        if seats.get(int(numbers[k + 1])) == "glass":
+            continue
         for _ in range(40):
             r = min(radii[k], radii[k + 1])
             if float(face(ib).z(r) - face(ia).z(r)) > min_thickness + 2 * chamfer:
@@ -141,6 +155,18 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             for k in range(len(g) - 1):
                 out[int(first) + k] = _round(r, 3)
     return out, seats
+
+
+def _faces_meet(a, b, r_lo: float, r_hi: float) -> float | None:
+    """Radius in [r_lo, r_hi] where face b (behind) comes to face a (in front), mm; None if they
+    stay apart there. Below r_lo (the light and the contact margin) they must not meet."""
+    rs = np.linspace(0.0, r_hi, 2001)
+    gap = b.z(rs) - a.z(rs)
+    closed = np.flatnonzero(gap <= 0.0)
+    if not len(closed) or rs[closed[0]] < r_lo:
+        return None
+    j = closed[0]   # linear between the last open and the first closed sample
+    return float(rs[j - 1] + (rs[j] - rs[j - 1]) * gap[j - 1] / (gap[j - 1] - gap[j]))
 
 
 def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
