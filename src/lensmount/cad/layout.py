@@ -327,11 +327,25 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             el = LensElement(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0)
             name = f"lens-{n_el}"
             if el.center_thickness() < min_t or el.edge_thickness() < min_t:
+                # rims from the smallest a seat outside the light allows to 2 mm beyond: a thin meniscus
+                # is too thin at all of them, which no allowance can mend
+                r_min = max(clear[a], clear[b]) + cm + el.front_chamfer + el.back_chamfer
+                rims = np.linspace(r_min, max(R, r_min) + 2.0, 41)
+                edges = [LensElement(face(a), face(b), r, el.front_chamfer, el.back_chamfer).edge_thickness()
+                         for r in rims]
+                k = int(np.argmax(edges))
+                hopeless = el.center_thickness() >= min_t and edges[k] < min_t
                 raise GeometryError(
                     f"{name} is too thin: centre {el.center_thickness():.3f} mm, edge "
-                    f"{el.edge_thickness():.3f} mm at radius {R:.3f} mm (minimum {min_t} mm)",
+                    f"{el.edge_thickness():.3f} mm at radius {R:.3f} mm (minimum {min_t} mm)"
+                    + (f"; no rim from {r_min:.3f} mm (clear semi-diameter, contact margin and chamfers) to "
+                       f"{rims[-1]:.3f} mm is thicker than {edges[k]:.3f} mm (at {rims[k]:.3f} mm), so no seat "
+                       "outside the light finds the minimum" if hopeless else ""),
                     field="lens_edge.allowance_mm",
-                    valid="a smaller edge allowance or chamfer, or a thicker element")
+                    valid=("a thicker element in the lens file" + (
+                        f", or [checks] min_thickness_mm <= {edges[k]:.3f} with lens_edge.semi_diameter_mm.{n_el} = "
+                        f"{rims[k]:.3f}" if edges[k] > 0 else "")) if hopeless
+                    else "a smaller edge allowance or chamfer, or a thicker element")
             elements.append(PartPlan(name, "lens", spec.finish_of(name, edge.finish), el))
         lens_parts.append(elements)
     for R, g in zip(radii, groups):
