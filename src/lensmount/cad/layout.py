@@ -260,6 +260,21 @@ def _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, a, b) -> list[tuple]
 BEAM_CLEAR_MM = 0.01  # a glass seat's contact at least this far outside the light
 
 
+def lens_element(fa: OpticalFace, fb: OpticalFace, R: float, bf: float, bb: float, clear_a: float | None,
+                 clear_b: float | None, min_t: float) -> LensElement:
+    """The element between faces fa and fb, radius R; where its edge would be thinner than min_t, each
+    outer face (clear_a / clear_b given) that closes in toward the rim gets a flat bevel from its clear
+    semi-diameter out, when that makes the edge thick enough (a thin meniscus: the optics end at the
+    clear aperture, the ground flat carries the seat)."""
+    el = LensElement(fa, fb, R, bf, bb)
+    if el.edge_thickness() >= min_t:
+        return el
+    front = clear_a if clear_a is not None and clear_a < R - bf and float(fa.z(R)) > float(fa.z(clear_a)) else None
+    back = clear_b if clear_b is not None and clear_b < R - bb and float(fb.z(R)) < float(fb.z(clear_b)) else None
+    flat = LensElement(fa, fb, R, bf, bb, front, back)
+    return flat if (front is not None or back is not None) and flat.edge_thickness() >= min_t else el
+
+
 def _glass_seat(A, B, RA, RB, bore_a, bore_b, c_glass, element_no) -> list[tuple[float, float]]:
     """Barrel bore points where lens A and lens B sit on each other (seat "glass"): the bore steps
     from the smaller element's to the larger's `c_glass` clear of the larger's glass outside the
@@ -324,8 +339,14 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         elements = []
         for a, b in zip(g[:-1], g[1:]):
             n_el += 1
-            el = LensElement(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0)
+            el = lens_element(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0,
+                              clear[a] if a == g[0] else None, clear[b] if b == g[-1] else None, min_t)
             name = f"lens-{n_el}"
+            flats = [f"{side} face flat from {r:.3f} mm" for side, r in
+                     (("front", el.front_flat_from), ("rear", el.back_flat_from)) if r is not None]
+            if flats:
+                notes.append(f"{name}: flat bevel ({', '.join(flats)}): its faces close in toward the rim, "
+                             f"the flat keeps the edge {el.edge_thickness():.3f} mm thick at {R:.3f} mm")
             if el.center_thickness() < min_t or el.edge_thickness() < min_t:
                 # rims from the smallest a seat outside the light allows to 2 mm beyond: a thin meniscus
                 # is too thin at all of them, which no allowance can mend
@@ -631,4 +652,4 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     return Layout(p, ordered, contacts, env, notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius", "lens_element"]

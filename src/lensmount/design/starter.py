@@ -16,6 +16,8 @@ dimension follows from the lens itself, in the mount layer's own keys
   or a shoulder behind the one and a ring in front of the other (far apart); where two
   faces meet outside the smaller element's clear aperture plus contact margin (and not
   at the diaphragm), the smaller element ends there and rests on the other (seat "glass");
+  an element too thin at every such rim gets a flat bevel (`cad.layout.lens_element`) and
+  the rim where that makes it thick enough;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -84,7 +86,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     below the front retainer's wall above the beam: a lens that is too thin even there
     is left to `regenerate` to report (the lens file's own edge is).
     """
-    from lensmount.cad.layout import Envelope
+    from lensmount.cad.layout import Envelope, lens_element
     from lensmount.templates.lens_element import LensElement, OpticalFace
 
     surf, zv = p.surfaces, p.vertex_z
@@ -100,6 +102,12 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
         g = groups[k]
         return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
                    < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a])) for a, b in zip(g[:-1], g[1:]))
+
+    def too_thin(k: int, r: float) -> bool:   # the layout's own rule, flat bevels included
+        g = groups[k]
+        return any(lens_element(face(a), face(b), r, chamfer, chamfer, clear[a] if a == g[0] else None,
+                                clear[b] if b == g[-1] else None, min_thickness).edge_thickness()
+                   < min_thickness for a, b in zip(g[:-1], g[1:]))
 
     numbers = np.cumsum([0] + [len(g) - 1 for g in groups])[:-1] + 1   # first element of each group
     natural = [max(clear[i] for i in g) + allowance for g in groups]
@@ -137,6 +145,10 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     for k in range(len(groups)):   # thick enough at the edge
         while radii[k] - step >= floor[k] and thin(k, radii[k]):
             radii[k] -= step
+        if too_thin(k, radii[k]) and k not in radii_fixed:   # a flat-bevelled meniscus thickens outward
+            wider = [r for r in np.arange(radii[k], 1.5 * max(clear[i] for i in groups[k]), step)
+                     if not too_thin(k, r)]
+            radii[k] = wider[0] if wider else radii[k]
     for k in range(len(groups) - 1):      # room for the barrel's step between neighbouring edges
         ia, ib = groups[k][-1], groups[k + 1][0]
         if seats.get(int(numbers[k + 1])) == "glass":

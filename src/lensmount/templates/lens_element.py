@@ -6,6 +6,9 @@ radius R - b straight to the edge cylinder, b inside the surface's own edge heig
 Spherical faces are exact arcs (so the STEP face is a true sphere), planes are
 lines, conics and aspheres a spline through sag samples. Cemented interfaces get
 no chamfer: both elements of a cemented group end on the same radius there.
+A flat bevel (`front_flat_from`, `back_flat_from`) turns a face into a flat annulus from
+that radius out (at the face's z there): a meniscus whose faces close in toward the rim
+keeps a thick edge, and the seat rests on the flat.
 """
 
 from __future__ import annotations
@@ -81,19 +84,27 @@ class LensElement(RevolvedPart):
     outer_radius: float
     front_chamfer: float = 0.0
     back_chamfer: float = 0.0
+    front_flat_from: float | None = None   # flat bevel: the front face is flat from this radius out
+    back_flat_from: float | None = None
+
+    def _face(self, front: bool, r) -> np.ndarray:
+        """The optical face's z, held at its value at the flat bevel's radius beyond it."""
+        face, flat = (self.front, self.front_flat_from) if front else (self.back, self.back_flat_from)
+        r = np.asarray(r, dtype=np.float64)
+        return face.z(r if flat is None else np.minimum(r, flat))
 
     def edge_z(self) -> tuple[float, float]:
         """z range of the ground cylindrical edge (front end, back end)."""
         R = self.outer_radius
-        return (float(self.front.z(R)) + self.front_chamfer, float(self.back.z(R)) - self.back_chamfer)
+        return (float(self._face(True, R)) + self.front_chamfer, float(self._face(False, R)) - self.back_chamfer)
 
     def front_z(self, r) -> np.ndarray:
         """z of the glass's object-side boundary at radius r <= outer_radius (chamfer included)."""
         r = np.asarray(r, dtype=np.float64)
         R, b = self.outer_radius, self.front_chamfer
-        z = self.front.z(np.minimum(r, R - b))
+        z = self._face(True, np.minimum(r, R - b))
         if b > 0:  # the chamfer: straight from (R - b, surface) to (R, edge start)
-            z0, z1 = float(self.front.z(R - b)), self.edge_z()[0]
+            z0, z1 = float(self._face(True, R - b)), self.edge_z()[0]
             z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
@@ -101,9 +112,9 @@ class LensElement(RevolvedPart):
         """z of the glass's image-side boundary at radius r <= outer_radius."""
         r = np.asarray(r, dtype=np.float64)
         R, b = self.outer_radius, self.back_chamfer
-        z = self.back.z(np.minimum(r, R - b))
+        z = self._face(False, np.minimum(r, R - b))
         if b > 0:
-            z0, z1 = float(self.back.z(R - b)), self.edge_z()[1]
+            z0, z1 = float(self._face(False, R - b)), self.edge_z()[1]
             z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
@@ -116,15 +127,22 @@ class LensElement(RevolvedPart):
 
     def segments(self) -> list[Segment]:
         R, bf, bb = self.outer_radius, self.front_chamfer, self.back_chamfer
-        segs = [self.front.segment(R - bf)]
+        ff = R - bf if self.front_flat_from is None else min(self.front_flat_from, R - bf)
+        fb = R - bb if self.back_flat_from is None else min(self.back_flat_from, R - bb)
+        segs = [self.front.segment(ff)]
+        if ff < R - bf:   # the flat bevel, ground like the chamfer
+            segs.append(Segment("line", (segs[-1].end, (R - bf, segs[-1].end[1])), "bevel"))
         zf_edge, zb_edge = self.edge_z()
         p = segs[-1].end
         if bf > 0:
             segs.append(Segment("line", (p, (R, zf_edge)), "bevel"))
         segs.append(Segment("line", ((R, zf_edge), (R, zb_edge)), "lens-edge"))
-        back = self.back.segment(R - bb, reverse=True)
+        back = self.back.segment(fb, reverse=True)
+        flat_b = (R - bb, back.start[1])
         if bb > 0:
-            segs.append(Segment("line", ((R, zb_edge), back.start), "bevel"))
+            segs.append(Segment("line", ((R, zb_edge), flat_b), "bevel"))
+        if fb < R - bb:
+            segs.append(Segment("line", (flat_b, back.start), "bevel"))
         segs.append(back)
         segs.append(Segment("line", (back.end, segs[0].start), "mount"))  # on the axis: no face
         return segs
