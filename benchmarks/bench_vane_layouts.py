@@ -5,13 +5,21 @@ Both mounts are the reference (examples/double-gauss-360) with `[vanes] placemen
 count. Printed: the stray fraction of the paper's case 2 (Lambertian 5 % everywhere, sun
 7° off axis; 150 × 150 px) for each, its standard error and kernel-bias bound, the
 difference with its combined error (the two standard errors in quadrature plus both bias
-bounds), and the share of the stray light whose last scatter was on the hood or a vane.
-A third run paints the line-of-sight hood and its vanes black (absorber): the change is
-all the stray light that touches the hood or a hood vane at any bounce, the most any vane
-layout can change.
+bounds) and its paired error (same seed), and the share of the stray light whose last
+scatter was on the hood or a vane. A third run paints the line-of-sight hood and its vanes
+black (absorber): the change is all the stray light that touches the hood or a hood vane at
+any bounce, the most any vane layout can change.
+
+`hood` mode puts the sun just past the hood's cutoff (computed from the built layout: the
+steepest angle at which a sun ray still reaches lens 1's clear aperture past the vanes), where
+the vanes can matter most: the lens is not lit directly, the hood's bore is. It adds the
+example's own 3 even vanes (lit bore in sight of the entrance aperture) and reports, per
+layout, the lit hood bore the entrance aperture sees (`check --from aperture`) and the heavy
+tail of the per-pass values (largest pass / mean, skewness).
 
 `python benchmarks/bench_vane_layouts.py [passes] [off-axis degrees]` (default 24 passes of
-100 000 photons, 7°). Same seed, same numbers.
+100 000 photons, 7°); `python benchmarks/bench_vane_layouts.py hood [passes] [degrees above
+the cutoff]` (default 48, 2°); run.py runs both with their defaults. Same seed, same numbers.
 """
 
 from __future__ import annotations
@@ -42,20 +50,27 @@ def design_with(placement: str, count: int | None, folder: Path) -> Path:
     return folder
 
 
-def run(design: Path, passes: int, off_axis_deg: float, black: tuple[str, ...] = ()):
-    """(hood vanes, stray fraction, std error, bias bound, hood + hood vanes share) of case 2, the
+def scene_of(design: Path, off_axis_deg: float, black: tuple[str, ...] = ()):
+    """(design, scene) of case 2 at 150 × 150 px with the sun `off_axis_deg` off the axis, the
     parts named in `black` absorbing."""
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.executor import executor_for
-    from lensmount.integrators.bidirectional import part_names
     from lensmount.loop.prepare import build, read_inputs
-    from lensmount.runner import PassJob, Runner, Stopping
 
     d, spec = read_inputs(design, design / "scenes" / "case2-lambertian.toml")
     spec = spec.model_copy(update={"detector": spec.detector.model_copy(update={"pixels": (150, 150)}),
                                    "source": spec.source.model_copy(update={"off_axis_deg": off_axis_deg}),
                                    "assign": {**spec.assign, **{f"part:{n}": "absorber" for n in black}}})
-    scene = build(d, spec).scene
+    return d, build(d, spec).scene
+
+
+def run(design: Path, passes: int, off_axis_deg: float, black: tuple[str, ...] = (), scene=None):
+    """(hood vanes, stray fraction, std error, bias bound, hood + hood vanes share, per-pass stray
+    fractions) of case 2 (`scene`, else `scene_of(design, off_axis_deg, black)`)."""
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.executor import executor_for
+    from lensmount.integrators.bidirectional import part_names
+    from lensmount.runner import PassJob, Runner, Stopping
+
+    scene = scene if scene is not None else scene_of(design, off_axis_deg, black)[1]
     names = part_names(scene)
     acc = Accumulator.empty((scene.detector.ny, scene.detector.nx), names, scene.detector.pixel_area)
     Runner(scene, lambda i: PassJob("bidirectional", PHOTONS, 1, i), acc,
@@ -75,20 +90,79 @@ def hood_parts(scene) -> set[str]:
             and mesh.vertices[mesh.triangles[mesh.tags == k].ravel(), 2].min() < 0.0}
 
 
-def main() -> None:
-    from lensmount.analysis.passes import t_factor
-    from lensmount.cad.layout import plan
-    from lensmount.design.folder import load_design
+def hood_cutoff_deg(layout, prescription) -> float:
+    """The steepest sun angle at which a straight sun ray still reaches the first lens's clear
+    aperture past every hood vane (the sun's centre; its 0.27° radius comes on top).
 
-    passes = int(sys.argv[1]) if len(sys.argv) > 1 else 24
-    angle = float(sys.argv[2]) if len(sys.argv) > 2 else 7.0
+    Coaxial circular openings (z_i, radius r_i) let a parallel beam of slope t through iff their
+    discs, shifted by z_i·t, overlap: along the shift they are intervals, so iff
+    t·(z_j − z_i) ≤ r_i + r_j for every pair. Openings: both ends of each hood vane's edge land,
+    and surface 1's clear aperture at the sag of its rim."""
+    from lensmount.optics.profiles import Profile
+
+    s = prescription.surfaces[0]
+    a = float(s.clear_semi_diameter)
+    z_a = float(prescription.vertex_z[0] + Profile.of(s).sag(a * a))
+    openings = [(z_a, a)] + [(t.z_front + k * t.edge_width, t.inner_radius) for p in layout.parts
+                             if p.kind == "vane" and (t := p.template).z_front < z_a for k in (0, 1)]
+    z, r = np.array(openings).T
+    dz = z[None, :] - z[:, None]
+    ahead = dz > 0
+    return math.degrees(math.atan(float(((r[:, None] + r[None, :])[ahead] / dz[ahead]).min())))
+
+
+def lit_bore_seen_mm2(design, scene, angle: float) -> tuple[float, float]:
+    """(lit hood bore, every lit face but vane edges) the entrance aperture sees with the sun at
+    `angle` or beyond, mm² (`lensmount check --from aperture`)."""
+    from lensmount.analysis.sightlines import lit_walls_seen
+
+    hs = design.mount.housing
+    report = lit_walls_seen(design.prescription, scene.mesh, (hs.detector_width_mm, hs.detector_height_mm),
+                            angle, "aperture")
+    # the hood's long inner wall (its flange face is short)
+    bore = sum(w.area_mm2 for w in report.walls if w.part == "hood" and w.z_range[1] - w.z_range[0] > 10.0)
+    return bore, sum(w.area_mm2 for w in report.walls)
+
+
+def tails(series: np.ndarray) -> str:
+    """Largest pass over the mean, and the skewness of the per-pass values (heavy tails show here)."""
+    m, sd = series.mean(), series.std()
+    skew = float(((series - m) ** 3).mean() / sd**3) if sd > 0 else 0.0
+    return f"largest pass {series.max() / m if m > 0 else 0.0:.1f} × the mean, skewness {skew:.1f}"
+
+
+def compare(rows: dict, reference: str) -> None:
+    """Print each row's difference from `reference`: independent and paired (same seed) errors."""
+    from lensmount.analysis.passes import t_factor
+
+    _, a, sa, ba, _, pa = rows[reference]
+    for label, (_, x, sx, bx, _, px) in rows.items():
+        if label == reference:
+            continue
+        combined = math.hypot(sa, sx) + ba + bx
+        # same seed: photon k draws the same numbers in both runs, so the pass-by-pass difference is
+        # the difference's own series; the kernel-bias bound is common to both (same radii, same walls
+        # the detector sees) and is quoted beside it, not added
+        diff = px - pa
+        paired = float(np.std(diff, ddof=1) / math.sqrt(len(diff)) * t_factor(len(diff)))
+        print(f"{label} − {reference}: {x - a:+.3e} ({(x - a) / a:+.1e} of it); independent errors {combined:.1e} "
+              f"({'resolved' if abs(x - a) > combined else 'not resolved'}); paired std error {paired:.1e} "
+              f"({abs(x - a) / paired:.1f} of them: {'resolved' if abs(x - a) > 2 * paired else 'not resolved'} "
+              f"at 2σ)", flush=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """`[passes] [degrees]`: the sun at a fixed angle; `hood [passes] [degrees above the cutoff]`:
+    the sun just past the hood's cutoff, where all the stray light has touched the hood (run.py:
+    both, with their defaults)."""
+    argv = list(argv or [])
+    if argv[:1] == ["hood"]:
+        hood_light(argv[1:])
+        return
+    passes = int(argv[0]) if argv else 24
+    angle = float(argv[1]) if len(argv) > 1 else 7.0
     base = Path(tempfile.mkdtemp(prefix="lensmount-vanes-"))
-    los = design_with("line-of-sight", None, base / "los")
-    d = load_design(los)
-    layout = plan(d.prescription, d.mount)
-    hood = [p.name for p in layout.parts if p.kind == "hood" or (p.kind == "vane" and p.template.z_front < 0)]
-    count = len(hood) - 1
-    even = design_with("even", count, base / "even")
+    los, even, hood, count, _ = designs(base)
     print(f"case 2, reference design, sun {angle:g}°, 150 × 150 px, {passes} passes of {PHOTONS:,} photons")
     rows = {}
     for label, design, black in (("line-of-sight", los, ()), (f"even ({count})", even, ()),
@@ -98,19 +172,53 @@ def main() -> None:
         n, s, se, bias, share, _ = rows[label]
         print(f"{label:>15}: {n} hood vanes, stray fraction {s:.6e} ± {se:.1e} (bias ≤ {bias:.1e}), "
               f"hood + vanes {100 * share:.2f} % of it  ({time.perf_counter() - start:.0f} s)", flush=True)
-    (_, a, sa, ba, _, pa), (_, b, sb, bb, _, pb), (_, c, sc, bc, _, pc) = rows.values()
-    for what, x, sx, bx, px in (("even − line-of-sight", b, sb, bb, pb), ("hood black − line-of-sight", c, sc, bc, pc)):
-        combined = math.hypot(sa, sx) + ba + bx
-        # same seed: photon k draws the same numbers in both runs, so the pass-by-pass difference is
-        # the difference's own series; the kernel-bias bound is common to both (same radii, same walls
-        # the detector sees) and is quoted beside it, not added
-        diff = px - pa
-        paired = float(np.std(diff, ddof=1) / math.sqrt(len(diff)) * t_factor(len(diff)))
-        print(f"{what}: {x - a:+.3e} ({(x - a) / a:+.1e} of it); independent errors {combined:.1e} "
-              f"({'resolved' if abs(x - a) > combined else 'not resolved'}); paired std error {paired:.1e} "
-              f"({'resolved' if abs(x - a) > 2 * paired else 'not resolved'} at 2σ)")
+    compare(rows, "line-of-sight")
+    shutil.rmtree(base, ignore_errors=True)
+    if not argv:
+        hood_light([])
+
+
+def designs(base: Path):
+    """(line-of-sight design, even design with its count, hood part names, count, layout)."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.folder import load_design
+
+    los = design_with("line-of-sight", None, base / "los")
+    d = load_design(los)
+    layout = plan(d.prescription, d.mount)
+    hood = [p.name for p in layout.parts if p.kind == "hood" or (p.kind == "vane" and p.template.z_front < 0)]
+    count = len(hood) - 1
+    return los, design_with("even", count, base / "even"), hood, count, (d, layout)
+
+
+def hood_light(argv: list[str]) -> None:
+    """Case 2 with the sun just past the hood's cutoff: no sun ray reaches the first lens, the
+    hood's bore is lit. Line-of-sight vanes, even vanes of the same count, the example's own 3 even
+    vanes (which leave lit bore in sight of the entrance aperture), and the line-of-sight hood
+    painted black (all the light that has touched the hood or its vanes)."""
+    passes = int(argv[0]) if argv else 48
+    above = float(argv[1]) if len(argv) > 1 else 2.0
+    base = Path(tempfile.mkdtemp(prefix="lensmount-vanes-"))
+    los, even, hood, count, (d, layout) = designs(base)
+    few = design_with("even", None, base / "even-3")
+    cutoff = hood_cutoff_deg(layout, d.prescription)
+    angle = round(cutoff + above, 2)
+    print(f"case 2, reference design: the hood's cutoff (no sun ray reaches lens 1's clear aperture) is "
+          f"{cutoff:.2f}°; sun at {angle:g}°, 150 × 150 px, {passes} passes of {PHOTONS:,} photons")
+    rows = {}
+    for label, design, black in (("line-of-sight", los, ()), (f"even ({count})", even, ()),
+                                 ("even (3)", few, ()), ("line-of-sight, hood black", los, tuple(hood))):
+        start = time.perf_counter()
+        design_, scene = scene_of(design, angle, black)
+        seen = "" if black else "lit hood bore seen from the aperture {:.0f} mm² (all lit faces {:.0f} mm²), ".format(
+            *lit_bore_seen_mm2(design_, scene, angle))
+        rows[label] = run(design, passes, angle, scene=scene)
+        n, s, se, bias, _, series = rows[label]
+        print(f"{label:>25}: {n} hood vanes, {seen}stray fraction {s:.3e} ± {se:.1e} (bias ≤ {bias:.1e}); "
+              f"{tails(series)}  ({time.perf_counter() - start:.0f} s)", flush=True)
+    compare(rows, "line-of-sight")
     shutil.rmtree(base, ignore_errors=True)
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])
