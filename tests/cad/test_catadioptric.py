@@ -20,6 +20,7 @@ import pytest
 from typer.testing import CliRunner
 
 from lensmount.cli import app
+from tests.cad.step_checks import assert_step_parts_valid
 
 ROOT = Path(__file__).resolve().parents[2]
 CORPUS = ROOT / "tests" / "optics" / "corpus"
@@ -111,8 +112,6 @@ def _spiders(mesh, bore: float) -> set[str]:
 @pytest.mark.slow
 @pytest.mark.parametrize("lens", MIRRORS, ids=[p.stem for p in MIRRORS])
 def test_mirror_lens_gets_a_mount_that_builds_clears_the_beam_traces_like_the_file_and_simulates(lens, tmp_path):
-    import cadquery as cq
-
     from lensmount.cad.mesh import TaggedMesh
     from lensmount.design.folder import load_design
     from lensmount.design.scene import scene_from_dict
@@ -128,12 +127,7 @@ def test_mirror_lens_gets_a_mount_that_builds_clears_the_beam_traces_like_the_fi
 
     # valid STEP: every part re-imports as one valid solid of the recorded volume
     build = design / "build"
-    manifest = json.loads((build / "manifest.json").read_text())
-    assert len(manifest["parts"]) >= 2
-    for part in manifest["parts"]:
-        shape = cq.importers.importStep(str(build / part["step"])).val()
-        assert shape.isValid() and shape.Volume() == pytest.approx(part["volume_mm3"], rel=1e-6)
-    assert len(cq.importers.importStep(str(build / "assembly.step")).solids().vals()) == len(manifest["parts"])
+    assert_step_parts_valid(build)
 
     # beam clear past the central obscuration
     d = load_design(design)

@@ -288,16 +288,23 @@ def _text_box(x, y, h, text, anchor):
     return x, y - 0.3 * h, x + length, y + h
 
 
-def _svg_bytes(sections, sheet: _Sheet) -> bytes:
-    from build123d import ExportSVG, LineType
+def _drawn(exp, sections, sheet: _Sheet):
+    """The profile, axis and dimension lines on their layers of an SVG or DXF exporter (same API)."""
+    from build123d import LineType
 
-    exp = ExportSVG(margin=1.0)
     exp.add_layer("profile", line_weight=0.35)
     exp.add_layer("axis", line_weight=0.13, line_type=LineType.DASHDOT)
     exp.add_layer("dimensions", line_weight=0.13)
     exp.add_shape(sections, layer="profile")
     for layer in ("axis", "dimensions"):
         exp.add_shape(sheet.edges[layer], layer=layer)
+    return exp
+
+
+def _svg_bytes(sections, sheet: _Sheet) -> bytes:
+    from build123d import ExportSVG
+
+    exp = _drawn(ExportSVG(margin=1.0), sections, sheet)
     buf = io.BytesIO()
     exp.write(buf)
     root = ET.fromstring(buf.getvalue())
@@ -315,16 +322,10 @@ def _svg_bytes(sections, sheet: _Sheet) -> bytes:
 
 def _dxf_text(sections, sheet: _Sheet) -> str:
     import ezdxf
-    from build123d import ExportDXF, LineType
+    from build123d import ExportDXF
     from ezdxf.enums import TextEntityAlignment
 
-    exp = ExportDXF()
-    exp.add_layer("profile", line_weight=0.35)
-    exp.add_layer("axis", line_weight=0.13, line_type=LineType.DASHDOT)
-    exp.add_layer("dimensions", line_weight=0.13)
-    exp.add_shape(sections, layer="profile")
-    for layer in ("axis", "dimensions"):
-        exp.add_shape(sheet.edges[layer], layer=layer)
+    exp = _drawn(ExportDXF(), sections, sheet)
     buf = io.BytesIO()
     exp.write(buf)
     doc = ezdxf.read(io.StringIO(buf.getvalue().decode("utf-8")))
