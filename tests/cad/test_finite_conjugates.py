@@ -87,6 +87,8 @@ def _chain(lens: Path, tmp_path: Path, point_height: float) -> dict:
         assert run.exit_code == 0, run.output
         done = json.loads((tmp_path / name / "summary.json").read_text())
         assert math.isfinite(done["stray_fraction"]), name
+    pst = runner.invoke(app, ["pst", str(design), "--scene", str(scene), "--angles", "0:10:5"])
+    assert pst.exit_code == 2 and "source at infinity" in pst.output, pst.output  # one paragraph, no build
     return summary
 
 

@@ -207,7 +207,8 @@ def print_summary(summary: dict, paths: dict) -> None:
     if drift is not None:
         p = summary.get("stray_fraction_drift_p")
         table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} %" + (f" (p = {p:.2f})" if p is not None else ""))
-    table.add_row("peak irradiance / E_sun", f"{summary['peak_irradiance']:.4g}")
+    unit = summary["units"]["irradiance"].split(" ")[0]  # E/E_sun, or E/E_ref for a source at a finite distance
+    table.add_row(f"peak irradiance {unit.replace('E/', '/ ')}", f"{summary['peak_irradiance']:.4g}")
     table.add_row("effects", ", ".join(summary["effects"]) + (f" (skipped: {', '.join(summary['effects_skipped'])})"
                                                                if summary["effects_skipped"] else ""))
     if summary.get("lost_flux"):
