@@ -23,12 +23,7 @@ def test_a_paraboloid_mirror_sends_every_parallel_ray_through_its_focus_with_wei
     mesh = TaggedMesh(v, t, np.zeros(len(t), np.int32),
                       [FaceTag("mirror-1", "mirror", "optical", "polished", surface=0, face=0)])
     scene = make_scene(p, mesh, detector={"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": -1.0e4})
-    rng = np.random.default_rng(3)
-    n = 2000
-    r = 38.0 * np.sqrt(rng.random(n))
-    phi = 2 * np.pi * rng.random(n)
-    o = np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n, -50.0)])
-    d = np.tile([0.0, 0.0, 1.0], (n, 1))
+    o, d = _collimated_disc(38.0, 2000, seed=3)
     ev = Tracer(scene).next_event(RayBatch.make(o, d))
     assert not ev.lost.any()
     np.testing.assert_allclose(ev.weight, 0.9, rtol=1e-12)
@@ -60,6 +55,14 @@ def _mirror_scene(surfaces, caps, epd, detector_z=-1.0e4, hole=False, **scene):
     return p, make_scene(p, mesh, detector=det, **scene)
 
 
+def _collimated_disc(radius, n, seed):
+    """n rays parallel to +z, uniform over a disc of `radius` at z = -50 (origins, directions)."""
+    rng = np.random.default_rng(seed)
+    r = radius * np.sqrt(rng.random(n))
+    phi = 2 * np.pi * rng.random(n)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n, -50.0)]), np.tile([0.0, 0.0, 1.0], (n, 1))
+
+
 def _at_plane(position, direction, z):
     s = (z - position[:, 2]) / direction[:, 2]
     return position + s[:, None] * direction
@@ -69,12 +72,7 @@ def test_a_spherical_mirror_follows_the_sequential_trace_and_reflects_protected_
     # concave sphere R = -200: paraxial focus at R/2 = 100 mm in front of it (light returns along -z)
     mirror = Surface(radius=-200.0, thickness=-100.0, mirror=True, is_stop=True, clear_semi_diameter=30.0)
     p, scene = _mirror_scene([mirror], [(0, 30.0)], 60.0)
-    rng = np.random.default_rng(5)
-    n = 500
-    r = 29.0 * np.sqrt(rng.random(n))
-    phi = 2 * np.pi * rng.random(n)
-    o = np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n, -50.0)])
-    d = np.tile([0.0, 0.0, 1.0], (n, 1))
+    o, d = _collimated_disc(29.0, 500, seed=5)
     ev = Tracer(scene).next_event(RayBatch.make(o, d))
     assert not ev.lost.any()
     # default reflectance: protected aluminium, the documented 0.90 (no constant coating given)
@@ -82,6 +80,7 @@ def test_a_spherical_mirror_follows_the_sequential_trace_and_reflects_protected_
     seq = trace(p, o, d, clip=False)
     np.testing.assert_allclose(_at_plane(ev.position, ev.direction, -100.0), seq.image_points, atol=1e-9)
     # near the axis the rays cross at the analytic focus R/2; farther out spherical aberration pulls them in
+    r = np.hypot(o[:, 0], o[:, 1])
     near = r < 2.0
     zc = -100.0 + 0.0  # paraxial focus
     lsa = -(r[near] ** 2) / (4 * 200.0)  # third-order longitudinal aberration of a sphere, h²/(4R) toward it

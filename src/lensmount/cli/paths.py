@@ -45,12 +45,10 @@ def paths(
 
 
 def _paths(out: Path, data, top: int) -> list[Path]:
-    import numpy as np
     from rich.console import Console
     from rich.table import Table
 
     from lensmount.analysis.paths import signature_from_hex, top_paths
-    from lensmount.results import write_exr, write_preview
 
     sums, table_of_tags, _, aperture, extent = data
     report = top_paths(sums, table_of_tags, aperture, top)
@@ -65,33 +63,41 @@ def _paths(out: Path, data, top: int) -> list[Path]:
     if other["paths"]:
         table.add_row("", f"{other['paths']} other paths", _num(other["fraction"]), _num(other["std_error"]), "")
     Console(width=max(Console().width, 120)).print(table)
-    written: list[Path] = []
-    images, names = [], []
+    pictures = []
     for row in report["paths"]:
         image = sums.path_image(signature_from_hex(row["signature"]))
         if image is None:  # the run keeps images of its KEPT_IMAGES leading paths only
             typer.echo(f"path #{row['rank']}: no image (outside the leading paths whose images the run keeps)")
             continue
-        written.append(out / f"path-{row['rank']:02d}.png")
-        write_preview(written[-1], image, extent, title=f"path #{row['rank']}: " + " → ".join(
-            e["name"] for e in row["events"]))
-        images.append(image)
-        names.append(f"path-{row['rank']:02d}")
-    if images:
-        written.append(out / "paths.exr")
-        write_exr(written[-1], np.sum(images, axis=0), np.stack(images), names)
+        pictures.append((f"path-{row['rank']:02d}", image,
+                         f"path #{row['rank']}: " + " → ".join(e["name"] for e in row["events"])))
+    return _write_images(out, "paths.exr", pictures, extent)
+
+
+def _write_images(out: Path, exr_name: str, pictures, extent) -> list[Path]:
+    """One PNG per (name, image, title) and one EXR holding them all as layers (their sum as RGB)."""
+    import numpy as np
+
+    from lensmount.results import write_exr, write_preview
+
+    written = []
+    for name, image, title in pictures:
+        written.append(out / f"{name}.png")
+        write_preview(written[-1], image, extent, title=title)
+    if pictures:
+        images = np.stack([image for _, image, _ in pictures])
+        written.append(out / exr_name)
+        write_exr(written[-1], images.sum(axis=0), images, [name for name, _, _ in pictures])
     return written
 
 
 def _faces(out: Path, data, top: int) -> list[Path]:
     import math
 
-    import numpy as np
     from rich.console import Console
     from rich.table import Table
 
     from lensmount.analysis.paths import face_measures, face_report
-    from lensmount.results import write_exr, write_preview
 
     sums, table_of_tags, areas, aperture, extent = data
     report = face_report(sums, table_of_tags, areas, aperture, top)
@@ -110,22 +116,15 @@ def _faces(out: Path, data, top: int) -> list[Path]:
             table.add_row(str(k), f"{row['part']} face {row['face']}", row["role"], row["finish"], _num(row["area_mm2"]),
                           _num(row["irradiance"]), _num(row["etendue_mm2_sr"]), _num(row["product_mm2"]))
         console.print(table)
-    written: list[Path] = []
     m = face_measures(sums, areas)
-    images, names = [], []
     per_block = sums.pixels_per_block()
+    pictures = []
     for k, row in enumerate(report["critical_and_illuminated"], 1):
         t = row["tag"]
         image = sums.seen_images[t] / max(sums.seen_passes, 1) / per_block * m["irradiance"][t] / math.pi
-        written.append(out / f"face-{k:02d}.png")
-        write_preview(written[-1], image, extent, title=f"face #{k}: {row['part']} face {row['face']} ({row['role']}),"
-                                                        f" as a white Lambertian")
-        images.append(image)
-        names.append(f"face-{k:02d}")
-    if images:
-        written.append(out / "faces.exr")
-        write_exr(written[-1], np.sum(images, axis=0), np.stack(images), names)
-    return written
+        pictures.append((f"face-{k:02d}", image,
+                         f"face #{k}: {row['part']} face {row['face']} ({row['role']}), as a white Lambertian"))
+    return _write_images(out, "faces.exr", pictures, extent)
 
 
 def _num(value) -> str:
