@@ -49,65 +49,78 @@ def conic_roots(c, k1, zv, t_min, o, d):
     return t1, t2
 
 
+@njit(cache=True, inline="always")
+def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, z_vertex, curvature, conic, t_min):
+    """One ray of `sequential_step`: (sure, t, surface).
+
+    A ray leaving the last faceted surface in its direction (no next one) can only meet that
+    surface again; a ray that left no surface (lk < 0) and starts outside every slab on its way
+    in can only meet the first faceted surface it travels toward: the same proof (safe radius,
+    no other slab entered) covers both.
+    """
+    k_n = curvature.shape[0]
+    if lk < 0:
+        nxt = -1
+        for k in range(k_n):
+            if math.isfinite(slab[k, 0]) and (dz < 0.0 or nxt < 0):
+                nxt = k  # the first faceted surface going +z, the last going -z
+        if nxt < 0 or not (safe[nxt] > 0.0) or not (oz < slab[nxt, 0] if dz > 0.0 else oz > slab[nxt, 1]):
+            return False, np.inf, -1
+    else:
+        kk = min(lk, k_n - 1)
+        nxt = up[kk] if dz > 0.0 else down[kk]
+        if not (safe[kk] > 0.0) or (nxt >= 0 and not (safe[min(nxt, k_n - 1)] > 0.0)):
+            return False, np.inf, -1
+    good = True
+    tb = np.inf
+    sb = -1
+    for j in range(2):
+        k = lk if j == 0 else nxt
+        if k < 0:
+            continue
+        r1, r2 = _conic_root_pair(curvature[k], 1.0 + conic[k], z_vertex[k], t_min, ox, oy, oz, dx, dy, dz)
+        for m in range(2):
+            t = r1 if m == 0 else r2
+            before = t < ts
+            tt = t if before else 0.0
+            px = ox + tt * dx
+            py = oy + tt * dy
+            inside = px * px + py * py <= safe[k] * safe[k]
+            if before and not inside:  # past the safe radius it may or may not be glass: decline
+                good = False
+            if before and inside and t < tb:
+                tb = t
+                sb = k
+    # The path up to the hit (or the metal) must not enter any other surface's slab.
+    t_end = min(tb, ts)
+    if math.isfinite(t_end):
+        z1 = oz + t_end * dz
+    else:
+        z1 = np.inf if dz > 0 else -np.inf
+    lo, hi = min(oz, z1), max(oz, z1)
+    for k in range(k_n):
+        if k != lk and k != nxt and lo <= slab[k, 1] and hi >= slab[k, 0]:
+            return False, np.inf, -1
+    if not good:
+        return False, np.inf, -1
+    return True, tb, sb
+
+
 @njit(cache=True)
 def sequential_step(left, o, d, t_stop, up, down, safe, slab, z_vertex, curvature, conic, t_min):
     """`Tracer._sequential_step` per ray: (sure (n,) bool, t (n,), surface (n,) int64).
 
     left (n,): the optical surface each ray just left (-1: none); up/down (k_n,): the next faceted
-    surface above/below; safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range.
+    surface above/below (-1: none); safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range.
     """
     n = o.shape[0]
-    k_n = curvature.shape[0]
     sure = np.zeros(n, np.bool_)
     t_best = np.full(n, np.inf)
     s_best = np.full(n, -1, np.int64)
     for i in range(n):
-        lk = left[i]
-        if lk < 0:
-            continue
-        kk = min(lk, k_n - 1)
-        nxt = up[kk] if d[i, 2] > 0.0 else down[kk]
-        if nxt < 0 or not (safe[kk] > 0.0) or not (safe[min(nxt, k_n - 1)] > 0.0):
-            continue
-        ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
-        ts = t_stop[i]
-        good = True
-        tb = np.inf
-        sb = -1
-        for j in range(2):
-            k = lk if j == 0 else nxt
-            r1, r2 = _conic_root_pair(curvature[k], 1.0 + conic[k], z_vertex[k], t_min, ox, oy, oz, dx, dy, dz)
-            for m in range(2):
-                t = r1 if m == 0 else r2
-                before = t < ts
-                tt = t if before else 0.0
-                px = ox + tt * dx
-                py = oy + tt * dy
-                inside = px * px + py * py <= safe[k] * safe[k]
-                if before and not inside:  # past the safe radius it may or may not be glass: decline
-                    good = False
-                if before and inside and t < tb:
-                    tb = t
-                    sb = k
-        # The path up to the hit (or the metal) must not enter any other surface's slab.
-        t_end = min(tb, ts)
-        if math.isfinite(t_end):
-            z1 = oz + t_end * dz
-        else:
-            z1 = np.inf if dz > 0 else -np.inf
-        lo, hi = min(oz, z1), max(oz, z1)
-        for k in range(k_n):
-            if k != lk and k != nxt and lo <= slab[k, 1] and hi >= slab[k, 0]:
-                good = False
-                break
-        if good:
-            sure[i] = True
-            t_best[i] = tb
-            s_best[i] = sb
+        sure[i], t_best[i], s_best[i] = step_one(left[i], o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
+                                                 t_stop[i], up, down, safe, slab, z_vertex, curvature, conic, t_min)
     return sure, t_best, s_best
-
-
-
 
 
 @njit(cache=True)

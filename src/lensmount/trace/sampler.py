@@ -93,10 +93,18 @@ class Streams:
         """The streams of some paths (bool mask or indices); they keep their numbers."""
         return Streams._from_key(self._key[rows])
 
-    def at(self, rows, dim: int) -> np.ndarray:
-        """(len(rows),) uniforms in [0, 1) of dimension `dim` for paths `rows` (None: all)."""
+    @property
+    def keys(self) -> np.ndarray:
+        """(N,) uint64 the paths' keys (read-only): compiled code draws `at` from them itself."""
+        key = self._key.view()
+        key.flags.writeable = False
+        return key
+
+    def at(self, rows, dim) -> np.ndarray:
+        """(len(rows),) uniforms in [0, 1) of dimension `dim` (an int, or one per row) for paths
+        `rows` (None: all)."""
         key = self._key if rows is None else self._key[rows]
-        h = _combine(key, int(dim))
+        h = _combine(key, np.asarray(dim, np.int64))
         return (h >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
 
     def random(self, size=None) -> np.ndarray:

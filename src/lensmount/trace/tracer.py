@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.trace import kernels
+from lensmount.trace import kernels, lens_kernel
 from lensmount.trace.ghosts import reflecting
 from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
@@ -129,6 +129,7 @@ class Tracer:
 
         self.scene = scene
         self._optical_queries = 0
+        self.segments = 0  # straight pieces of traced paths (one per interface, plus the last), for benchmarks
         mesh = scene.mesh
         if not np.all(np.isfinite(mesh.vertices)):
             raise ValueError("the scene's mesh has non-finite vertices (a tessellation bug upstream)")
@@ -189,6 +190,15 @@ class Tracer:
             TriangleMesh(self._embree, (mesh.vertices - self.centre).astype(np.float32),
                          tri[optical].astype(np.int32))
         self._faces = self._optical_faces()
+        mech = tri[self._tri_surface < 0] if self._has_mesh else np.zeros((0, 3), np.int64)
+        safe, slab, up, down = self._faces
+        self._walk = ((up, down, safe, slab, self._z_vertex, self._curvature, self._conic, self.t_min,
+                       self._n_before, self._n_after, self._alpha_before, self._alpha_after, self._absorbs,
+                       np.array([lens_kernel.COATING_CODES[s.coating.kind] for s in scene.optical] or [0]),
+                       np.array([s.coating.reflectance for s in scene.optical] or [0.0]), self._wavelengths,
+                       self._mirror),
+                      lens_kernel.clear_bore(*(mesh.vertices[mech[:, k]] for k in range(3))),
+                      (float(scene.detector.z), 0.5 * scene.detector.width, 0.5 * scene.detector.height))
         self.mechanical = MechanicalFaces(mesh.vertices, tri, self._tri_n, np.flatnonzero(self._tri_surface < 0),
                                           self.centre, self.extent, self.t_min)
 
@@ -474,11 +484,23 @@ class Tracer:
         left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
         leaving = np.any(left_n != 0.0, axis=1)
         left_s = np.full(n, -1, np.int64)  # the glass surface a ray just left
+        count = np.zeros(n, np.int64)  # optical interfaces so far in this call, per ray
+        keys = streams.keys if streams is not None else np.zeros(0, np.uint64)
         valid = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(w)
         valid &= np.abs(np.linalg.norm(np.where(np.isfinite(d), d, 0.0), axis=1) - 1.0) < 1e-6
         lost = rays.alive & (w > 0) & ~valid  # a malformed ray is a numerical loss, not light
         work = np.flatnonzero(rays.alive & (w > 0) & valid)
-        for crossing in range(_MAX_OPTICAL):
+        started = work
+        while work.size:
+            if self._has_optical:
+                # Inside the lens: every step that needs no Embree, compiled, in place (lens_kernel).
+                over = lens_kernel.walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal,
+                                        reflections, ghost_pair, lost, keys, ghosts, *self._walk, FRESNEL_DIM,
+                                        _MAX_OPTICAL)
+                work = work[~over]
+            spent = count[work] >= _MAX_OPTICAL
+            lost[work[spent]] = True  # still bouncing inside the glass after _MAX_OPTICAL interfaces
+            work = work[~spent]
             if work.size == 0:
                 break
             h = self._nearest(o[work], d[work], leaving[work], left_n[work], left_s[work])
@@ -499,9 +521,10 @@ class Tracer:
             glass = (h.surface >= 0) & np.isfinite(h.t)
             gi = work[glass]
             if gi.size:
-                u = streams.at(gi, FRESNEL_DIM + crossing) if streams is not None else None
+                u = streams.at(gi, FRESNEL_DIM + count[gi]) if streams is not None else None
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.normal[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, u)
+                count[gi] += 1
                 reflections[gi] += refl
                 r, s = gi[refl > 0], h.surface[glass][refl > 0]
                 slot = np.where(ghost_pair[r, 0] < 0, 0, 1)
@@ -514,7 +537,7 @@ class Tracer:
                 lost[gi[bad]] = True
                 gi = gi[~bad]
             work = gi
-        lost[work] = True  # still bouncing inside the glass after _MAX_OPTICAL interfaces
+        self.segments += started.size + int(count[started].sum())
         kind[lost] = GONE
         pixel = np.full(n, -1, np.int64)
         on = kind == DETECTOR

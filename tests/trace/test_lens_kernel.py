@@ -1,0 +1,62 @@
+"""The compiled walk through the lens (lensmount.trace.lens_kernel) against independent references.
+
+- Its coating reflectance is the thin-film formulas of `trace.interfaces` (numpy, tested there
+  against Fresnel's equations), and its Fresnel-branch uniform is `Streams.at`'s number.
+- Its clear bore never clears a segment that meets a mechanical triangle: checked against this
+  suite's own float64 Möller–Trumbore (`test_exactness.reference_nearest`), and it does clear
+  the segments of an axial beam (else the walk would never run).
+"""
+
+import numpy as np
+import pytest
+
+from tests.trace.geometry import double_gauss, double_gauss_mesh
+from tests.trace.test_exactness import reference_nearest
+from lensmount.trace import lens_kernel
+from lensmount.trace.interfaces import parse_coating, reflectance
+from lensmount.trace.sampler import Streams
+
+
+@pytest.mark.parametrize("name", ["perfect-ar", "uncoated", "mgf2-quarter-wave", "R=0.02"])
+def test_compiled_reflectance_is_the_thin_film_formulas(name):
+    rng = np.random.default_rng(3)
+    n = 400
+    n1 = rng.choice([1.0, 1.5168, 1.7847], n)
+    n2 = rng.choice([1.0, 1.5168, 1.7847], n)
+    cos_i = rng.random(n)
+    wl = rng.uniform(0.4, 0.7, n)
+    coating = parse_coating(name)
+    want = reflectance(n1, n2, cos_i, coating, wl)
+    code = lens_kernel.COATING_CODES[coating.kind]
+    got = np.array([lens_kernel.reflectance(a, b, c, code, coating.reflectance, w) for a, b, c, w in zip(n1, n2, cos_i, wl)])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    if name == "uncoated":  # and Fresnel at normal incidence, air to BK7
+        assert lens_kernel.reflectance(1.0, 1.5168, 1.0, code, 0.0, 0.55) == pytest.approx((0.5168 / 2.5168) ** 2, rel=1e-12)
+
+
+def test_compiled_uniform_is_the_streams_number():
+    s = Streams(7, "forward", np.arange(50))
+    for dim in (0, 5, (1 << 20) + 3):
+        got = np.array([lens_kernel.uniform(k, dim) for k in s.keys])
+        assert np.array_equal(got, s.at(None, dim))
+
+
+def test_clear_bore_never_clears_a_segment_that_meets_metal():
+    mesh = double_gauss_mesh(double_gauss(), rings=4, segments=24)
+    mech = mesh.triangles[np.array([t.role != "optical" for t in mesh.tag_table])[mesh.tags]]
+    corners = [mesh.vertices[mech[:, k]] for k in range(3)]
+    z0, inv_h, table, margin = lens_kernel.clear_bore(*corners)
+    rng = np.random.default_rng(11)
+    n = 600
+    # Segments through the bore, the diaphragm and the barrel wall: near-axis, grazing and crossing.
+    a = np.column_stack([rng.uniform(-50, 50, (n, 2)), rng.uniform(-30, 420, n)])
+    b = np.column_stack([rng.uniform(-50, 50, (n, 2)), rng.uniform(-30, 420, n)])
+    a[: n // 3, :2] *= 0.4
+    b[: n // 3, :2] *= 0.4
+    length = np.linalg.norm(b - a, axis=1)
+    d = (b - a) / length[:, None]
+    t_hit, _ = reference_nearest(a, d, np.stack(corners, axis=1))
+    clear = np.array([lens_kernel._clear(*a[i], *d[i], length[i], z0, inv_h, table, margin) for i in range(n)])
+    assert not np.any(clear & (t_hit <= length)), "a segment through metal was cleared"
+    assert clear.sum() > n // 10  # it does clear what is far from the metal
+    assert np.sum(~clear & (t_hit > length)) > 0  # conservative, not a reference copy
