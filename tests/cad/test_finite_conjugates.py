@@ -108,7 +108,7 @@ def test_a_finite_conjugate_lens_inspects_regenerates_and_images_a_point_on_its_
 def test_us05831776_inspects_regenerates_and_simulates(tmp_path):
     try:
         load_lens(US05831776)
-    except InputError as exc:  # the corpus's own refusal (surfaces 15 and 16 cross at the file's DIAM)
+    except InputError as exc:  # the corpus's own refusal: the designed beam meets element 15/16 where its faces cross
         pytest.xfail(f"US05831776 does not import yet: {exc.paragraph()[:200]}")
     summary = _chain(US05831776, tmp_path, point_height=30.0)
     assert math.isfinite(summary["stray_fraction"])

@@ -54,13 +54,14 @@ def test_twin_files_print_identical_json(examples):
     b = runner.invoke(app, ["inspect", str(examples["cooke_zmx"]), "--json"])
     assert a.exit_code == b.exit_code == 0
     da, db = json.loads(a.stdout), json.loads(b.stdout)
-    # the .zmx gives its semi-diameters (DIAM) and they are honoured; the twin lens.toml leaves them automatic
-    assert [s["clear_semi_diameter_mm"] for s in db["surfaces"]] == [9.29, 8.85, 4.34, 3.8, 6.93, 7.30]
+    # The .zmx's DIAMs are Zemax's automatic ones (flag 0), rounded to 0.01 mm by the file's author:
+    # recomputed from real rays they are the twin lens.toml's automatic ones, and agree with Zemax's
+    # values to the rounding (the stop's 3.8 is the paraxial 3.8046 rounded down)
+    zemax = [9.29, 8.85, 4.34, 3.8, 6.93, 7.30]
+    assert [s["clear_semi_diameter_mm"] for s in db["surfaces"]] == pytest.approx(zemax, abs=0.0051)
     assert "import_notes" in db and "import_notes" not in da
-    for d in (da, db):
-        d.pop("import_notes", None)
-        for s in d["surfaces"]:
-            s.pop("clear_semi_diameter_mm")
+    assert sum("recomputed from real rays" in n["what"] for n in db["import_notes"]) == 6
+    db.pop("import_notes")
     assert da == db
 
 

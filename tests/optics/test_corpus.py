@@ -85,7 +85,8 @@ def test_corpus_file_efl_matches_optiland(path):
 # A published file whose lens cannot be built as written: the loader must say so.
 REFUSED = {
     # 248 nm lithography lens: between surfaces 15 and 16 (41.227 mm of silica on the axis) the
-    # faces meet before the file's own semi-diameters (negative edge thickness).
+    # faces meet at h = 114.1 mm, and the beam of the full field (telecentric object space, as Zemax
+    # aims it) reaches 119.3 / 118.4 mm there, Zemax's own automatic DIAMs (negative edge thickness).
     "US05831776-1": "surfaces 15 and 16 cross each other",
 }
 
@@ -105,6 +106,7 @@ def test_corpus_file_loads_with_real_ray_semi_diameters_or_is_refused_for_its_ge
     with pytest.raises(InputError) as err:
         load_lens(path)
     assert REFUSED[path.stem] in err.value.paragraph()
+    assert "reached by the beam of the full field" in err.value.paragraph()
     h = 1.184252812325e2       # DIAM of surface 16 (the smaller of the two); edge thickness by the sphere's sag
     edge = 41.227 + _sphere_sag(-4.410343667209579800e-3, h) - _sphere_sag(1.588451323497642800e-3, h)
     assert edge < 0.0

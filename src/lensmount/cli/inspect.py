@@ -123,7 +123,8 @@ def inspect_command(
     margin: Optional[float] = typer.Option(None, "--margin", help="Margin (mm) added to automatic clear "
                                            "semi-diameters; default: the file's clear_aperture_margin_mm."),
     save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
-                                             "(e.g. to convert a .zmx); automatic semi-diameters stay automatic."),
+                                             "(e.g. to convert a .zmx); automatic semi-diameters stay automatic "
+                                             "(a lens with vignetting factors: written out)."),
 ) -> None:
     """Show a lens: what the import of a .zmx did (imported, substituted, ignored), the surfaces
     with their clear semi-diameters, and the paraxial data."""
@@ -133,7 +134,8 @@ def inspect_command(
         prescription = load_lens(lens, margin_mm=margin)
         if save_toml is not None:
             raw = load_lens(lens, auto_clear_apertures=False)
-            save_lens_toml(raw, save_toml, margin_mm=margin or 0.0,
+            # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give
+            save_lens_toml(prescription if raw.vignetting else raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
         doc = inspect_document(prescription, import_notes(lens))
     except InputError as error:

@@ -54,7 +54,7 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
         validate(prescription, file)
         complete = with_clear_semi_diameters(prescription, margin)
         _check_radii(complete, file, given_only=False)
-        _check_crossings(complete, file)
+        _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
     except InputError as exc:
         raise _located(exc, path) from None
     return complete if auto_clear_apertures else prescription
@@ -141,12 +141,13 @@ def _check_radii(p: Prescription, file: str, given_only: bool) -> None:
                 valid=f"|radius| >= {h:.4g} mm for this semi-diameter, or a smaller semi-diameter")
 
 
-def _check_crossings(p: Prescription, file: str) -> None:
+def _check_crossings(p: Prescription, file: str, given=None) -> None:
     """Neighbouring surfaces must not cross within the semi-diameter they share.
 
     In glass the element's edge is where both faces reach (the larger semi-diameter,
     as long as both profiles exist there); across air the common clear zone (the
-    smaller one), since what lies beyond is the mount's business.
+    smaller one), since what lies beyond is the mount's business. `given[i]`: surface i's
+    semi-diameter is the file's (else the beam's own, which then needs the crossed zone).
     """
     z = p.vertex_z
     travel = p.travel
@@ -164,10 +165,19 @@ def _check_crossings(p: Prescription, file: str) -> None:
         k = int(np.argmin(gap))
         if gap[k] < -_CROSS_TOL:
             medium = "glass" if not a.is_air_after else "air"
+            m = int(np.argmax(gap < -_CROSS_TOL))   # first sample past the meeting radius
+            lo, hi = r[max(m - 1, 0)], r[m]
+            for _ in range(40):
+                mid = 0.5 * (lo + hi)
+                ahead = ((z[i + 1] + pb.sag(mid * mid)) - (z[i] + pa.sag(mid * mid))) * travel[i] < -_CROSS_TOL
+                lo, hi = (lo, mid) if ahead else (mid, hi)
+            whose = [f"{h:.4g} mm on surface {j + 1} ("
+                     + ("the file's" if given is None or given[j] else "reached by the beam of the full field "
+                        "and aperture") + ")" for j, h in ((i, ha), (i + 1, hb))]
             raise InputError(
-                f"surfaces {i + 1} and {i + 2} cross each other: at {r[k]:.3g} mm from the axis surface "
-                f"{i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} ({medium} gap of "
-                f"{a.thickness:g} mm on the axis)", file=file, field=f"surface[{i + 1}].thickness",
+                f"surfaces {i + 1} and {i + 2} cross each other: the faces meet {hi:.4g} mm from the axis, and at {r[k]:.4g} mm surface {i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} "
+                f"({medium} gap of {a.thickness:g} mm on the axis), inside the semi-diameters {' and '.join(whose)}",
+                file=file, field=f"surface[{i + 1}].thickness",
                 valid=f"a thickness of at least {a.thickness - gap[k]:.4g} mm, or flatter curvatures")
 
 

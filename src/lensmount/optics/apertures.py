@@ -2,8 +2,8 @@
 
 `with_clear_semi_diameters` does what Zemax does for "automatic" semi-diameters:
 trace real rays (real-ray aiming at the stop) for every field, at the full
-pupil and every wavelength, and take the largest ray height on each surface,
-plus a margin. The stop's clear semi-diameter is the stop semi-diameter set by
+pupil (as the file's vignetting factors leave it) and every wavelength, and take
+the largest ray height on each surface, plus a margin. The stop's clear semi-diameter is the stop semi-diameter set by
 the aperture (no margin: the diaphragm *is* the aperture).
 
 `beam_envelope` gives the radius of the beam at any z of the assembly frame, for
@@ -39,6 +39,24 @@ def _field_samples(prescription: Prescription, n: int) -> np.ndarray:
     return np.unique(np.concatenate([listed, fan]))
 
 
+def vignetted_pupils(prescription: Prescription, fields, pupil) -> np.ndarray:
+    """(F, P, 2) the pupil points each field's designed beam fills: `pupil` mapped by the file's
+    vignetting factors (Prescription.vignetting), linearly interpolated between the listed fields
+    and held beyond them; the plain pupil for every field when the lens has none."""
+    fields = np.abs(np.atleast_1d(np.asarray(fields, dtype=np.float64)))
+    pupil = np.asarray(pupil, dtype=np.float64).reshape(-1, 2)
+    if not prescription.vignetting:
+        return np.broadcast_to(pupil, (len(fields), len(pupil), 2))
+    listed = np.abs(np.asarray(prescription.field_values, dtype=np.float64))
+    order = np.argsort(listed)
+    table = np.asarray(prescription.vignetting, dtype=np.float64)[order]
+    vdx, vdy, vcx, vcy, van = (np.interp(fields, listed[order], table[:, k])[:, None] for k in range(5))
+    x = vdx + pupil[None, :, 0] * (1.0 - vcx)
+    y = vdy + pupil[None, :, 1] * (1.0 - vcy)
+    a = np.radians(van)
+    return np.stack([x * np.cos(a) - y * np.sin(a), x * np.sin(a) + y * np.cos(a)], axis=-1)
+
+
 def _beam(prescription: Prescription, fields, pupil, clip: bool):
     """Traces of every wavelength: list of RealRays."""
     out = []
@@ -62,7 +80,9 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
                          valid="a margin >= 0 mm")
     stop = prescription.stop_index
     fields = _field_samples(prescription, 6)
-    pupil = pupil_rings(CLEAR_RINGS, CLEAR_SPOKES, half=True)
+    # a beam decentred across (VDX) or turned (VAN) is not mirror-symmetric in x: the whole pupil then
+    symmetric = all(v[0] == 0.0 and v[4] == 0.0 for v in prescription.vignetting)
+    pupil = vignetted_pupils(prescription, fields, pupil_rings(CLEAR_RINGS, CLEAR_SPOKES, half=symmetric))
     nsurf = len(prescription.surfaces)
     heights = np.zeros(nsurf)
     given = np.array([s.clear_semi_diameter is not None for s in prescription.surfaces])
@@ -89,7 +109,7 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
     for i, s in enumerate(prescription.surfaces):
         if s.clear_semi_diameter is not None:
             out.append(s.clear_semi_diameter)
-        elif i == stop:
+        elif i == stop and not prescription.object_telecentric:  # telecentric: the stop does not aim
             out.append(stop_semi_diameter(prescription))
         else:
             out.append(float(heights[i]) + margin_mm)
@@ -186,4 +206,4 @@ def _polyline_radius(rays, zq: np.ndarray) -> np.ndarray:
     return np.sqrt(env2)
 
 
-__all__ = ["with_clear_semi_diameters", "beam_envelope"]
+__all__ = ["with_clear_semi_diameters", "vignetted_pupils", "beam_envelope"]

@@ -89,6 +89,14 @@ class Prescription:
         object_distance: object plane to surface 1's vertex, mm; `math.inf` for an
             object at infinity.
         object_heights_mm: the fields of a finite object, heights on the object plane.
+        vignetting: the designer's vignetting factors, one row (VDX, VDY, VCX, VCY, VAN) per
+            entry of `field_values` (Zemax's: a pupil point (x, y) of that field becomes
+            (VDX + x (1 - VCX), VDY + y (1 - VCY)), turned by VAN degrees; y points along the
+            field); () for none. Automatic clear semi-diameters come from the beam they leave.
+        object_telecentric: a finite object seen from telecentric object space (Zemax's FTYP
+            flag): every field's chief ray runs parallel to the axis and its rays fill the cone
+            of the object-space NA (direction cosines NA times the pupil point), whatever the
+            stop; the entrance pupil is at infinity.
     """
 
     surfaces: tuple[Surface, ...]
@@ -100,6 +108,8 @@ class Prescription:
     name: str = "lens"
     object_distance: float = math.inf
     object_heights_mm: tuple[float, ...] = ()
+    vignetting: tuple[tuple[float, float, float, float, float], ...] = ()
+    object_telecentric: bool = False
 
     @property
     def finite_object(self) -> bool:

@@ -16,7 +16,9 @@ by Newton's method so that each ray crosses the *stop* at the requested
 normalised pupil coordinate times the stop semi-diameter (real-ray aiming, as
 Zemax's "ray aiming: real"). The stop semi-diameter is the paraxial marginal-ray
 height at the stop (Zemax's rule), so real on-axis marginal rays enter at EPD/2
-only up to the spherical aberration of the lenses in front of the stop.
+only up to the spherical aberration of the lenses in front of the stop. A lens with
+telecentric object space is aimed as Zemax does: chief rays parallel to the axis, the
+pupil in direction cosines of the object-space NA, no stop involved.
 """
 
 from __future__ import annotations
@@ -198,7 +200,8 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     Args:
         field_deg: (F,) field angles, degrees, in the y-z plane; for a finite object,
             object heights in mm (`Prescription.field_values`).
-        pupil_xy: (P, 2) normalised pupil coordinates (unit disc = full aperture).
+        pupil_xy: (P, 2) normalised pupil coordinates (unit disc = full aperture), the same for
+            every field, or (F, P, 2): one set per field (a vignetted beam).
         stop_radius: stop semi-diameter, mm; defaults to `stop_semi_diameter` at the
             primary wavelength (the diaphragm is one size for every colour).
     Returns:
@@ -208,8 +211,10 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     """
     wl = prescription.primary_wavelength_um if wavelength_um is None else float(wavelength_um)
     fields = np.atleast_1d(np.asarray(field_deg, dtype=np.float64))
-    pupil = np.asarray(pupil_xy, dtype=np.float64).reshape(-1, 2)
-    n_f, n_p = len(fields), len(pupil)
+    pupil = np.asarray(pupil_xy, dtype=np.float64)
+    n_f = len(fields)
+    n_p = pupil.shape[1] if pupil.ndim == 3 else len(pupil.reshape(-1, 2))
+    pupil = np.broadcast_to(pupil.reshape(-1, n_p, 2), (n_f, n_p, 2)).reshape(-1, 2)  # per ray, field-major
     par = paraxial(prescription, wl)
     if prescription.finite_object:
         # a field is the object point (0, -h, -distance): a positive height images upward-going, like +angle
@@ -218,9 +223,11 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     else:
         source = None
         d = np.repeat(field_direction(fields), n_p, axis=0)
+    if prescription.object_telecentric:
+        return _telecentric(prescription, source, pupil)
     stop = prescription.stop_index
     r_stop = stop_semi_diameter(prescription) if stop_radius is None else float(stop_radius)
-    target = np.tile(pupil * r_stop, (n_f, 1))
+    target = pupil * r_stop
 
     def directions(xy_, rows=slice(None)):
         if source is None:
@@ -231,14 +238,14 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
     # Paraxial start: through the entrance pupil point, back-projected onto z = 0
     # (finite object: the stop's paraxial image seen from the object, scaled to z = 0).
     if source is None:
-        ep = np.tile(pupil * par.epd / 2.0, (n_f, 1))
+        ep = pupil * par.epd / 2.0
         ep3 = np.column_stack([ep, np.full(len(ep), par.entrance_pupil_z)])
         xy = (ep3 - d * (par.entrance_pupil_z / d[:, 2])[:, None])[:, :2].copy()
     else:
         # the line from the object point to the entrance pupil point, at z = 0
         dist, ep_z = prescription.object_distance, par.entrance_pupil_z
         y1 = abs(float(marginal_heights(prescription, wl)[0]))  # axial marginal ray height at z = 0
-        xy = np.tile(pupil * y1, (n_f, 1)) + source[:, :2] * (ep_z / (dist + ep_z))
+        xy = pupil * y1 + source[:, :2] * (ep_z / (dist + ep_z))
 
     def at_stop(xy_, rows):
         o = np.column_stack([xy_, np.zeros(len(xy_))])
@@ -280,6 +287,16 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
         stuck[rows[pending]] = True
     origins = np.column_stack([xy, np.zeros(len(xy))])
     return origins, directions(xy)
+
+
+def _telecentric(prescription: Prescription, source: np.ndarray, pupil: np.ndarray):
+    """Telecentric object space: a pupil point (x, y) is the direction cosines NA·(x, y) from the
+    object point (the chief ray, (0, 0), parallel to the axis), as Zemax aims such a lens."""
+    na = float(prescription.aperture.value)
+    lm = na * pupil
+    d = np.column_stack([lm, np.sqrt(np.clip(1.0 - (lm * lm).sum(axis=1), 0.0, None))])
+    origins = source + d * (prescription.object_distance / d[:, 2])[:, None]
+    return origins, d
 
 
 def pupil_rings(rings: int, spokes: int, center: bool = True, half: bool = False) -> np.ndarray:

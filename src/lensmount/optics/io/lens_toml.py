@@ -256,6 +256,9 @@ def format_lens_toml(prescription: Prescription, margin_mm: float = 0.0, header:
         raise InputError("lens.toml holds refractive lenses with the object at infinity; this lens has "
                          + ("a mirror" if p.has_mirrors else "a finite object distance"),
                          valid="keep the .zmx as the lens file (lensmount reads it directly)")
+    if p.vignetting and any(s.clear_semi_diameter is None for s in p.surfaces):
+        raise InputError("lens.toml has no vignetting factors, and this lens leaves semi-diameters to a "
+                         "vignetted beam", valid="the lens with its clear semi-diameters filled in (load_lens)")
     out = []
     if header:
         out += [f"# {ln}".rstrip() for ln in header.splitlines()]

@@ -9,14 +9,17 @@ What a lens file holds and how it is read:
                                  lens or stop on a decentred or tilted axis is an error
     GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup
     DISZ (INFINITY for an object at infinity, a number for a finite object)
-    DIAM v flag / CLAP rmin rmax / MEMA v: every semi-diameter the file gives is honoured
-                                 and vignettes (flag 0 = Zemax's automatic value, 1 =
-                                 fixed, other flags = a solve or pickup, value as written);
-                                 surfaces without one get theirs from real rays
+    DIAM v flag / CLAP rmin rmax / MEMA v: a fixed semi-diameter (flag 1), a pickup of one
+                                 (flag 2 k), another solve (value as written) and a CLAP are
+                                 honoured and vignette; an automatic one (flag 0, or a pickup of
+                                 one) is only Zemax's last computed value and is recomputed from
+                                 lensmount's real rays, as for surfaces without a DIAM
+    VDXN/VDYN/VCXN/VCYN/VANN     vignetting factors per field: the automatic semi-diameters come
+                                 from the beam they leave (Prescription.vignetting)
     ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
     OBNA v 1 (cone angle, deg) | FLOA (stop size from the stop's DIAM)
-    FTYP t ...: t = 0 angles, 1 object heights, 2 paraxial image heights, 3 real image
-    heights; XFLN/YFLN (or XFLD/YFLD); WAVM (or WAVL/WWGT); PWAV; GCAT
+    FTYP t c ...: t = 0 angles, 1 object heights, 2 paraxial image heights, 3 real image
+    heights; c = 1 telecentric object space (chief rays parallel to the axis, object NA); XFLN/YFLN (or XFLD/YFLD); WAVM (or WAVL/WWGT); PWAV; GCAT
 Solves and pickups: Zemax writes the value a solve or pickup produced on the CURV,
 DISZ, GLAS, CONI and DIAM lines themselves, so the written value is the one used (the
 pickup is noted). Lines with other commands (display, tolerancing, merit function)
@@ -58,6 +61,7 @@ class ZmxSurface:
     mirror: bool = False
     diam: float | None = None
     diam_flag: int = 0
+    diam_from: int | None = None  # DIAM ... 2 k: picked up from surface k
     clap: float | None = None
     mema: float | None = None
     stop: bool = False
@@ -78,11 +82,12 @@ class ZmxLens:
     primary: int = 1
     field_type: int = 0
     field_type_line: int = 0
+    telecentric: bool = False  # FTYP t 1: telecentric object space
     n_fields: int | None = None
     n_waves: int | None = None
     xfields: list[float] = field(default_factory=list)
     yfields: list[float] = field(default_factory=list)
-    vignetting: bool = False
+    vignetting: dict = field(default_factory=dict)  # "VDX", "VDY", "VCX", "VCY", "VAN" -> per-field values
     catalogues: list[str] = field(default_factory=list)
 
 
@@ -179,6 +184,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             if lens.field_type not in (0, 1, 2, 3):
                 raise err(f"field type {lens.field_type} is not supported", ln,
                           "FTYP 0 (angles), 1 (object heights), 2 (paraxial image heights) or 3 (real image heights)")
+            lens.telecentric = arg(args, 1, ln, "telecentric object space", 0.0) == 1
             if len(args) >= 4:
                 lens.n_fields = int(arg(args, 2, ln, "number of fields"))
                 lens.n_waves = int(arg(args, 3, ln, "number of wavelengths"))
@@ -187,7 +193,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         elif cmd in ("XFLN", "XFLD"):
             lens.xfields = [num(a, ln, "field") for a in args]
         elif cmd in ("VDXN", "VDYN", "VCXN", "VCYN", "VANN"):
-            lens.vignetting |= any(num(a, ln, "vignetting factor") != 0.0 for a in args)
+            lens.vignetting[cmd[:3]] = [num(a, ln, "vignetting factor") for a in args]
         elif cmd == "GCAT":
             lens.catalogues = list(args)
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
@@ -231,6 +237,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
     elif cmd == "DIAM":
         cur.diam = arg(args, 0, ln, "semi-diameter")
         cur.diam_flag = int(arg(args, 1, ln, "semi-diameter type", 0.0))
+        if cur.diam_flag == 2:
+            cur.diam_from = int(arg(args, 2, ln, "semi-diameter pickup surface"))
     elif cmd == "CLAP":
         cur.clap = arg(args, 1, ln, "circular aperture radius")
     elif cmd == "MEMA":
@@ -271,6 +279,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
     notes.append(ImportNote("imported", "object", "at infinity" if math.isinf(object_distance)
                             else f"at {object_distance:g} mm in front of surface 1"))
 
+    automatic = _automatic(lens)
     surfaces: list[Surface] = []
     numbers: list[int] = []
     medium = AIR
@@ -312,7 +321,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
-        clear, mech = _semi_diameters(zs, s, notes)
+        clear, mech = _semi_diameters(zs, s, notes, automatic)
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -328,18 +337,29 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
-    if lens.vignetting:
-        notes.append(ImportNote("ignored", "fields", "vignetting factors (VDX/VDY/VCX/VCY/VAN): the "
-                                "file's apertures vignette the real rays instead"))
-
     waves, weights = _wavelengths(lens)
     if not waves:
         waves, weights = [_D_LINE], [1.0]
     primary = min(max(lens.primary, 1), len(waves)) - 1
+    if lens.telecentric:
+        _check_telecentric(lens, object_distance, file)
+        notes.append(ImportNote("imported", "fields", "telecentric object space: chief rays parallel to the axis"))
     base = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0), wavelengths_um=tuple(waves),
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
-                        name=lens.name, object_distance=object_distance)
+                        name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric)
     return apply_aperture_and_fields(base, lens, numbers, notes, file), notes
+
+
+def _check_telecentric(lens: ZmxLens, object_distance: float, file) -> None:
+    """Zemax allows telecentric object space only for a finite object whose aperture is an object-space
+    NA or cone angle (an entrance pupil at infinity has no diameter or F/# to give)."""
+    if math.isinf(object_distance):
+        raise InputError("telecentric object space with the object at infinity", file=file,
+                         line=lens.field_type_line, valid="a finite DISZ on SURF 0, or FTYP t 0 (not telecentric)")
+    if lens.aperture is None or lens.aperture[0] not in ("object_na", "object_cone_deg"):
+        raise InputError("telecentric object space needs the aperture as an object-space NA or cone angle",
+                         file=file, line=lens.aperture[2] if lens.aperture else lens.field_type_line,
+                         valid="OBNA v 0 (NA) or OBNA v 1 (cone angle) with FTYP t 1")
 
 
 def _glass_name(zs: ZmxSurface) -> str:
@@ -424,11 +444,33 @@ def _model(nd: float, vd: float) -> str:
     return f"{nd:.6g}/{vd if vd > 0 else 1e9:.6g}"
 
 
-def _semi_diameters(zs: ZmxSurface, s: float, notes) -> tuple[float | None, float | None]:
+def _automatic(lens: ZmxLens) -> set[int]:
+    """Numbers of the surfaces whose DIAM is Zemax's automatic one (flag 0, or a pickup of one).
+
+    An automatic value is only what Zemax last computed for the beam of its own settings, not an
+    aperture the designer set, so lensmount recomputes it from its real rays (lensmount.optics.
+    apertures). When the aperture floats by stop size, the stop's DIAM is the aperture: it stays."""
+    by_number = {zs.number: zs for zs in lens.surfaces}
+    floating = lens.aperture is not None and lens.aperture[0] == "float"
+
+    def automatic(zs: ZmxSurface, seen: frozenset) -> bool:
+        if zs.diam_flag == 2 and zs.diam_from in by_number and zs.diam_from not in seen:
+            return automatic(by_number[zs.diam_from], seen | {zs.number})
+        return zs.diam_flag == 0 and not (floating and zs.stop)
+
+    return {zs.number for zs in lens.surfaces if zs.diam and automatic(zs, frozenset())}
+
+
+def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int]) -> tuple[float | None, float | None]:
     where = f"SURF {zs.number}"
     clear = zs.diam * s if zs.diam else None
-    if clear is not None:
-        kind = {0: "automatic (Zemax's value)", 1: "fixed"}.get(zs.diam_flag, "solve/pickup (value as written)")
+    if zs.number in automatic:
+        notes.append(ImportNote("substituted", where, f"semi-diameter {clear:.4g} mm, automatic in the file (what "
+                                "Zemax last computed, not an aperture) -> recomputed from real rays of the "
+                                "file's fields and aperture"))
+        clear = None
+    elif clear is not None:
+        kind = {1: "fixed", 2: f"picked up from surface {zs.diam_from}"}.get(zs.diam_flag, "solve (value as written)")
         notes.append(ImportNote("imported", where, f"semi-diameter {clear:.4g} mm, {kind}"))
     if zs.clap:
         r = zs.clap * s

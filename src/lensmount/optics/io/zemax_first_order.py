@@ -104,7 +104,12 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
                   for x, y in zip(xs, ys)]
     else:
         values = [math.hypot(x, y) * lens.unit for x, y in zip(xs, ys)]
-    values = _unique(values)
+    factors = _vignetting(lens, xs, ys, n, notes, note)
+    if factors:
+        keep = _unique_index(values)
+        values, factors = [round(float(values[k]), 12) for k in keep], [factors[k] for k in keep]
+    else:
+        values = _unique(values)
     if kind == 1 and not p.finite_object:
         raise InputError("fields are object heights but the object is at infinity", file=file,
                          line=lens.field_type_line, valid="FTYP 0 (angles) for an object at infinity")
@@ -124,6 +129,7 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
     else:
         out = replace(p, field_angles_deg=tuple(values))
         shown = ", ".join(f"{a:.4g}" for a in values) + "° field angles"
+    out = replace(out, vignetting=tuple(factors))
     given = ", ".join(f"{math.hypot(x, y):g}" for x, y in zip(xs, ys))
     text = f"fields as {_FIELD_TYPES[kind]} {given}" + ("" if kind in (0, 1) else f" -> {shown}")
     notes.append(note("imported", "fields", text))
@@ -161,14 +167,44 @@ def _chief_height(chief_ray, p: Prescription, values) -> np.ndarray:
     return np.where(np.asarray(values) == 0.0, 0.0, h)
 
 
-def _unique(values) -> list[float]:
+def _vignetting(lens, xs, ys, n, notes, note) -> list[tuple[float, ...]]:
+    """Per field, the file's vignetting factors in lensmount's frame (the field along +y), or [].
+
+    Zemax's +y field angle and lensmount's field both send the light upward, but a +y object
+    height sits where lensmount puts a negative field: heights mirror VDY and VAN."""
+    rows = [[(lens.vignetting.get(key, []) + [0.0] * n)[k] for key in ("VDX", "VDY", "VCX", "VCY", "VAN")]
+            for k in range(n)]
+    if not any(any(r) for r in rows):
+        return []
+    out = []
+    for (x, y), (vdx, vdy, vcx, vcy, van) in zip(zip(xs, ys), rows):
+        if x != 0.0 and any((vdx, vdy, vcx, vcy, van)):
+            notes.append(note("ignored", "fields", "vignetting factors: a vignetted field off the y axis "
+                              f"(x = {x:g}) has no rotationally symmetric counterpart; the automatic "
+                              "semi-diameters come from the unvignetted beam"))
+            return []
+        flip = -1.0 if (y < 0.0) != (lens.field_type != 0) else 1.0
+        out.append((vdx, flip * vdy, vcx, vcy, flip * van))
+    notes.append(note("imported", "fields", "vignetting factors (VDX, VDY, VCX, VCY, VAN) "
+                      + "; ".join(f"{math.hypot(x, y):g}: " + ", ".join(f"{v:.4g}" for v in r)
+                                  for (x, y), r in zip(zip(xs, ys), rows))
+                      + ": the automatic semi-diameters come from the beam they leave"))
+    return out
+
+
+def _unique_index(values) -> list[int]:
+    """Indices of the first occurrence of each value (to 1e-12)."""
     seen, out = set(), []
-    for v in values:
+    for k, v in enumerate(values):
         v = round(float(v), 12)
         if v not in seen:
             seen.add(v)
-            out.append(v)
+            out.append(k)
     return out
+
+
+def _unique(values) -> list[float]:
+    return [round(float(values[k]), 12) for k in _unique_index(values)]
 
 
 __all__ = ["apply_aperture_and_fields"]

@@ -1,0 +1,97 @@
+"""What a .zmx says about apertures: automatic semi-diameters (DIAM flag 0) are recomputed from
+lensmount's own real rays, the designer's vignetting factors shape that beam, and a telecentric
+object space aims the rays as Zemax does. The references are the numbers Zemax itself wrote into
+the public corpus files (tests/optics/corpus, SOURCES.md), not lensmount's.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lensmount.optics.apertures import vignetted_pupils, with_clear_semi_diameters
+from lensmount.optics.io.zemax import parse_zmx, read_text, read_zmx, read_zmx_with_notes
+from lensmount.optics.realrays import aim, trace
+
+CORPUS = Path(__file__).parent / "corpus"
+US00583336 = CORPUS / "US00583336-2-scaled.zmx"
+US05831776 = CORPUS / "US05831776-1.zmx"
+
+
+def _zemax_semi_diameters(path: Path) -> list[float]:
+    """The DIAM values of SURF 1..N-1 as the file holds them."""
+    values = [float(m) for m in re.findall(r"^\s*DIAM (\S+)", read_text(path), flags=re.M)]
+    return values[1:-1]
+
+
+def test_the_designers_vignetting_factors_bring_the_marginal_rays_onto_the_fixed_apertures():
+    """US 583,336 (double Gauss) fixes its element apertures (DIAM ... 1) and vignettes its 17° and 24°
+    fields with VDY/VCX/VCY that Zemax set so that the marginal rays just pass them. Aimed at the
+    file's own stop (4.215 mm, Zemax's real-ray aiming), the factors as read put the ±y marginal rays
+    exactly on the rims: a wrong sign (mirrored) or no factors throws them 0.4-2 mm outside."""
+    p = read_zmx(US00583336)
+    assert [v[1] for v in p.vignetting] == pytest.approx([0.0, 0.06208442661354, 0.05473246586901])
+    clear = np.array([s.clear_semi_diameter or np.inf for s in p.surfaces])
+    marginal = np.array([[0.0, 1.0], [0.0, -1.0]])
+
+    def overshoot(q):
+        out = []
+        for f in q.field_values[1:]:
+            o, d = aim(q, [f], vignetted_pupils(q, [f], marginal), stop_radius=4.215000499256)
+            out.append((trace(q, o, d, clip=False).heights()[:-1] - clear[:, None]).max())
+        return np.array(out)
+
+    assert np.abs(overshoot(p)).max() < 2e-3
+    mirrored = replace(p, vignetting=tuple((a, -b, c, d, -e) for a, b, c, d, e in p.vignetting))
+    assert overshoot(mirrored).min() > 0.4
+    assert overshoot(replace(p, vignetting=())).min() > 0.4
+
+
+def test_automatic_semi_diameters_are_recomputed_and_a_pickup_of_one_follows(tmp_path):
+    p, notes = read_zmx_with_notes(US00583336)
+    # SURF 1 (a dummy plane) and the stop (SURF 7) carry Zemax's automatic values: recomputed
+    assert p.surfaces[0].clear_semi_diameter is None and p.surfaces[6].clear_semi_diameter is None
+    assert {n.where for n in notes if "recomputed from real rays" in n.what} == {"SURF 1", "SURF 7"}
+    # fixed (flag 1) and pickups of fixed ones (DIAM 4.5 2 6) are the designer's apertures
+    assert p.surfaces[5].clear_semi_diameter == p.surfaces[7].clear_semi_diameter == 4.5
+    text = read_text(US00583336).replace("  DIAM 4.5 1 0 0 1", "  DIAM 4.5 0 0 0 1")  # SURF 6 automatic
+    lens = parse_zmx(text)
+    from lensmount.optics.io.zemax import convert
+
+    q, _ = convert(lens)
+    assert q.surfaces[5].clear_semi_diameter is None and q.surfaces[7].clear_semi_diameter is None
+
+
+def test_a_telecentric_lithography_lens_gets_zemaxs_own_automatic_semi_diameters():
+    """US 5,831,776 (FTYP 3 1: telecentric object space, OBNA 0.15, object 110.9 mm in front) leaves every
+    DIAM to Zemax. Aimed as Zemax aims such a lens (chief rays parallel to the axis, the pupil in direction
+    cosines of the NA), lensmount's real rays reach the heights Zemax wrote on every surface, the stop's
+    116.9 mm included. (Aimed through the stop's centre instead, surface 1 would need 53.9 mm, not 64.4.)
+    lensmount also samples fields between the listed ones, which may only add a little."""
+    raw = read_zmx(US05831776)
+    assert raw.object_telecentric and all(s.clear_semi_diameter is None for s in raw.surfaces)
+    got = np.array([s.clear_semi_diameter for s in with_clear_semi_diameters(raw).surfaces])
+    zemax = np.array(_zemax_semi_diameters(US05831776))
+    assert np.all(got > zemax - 0.005)
+    assert np.all(got < zemax * 1.003 + 0.005)
+    assert got[19] == pytest.approx(116.924, abs=0.01)          # the stop: the beam's, not the paraxial 67.8
+
+
+def test_save_toml_of_a_vignetted_lens_writes_the_semi_diameters_its_factors_give(tmp_path):
+    """lens.toml has no vignetting factors: converted, the lens keeps the vignetted beam's apertures."""
+    from typer.testing import CliRunner
+
+    from lensmount.cli import app
+    from lensmount.design.lens import load_lens
+
+    out = tmp_path / "lens.toml"
+    result = CliRunner().invoke(app, ["inspect", str(US00583336), "--save-toml", str(out)])
+    assert result.exit_code == 0, result.output
+    direct, converted = load_lens(US00583336), load_lens(out)
+    assert [s.clear_semi_diameter for s in converted.surfaces] == pytest.approx(
+        [s.clear_semi_diameter for s in direct.surfaces], rel=1e-12)
+    assert "clear_semi_diameter" in out.read_text()
