@@ -21,7 +21,7 @@ pixels = [600, 600]          # [nx, ny]; default 600 along the longer side, squa
 # spectral_weight = [1.0]    # one per lens wavelength (relative response)
 
 [effects]
-scatter = true               # true | false | ["part:NAME", "role:ROLE", "kind:KIND", "finish:NAME", ...]
+scatter = true               # true | false | ["part:NAME", "role:ROLE", "kind:KIND", "finish:NAME", "surface:N", ...]
 ghosts = false               # true | false | { order = 2 } (2: two-reflection ghosts, 3: four too)
 direct = false
 absorption = true            # bulk absorption in the glass (catalogue data); false: lossless glass
@@ -33,7 +33,8 @@ default = "perfect-ar"       # perfect-ar | uncoated | mgf2-quarter-wave | R=0.0
 [finishes]
 edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
 
-[assign]                     # part: > role: > kind: > finish: > "*"; no rule: the mount's finish
+[assign]                     # part: > role: > kind: > finish: > "*"; no rule: the mount's finish;
+                             # "surface:N" = a mirror's coated face (its scatter on top of R)
 "*" = "absorber"
 "role:diaphragm-edge" = "edge-lambert-10"
 
@@ -153,7 +154,7 @@ class DetectorSpec(_Strict):
         return self.model_copy(update={"width_mm": width, "height_mm": height, "pixels": pixels})
 
 
-SCATTER_SELECTORS = ("part", "role", "kind", "finish")
+SCATTER_SELECTORS = ("part", "role", "kind", "finish", "surface")
 
 
 class GhostsSpec(_Strict):
@@ -163,7 +164,8 @@ class GhostsSpec(_Strict):
 class EffectsSpec(_Strict):
     """`scatter`: true (every mechanical face scatters with its finish), false (every one absorbs),
     or the faces that scatter as selectors (`part:NAME`, `role:ROLE`, `kind:KIND`, `finish:NAME`,
-    the finish the scene gives the face); every other mechanical face ends the path. The
+    the finish the scene gives the face, `surface:N`, a mirror's coated face); every other mechanical
+    face ends the path (a mirror face left out reflects specularly only). The
     selectors are checked against the built assembly (`scene.build.check_scatterers`).
     `ghosts`: true (= order 2), false, or `{ order = 2 | 3 }`: order 2 counts the two-reflection
     ghosts, order 3 the four-reflection ones too (three reflections send the light back out of the
@@ -186,7 +188,7 @@ class EffectsSpec(_Strict):
             prefix, _, value = sel.partition(":")
             if prefix not in SCATTER_SELECTORS or not value:
                 raise ValueError(f"scatter selector '{sel}' is not understood: use "
-                                 + ", ".join(f'"{p}:NAME"' for p in SCATTER_SELECTORS))
+                                 + ", ".join(f'"{p}:{"N" if p == "surface" else "NAME"}"' for p in SCATTER_SELECTORS))
         return v
 
     @property

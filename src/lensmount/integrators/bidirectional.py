@@ -26,6 +26,16 @@ in its lobe. A narrow lobe with wide wings (black-paint ABg) is split by directi
 are counted the same forward way when the scene turns `direct` or `ghosts` on, except the two-
 (four-) reflection ghosts, which the deterministic routes count (`ghost_routes`).
 
+A mirror's coated face with a finish (`[assign] "surface:N"`) is counted by the photons too, a
+decision, not an approximation: the tracer ends a ray there only with probability a(wi) (the
+finish's albedo; `Tracer.next_event`), backward rays included, so a hit point there would be
+made for a share a of the samples and gather a share a of the photons; the specular share the
+backward rays carry on (weight R, probability 1 − a) is exactly the importance of the light
+the mirror reflects specularly. Every path is still counted once: one whose last scattering
+vertex is the mirror by its photon on the detector, one scattering at the mirror earlier by
+the gather at its last face. The cost: light scattered by a mirror converges as in the forward
+estimator.
+
 Photons are walked by the same code as the forward estimator (`walk.photon_walk`), photon k
 of pass i being photon i·N + k of the run with its numbers keyed by that index; backward
 sample j of pixel p in pass i draws from the stream keyed (seed, i, p, j). Pass i is the same
@@ -47,6 +57,7 @@ from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_sca
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
 from lensmount.integrators.walk import emit_photons, photon_walk
+from lensmount.scene.scene import optical_faces
 from lensmount.trace.tracer import FACE
 
 _CACHE: dict[tuple, tuple] = {}
@@ -124,6 +135,7 @@ class Bidirectional:
         half_widths, boundaries = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
         core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
         core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
+        core[optical_faces(scene.mesh.tag_table)] = np.inf  # a scattering mirror: the photons count it (docstring)
         broad = np.isfinite(core)
         by_routes = route_reflections(scene, cfg)
         film, ledger = Film(scene, by_routes), EnergyLedger()

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lensmount.integrators.paths import EMPTY, FaceTally, PassFaces, PassPaths, PathTally, ghost_code
-from lensmount.scene.scene import scatterer_mask
+from lensmount.scene.scene import scattering_tags
 
 DIRECT, GHOSTS = "direct", "ghosts"
 BY_ROUTES = -2  # `Film.channel` of a photon whose path the deterministic ghost routes count instead
@@ -83,13 +83,6 @@ PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gath
 def phase_times(**seconds: float) -> dict[str, float]:
     """Diagnostics entries for the seconds a pass spent per phase (`PHASES`: which effect it serves)."""
     return {TIME_PREFIX + PHASES[k]: float(v) for k, v in seconds.items()}
-
-
-def scattering_tags(scene) -> np.ndarray:
-    """(n_tags,) bool: faces where a photon scatters on (BSDF neither missing nor black, and a
-    scatterer of the scene's effects: `scene.scatterer_mask`)."""
-    on = np.array([b is not None and not b.is_black for b in scene.bsdf_of_tag], bool)
-    return on & scatterer_mask(scene.effects, scene.mesh.tag_table, scene.finish_of_tag)
 
 
 def scattering_parts(scene) -> np.ndarray:

@@ -8,6 +8,10 @@ channels they share (tests/integrators/test_plan_effects.py measures it).
 - *Scatter.* Photons scatter on at the faces `walk.scattering_tags` gives (a non-black
   finish, named by `effects.scatter`); the view map makes hit points only there. Every other
   mechanical face ends the photon where it lands.
+- *Scatter at a mirror.* A mirror's coated face with a finish (`"surface:N"`) among the
+  scatterers: the tracer ends a ray there with probability a(wi), the finish's albedo (weight
+  R), and reflects it specularly otherwise (`Tracer.next_event`); its own line says so. A black
+  finish, or one `[effects] scatter` leaves out, leaves the mirror specular (R), as without one.
 - *Where a photon ends.* At the first event after which no counted path is possible:
   an absorber, a face outside the scatterers, the detector, or leaving the assembly. This is
   provably safe, and nothing earlier is: a counted path is a sequence of scatterings at the
@@ -49,6 +53,7 @@ from lensmount.integrators.estimate import TIME_PREFIX
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
+from lensmount.scene.scene import optical_faces
 from lensmount.trace.ghosts import reflecting, route_count
 from lensmount.trace.sources import ObjectSource
 
@@ -95,7 +100,7 @@ def plan(scene, settings=None) -> Plan:
     """The plan of a run on `scene` with the estimator `settings` (default EstimatorSettings(); see the
     module docstring)."""
     scatters = scattering_tags(scene)
-    decisions = [_scatter(scene, scatters), _photon_ends(scene, scatters)]
+    decisions = [_scatter(scene, scatters), *_mirrors(scene, scatters), _photon_ends(scene, scatters)]
     reflect = bool(scene.effects.ghosts) and bool(reflecting(scene).any())  # as `Tracer.fresnel_branch`
     decisions.append(_ghosts(scene, reflect))
     if reflect:
@@ -127,6 +132,28 @@ def _scatter(scene, scatters: np.ndarray) -> Decision:
                         + (f" among {', '.join(e.scatterers)}" if e.scatterers else ""))
     named = f"the faces {', '.join(e.scatterers)} name" if e.scatterers else "every face with a scattering finish"
     return Decision("scatter", True, f"photons scatter and hit points are made on {named}: {_faces(scene, scatters)}")
+
+
+def _mirrors(scene, scatters: np.ndarray) -> list[Decision]:
+    """One line per mirror face the scene gives a finish: scattered on top of R, or specular only."""
+    out = []
+    for k in np.flatnonzero(optical_faces(scene.mesh.tag_table)):
+        b = scene.bsdf_of_tag[k]
+        if b is None:
+            continue
+        t = scene.mesh.tag_table[k]
+        what = f"scatter at mirror surface {t.surface + 1} ({t.part})"
+        finish = f"finish '{scene.finish_of_tag[k]}'" if scene.finish_of_tag else "its finish"
+        if scatters[k]:
+            out.append(Decision(what, True, f"{finish} (TIS {b.tis:.3g}): the tracer reflects R(1 − a) specularly "
+                                "and ends R·a on the face for the walk to scatter (a: the finish's albedo at each "
+                                "incidence); bidirectional counts that light by its photons (no hit points on a "
+                                "mirror)"))
+        else:
+            out.append(Decision(what, False, f"{finish} " + ("is black" if b.is_black else
+                                                             "is not among the scatterers [effects] names")
+                                + ": the mirror reflects specularly only (R)"))
+    return out
 
 
 def _photon_ends(scene, scatters: np.ndarray) -> Decision:

@@ -3,7 +3,8 @@
 - analytic optical surfaces from the prescription (media per wavelength from the glass
   catalogue, coatings: scene per-surface > lens file > scene default);
 - scene objects (disk, rectangle, STL/STEP mesh) appended to the mesh with their finish;
-- one BSDF per face tag from the finish library and the assignment rules;
+- one BSDF per face tag from the finish library and the assignment rules (a mirror's coated
+  face: its `"surface:N"` finish as `trace.bsdf.MirrorFinish`, the scatter on top of R);
 - the source's emission disc covering the front opening, outside the assembly;
 - the detector at the image plane unless the scene file moves it.
 """
@@ -24,6 +25,7 @@ from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
 from lensmount.scene.finishes import finish_library, finish_of
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
+from lensmount.trace.bsdf.mirror_finish import MirrorFinish
 from lensmount.trace.detector import Detector
 from lensmount.trace.sources import CollimatedSource, ObjectSource, SunSource, emission_disc, source_direction
 
@@ -125,7 +127,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     try:
         check_object_names(spec.objects, mesh.parts)
         mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
-        check_rules_match(spec.assign, mesh)
+        check_rules_match(spec.assign, mesh, mirror_surfaces(prescription))
     except InputError as exc:
         raise located(exc, spec.source_file, spec.source_text) from None
     # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
@@ -140,6 +142,15 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
         if name not in cache:
             params = dict(library[name])
             cache[name] = bsdf_factory(params.pop("model"), **params)
+        if tag.role == "optical":  # a mirror's coated face: its finish scatters on top of R
+            if cache[name].is_delta:
+                raise located(InputError(f"surface {tag.surface + 1} is given the finish '{name}', a mirror, although "
+                                         "its coating already reflects specularly", field=f"assign.surface:"
+                                         f"{tag.surface + 1}", valid="a scatter finish (lambertian, gaussian, abg, "
+                                         "harvey, tabulated), or absorber for none; R is the coating's"),
+                              spec.source_file, spec.source_text)
+            bsdfs.append(MirrorFinish(cache[name]))
+            continue
         bsdfs.append(cache[name])
 
     for key in spec.coatings:
@@ -222,15 +233,19 @@ def effects_of(spec) -> Effects:
 
 
 def check_scatterers(effects: Effects, mesh: TaggedMesh, finishes: list[str]) -> None:
-    """InputError for a scatter selector that names no mechanical face: a misspelt one would
+    """InputError for a scatter selector that names no face that can scatter: a misspelt one would
     otherwise turn every face of the run into an absorber without a word."""
-    mechanical = [k for k, t in enumerate(mesh.tag_table) if t.role != "optical"]
+    faces = [k for k, t in enumerate(mesh.tag_table) if t.role != "optical" or finishes[k]]
     for sel in effects.scatterers:
         if faces_selected(sel, mesh.tag_table, finishes).any():
             continue
         prefix = sel.partition(":")[0]
-        names = [finishes[k] for k in mechanical] if prefix == "finish" else \
-            [str(getattr(mesh.tag_table[k], prefix)) for k in mechanical]
+        if prefix == "finish":
+            names = [finishes[k] for k in faces]
+        elif prefix == "surface":
+            names = [str(mesh.tag_table[k].surface + 1) for k in faces if mesh.tag_table[k].role == "optical"]
+        else:
+            names = [str(getattr(mesh.tag_table[k], prefix)) for k in faces]
         present = sorted(set(names))
         guess = did_you_mean(sel.partition(":")[2], present)
         hint = f" (did you mean '{prefix}:{guess}'?)" if guess else ""
@@ -261,11 +276,19 @@ def check_object_names(objects, parts) -> None:
         taken.add(o.name)
 
 
-def check_rules_match(assign: dict[str, str], mesh: TaggedMesh) -> None:
+def mirror_surfaces(prescription: Prescription) -> set[int]:
+    """0-based indices of the prescription's mirror surfaces."""
+    return {i for i, s in enumerate(prescription.surfaces) if s.mirror}
+
+
+def check_rules_match(assign: dict[str, str], mesh: TaggedMesh, mirrors: set[int] = frozenset()) -> None:
     """InputError for an `[assign]` rule that matches no face: a misspelt selector would
-    otherwise leave its faces to the next rule (often an absorber) without a word."""
+    otherwise leave its faces to the next rule (often an absorber) without a word. `surface:N`
+    must name a mirror surface (0-based indices `mirrors`) whose coated face is in the mesh."""
     present = {prefix: sorted({str(getattr(t, prefix)) for t in mesh.tag_table if t.role != "optical"})
                for prefix in ("part", "role", "kind", "finish")}
+    present["surface"] = sorted({str(t.surface + 1) for t in mesh.tag_table
+                                 if t.role == "optical" and t.surface in mirrors}, key=int)
     for key in assign:
         if key == "*":
             continue
@@ -274,6 +297,10 @@ def check_rules_match(assign: dict[str, str], mesh: TaggedMesh) -> None:
             continue
         guess = did_you_mean(value, present.get(prefix, ()))
         hint = f" (did you mean '{prefix}:{guess}'?)" if guess else ""
+        if prefix == "surface":
+            raise InputError(f"assignment rule '{key}' names no mirror surface of the assembly (a finish on a "
+                             "refracting surface has nothing to scatter with)", field=f"assign.{key}",
+                             valid="surface:N for the mirror surfaces " + (", ".join(present["surface"]) or "(none)"))
         raise InputError(f"assignment rule '{key}' matches no face of the assembly{hint}", field=f"assign.{key}",
                          valid="; ".join(f"{p}: {', '.join(v) or '(none)'}" for p, v in present.items()))
 
@@ -386,7 +413,7 @@ def object_source(src, opening: FrontOpening, prescription: Prescription, weight
                         float(par.entrance_pupil_z), 0.5 * float(par.epd), tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
+__all__ = ["build_scene", "check_rules_match", "mirror_surfaces", "check_scatterers", "effects_of", "check_object_names",
            "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
            "solid_absorption_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source",
            "object_source", "clear_distance"]

@@ -13,7 +13,11 @@ Assignment (`[assign]`), most specific wins:
 `part:NAME` > `role:ROLE` > `kind:KIND` > `finish:NAME` (the finish the mount file gave the face)
 > `"*"`. A face matched by no rule keeps the finish its mount file gave it, which must be
 defined (an undefined one is an error, never a silent absorber); a rule that matches no face is
-an error too (scene.build). Optical faces are never assigned a finish: the tracer refracts there.
+an error too (scene.build). Optical faces are never assigned a finish (the tracer refracts
+there), except a mirror's coated face by `"surface:N"` (N its 1-based surface number): that
+finish is the scatter on top of the specular reflection (micro-roughness, dust). Only the rule
+naming the surface reaches it: `"*"` or `part:` rules meant for the blank and the cells would
+otherwise turn every mirror of an existing scene into a 5 % Lambertian one.
 """
 
 from __future__ import annotations
@@ -29,7 +33,13 @@ BUILTIN_FINISHES: dict[str, dict] = {
 }
 
 _PRIORITY = ("part", "role", "kind", "finish")
-RULE_FORMS = '"*", "part:NAME", "role:ROLE", "kind:KIND" or "finish:NAME"'
+RULE_FORMS = ('"*", "part:NAME", "role:ROLE", "kind:KIND", "finish:NAME" or "surface:N" '
+              "(a mirror's coated face)")
+
+
+def surface_rule(surface_index: int) -> str:
+    """The rule key naming the coated face of mirror surface `surface_index` (0-based): "surface:N", N 1-based."""
+    return f"surface:{surface_index + 1}"
 
 
 def finish_library(overrides: dict[str, dict] | None = None) -> dict[str, dict]:
@@ -45,7 +55,10 @@ def check_rules(assign: dict[str, str], library: dict[str, dict], *, file: str |
     for key, finish in assign.items():
         if key != "*":
             prefix, _, value = key.partition(":")
-            if prefix not in _PRIORITY or not value:
+            if prefix == "surface" and not (value.isdigit() and int(value) >= 1):
+                raise InputError(f"assignment rule '{key}' does not name a surface number", file=file,
+                                 field=f"assign.{key}", valid='"surface:N", N the 1-based number of a mirror surface')
+            if prefix not in _PRIORITY + ("surface",) or not value:
                 raise InputError(f"assignment rule '{key}' is not understood", file=file, field=f"assign.{key}",
                                  valid=RULE_FORMS)
         if finish not in library:
@@ -54,9 +67,10 @@ def check_rules(assign: dict[str, str], library: dict[str, dict], *, file: str |
 
 
 def finish_of(tag: FaceTag, assign: dict[str, str], library: dict[str, dict]) -> str | None:
-    """The finish name for a face tag; None for optical faces."""
+    """The finish name for a face tag; for an optical face the `surface:N` rule's finish, else None
+    (whether surface N is a mirror is `scene.build.check_rules_match`'s to say)."""
     if tag.role == "optical":
-        return None
+        return assign.get(surface_rule(tag.surface)) if tag.surface >= 0 else None
     for prefix in _PRIORITY:
         key = f"{prefix}:{getattr(tag, prefix)}"
         if key in assign:
@@ -71,4 +85,4 @@ def finish_of(tag: FaceTag, assign: dict[str, str], library: dict[str, dict]) ->
     return tag.finish
 
 
-__all__ = ["BUILTIN_FINISHES", "finish_library", "check_rules", "finish_of"]
+__all__ = ["BUILTIN_FINISHES", "finish_library", "check_rules", "finish_of", "surface_rule"]

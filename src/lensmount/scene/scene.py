@@ -53,14 +53,20 @@ EFFECT_NAMES = ("scatter", "ghosts", "direct", "absorption")
 
 
 def faces_selected(selector: str, tag_table, finish_of_tag) -> np.ndarray:
-    """(n_tags,) bool: the mechanical faces one scatter selector names. `finish:` matches the
-    finish the scene gives the face (`finish_of_tag`), the one that scatters."""
+    """(n_tags,) bool: the faces one scatter selector names. `finish:` matches the finish the
+    scene gives the face (`finish_of_tag`), the one that scatters; `surface:N` a mirror's coated
+    face (surface N, 1-based). Optical faces take part only where the scene gives them a finish
+    (a mirror's coated face, `[assign] "surface:N"`): glass has nothing to scatter with."""
     prefix, _, value = selector.partition(":")
+    finishes = list(finish_of_tag) or [t.finish for t in tag_table]
     if prefix == "finish":
-        names = list(finish_of_tag) or [t.finish for t in tag_table]
+        names = finishes
+    elif prefix == "surface":
+        names = [str(t.surface + 1) if t.role == "optical" else "" for t in tag_table]
     else:
         names = [str(getattr(t, prefix)) for t in tag_table]
-    return np.array([n == value and t.role != "optical" for n, t in zip(names, tag_table)], bool)
+    return np.array([n == value and (t.role != "optical" or (bool(finish_of_tag) and f != ""))
+                     for n, t, f in zip(names, tag_table, finishes)], bool)
 
 
 def scatterer_mask(effects: Effects, tag_table, finish_of_tag) -> np.ndarray:
@@ -74,6 +80,19 @@ def scatterer_mask(effects: Effects, tag_table, finish_of_tag) -> np.ndarray:
     for sel in effects.scatterers:
         mask |= faces_selected(sel, tag_table, finish_of_tag)
     return mask
+
+
+def optical_faces(tag_table) -> np.ndarray:
+    """(n_tags,) bool: the faces of optical surfaces (glass, and mirrors' coated faces)."""
+    return np.array([t.role == "optical" for t in tag_table], bool)
+
+
+def scattering_tags(scene) -> np.ndarray:
+    """(n_tags,) bool: faces where light scatters on (BSDF neither missing nor black, and a
+    scatterer of the scene's effects: `scatterer_mask`); a mirror's coated face among them is
+    where the tracer branches to its finish (`Tracer.next_event`)."""
+    on = np.array([b is not None and not b.is_black for b in scene.bsdf_of_tag], bool)
+    return on & scatterer_mask(scene.effects, scene.mesh.tag_table, scene.finish_of_tag)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,7 +110,8 @@ class OpticalSurface:
     absorption_before, absorption_after: (W,) bulk absorption coefficient (1/mm) of the media
         in front of / behind the surface (0 in air), paired with n_before / n_after.
     mirror: the surface reflects every ray (Zemax GLAS MIRROR) with reflectance
-        `trace.interfaces.mirror_reflectance(coating)`; nothing is transmitted.
+        `trace.interfaces.mirror_reflectance(coating)`; nothing is transmitted. Its coated face may
+        carry a scatter finish (`[assign] "surface:N"`, its tag's BSDF).
     """
 
     index: int
@@ -125,7 +145,8 @@ class Scene:
 
     mesh: tagged triangles (mm, assembly frame).
     optical: analytic surfaces, any order; `optical_of_surface[i]` finds surface i.
-    bsdf_of_tag: (n_tags,) BSDF per mesh tag, None for optical tags.
+    bsdf_of_tag: (n_tags,) BSDF per mesh tag, None for optical tags (a mirror's coated face with a
+        finish: `trace.bsdf.MirrorFinish` of it).
     source: SunSource | CollimatedSource.
     detector: Detector.
     wavelengths_um: (W,).
@@ -205,4 +226,5 @@ class Scene:
         return {s.index: s for s in self.optical}
 
 
-__all__ = ["Effects", "EFFECT_NAMES", "OpticalSurface", "FrontOpening", "Scene"]
+__all__ = ["Effects", "EFFECT_NAMES", "OpticalSurface", "FrontOpening", "Scene", "faces_selected", "scatterer_mask",
+           "optical_faces", "scattering_tags"]

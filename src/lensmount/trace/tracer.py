@@ -40,6 +40,7 @@ from lensmount.trace.sampler import ray_streams
 
 GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind: the one set of event codes (the integrators use these)
 FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM + interface count in the call
+MIRROR_SCATTER_DIM = 1 << 21  # ... and of a scattering mirror's branch: MIRROR_SCATTER_DIM + interface count
 
 _MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
 _MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
@@ -81,7 +82,8 @@ class Events:
     """Where each of N rays ended one `next_event` call.
 
     kind : (N,) int8: GONE (escaped, absorbed by the detector's back, lost or dead on input),
-        FACE (a mechanical face: scatter or absorb there), DETECTOR (front of the detector)
+        FACE (a mechanical face: scatter or absorb there; or a mirror's coated face the ray scatters
+        at, `next_event`), DETECTOR (front of the detector)
     position : (N, 3) event point (the last point on the ray for GONE)
     direction : (N, 3) unit travel direction arriving at the event (wi = -direction)
     normal : (N, 3) unit face normal on the side the ray came from (FACE; (0,0,-1) on DETECTOR)
@@ -175,6 +177,7 @@ class Tracer:
             self._alpha_before.any() or self._alpha_after.any() or self._alpha_solid.any())
         self._mirror = np.array([s.mirror for s in scene.optical] or [False])
         self._mirror_r = np.array([mirror_reflectance(s.coating) for s in scene.optical] or [1.0])
+        self._mirror_face = self._scattering_mirror_faces()
         # The reflection branch only where a ghost can exist (the planner's "ghosts" line): with every
         # surface perfect AR it would draw a number per crossing and never reflect.
         self.fresnel_branch = bool(scene.effects.ghosts) and bool(reflecting(scene).any())
@@ -270,6 +273,23 @@ class Tracer:
             up[k] = k + 1 + above[0] if above.size else -1
             down[k] = below[-1] if below.size else -1
         return safe, slab, up, down
+
+    def _scattering_mirror_faces(self) -> np.ndarray:
+        """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
+        scatter (a mirror with a finish, `scene.scattering_tags`), else (-1, -1). The triangle is the
+        face's one nearest the axis: an event found by the sequential step has none of its own."""
+        from lensmount.scene.scene import scattering_tags  # here: lensmount.scene imports the trace package
+
+        out = np.full((max(len(self._profiles), 1), 2), -1, np.int64)
+        scatters = scattering_tags(self.scene)
+        for k, s in enumerate(self.scene.optical):
+            tags = [t for t, tag in enumerate(self.scene.mesh.tag_table)
+                    if s.mirror and scatters[t] and tag.role == "optical" and tag.surface == s.index]
+            prims = np.flatnonzero(self._tri_tag == tags[0]) if tags else np.zeros(0, np.int64)
+            if prims.size:
+                c = self.scene.mesh.vertices[self.scene.mesh.triangles[prims]].mean(axis=1)
+                out[k] = tags[0], prims[np.argmin(np.hypot(c[:, 0], c[:, 1]))]
+        return out
 
     def _embree_query(self, start: np.ndarray, d: np.ndarray):
         """Optical-facet candidates: (local facet index (m,) or -1, float32 distance from start)."""
@@ -451,7 +471,8 @@ class Tracer:
 
     def next_event(self, rays: RayBatch, rng: np.random.Generator | None = None,
                    origin_normal: np.ndarray | None = None) -> Events:
-        """Carry live rays through the optics until a mechanical face, the detector, or out.
+        """Carry live rays through the optics until a mechanical face (or a scattering mirror's
+        face), the detector, or out.
 
         Along every segment inside glass the weight is multiplied by exp(-a(λ) L) (bulk
         absorption, `effects.absorption`). At every optical hit: media from the prescription, Snell refraction with the
@@ -460,7 +481,13 @@ class Tracer:
         weight is multiplied by T = 1 − R; with ghosts on it reflects with probability R (weight unchanged) using `rng`: a
         `sampler.Streams` aligned with `rays` (ray i's k-th interface in this call draws dimension
         FRESNEL_DIM + k of its own stream, so the branch does not depend on the batch), or a
-        Generator. The input batch is not modified.
+        Generator. A mirror reflects every ray with weight R (its coating); where the scene gives
+        its coated face a finish (`[assign] "surface:N"`, and the face scatters by `[effects]`) a
+        ray ends there as a FACE event (its tag, the arriving direction, weight R) with probability
+        a(wi), the finish's albedo at that incidence (dimension MIRROR_SCATTER_DIM + k), and
+        reflects specularly otherwise: R(1 − a) specular and R·a scattered on average, the walk
+        sampling the scatter (`trace.bsdf.MirrorFinish`). Without `rng` every ray reflects
+        specularly. The input batch is not modified.
 
         origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
         the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
@@ -480,7 +507,8 @@ class Tracer:
         reflections = np.zeros(n, np.int32)
         ghost_pair = np.full((n, 2), -1, np.int32)
         ghosts = self.fresnel_branch
-        streams = ray_streams(rng, n) if ghosts and rng is not None else None
+        scattering_mirror = bool(np.any(self._mirror_face[:, 0] >= 0)) and rng is not None
+        streams = ray_streams(rng, n) if (ghosts or scattering_mirror) and rng is not None else None
         left_n = _left_normal(origin_normal, n)  # the mechanical face a ray leaves (zeros: none)
         leaving = np.any(left_n != 0.0, axis=1)
         left_s = np.full(n, -1, np.int64)  # the glass surface a ray just left
@@ -521,7 +549,8 @@ class Tracer:
             glass = (h.surface >= 0) & np.isfinite(h.t)
             gi = work[glass]
             if gi.size:
-                u = streams.at(gi, FRESNEL_DIM + count[gi]) if streams is not None else None
+                d_in = d[gi]
+                u = streams.at(gi, FRESNEL_DIM + count[gi]) if ghosts and streams is not None else None
                 d[gi], w[gi], refl = self._interface(h.surface[glass], h.normal[glass], d[gi], w[gi], wl[gi],
                                                      ghosts, u)
                 count[gi] += 1
@@ -535,7 +564,16 @@ class Tracer:
                 left_s[gi] = h.surface[glass]
                 bad = ~(np.all(np.isfinite(d[gi]), axis=1) & np.isfinite(w[gi]))
                 lost[gi[bad]] = True
-                gi = gi[~bad]
+                keep = ~bad
+                if scattering_mirror:  # the finish's share ends here, on the mirror's face (the walk scatters it)
+                    on = keep & self._scatters(h.surface[glass], h.normal[glass], d_in,
+                                               streams.at(gi, MIRROR_SCATTER_DIM + count[gi] - 1))
+                    si, k, nk = gi[on], h.surface[glass][on], h.normal[glass][on]
+                    kind[si], tag[si], prim[si] = FACE, self._mirror_face[k, 0], self._mirror_face[k, 1]
+                    normal[si] = nk * np.where(np.einsum("ij,ij->i", nk, d_in[on]) > 0.0, -1.0, 1.0)[:, None]
+                    d[si] = d_in[on]
+                    keep &= ~on
+                gi = gi[keep]
             work = gi
         self.segments += started.size + int(count[started].sum())
         kind[lost] = GONE
@@ -547,6 +585,19 @@ class Tracer:
         w = np.where(np.isfinite(w) & rays.alive, w, 0.0)
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections, ghost_pair)
+
+    def _scatters(self, surf: np.ndarray, nrm: np.ndarray, d_in: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(m,) bool: rays that met optical surfaces `surf` (normals nrm, arriving along d_in) and
+        scatter there: at a mirror with a finish, with probability a(wi), the finish's albedo at
+        that incidence (its TIS at normal incidence); u (m,) uniforms."""
+        out = np.zeros(len(surf), bool)
+        bsdf_of_tag = self.scene.bsdf_of_tag
+        for k in np.unique(surf[self._mirror_face[surf, 0] >= 0]):
+            sel = surf == k
+            wi = -d_in[sel]
+            n = nrm[sel] * np.where(np.einsum("ij,ij->i", nrm[sel], wi) < 0.0, -1.0, 1.0)[:, None]
+            out[sel] = u[sel] < bsdf_of_tag[self._mirror_face[k, 0]].finish.albedo(wi, n)
+        return out
 
     def _bulk_transmittance(self, h: Hits, d: np.ndarray, wl: np.ndarray) -> np.ndarray:
         """exp(-a(λ) L) over the segment each ray just travelled (its length h.t).
@@ -625,4 +676,4 @@ def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
     return np.where(ok & np.isfinite(resid) & (resid < 1e-9), t, np.inf)
 
 
-__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "FRESNEL_DIM"]
+__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "FRESNEL_DIM", "MIRROR_SCATTER_DIM"]

@@ -17,6 +17,8 @@
 `make_bsdf` raises `lensmount.errors.InputError` (field = the parameter) for an
 unknown model, an unknown parameter or a value out of range, including an ABg or
 Harvey set whose TIS exceeds 1. The scene loader adds the file with `.located()`.
+`MirrorFinish` (mirror_finish.py) is no model: `scene.build` wraps the finish a mirror's coated
+face is given in it (the lobe of the light that scattered there).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from lensmount.trace.bsdf.gaussian import Gaussian
 from lensmount.trace.bsdf.harvey import Harvey
 from lensmount.trace.bsdf.lambertian import Lambertian
 from lensmount.trace.bsdf.mirror import Mirror
+from lensmount.trace.bsdf.mirror_finish import MirrorFinish
 from lensmount.trace.bsdf.tabulated import Tabulated
 
 MODELS: dict[str, type[BSDF]] = {
@@ -52,4 +55,4 @@ def make_bsdf(model: str, **params) -> BSDF:
 
 __all__ = ["BSDF", "MODELS", "make_bsdf", "reject_unknown",
            "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror",
-           "Tabulated"]
+           "Tabulated", "MirrorFinish"]

@@ -1,0 +1,198 @@
+"""A mirror with a scatter finish: specular R(1 − a), scattered R·a by the finish's BSDF.
+
+References are analytic and independent of the code under test: the Lambertian albedo ρ, the
+ABg lobe with g = 2 (TIS = πA ln(1 + 1/B), ring masses πA ln((B + ρ2²)/(B + ρ1²))), binomial
+and Monte Carlo standard errors; the forward estimator is the bidirectional's reference.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from tests.trace.geometry import make_scene  # noqa: E402
+
+from lensmount.cad.mesh import FaceTag, TaggedMesh  # noqa: E402
+from lensmount.errors import InputError  # noqa: E402
+from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
+from lensmount.integrators.estimate import EnergyLedger, Film, ledger_residual  # noqa: E402
+from lensmount.integrators.forward import forward_pass  # noqa: E402
+from lensmount.integrators.plan import plan  # noqa: E402
+from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
+from lensmount.integrators.walk import emit_photons, photon_walk  # noqa: E402
+from lensmount.optics.prescription import Aperture, Prescription, Surface  # noqa: E402
+from lensmount.optics.profiles import Profile  # noqa: E402
+from lensmount.scene import primitives  # noqa: E402
+from lensmount.scene.primitives import _cap  # noqa: E402
+from lensmount.trace.rays import RayBatch  # noqa: E402
+from lensmount.trace.sampler import Streams  # noqa: E402
+from lensmount.trace.tracer import FACE, GONE, Tracer  # noqa: E402
+
+FAR = {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": 1.0e4}  # behind the mirror: nothing lands
+
+
+def _flat_mirror(finish: dict | None, reflectance: float, **scene):
+    """A flat front-surface mirror at z = 0 (60 mm, light from −z returns to −z) given `finish` by "surface:1"."""
+    m = Surface(radius=math.inf, thickness=-100.0, mirror=True, is_stop=True, clear_semi_diameter=30.0,
+                mechanical_semi_diameter=30.0, coating=f"R={reflectance}")
+    p = Prescription((m,), Aperture("epd", 60.0))
+    v, t = _cap(Profile.of(m), 0.0, 30.0, 8, 32)
+    mesh = TaggedMesh(v, t, np.zeros(len(t), np.int32), [FaceTag("mirror-1", "mirror", "optical", "polished",
+                                                                 surface=0, face=0)])
+    assign = {"*": "absorber"} | ({"surface:1": "finish"} if finish else {})
+    return make_scene(p, mesh, detector=FAR, finishes={"finish": finish} if finish else {}, assign=assign, **scene)
+
+
+def _abg(tis: float, b: float = 0.01) -> dict:
+    """ABg with g = 2 whose TIS (πA ln(1 + 1/B)) is `tis`."""
+    return {"model": "abg", "A": tis / (math.pi * math.log1p(1.0 / b)), "B": b, "g": 2.0}
+
+
+def _beam(n: int, incidence_deg: float):
+    """n parallel rays over the mirror's centre at `incidence_deg` in the y–z plane, from z = −50."""
+    th = math.radians(incidence_deg)
+    rng = np.random.default_rng(11)
+    xy = rng.uniform(-10.0, 10.0, (n, 2))
+    o = np.column_stack([xy[:, 0], xy[:, 1] - 50.0 * math.tan(th), np.full(n, -50.0)])
+    return o, np.tile([0.0, math.sin(th), math.cos(th)], (n, 1))
+
+
+def _within(observed: float, expected: float, sigma: float, k: float = 4.0) -> bool:
+    return abs(observed - expected) <= k * sigma
+
+
+def test_a_mirror_with_a_finish_ends_a_share_a_on_its_face_and_reflects_the_rest_specularly_both_with_r():
+    n, rho, r = 20_000, 0.3, 0.9
+    scene = _flat_mirror({"model": "lambertian", "reflectance": rho}, r)
+    o, d = _beam(n, 30.0)
+    ev = Tracer(scene).next_event(RayBatch.make(o, d), Streams(5, "mirror", np.arange(n)))
+    at_face = ev.kind == FACE
+    assert _within(at_face.mean(), rho, math.sqrt(rho * (1 - rho) / n))
+    np.testing.assert_allclose(ev.weight, r, rtol=1e-12)  # both branches carry R: R(1 − a) + R·a on average
+    assert np.all(ev.tag[at_face] == 0) and np.all(ev.prim[at_face] >= 0)
+    np.testing.assert_allclose(ev.normal[at_face], np.tile([0.0, 0.0, -1.0], (at_face.sum(), 1)), atol=1e-12)
+    np.testing.assert_allclose(ev.direction[at_face], d[at_face], atol=1e-12)  # the arriving direction
+    np.testing.assert_allclose(ev.position[at_face, 2], 0.0, atol=1e-9)
+    spec = ~at_face
+    assert np.all(ev.kind[spec] == GONE)
+    np.testing.assert_allclose(ev.direction[spec], d[spec] * [1.0, 1.0, -1.0], atol=1e-12)
+    # without numbers (geometric callers) the mirror stays specular
+    plain = Tracer(scene).next_event(RayBatch.make(o, d))
+    assert np.all(plain.kind == GONE)
+
+
+def _walk(scene, n: int, seed: int = 3):
+    """Per bounce (ids, directions, fluxes) of the photons leaving the scene, Φ0 (each photon's emitted
+    flux) and the ledger; at bounce 0 only those the mirror sent back (−z: the emission disc is wider
+    than the mirror, and what misses it leaves along +z)."""
+    film, ledger = Film(scene), EnergyLedger()
+    rays = emit_photons(scene, seed, "mirror-test", 0, n, n)
+    phi0 = float(rays.weight[rays.alive][0])
+    out = []
+    for bounce in photon_walk(scene, Tracer(scene), rays, seed, "mirror-test", EstimatorSettings(), film, ledger):
+        ev = bounce.events
+        gone = (ev.kind == GONE) & ~ev.lost & ((ev.direction[:, 2] < 0.0) | (len(out) > 0))
+        out.append((ev.id[gone], ev.direction[gone], ev.weight[gone]))
+    return out, phi0, ledger
+
+
+def test_white_furnace_a_perfect_mirror_returns_everything_split_one_minus_tis_specular_and_tis_scattered():
+    n, tis = 40_000, 0.25
+    scene = _flat_mirror(_abg(tis), 1.0, source={"type": "collimated", "off_axis_deg": 0.0, "azimuth_deg": 90.0})
+    steps, phi0, ledger = _walk(scene, n)
+    assert len(steps) == 2  # light leaves straight away or after one scatter at the mirror
+    (id0, d0, w0), (id1, d1, w1) = steps
+    hit = len(id0) + len(id1)  # photons on the mirror
+    np.testing.assert_allclose(d0[:, 2], -1.0, atol=1e-12)  # specular: straight back
+    np.testing.assert_allclose(w0, phi0, rtol=1e-12)
+    assert _within(len(id1) / hit, tis, math.sqrt(tis * (1 - tis) / hit))  # the scattered share, TIS at 0°
+    # scattered energy: R · lobe weight, mean 1 (the finish's albedo over itself); total = R = 1
+    per_photon = np.concatenate([w0, w1]) / phi0
+    assert _within(per_photon.mean(), 1.0, per_photon.std() / math.sqrt(hit) + 1e-12)
+    entries = ledger.as_dict()
+    assert entries["escaped"] == pytest.approx(entries["source"], rel=5.0 * per_photon.std() / math.sqrt(hit))
+    assert abs(ledger_residual(entries)) < 1e-12
+
+
+def test_the_scattered_lobe_follows_the_finishs_brdf_ring_by_ring():
+    # ABg g = 2 at normal incidence: flux into the ring ρ1 < |β| < ρ2 of direction cosines per photon
+    # on the mirror is R · πA ln((B + ρ2²)/(B + ρ1²)) (cosθ dω = d²β)
+    n, tis, b, r = 60_000, 0.4, 0.01, 0.8
+    finish = _abg(tis, b)
+    scene = _flat_mirror(finish, r, source={"type": "collimated", "off_axis_deg": 0.0, "azimuth_deg": 90.0})
+    ((id0, _, _), (id1, d1, w1)), phi0, _ = _walk(scene, n)
+    hit = len(id0) + len(id1)
+    beta = np.hypot(d1[:, 0], d1[:, 1])
+    edges = np.array([0.0, 0.02, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0])
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        x = np.where((beta >= lo) & (beta < hi), w1 / phi0, 0.0)
+        x = np.concatenate([x, np.zeros(hit - len(x))])  # every photon on the mirror, scattered or not
+        expected = r * math.pi * finish["A"] * math.log((b + hi * hi) / (b + lo * lo))
+        assert _within(x.mean(), expected, x.std() / math.sqrt(hit)), (lo, hi, x.mean(), expected)
+
+
+def test_a_finish_is_given_only_to_a_mirror_surface_and_is_not_itself_a_mirror():
+    m = Surface(radius=math.inf, thickness=-100.0, mirror=True, is_stop=True, clear_semi_diameter=30.0,
+                mechanical_semi_diameter=30.0)
+    p = Prescription((m,), Aperture("epd", 60.0))
+    v, t = _cap(Profile.of(m), 0.0, 30.0, 4, 16)
+    mesh = TaggedMesh(v, t, np.zeros(len(t), np.int32), [FaceTag("mirror-1", "mirror", "optical", "polished",
+                                                                 surface=0, face=0)])
+    with pytest.raises(InputError, match="names no mirror surface") as err:
+        make_scene(p, mesh, detector=FAR, assign={"*": "absorber", "surface:2": "black-anodised"})
+    assert "surface:N for the mirror surfaces 1" in err.value.paragraph()
+    with pytest.raises(InputError, match="already reflects specularly"):
+        make_scene(p, mesh, detector=FAR, assign={"*": "absorber", "surface:1": "mirror"})
+    # "*" does not reach the coated face; "surface:1" does, and a scatter selector names it
+    assert make_scene(p, mesh, detector=FAR, assign={"*": "black-anodised"}).bsdf_of_tag == [None]
+    scene = make_scene(p, mesh, detector=FAR, assign={"surface:1": "black-anodised"},
+                       effects={"scatter": ["surface:1"], "ghosts": False, "direct": False})
+    assert scene.bsdf_of_tag[0].finish.tis == pytest.approx(0.05)
+    assert [d.ran for d in plan(scene).decisions if d.what.startswith("scatter at mirror")] == [True]
+    with pytest.raises(InputError, match="names no face"):
+        make_scene(p, mesh, detector=FAR, assign={"surface:1": "black-anodised"},
+                   effects={"scatter": ["surface:2"], "ghosts": False, "direct": False})
+
+
+def _cassegrain(finish: dict | None, off_axis_deg: float = 0.5, baffle: float = 0.5):
+    """A small Cassegrain (f = 333 mm, f/5.6): concave primary R −200 (30 mm, 7.5 mm hole), convex
+    secondary R −85.7 70 mm in front of it (10 mm, its back an absorbing disc), both R = 0.9, a central
+    baffle tube (Lambertian `baffle`) in front of the hole, the image 30 mm behind the primary; the
+    primary's coated face given `finish`."""
+    primary = Surface(radius=-200.0, thickness=-70.0, mirror=True, is_stop=True, clear_semi_diameter=30.0,
+                      mechanical_semi_diameter=30.0, coating="R=0.9")
+    secondary = Surface(radius=-600.0 / 7.0, thickness=100.0, mirror=True, clear_semi_diameter=10.0,
+                        mechanical_semi_diameter=10.0, coating="R=0.9")
+    p = Prescription((primary, secondary), Aperture("epd", 60.0))
+    zs = p.vertex_z
+    v1, t1 = _cap(Profile.of(primary), zs[0], 30.0, 16, 64)
+    t1 = t1[64:]  # without the central fan: the hole, a quarter of the radius
+    v2, t2 = _cap(Profile.of(secondary), zs[1], 10.0, 6, 48)
+    mirrors = TaggedMesh(np.vstack([v1, v2]), np.vstack([t1, t2 + len(v1)]),
+                         np.concatenate([np.zeros(len(t1), np.int32), np.ones(len(t2), np.int32)]),
+                         [FaceTag("mirror-1", "mirror", "optical", "polished", surface=0, face=0),
+                          FaceTag("mirror-2", "mirror", "optical", "polished", surface=1, face=0)])
+    mesh = TaggedMesh.concatenate([mirrors, primitives.disk((0.0, 0.0, zs[1] - 1.0), 10.5, part="spider"),
+                                   primitives.tube(-40.0, -0.5, 7.6, 8.6, part="tube", kind="baffle")])
+    finishes = {"baffle": {"model": "lambertian", "reflectance": baffle}} | ({"dust": finish} if finish else {})
+    assign = {"*": "absorber", "part:tube": "baffle"} | ({"surface:1": "dust"} if finish else {})
+    return make_scene(p, mesh, detector={"width_mm": 12.0, "height_mm": 12.0, "pixels": [8, 8], "z_mm": 30.0},
+                      source={"type": "collimated", "off_axis_deg": off_axis_deg, "azimuth_deg": 90.0},
+                      finishes=finishes, assign=assign, effects={"scatter": True, "ghosts": False, "direct": True})
+
+
+def test_a_finish_with_no_scatter_gives_exactly_the_run_without_one():
+    # TIS = 0: the tracer draws its branch number but never takes it; same seed, same photons, same image
+    plain, dusty = _cassegrain(None, 1.0), _cassegrain({"model": "lambertian", "reflectance": 0.0}, 1.0)
+    assert "mirror-1" in plan(dusty).decisions[1].what
+    for run in (lambda s: forward_pass(s, Tracer(s), 20_000, 7, 2),
+                lambda s: bidirectional_pass(s, Tracer(s), 20_000, 7, 2, 1.0)):
+        a, b = run(plain), run(dusty)
+        assert a.flux > 0.0
+        np.testing.assert_array_equal(a.image, b.image)
+        assert a.ledger == {k: v for k, v in b.ledger.items() if v != 0.0 or k in a.ledger}
