@@ -23,6 +23,7 @@ $(VENV)/.installed: pyproject.toml
 	$(REQUIREMENTS) > $(VENV)/requirements.txt
 	$(PY) -m pip install --quiet -r $(VENV)/requirements.txt
 	$(PY) -m pip install --quiet --no-deps -e . '$(GLASS)'
+	$(PY) -m lensmount.trace.warm  # numba compiles the tracer's kernels once, here, not in the first run
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed

@@ -137,21 +137,21 @@ def uniform(key, dim):
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _complex_cos(n0, sin0, n):
     s = (n0 * sin0) / n
     c = cmath.sqrt(complex(1.0 - s * s))
     return -c if c.imag < 0 else c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _admittances(n, cos):
     if abs(cos) < _COS_FLOOR:
         cos = complex(_COS_FLOOR)
     return n * cos, n / cos
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _layer_r(m11, m12, m21, m22, e0, e2):
     b = m11 + m12 * e2
     c = m21 + m22 * e2

@@ -95,10 +95,8 @@ class Streams:
 
     @property
     def keys(self) -> np.ndarray:
-        """(N,) uint64 the paths' keys (read-only): compiled code draws `at` from them itself."""
-        key = self._key.view()
-        key.flags.writeable = False
-        return key
+        """(N,) uint64 the paths' keys, for compiled code that draws `at` itself (not to be modified)."""
+        return self._key
 
     def at(self, rows, dim) -> np.ndarray:
         """(len(rows),) uniforms in [0, 1) of dimension `dim` (an int, or one per row) for paths
