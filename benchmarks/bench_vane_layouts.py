@@ -1,7 +1,7 @@
 """Line-of-sight against evenly spaced hood vanes, same count, on the reference design (issue 18).
 
 Both mounts are the reference (examples/double-gauss-360) with `[vanes] placement` set to
-"line-of-sight" (the construction's count, 21 hood vanes here) or "even" with that same
+"line-of-sight" (the construction's count, 12 hood vanes here) or "even" with that same
 count. Printed: the stray fraction of the paper's case 2 (Lambertian 5 % everywhere, sun
 7° off axis; 150 × 150 px) for each, its standard error and kernel-bias bound, the
 difference with its combined error (the two standard errors in quadrature plus both bias
@@ -10,12 +10,13 @@ scatter was on the hood or a vane. A third run paints the line-of-sight hood and
 black (absorber): the change is all the stray light that touches the hood or a hood vane at
 any bounce, the most any vane layout can change.
 
-`hood` mode puts the sun just past the hood's cutoff (computed from the built layout: the
-steepest angle at which a sun ray still reaches lens 1's clear aperture past the vanes), where
-the vanes can matter most: the lens is not lit directly, the hood's bore is. It adds the
-example's own 3 even vanes (lit bore in sight of the entrance aperture) and reports, per
-layout, the lit hood bore the entrance aperture sees (`check --from aperture`) and the heavy
-tail of the per-pass values (largest pass / mean, skewness).
+`hood` mode puts the sun past the hood's cutoff (computed from the built layout: the steepest
+angle at which a sun ray still reaches lens 1's clear aperture past the vanes), where only light
+that touched the hood reaches the detector: just past it, and at the smallest sun angle at which
+the even layout leaves lit bore in the entrance aperture's sight (`check --from aperture`). It
+adds the example's own 3 even vanes and both layouts with black vanes, and reports per layout
+the lit hood bore the entrance aperture sees and the heavy tail of the per-pass values (largest
+pass / mean, skewness).
 
 `python benchmarks/bench_vane_layouts.py [passes] [off-axis degrees]` (default 24 passes of
 100 000 photons, 7°); `python benchmarks/bench_vane_layouts.py hood [passes] [degrees above
@@ -92,12 +93,10 @@ def hood_parts(scene) -> set[str]:
 
 def hood_cutoff_deg(layout, prescription) -> float:
     """The steepest sun angle at which a straight sun ray still reaches the first lens's clear
-    aperture past every hood vane (the sun's centre; its 0.27° radius comes on top).
-
-    Coaxial circular openings (z_i, radius r_i) let a parallel beam of slope t through iff their
-    discs, shifted by z_i·t, overlap: along the shift they are intervals, so iff
-    t·(z_j − z_i) ≤ r_i + r_j for every pair. Openings: both ends of each hood vane's edge land,
-    and surface 1's clear aperture at the sag of its rim."""
+    aperture past every hood vane (the sun's centre; its 0.27° radius comes on top): the
+    openings are both ends of each hood vane's edge land and surface 1's clear aperture at
+    the sag of its rim (`cad.baffles.steepest_sun_slope`)."""
+    from lensmount.cad.baffles import steepest_sun_slope
     from lensmount.optics.profiles import Profile
 
     s = prescription.surfaces[0]
@@ -105,23 +104,21 @@ def hood_cutoff_deg(layout, prescription) -> float:
     z_a = float(prescription.vertex_z[0] + Profile.of(s).sag(a * a))
     openings = [(z_a, a)] + [(t.z_front + k * t.edge_width, t.inner_radius) for p in layout.parts
                              if p.kind == "vane" and (t := p.template).z_front < z_a for k in (0, 1)]
-    z, r = np.array(openings).T
-    dz = z[None, :] - z[:, None]
-    ahead = dz > 0
-    return math.degrees(math.atan(float(((r[:, None] + r[None, :])[ahead] / dz[ahead]).min())))
+    return math.degrees(math.atan(steepest_sun_slope(openings)))
 
 
-def lit_bore_seen_mm2(design, scene, angle: float) -> tuple[float, float]:
-    """(lit hood bore, every lit face but vane edges) the entrance aperture sees with the sun at
-    `angle` or beyond, mm² (`lensmount check --from aperture`)."""
+def lit_bore_seen(design, scene, angle: float):
+    """(lit hood bore mm², every lit face but vane edges mm², smallest sun angle lighting that bore
+    or None) the entrance aperture sees with the sun at `angle` or beyond (`lensmount check --from
+    aperture`)."""
     from lensmount.analysis.sightlines import lit_walls_seen
 
     hs = design.mount.housing
     report = lit_walls_seen(design.prescription, scene.mesh, (hs.detector_width_mm, hs.detector_height_mm),
                             angle, "aperture")
-    # the hood's long inner wall (its flange face is short)
-    bore = sum(w.area_mm2 for w in report.walls if w.part == "hood" and w.z_range[1] - w.z_range[0] > 10.0)
-    return bore, sum(w.area_mm2 for w in report.walls)
+    bore = [w for w in report.walls if w.part == "hood" and w.face == 0]  # the bore is the hood's first face
+    return (sum(w.area_mm2 for w in bore), sum(w.area_mm2 for w in report.walls),
+            min((w.smallest_angle_deg for w in bore), default=None))
 
 
 def tails(series: np.ndarray) -> str:
@@ -192,31 +189,43 @@ def designs(base: Path):
 
 
 def hood_light(argv: list[str]) -> None:
-    """Case 2 with the sun just past the hood's cutoff: no sun ray reaches the first lens, the
-    hood's bore is lit. Line-of-sight vanes, even vanes of the same count, the example's own 3 even
-    vanes (which leave lit bore in sight of the entrance aperture), and the line-of-sight hood
-    painted black (all the light that has touched the hood or its vanes)."""
+    """Case 2 with the sun past the hood's cutoff, where no sun ray reaches the first lens and all
+    the stray light has touched the hood: just past it, and at the steepest-lit bore (the smallest
+    sun angle at which the even layout leaves lit bore in the entrance aperture's sight, from
+    `check --from aperture` on the built mesh). Line-of-sight vanes, even vanes of the same count,
+    the example's own 3 even vanes, and the two layouts with their vanes black (absorber): then
+    the light the bore itself sends past the vanes is what is left, with the hood's flange."""
     passes = int(argv[0]) if argv else 48
     above = float(argv[1]) if len(argv) > 1 else 2.0
     base = Path(tempfile.mkdtemp(prefix="lensmount-vanes-"))
     los, even, hood, count, (d, layout) = designs(base)
     few = design_with("even", None, base / "even-3")
     cutoff = hood_cutoff_deg(layout, d.prescription)
-    angle = round(cutoff + above, 2)
-    print(f"case 2, reference design: the hood's cutoff (no sun ray reaches lens 1's clear aperture) is "
-          f"{cutoff:.2f}°; sun at {angle:g}°, 150 × 150 px, {passes} passes of {PHOTONS:,} photons")
-    rows = {}
-    for label, design, black in (("line-of-sight", los, ()), (f"even ({count})", even, ()),
-                                 ("even (3)", few, ()), ("line-of-sight, hood black", los, tuple(hood))):
-        start = time.perf_counter()
-        design_, scene = scene_of(design, angle, black)
-        seen = "" if black else "lit hood bore seen from the aperture {:.0f} mm² (all lit faces {:.0f} mm²), ".format(
-            *lit_bore_seen_mm2(design_, scene, angle))
-        rows[label] = run(design, passes, angle, scene=scene)
-        n, s, se, bias, _, series = rows[label]
-        print(f"{label:>25}: {n} hood vanes, {seen}stray fraction {s:.3e} ± {se:.1e} (bias ≤ {bias:.1e}); "
-              f"{tails(series)}  ({time.perf_counter() - start:.0f} s)", flush=True)
-    compare(rows, "line-of-sight")
+    near = round(cutoff + above, 2)
+    d_even, s_even = scene_of(even, near)
+    steep = lit_bore_seen(d_even, s_even, cutoff)[2]
+    vanes = tuple(n for n in hood if n != "hood")
+    print(f"case 2, reference design, {count} line-of-sight hood vanes: the hood's cutoff (no sun ray reaches "
+          f"lens 1's clear aperture) is {cutoff:.2f}°; even vanes of that count leave lit bore in the entrance "
+          f"aperture's sight from a sun at {steep}°; 150 × 150 px, {passes} passes of {PHOTONS:,} photons")
+    for angle in (near, steep):
+        if angle is None:
+            continue
+        print(f"sun at {angle:g}°:")
+        rows = {}
+        for label, design, black in (("line-of-sight", los, ()), (f"even ({count})", even, ()),
+                                     ("even (3)", few, ()), ("line-of-sight, vanes black", los, vanes),
+                                     (f"even ({count}), vanes black", even, vanes)):
+            start = time.perf_counter()
+            design_, scene = scene_of(design, angle, black)
+            seen = "" if black else "lit hood bore seen from the aperture {:.0f} mm² (all lit faces {:.0f} mm²), ".format(
+                *lit_bore_seen(design_, scene, angle)[:2])
+            rows[label] = run(design, passes, angle, scene=scene)
+            n, s, se, bias, _, series = rows[label]
+            print(f"{label:>27}: {n} hood vanes, {seen}stray fraction {s:.3e} ± {se:.1e} (bias ≤ {bias:.1e}); "
+                  f"{tails(series)}  ({time.perf_counter() - start:.0f} s)", flush=True)
+        compare({k: v for k, v in rows.items() if "black" not in k}, "line-of-sight")
+        compare({k: v for k, v in rows.items() if "black" in k}, "line-of-sight, vanes black")
     shutil.rmtree(base, ignore_errors=True)
 
 

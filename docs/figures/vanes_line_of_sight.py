@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from lensmount.cad.baffles import steepest_sun_slope  # noqa: E402
 from lensmount.cad.layout import plan  # noqa: E402
 from lensmount.design.lens import load_lens  # noqa: E402
 from lensmount.design.mount import parse_mount  # noqa: E402
@@ -41,8 +42,11 @@ env = layout.envelope.at(zz)
 ax.plot(zz, env, "--", color="tab:green", lw=1, label="beam envelope (full field, full aperture)")
 ax.plot(zz, -env, "--", color="tab:green", lw=1)
 ax.plot([za, za], [-a, a], color="tab:blue", lw=4, label="entrance aperture (lens 1 clear aperture)")
+lands = []
 for k, (v, nxt) in enumerate(zip(vanes[:-1], vanes[1:])):
-    z_lit = v.z_front + v.thickness
+    # the nearest wall point lit behind v: the steepest sun ray past every edge land so far
+    lands += [(v.z_front, v.inner_radius), (v.z_front + v.edge_width, v.inner_radius)]
+    z_lit = max(v.z_front + v.thickness, v.z_front + v.edge_width + (R - v.inner_radius) / steepest_sun_slope(lands))
     ax.plot([z_lit, za], [R, -a], color="tab:red", lw=0.8, label="sight line: lit wall point → far aperture edge"
             if k == 0 else None)
     ax.plot([z_lit], [R], "o", color="tab:orange", ms=5, label="nearest wall point the sun lights behind a vane"

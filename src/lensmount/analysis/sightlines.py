@@ -42,6 +42,9 @@ PUPIL_RINGS, PUPIL_SPOKES = 8, 36
 PUPIL_SCALE = 2.0
 SUN_GRID = 120  # per side of the square over the front opening
 SUN_STEPS_DEG = (0.0, 0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0)
+# steep suns the ladder above the exclusion angle stops short of: only they reach a hood's
+# bore right behind the mouth vane
+STEEP_SUN_DEG = (70.0, 80.0, 89.0)
 SUN_AZIMUTHS_DEG = (0.0, 45.0)  # two, so a facet pattern cannot hide a lit band
 APERTURE_RINGS, APERTURE_SPOKES = 8, 24
 LOOK_POLAR, LOOK_AZIMUTHS = 45, 48  # directions over the half space in front of the aperture
@@ -177,7 +180,8 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
     su, sv = np.meshgrid(u, u)
     inside = su ** 2 + sv ** 2 <= 1.0
     l_tags, l_pts, l_angle = [], [], []
-    angles = [a for a in (exclusion_deg + s for s in SUN_STEPS_DEG) if a < 89.5]
+    angles = sorted({a for a in (exclusion_deg + s for s in SUN_STEPS_DEG) if a < 89.5}
+                    | {a for a in STEEP_SUN_DEG if a > exclusion_deg})
     for th in angles:
         for az in SUN_AZIMUTHS_DEG:
             ds = source_direction(th, az)

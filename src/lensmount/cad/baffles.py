@@ -9,14 +9,17 @@ and a note says so.
 Hood vanes by line of sight (`vanes.placement = "line-of-sight"`), the classic
 construction in the meridional plane: the first vane stands at the hood's mouth.
 Behind vane k (bore r_k) the wall (radius R) is lit from z_k + w + (R − r_k)/tan θ_k
-on, θ_k the steepest sun ray that passes the openings before it (any angle behind
-the mouth vane; edge to opposite edge of vanes k−1 and k after that). The next
+on, θ_k the steepest sun ray that passes every opening before it: parallel rays of
+slope t pass coaxial openings (z_i, r_i) iff t·(z_j − z_i) ≤ r_i + r_j for every pair
+(both ends of each vane's edge land), so deep in the hood only shallow rays arrive and
+the lit wall starts far behind the vane. The next
 vane's edge (the beam envelope + margin) is put where the line from that nearest lit
-wall point to the far edge of the entrance aperture (the first lens's clear aperture,
-across the axis) comes down to it: every lit point behind vane k is then hidden from
-every point of the aperture (the far edge is the critical one). The construction stops
-when no sun ray at the exclusion angle θ_e or beyond gets past the last two vanes
-(tan θ_e > (r_k + r_k−1)/(z_k − z_k−1)): the wall behind the last vane is dark.
+wall point to the entrance aperture across the axis (the first surface over its clear
+aperture, whichever of its points gives the lowest line: the rim, or on a convex surface
+an inner point nearer the vane) comes down to it: every lit point behind vane k is then
+hidden from every point of the aperture. The construction stops
+when no sun ray at the exclusion angle θ_e or beyond gets past the vanes
+(tan θ_e > tan θ_k): the wall behind the last vane is dark.
 The count follows from the construction.
 """
 
@@ -37,14 +40,27 @@ HOOD_VANE_ROOM_MM = 4.0  # automatic hood bore: beam + vane margin + this much r
 MAX_VANES = 40  # a construction that needs more has a hood far too long for its exclusion angle
 
 
+def steepest_sun_slope(openings) -> float:
+    """tan of the steepest parallel beam that passes every coaxial circular opening (z, r).
+
+    Shifted by z·t the openings' discs must share a point; their centres lie on one line, so
+    along it they are intervals and pairwise overlap suffices: t·(z_j − z_i) ≤ r_i + r_j.
+    """
+    z, r = np.asarray(openings, np.float64).T
+    dz = z[None, :] - z[:, None]
+    ahead = dz > 0
+    return float(((r[:, None] + r[None, :])[ahead] / dz[ahead]).min()) if ahead.any() else np.inf
+
+
 def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: tuple[float, float],
                   exclusion_deg: float, notes: list[str]) -> list[float]:
     """Front-face z of the hood vanes by the classic construction (module docstring).
 
     Args: env the Envelope; vs the [vanes] table; wall the hood's bore radius R; z_mouth, z_end
-    the hood's open and back ends; aperture (a, z_a) the entrance aperture's radius and z.
+    the hood's open and back ends; aperture (ρ, z) samples of the entrance aperture's profile
+    from the axis to its rim (the first surface over its clear aperture).
     """
-    a, z_a = aperture
+    rho, z_ap = (np.asarray(x, np.float64)[:, None] for x in aperture)
     tan_e = np.tan(np.radians(exclusion_deg))
     t, w, m = vs.thickness_mm, min(vs.edge_width_mm, vs.thickness_mm), vs.aperture_margin_mm
     last = z_end - t  # the deepest a vane's front face may sit
@@ -55,16 +71,21 @@ def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: 
         return float(np.interp(z, grid, bore))
 
     zs = [z_mouth]
-    tan_max = np.inf  # the steepest sun ray past the vanes so far: the mouth vane takes any angle
+    lands = [(z_mouth, r_at(z_mouth)), (z_mouth + w, r_at(z_mouth))]  # (z, r) of both ends of each edge land
+    tan_max = steepest_sun_slope(lands)  # the steepest sun ray past the vanes so far
     while len(zs) < MAX_VANES:
         z, r = zs[-1], r_at(zs[-1])
         if tan_max < tan_e:
-            return zs  # no sun ray at the exclusion angle or beyond gets past the last two vanes
+            return zs  # no sun ray at the exclusion angle or beyond gets past the vanes
         z_lit = max(z + t, z + w + (wall - r) / tan_max)  # the nearest wall point lit behind this vane
         if z_lit >= z_end:
             return zs
-        # the sight line from the aperture's far edge (-a, z_a) to that wall point (R, z_lit)
-        line = wall - (wall + a) * (grid - z_lit) / (z_a - z_lit)
+        # sight lines from the aperture across the axis (-ρ, z) to that wall point (R, z_lit): the
+        # lowest at each z is the one a vane there must still reach; on a curved first surface it
+        # need not come from the rim (an inner point can sit closer to the vane), and a vane
+        # behind an aperture point cannot hide it
+        lines = wall - (wall + rho) * (grid - z_lit) / (z_ap - z_lit)
+        line = np.where(grid < z_ap, lines, -np.inf).min(axis=0)
         # the vane goes at the last z where the line still passes above a vane's edge (so it hits it)
         ok = (grid > z_lit) & (line <= bore)
         if not ok.any():
@@ -75,7 +96,9 @@ def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: 
         if z_next <= z + t:
             notes.append(f"vanes: the construction stalls at z = {z:.2f} mm (vanes would overlap)")
             return zs
-        tan_max = (r + r_at(z_next)) / max(z_next + w - (z + w), 1e-9)  # edge to opposite edge
+        # a sun ray behind the new vane has passed every edge land so far, not just the last two
+        lands += [(z_next, r_at(z_next)), (z_next + w, r_at(z_next))]
+        tan_max = steepest_sun_slope(lands)
         zs.append(z_next)
     notes.append(f"vanes: the construction stopped at {MAX_VANES} vanes")
     return zs
@@ -216,4 +239,4 @@ def housing(spec: MountSpec, env, image_z: float, z_back: float, r_barrel: float
     return housing_part, PartPlan("rear-baffle", "baffle", spec.finish_of("rear-baffle", hs.finish), baffle)
 
 
-__all__ = ["hood_and_vanes", "housing"]
+__all__ = ["hood_and_vanes", "housing", "steepest_sun_slope"]

@@ -34,6 +34,7 @@ from lensmount.templates.spacer import Spacer
 _SLOPE_SAMPLES = 256
 _EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
 ENVELOPE_STEP_MM = 0.25
+APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance aperture (vane sight lines)
 
 
 @dataclass
@@ -636,7 +637,8 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     # ---- hood, vanes, detector housing (lensmount.cad.baffles) ---------------------------
     from lensmount.cad.baffles import hood_and_vanes, housing
 
-    aperture = (clear[i0], float(el0.front_z(clear[i0])))
+    rho = np.linspace(0.0, clear[i0], APERTURE_SAMPLES)
+    aperture = (rho, el0.front_z(rho))  # the entrance aperture: the first surface over its clear aperture
     hood_part, vane_parts = hood_and_vanes(spec, env, z_front, r_barrel, bore_pts[0][0], spacers, notes,
                                            aperture, spec.exclusion_deg(p.max_field_deg))
     housing_part, rear_baffle = housing(spec, env, p.image_z, z_back, r_barrel, bore_pts[-1][0], notes)
