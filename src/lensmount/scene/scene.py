@@ -95,6 +95,21 @@ def scattering_tags(scene) -> np.ndarray:
     return on & scatterer_mask(scene.effects, scene.mesh.tag_table, scene.finish_of_tag)
 
 
+def scattering_mirror_tags(scene) -> dict[int, int]:
+    """{mirror surface index (0-based): tag of its coated face} where the scene lets that face
+    scatter (`scattering_tags`); its BSDF is a `trace.bsdf.MirrorFinish`. Mirrors without one
+    reflect specularly only."""
+    mirrors = {s.index for s in scene.optical if s.mirror}
+    if not mirrors:  # a refracting lens: no face to look at
+        return {}
+    scatters = scattering_tags(scene)
+    out: dict[int, int] = {}
+    for t, tag in enumerate(scene.mesh.tag_table):
+        if scatters[t] and tag.role == "optical" and tag.surface in mirrors:
+            out.setdefault(tag.surface, t)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class OpticalSurface:
     """One analytic optical interface.
@@ -227,4 +242,4 @@ class Scene:
 
 
 __all__ = ["Effects", "EFFECT_NAMES", "OpticalSurface", "FrontOpening", "Scene", "faces_selected", "scatterer_mask",
-           "optical_faces", "scattering_tags"]
+           "optical_faces", "scattering_tags", "scattering_mirror_tags"]

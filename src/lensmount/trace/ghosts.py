@@ -11,8 +11,9 @@ surfaces in sequence; at every surface that can reflect, the walk branches: the 
 carries T = 1 − R, the reflected one R, with R the real unpolarised Fresnel or coating reflectance
 (R_s + R_p)/2 per ray and wavelength, the quantity the tracer's reflection branch draws against.
 Branches share their prefix, so the S³/6 two-reflection routes cost about S³/6 surface crossings
-instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fresnel reflection). With `effects.absorption` the glass
-absorbs exp(-a L) along every step, as in the tracer.
+instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fresnel reflection;
+R(1 − a) where its coated face scatters with a finish of albedo a, whose share the photons carry).
+With `effects.absorption` the glass absorbs exp(-a L) along every step, as in the tracer.
 
 What a route does not follow: total internal reflection on one of its steps ends the ray (the tracer
 reflects it without counting a Fresnel reflection, so that light is no ghost of this route; a
@@ -193,6 +194,17 @@ class _Context:
         self.max_reflections = int(max_reflections)
         self.lam = np.asarray(scene.wavelengths_um, np.float64)
         self.dummy = [np.array_equal(s.n_before, s.n_after) and not s.mirror for s in surfaces]
+        from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
+
+        self.mirror_finish = {i: scene.bsdf_of_tag[t].finish for i, t in scattering_mirror_tags(scene).items()}
+
+    def _specular_share(self, s, d: np.ndarray, nrm: np.ndarray) -> np.ndarray | float:
+        """1 − a(wi) at a mirror whose coated face scatters (its finish's albedo: that share is the
+        photons', `Tracer.next_event`), else 1."""
+        if s.index not in self.mirror_finish:
+            return 1.0
+        n = nrm * np.where(np.einsum("ij,ij->i", nrm, d) > 0.0, -1.0, 1.0)[:, None]
+        return 1.0 - self.mirror_finish[s.index].albedo(-d, n)
 
     def walk(self, b: _Bundle, left: int, step: int, route: tuple[int, ...]) -> Iterator[Arrival]:
         """Bundle b has just left surface `left`, travelling `step` (+1: in sequence order)."""
@@ -217,7 +229,7 @@ class _Context:
             return
         glass = np.ones(len(w), bool)
         if s.mirror:
-            r = mirror_reflectance(s.coating)
+            r = mirror_reflectance(s.coating) * self._specular_share(s, b.d, nrm)
             yield from self.walk(_alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass)), m, step, route)
             return
         forward = np.einsum("ij,ij->i", b.d, nrm) >= 0.0  # media by the side the ray comes from, as the tracer

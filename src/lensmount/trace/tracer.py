@@ -278,17 +278,15 @@ class Tracer:
         """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
         scatter (a mirror with a finish, `scene.scattering_tags`), else (-1, -1). The triangle is the
         face's one nearest the axis: an event found by the sequential step has none of its own."""
-        from lensmount.scene.scene import scattering_tags  # here: lensmount.scene imports the trace package
+        from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
 
         out = np.full((max(len(self._profiles), 1), 2), -1, np.int64)
-        scatters = scattering_tags(self.scene)
+        tag_of = scattering_mirror_tags(self.scene)
         for k, s in enumerate(self.scene.optical):
-            tags = [t for t, tag in enumerate(self.scene.mesh.tag_table)
-                    if s.mirror and scatters[t] and tag.role == "optical" and tag.surface == s.index]
-            prims = np.flatnonzero(self._tri_tag == tags[0]) if tags else np.zeros(0, np.int64)
+            prims = np.flatnonzero(self._tri_tag == tag_of[s.index]) if s.index in tag_of else np.zeros(0, np.int64)
             if prims.size:
                 c = self.scene.mesh.vertices[self.scene.mesh.triangles[prims]].mean(axis=1)
-                out[k] = tags[0], prims[np.argmin(np.hypot(c[:, 0], c[:, 1]))]
+                out[k] = tag_of[s.index], prims[np.argmin(np.hypot(c[:, 0], c[:, 1]))]
         return out
 
     def _embree_query(self, start: np.ndarray, d: np.ndarray):
