@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lensmount.integrators.paths import EMPTY, FaceTally, PassFaces, PassPaths, PathTally, ghost_code
-from lensmount.scene.scene import scattering_tags
+from lensmount.scene.scene import optical_faces, scattering_tags
 
 DIRECT, GHOSTS = "direct", "ghosts"
 BY_ROUTES = -2  # `Film.channel` of a photon whose path the deterministic ghost routes count instead
@@ -130,7 +130,8 @@ class Film:
         response = det.spectral_weight
         self._response = None if response is None else np.asarray(response, np.float64)
         self.paths = PathTally(det.shape, det.pixel_area)
-        self.faces = FaceTally(len(scene.mesh.tag_table), det.shape, det.pixel_area, self.paths.block)
+        self.faces = FaceTally(len(scene.mesh.tag_table), det.shape, det.pixel_area, self.paths.block,
+                               left_out=optical_faces(scene.mesh.tag_table))
 
     def channel(self, part: np.ndarray, reflections: np.ndarray) -> np.ndarray:
         """(N,) channel of paths whose last scattering part is `part` (-1: none) after `reflections`

@@ -181,21 +181,31 @@ class PassFaces:
 
 
 class FaceTally:
-    """Per-face illuminated flux and detector étendue of one pass (`PassFaces`)."""
+    """Per-face illuminated flux and detector étendue of one pass (`PassFaces`).
 
-    def __init__(self, n_tags: int, shape: tuple[int, int], pixel_area_mm2: float, block: int):
+    left_out : (n_tags,) bool, faces kept at 0 (a mirror's coated face: the tracer ends a ray there
+        only with the probability a of its finish, so its tallies would read a·R of its light; what
+        it scatters is in the paths and its part's channel). None: every face is tallied."""
+
+    def __init__(self, n_tags: int, shape: tuple[int, int], pixel_area_mm2: float, block: int,
+                 left_out: np.ndarray | None = None):
         self.n_tags, self.shape, self.block = int(n_tags), shape, int(block)
+        self.counted = np.ones(self.n_tags, bool) if left_out is None else ~np.asarray(left_out, bool)
         self.pixel_area = float(pixel_area_mm2)
         self.lit = np.zeros(self.n_tags)
         self.seen: np.ndarray | None = None
         self._images: tuple[np.ndarray, np.ndarray, np.ndarray] = (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
 
     def add_lit(self, tag: np.ndarray, flux: np.ndarray) -> None:
-        self.lit += np.bincount(np.asarray(tag, np.int64), weights=flux, minlength=self.n_tags)[: self.n_tags]
+        tag = np.asarray(tag, np.int64)
+        keep = self.counted[tag]
+        self.lit += np.bincount(tag[keep], weights=np.asarray(flux)[keep], minlength=self.n_tags)[: self.n_tags]
 
     def add_seen(self, tag: np.ndarray, pixel: np.ndarray, tau: np.ndarray) -> None:
         """Backward samples (τ in sr) whose first face is `tag`, from flat detector pixels."""
         tag = np.asarray(tag, np.int64)
+        keep = self.counted[tag]
+        tag, pixel, tau = tag[keep], np.asarray(pixel)[keep], np.asarray(tau)[keep]
         seen = np.bincount(tag, weights=tau, minlength=self.n_tags)[: self.n_tags] * self.pixel_area
         self.seen = seen if self.seen is None else self.seen + seen
         n_binned = int(np.prod(binned_shape(self.shape, self.block)))
