@@ -50,7 +50,8 @@ def conic_roots(c, k1, zv, t_min, o, d):
 
 
 @njit(cache=True, inline="always")
-def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, z_vertex, curvature, conic, t_min):
+def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic,
+             t_min):
     """One ray of `sequential_step`: (sure, t, surface).
 
     A ray leaving the last faceted surface in its direction (no next one) can only meet that
@@ -98,20 +99,31 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, z_vertex, cur
     else:
         z1 = np.inf if dz > 0 else -np.inf
     lo, hi = min(oz, z1), max(oz, z1)
+    r_far = -1.0
     for k in range(k_n):
         if k != lk and k != nxt and lo <= slab[k, 1] and hi >= slab[k, 0]:
-            return False, np.inf, -1
+            # In the slab: still clear if the facets that come as near the axis as the path (its
+            # distance from the axis is largest at an end) lie outside its z range.
+            if not math.isfinite(t_end):
+                return False, np.inf, -1
+            if r_far < 0.0:
+                ex, ey = ox + t_end * dx, oy + t_end * dy
+                r_far = math.sqrt(max(ox * ox + oy * oy, ex * ex + ey * ey))
+            b = min(int(r_far * reach_inv[k]) + 1, reach.shape[1] - 1)
+            if lo <= reach[k, b, 1] and hi >= reach[k, b, 0]:
+                return False, np.inf, -1
     if not good:
         return False, np.inf, -1
     return True, tb, sb
 
 
 @njit(cache=True)
-def sequential_step(left, o, d, t_stop, up, down, safe, slab, z_vertex, curvature, conic, t_min):
+def sequential_step(left, o, d, t_stop, up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic, t_min):
     """`Tracer._sequential_step` per ray: (sure (n,) bool, t (n,), surface (n,) int64).
 
     left (n,): the optical surface each ray just left (-1: none); up/down (k_n,): the next faceted
-    surface above/below (-1: none); safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range.
+    surface above/below (-1: none); safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range;
+    reach, reach_inv: that range by radius (`Tracer._optical_faces`).
     """
     n = o.shape[0]
     sure = np.zeros(n, np.bool_)
@@ -119,7 +131,8 @@ def sequential_step(left, o, d, t_stop, up, down, safe, slab, z_vertex, curvatur
     s_best = np.full(n, -1, np.int64)
     for i in range(n):
         sure[i], t_best[i], s_best[i] = step_one(left[i], o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
-                                                 t_stop[i], up, down, safe, slab, z_vertex, curvature, conic, t_min)
+                                                 t_stop[i], up, down, safe, slab, reach, reach_inv, z_vertex,
+                                                 curvature, conic, t_min)
     return sure, t_best, s_best
 
 

@@ -61,10 +61,9 @@ def _bin_minimum(z_lo, z_hi, r_min, z0, inv_h, nb):
     return bore
 
 
-def clear_bore(a, b, c, bins: int = 4096):
-    """The clear bore of triangles with corners a, b, c (m, 3): (z0, 1/bin width, sparse table
-    (levels, bins) of range minima, margin). A triangle's smallest distance from the axis is
-    the distance from the origin to its projection on the xy plane (0 if it covers the axis)."""
+def axis_distance(a, b, c) -> np.ndarray:
+    """(m,) the smallest distance from the z axis of triangles with corners a, b, c (m, 3): the
+    distance from the origin to the triangle's projection on the xy plane (0 if it covers the axis)."""
     p = [v[:, :2] for v in (a, b, c)]
     edge_distance = []
     for u, v in ((p[0], p[1]), (p[1], p[2]), (p[2], p[0])):
@@ -73,7 +72,13 @@ def clear_bore(a, b, c, bins: int = 4096):
         edge_distance.append(np.hypot(*(u + s[:, None] * e).T))
     cross = [u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0] for u, v in ((p[0], p[1]), (p[1], p[2]), (p[2], p[0]))]
     covers = (np.minimum.reduce(cross) >= 0.0) | (np.maximum.reduce(cross) <= 0.0)
-    r_min = np.where(covers, 0.0, np.minimum.reduce(edge_distance))
+    return np.where(covers, 0.0, np.minimum.reduce(edge_distance))
+
+
+def clear_bore(a, b, c, bins: int = 4096):
+    """The clear bore of triangles with corners a, b, c (m, 3): (z0, 1/bin width, sparse table
+    (levels, bins) of range minima of `axis_distance`, margin)."""
+    r_min = axis_distance(a, b, c)
     z = np.column_stack([a[:, 2], b[:, 2], c[:, 2]])
     z_lo, z_hi = z.min(axis=1), z.max(axis=1)
     if len(z_lo) == 0:
@@ -200,11 +205,11 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
     Returns (len(work),) bool: the ray's call is over (detector, or lost on a bad number); the
     others are where a step could not be proven, for Embree.
 
-    lens: (up, down, safe, slab, z_vertex, curvature, conic, t_min, n_before, n_after, alpha_before,
+    lens: (up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic, t_min, n_before, n_after, alpha_before,
     alpha_after, absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
     detector: (z, half width, half height).
     """
-    (up, down, safe, slab, zv, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const,
+    (up, down, safe, slab, reach, reach_inv, zv, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const,
      wavelengths, mirror) = lens
     z0, inv_h, table, margin = bore
     det_z, det_hw, det_hh = detector
@@ -213,8 +218,8 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
         i = work[j]
         while count[i] < max_optical:
             ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
-            sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, up, down, safe, slab, zv, curv,
-                                  conic, t_min)
+            sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, up, down, safe, slab, reach, reach_inv,
+                                  zv, curv, conic, t_min)
             if not sure:
                 break
             t_det = np.inf
@@ -294,4 +299,4 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
     return over
 
 
-__all__ = ["walk", "clear_bore", "reflectance", "uniform", "COATING_CODES"]
+__all__ = ["walk", "clear_bore", "axis_distance", "reflectance", "uniform", "COATING_CODES"]

@@ -47,6 +47,7 @@ _MAX_OPTICAL = 256       # refractions/reflections per next_event call before a 
 _EPS_REL = 2e-6          # relaunch step past a fake glass facet, relative to the assembly size
 _TMIN_REL = 1e-10        # float64 self-hit threshold, relative to the assembly size
 _EMBREE_MISS = 1e30
+_REACH_BANDS = 64        # radial bands of each glass surface's facet z range (Tracer._optical_faces)
 
 
 @dataclass
@@ -194,8 +195,8 @@ class Tracer:
                          tri[optical].astype(np.int32))
         self._faces = self._optical_faces()
         mech = tri[self._tri_surface < 0] if self._has_mesh else np.zeros((0, 3), np.int64)
-        safe, slab, up, down = self._faces
-        self._walk = ((up, down, safe, slab, self._z_vertex, self._curvature, self._conic, self.t_min,
+        safe, slab, up, down, reach, reach_inv = self._faces
+        self._walk = ((up, down, safe, slab, reach, reach_inv, self._z_vertex, self._curvature, self._conic, self.t_min,
                        self._n_before, self._n_after, self._alpha_before, self._alpha_after, self._absorbs,
                        np.array([lens_kernel.COATING_CODES[s.coating.kind] for s in scene.optical] or [0]),
                        np.array([s.coating.reflectance for s in scene.optical] or [0.0]), self._wavelengths,
@@ -238,13 +239,18 @@ class Tracer:
         safe radius: inside it the facets certainly cover the analytic surface (the outer
         boundary polygon's inscribed radius; 0 for a surface without facets, an annulus or an
         asphere, which the step leaves to Embree); slab: z range of the facets padded by the
-        facet tolerance, inf-wide where unknown.
+        facet tolerance, inf-wide where unknown; reach (k_n, _REACH_BANDS, 2), reach_inv (k_n,): the
+        padded z range of the facets that come within radius (b + 1) / reach_inv of the axis (a path
+        that stays nearer the axis meets no other facet outside it: the rim of a concave face
+        reaches far in z, its centre does not).
         """
         k_n = len(self._profiles)
         safe = np.zeros(max(k_n, 1))
         slab = np.tile([np.inf, -np.inf], (max(k_n, 1), 1))
+        reach = np.tile([np.inf, -np.inf], (max(k_n, 1), _REACH_BANDS, 1))
+        reach_inv = np.zeros(max(k_n, 1))
         if not self._has_mesh:
-            return safe, slab, np.full(max(k_n, 1), -1), np.full(max(k_n, 1), -1)
+            return safe, slab, np.full(max(k_n, 1), -1), np.full(max(k_n, 1), -1), reach, reach_inv
         mesh = self.scene.mesh
         for k in range(k_n):
             tri = mesh.triangles[self._tri_surface == k]
@@ -252,6 +258,15 @@ class Tracer:
                 continue
             v = mesh.vertices[np.unique(tri)]
             slab[k] = v[:, 2].min() - self._tolerance[k], v[:, 2].max() + self._tolerance[k]
+            corners = [mesh.vertices[tri[:, j]] for j in range(3)]
+            r_near = lens_kernel.axis_distance(*corners)
+            z = np.column_stack([c[:, 2] for c in corners])
+            reach_inv[k] = (_REACH_BANDS - 1) / max(float(r_near.max()), 1e-300)
+            band = np.minimum(np.floor(r_near * reach_inv[k]).astype(np.int64), _REACH_BANDS - 1)
+            lo, hi = np.full(_REACH_BANDS, np.inf), np.full(_REACH_BANDS, -np.inf)
+            np.minimum.at(lo, band, z.min(axis=1) - self._tolerance[k])
+            np.maximum.at(hi, band, z.max(axis=1) + self._tolerance[k])
+            reach[k, :, 0], reach[k, :, 1] = np.minimum.accumulate(lo), np.maximum.accumulate(hi)
             edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
             uniq, count = np.unique(edges, axis=0, return_counts=True)
             rim = uniq[count == 1]
@@ -272,7 +287,7 @@ class Tracer:
             below = np.flatnonzero(faceted[:k])
             up[k] = k + 1 + above[0] if above.size else -1
             down[k] = below[-1] if below.size else -1
-        return safe, slab, up, down
+        return safe, slab, up, down, reach, reach_inv
 
     def _scattering_mirror_faces(self) -> np.ndarray:
         """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
@@ -334,9 +349,10 @@ class Tracer:
         safe radius; elsewhere (near a rim, other slabs in the way, aspheres) the step declines.
         Returns (sure (n,) bool, t (n,) inf = no optical hit before t_stop, surface (n,)).
         """
-        safe, slab, up, down = self._faces
+        safe, slab, up, down, reach, reach_inv = self._faces
         return kernels.sequential_step(np.asarray(left, np.int64), o, d, np.asarray(t_stop, np.float64), up, down,
-                                       safe, slab, self._z_vertex, self._curvature, self._conic, self.t_min)
+                                       safe, slab, reach, reach_inv, self._z_vertex, self._curvature, self._conic,
+                                       self.t_min)
 
     def _optical_nearest(self, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
         """Nearest analytic optical hit of rays (n,) before t_stop: (t, prim, normal, lost).
