@@ -36,13 +36,6 @@ KNOWN = {
     # automatic DIAMs; the rim of the 44-48 mm fields (0.9 % of the 48 mm pupil) meets element 15/16 beyond
     # h = 114.1 mm, where its faces have crossed: the designed beam needs glass the element cannot have
     "US05831776-1": "cross each other",
-    # the patent's element 1 (R 14.16/69.41, 1.386 mm) is 0.194 mm thick at its fixed 6.3 mm clear
-    # semi-diameter (the file's DIAM vignettes a beam that would fill 7.16 mm there); a flat bevel (front
-    # face flat from 6.3 mm out) mends it: 0.30 mm at an 8.54 mm rim, and element 6 likewise. Element 2,
-    # the crown of the cemented doublet (R 16.20/-19.67, 2.313 mm), is 0.266 mm at its 5.94 mm clear
-    # semi-diameter and its cemented rear face cannot be flattened: with the contact margin and chamfer
-    # no rim is thicker than 0.052 mm. The error says no seat outside the light finds the minimum
-    "US00583336-2-scaled": "so no seat outside the light finds the minimum",
 }
 
 

@@ -22,6 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from lensmount.cad.lens_groups import lens_element, lens_group, seat_of_group
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
@@ -261,21 +262,6 @@ def _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, a, b) -> list[tuple]
 BEAM_CLEAR_MM = 0.01  # a glass seat's contact at least this far outside the light
 
 
-def lens_element(fa: OpticalFace, fb: OpticalFace, R: float, bf: float, bb: float, clear_a: float | None,
-                 clear_b: float | None, min_t: float) -> LensElement:
-    """The element between faces fa and fb, radius R; where its edge would be thinner than min_t, each
-    outer face (clear_a / clear_b given) that closes in toward the rim gets a flat bevel from its clear
-    semi-diameter out, when that makes the edge thick enough (a thin meniscus: the optics end at the
-    clear aperture, the ground flat carries the seat)."""
-    el = LensElement(fa, fb, R, bf, bb)
-    if el.edge_thickness() >= min_t:
-        return el
-    front = clear_a if clear_a is not None and clear_a < R - bf and float(fa.z(R)) > float(fa.z(clear_a)) else None
-    back = clear_b if clear_b is not None and clear_b < R - bb and float(fb.z(R)) < float(fb.z(clear_b)) else None
-    flat = LensElement(fa, fb, R, bf, bb, front, back)
-    return flat if (front is not None or back is not None) and flat.edge_thickness() >= min_t else el
-
-
 def _glass_seat(A, B, RA, RB, bore_a, bore_b, c_glass, element_no) -> list[tuple[float, float]]:
     """Barrel bore points where lens A and lens B sit on each other (seat "glass"): the bore steps
     from the smaller element's to the larger's `c_glass` clear of the larger's glass outside the
@@ -326,7 +312,15 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     groups = p.lens_groups()
     if not groups:
         raise GeometryError("the prescription has no glass: no lens element to mount", field="surfaces")
+    flat_faces = {n - 1 for n in edge.flat_faces}
+    outer = {i for g in groups for i in (g[0], g[-1])}
+    for n in edge.flat_faces:
+        if n - 1 not in outer:
+            raise GeometryError(f"surface {n} is not the outer face of a lens group, so it cannot be ground flat",
+                                field="lens_edge.flat_faces",
+                                valid="surface numbers of outer lens faces: " + ", ".join(str(i + 1) for i in sorted(outer)))
     lens_parts: list[list[PartPlan]] = []
+    seats_of_groups: list = []   # per group: (front, back) seats, seat_of_group
     radii, bores = [], []
     n_el = 0
     for g in groups:
@@ -338,14 +332,28 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         radii.append(R)
         bores.append(R + c_bore)
         elements = []
-        for a, b in zip(g[:-1], g[1:]):
+        built, stepped = lens_group([face(i) for i in g], R, chamfer, [clear[i] for i in g], min_t,
+                                    edge.stepped_min_edge_mm, (g[0] in flat_faces, g[-1] in flat_faces))
+        seats_of_groups.append(seat_of_group(built, stepped, g, clear, max(cm, c_glass)))
+        for k, (a, b) in enumerate(zip(g[:-1], g[1:])):
             n_el += 1
-            el = lens_element(face(a), face(b), R, chamfer if a == g[0] else 0.0, chamfer if b == g[-1] else 0.0,
-                              clear[a] if a == g[0] else None, clear[b] if b == g[-1] else None, min_t)
+            el = built[k]
             name = f"lens-{n_el}"
+            if k in stepped:
+                partner = f"lens-{n_el + (1 if k == 0 else -1)}"
+                notes.append(f"{name}: stepped, edged to {el.outer_radius:.3f} mm (clear {max(clear[a], clear[b]):.3f} "
+                             f"mm plus a {max(el.front_chamfer, el.back_chamfer):.3f} mm bevel; edge "
+                             f"{el.edge_thickness():.3f} mm, lens_edge.stepped_min_edge_mm "
+                             f"{edge.stepped_min_edge_mm}): at the group's {R:.3f} mm it would be "
+                             f"{LensElement(face(a), face(b), R).edge_thickness():.3f} mm; the group is seated on "
+                             f"{partner}'s cemented face outside it")
+                elements.append(PartPlan(name, "lens", spec.finish_of(name, edge.finish), el))
+                continue
             flats = [f"{side} face flat from {r:.3f} mm" for side, r in
                      (("front", el.front_flat_from), ("rear", el.back_flat_from)) if r is not None]
-            if flats:
+            if flats and {a, b} & flat_faces:
+                notes.append(f"{name}: flat bevel ({', '.join(flats)}; lens_edge.flat_faces)")
+            elif flats:
                 notes.append(f"{name}: flat bevel ({', '.join(flats)}): its faces close in toward the rim, "
                              f"the flat keeps the edge {el.edge_thickness():.3f} mm thick at {R:.3f} mm")
             if el.center_thickness() < min_t or el.edge_thickness() < min_t:
@@ -370,12 +378,13 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                     else "a smaller edge allowance or chamfer, or a thicker element")
             elements.append(PartPlan(name, "lens", spec.finish_of(name, edge.finish), el))
         lens_parts.append(elements)
-    for R, g in zip(radii, groups):
-        for i in (g[0], g[-1]):
-            if clear[i] + cm > R - chamfer - 1e-6:
+    for R, g, sides in zip(radii, groups, seats_of_groups):
+        for i, h, _ in sides:
+            if h > R - chamfer - 1e-6:
                 raise GeometryError(
-                    f"surface {i + 1}: contact height {clear[i] + cm:.3f} mm (clear {clear[i]:.3f} + margin {cm}) "
-                    f"lies beyond the edge chamfer at {R - chamfer:.3f} mm",
+                    f"surface {i + 1}: contact height {h:.3f} mm (clear {clear[i]:.3f} mm + margin {cm}"
+                    + (", outside a stepped element" if i not in (g[0], g[-1]) else "")
+                    + f") lies beyond the edge chamfer at {R - chamfer:.3f} mm",
                     field="lens_edge.contact_margin_mm", valid="a smaller contact margin or chamfer, "
                     "or a larger edge allowance")
 
@@ -388,11 +397,22 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                 valid="the number of the first element of a lens group after the first: "
                       + ", ".join(str(n) for n in sorted(seat_numbers)))
 
+    def seated(gi, side):
+        """The element a seat touches, with the outline it follows (a stepped group's GroupOutline)."""
+        i, _, outline = seats_of_groups[gi][side]
+        el = next(pp for pp, (a, b) in zip(lens_parts[gi], zip(groups[gi][:-1], groups[gi][1:]))
+                  if i == (a if side == 0 else b))
+        return el if outline is el.template else PartPlan(el.name, el.kind, el.finish, outline)
+
     def first_el(gi):
-        return lens_parts[gi][0]
+        return seated(gi, 0)
 
     def last_el(gi):
-        return lens_parts[gi][-1]
+        return seated(gi, 1)
+
+    def seat_at(gi, side):
+        """(surface index, contact height) where the seat on that side of group gi touches."""
+        return seats_of_groups[gi][side][:2]
 
     # envelope over the whole assembly (hood mouth to the image plane)
     hood = spec.hood
@@ -447,7 +467,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     # ---- front seat ---------------------------------------------------------------------
     el0 = first_el(0).template
     i0 = groups[0][0]
-    h0 = clear[i0] + cm
+    s0, h0 = seat_at(0, 0)
     if stop <= i0:  # a front aperture: barrel lip | diaphragm | spacer | lens 1 (no spacer on lens 1's face)
         od = bores[0] - c_sp
         dia = outer_diaphragm(float(zv[stop]), od, (-1, el0.front_z, radii[0]) if stop == i0 else None)
@@ -461,7 +481,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             m = contact_slope(el0.front_z, h0, min(radii[0], od), -1, tangent, wedge)
             hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
             add_spacers([(hd1, dz1, _EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first_el(0).name)],
-                        od, -1, i0)
+                        od, -1, s0)
     elif spec.seats.front == "retainer":
         r_out = bores[0] - c_sp
         m = contact_slope(el0.front_z, h0, min(radii[0], r_out), -1, tangent, wedge)
@@ -470,7 +490,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
         name = f"retainer-{len(retainers) + 1}"
         retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
-        contacts.append(Contact(name, first_el(0).name, i0, h0, clear[i0]))
+        contacts.append(Contact(name, first_el(0).name, s0, h0, clear[s0]))
         z_front = ret.far_face_z()
         bore_pts.append((bores[0], z_front))
     else:
@@ -478,17 +498,17 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
         z_front = cz(bores[0]) - spec.barrel.lip_mm
         bore_pts += [(_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bores[0], cz(bores[0]))]
-        contacts.append(Contact("barrel", first_el(0).name, i0, h0, clear[i0]))
+        contacts.append(Contact("barrel", first_el(0).name, s0, h0, clear[s0]))
 
     # ---- gaps between groups --------------------------------------------------------------
     stop_placed = stop <= i0 or stop >= groups[-1][-1]
     for gi in range(len(groups) - 1):
         A, B = last_el(gi), first_el(gi + 1)
         ia, ib = groups[gi][-1], groups[gi + 1][0]
-        hA, hB = clear[ia] + cm, clear[ib] + cm
+        (sa, hA), (sb, hB) = seat_at(gi, 1), seat_at(gi + 1, 0)   # where the seats touch (ia, ib unless stepped)
         RA, RB = radii[gi], radii[gi + 1]
         stop_here = ia <= stop <= ib
-        element_no = int(B.name.split("-")[1])
+        element_no = int(lens_parts[gi + 1][0].name.split("-")[1])   # the group's first element
         seat = "spacer" if stop_here else seat_of.get(element_no, spec.seats.default)
         if seat == "retainer":  # a barrel shoulder behind A, a retainer ring in front of B
             mA = contact_slope(A.template.back_z, hA, RA, +1, tangent, wedge)
@@ -514,7 +534,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                                     valid="'spacer', or a larger edge allowance")
             retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
             bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (r_sh, z_sh), (bores[gi + 1], z_sh)]
-            contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact(name, B.name, ib, hB, clear[ib])]
+            contacts += [Contact("barrel", A.name, sa, hA, clear[sa]), Contact(name, B.name, sb, hB, clear[sb])]
             continue
         if seat == "glass":
             bore_pts += _glass_seat(A, B, RA, RB, bores[gi], bores[gi + 1], c_glass, element_no)
@@ -550,7 +570,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
                     f"(minimum {min_t} mm)", field=f"seats.element.{element_no}",
                     valid="'spacer', or a larger air gap")
             bore_pts += [(bores[gi], cA(bores[gi])), (hA, cA(hA)), (hB, cB(hB)), (bores[gi + 1], cB(bores[gi + 1]))]
-            contacts += [Contact("barrel", A.name, ia, hA, clear[ia]), Contact("barrel", B.name, ib, hB, clear[ib])]
+            contacts += [Contact("barrel", A.name, sa, hA, clear[sa]), Contact("barrel", B.name, sb, hB, clear[sb])]
             continue
         od = min(bores[gi], bores[gi + 1]) - c_sp
         mA = contact_slope(A.template.back_z, hA, min(RA, od), +1, tangent, wedge)
@@ -574,7 +594,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", ds.finish), dia))
         else:
             ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
-        add_spacers(ends, od, ia, ib)
+        add_spacers(ends, od, sa, sb)
         # barrel steps where the glass outside the spacer ends
         r_in = od + c_sp
         # (clear of the glass by c_glass: the step does not hold the lens, and a step face
@@ -597,7 +617,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     gl = len(groups) - 1
     elL = last_el(gl)
     iL = groups[gl][-1]
-    hL = clear[iL] + cm
+    sL, hL = seat_at(gl, 1)
     if stop >= iL:  # a rear stop: lens L | spacer | diaphragm | barrel lip (no spacer on lens L's face)
         od = bores[gl] - c_sp
         dia = outer_diaphragm(float(zv[stop]), od, (+1, elL.template.back_z, radii[gl]) if stop == iL else None)
@@ -610,14 +630,14 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             m = contact_slope(elL.template.back_z, hL, min(radii[gl], od), +1, tangent, wedge)
             hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
             add_spacers([(hL, float(elL.template.back_z(hL)), m, hd0, dz0, _EPS_SLOPE, elL.name, "diaphragm")],
-                        od, iL, -1)
+                        od, sL, -1)
         bore_pts += [(bores[gl], rz(bores[gl])), (r_lip, rz(r_lip)), (r_lip, z_back)]
     elif spec.seats.rear == "shoulder":
         m = contact_slope(elL.template.back_z, hL, radii[gl], +1, tangent, wedge)
         cz = lambda r: float(elL.template.back_z(hL)) + m * (r - hL)  # noqa: E731
         z_back = cz(bores[gl]) + spec.barrel.lip_mm
         bore_pts += [(bores[gl], cz(bores[gl])), (hL, cz(hL)), (_opening(env, hL, z_back, cz(hL), spec), z_back)]
-        contacts.append(Contact("barrel", elL.name, iL, hL, clear[iL]))
+        contacts.append(Contact("barrel", elL.name, sL, hL, clear[sL]))
     else:
         r_out = bores[gl] - c_sp
         m = contact_slope(elL.template.back_z, hL, min(radii[gl], r_out), +1, tangent, wedge)
@@ -626,7 +646,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
         _check_ring(f"retainer-{len(retainers) + 1}", ret.far_r, r_out, min_t)
         name = f"retainer-{len(retainers) + 1}"
         retainers.append(PartPlan(name, "retainer", spec.finish_of(name, spec.retainer.finish), ret))
-        contacts.append(Contact(name, elL.name, iL, hL, clear[iL]))
+        contacts.append(Contact(name, elL.name, sL, hL, clear[sL]))
         z_back = ret.far_face_z()
         bore_pts.append((bores[gl], z_back))
 
@@ -654,4 +674,5 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     return Layout(p, ordered, contacts, env, notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius", "lens_element"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius", "lens_element",
+           "lens_group", "seat_of_group"]

@@ -46,6 +46,14 @@ class LensEdge(_Strict):
     semi_diameter_mm: dict[int, float] = Field(
         default_factory=dict, description="1-based element number → mechanical semi-diameter (mm); "
         "a cemented group takes the largest of its elements")
+    flat_faces: list[int] = Field(default_factory=list, description="1-based surface numbers of outer "
+                                  "lens faces ground flat from their clear semi-diameter out (a deep face "
+                                  "curling toward the diaphragm beside it leaves it room; a thin meniscus gets "
+                                  "its flat bevel where needed anyway)")
+    stepped_min_edge_mm: float = Field(0.2, gt=0, description="least edge of an outer element of a "
+                                       "cemented group that is too thin at the group's rim and is edged "
+                                       "to its clear aperture plus a bevel instead (a stepped group, seated "
+                                       "on its partner): it carries no seat, the cement holds it")
     finish: str = "ground-glass"
 
 

@@ -16,8 +16,11 @@ dimension follows from the lens itself, in the mount layer's own keys
   or a shoulder behind the one and a ring in front of the other (far apart); where two
   faces meet outside the smaller element's clear aperture plus contact margin (and not
   at the diaphragm), the smaller element ends there and rests on the other (seat "glass");
-  an element too thin at every such rim gets a flat bevel (`cad.layout.lens_element`) and
-  the rim where that makes it thick enough;
+  an element too thin at every such rim gets a flat bevel (`cad.lens_groups.lens_element`) and
+  the rim where that makes it thick enough; a cemented group's thin-edged outer element
+  is stepped (`cad.lens_groups.lens_group`: edged to its clear aperture, the group seated on its
+  partner), and where nothing else builds, the faces beside the stop that curl toward it
+  are ground flat from their clear aperture (`lens_edge.flat_faces`);
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -39,6 +42,7 @@ import numpy as np
 from lensmount.design.mount import MountSpec
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
+from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import chief_ray
 
 SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
@@ -86,7 +90,9 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     below the front retainer's wall above the beam: a lens that is too thin even there
     is left to `regenerate` to report (the lens file's own edge is).
     """
-    from lensmount.cad.layout import Envelope, lens_element
+    from lensmount.cad.layout import Envelope
+    from lensmount.cad.lens_groups import lens_group, seat_of_group
+    from lensmount.design.mount import LensEdge
     from lensmount.templates.lens_element import LensElement, OpticalFace
 
     surf, zv = p.surfaces, p.vertex_z
@@ -98,26 +104,37 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     step = 0.05 * allowance
     groups = p.lens_groups()
 
-    def thin(k: int, r: float) -> bool:
-        g = groups[k]
-        return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
-                   < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a])) for a, b in zip(g[:-1], g[1:]))
+    stepped_min = LensEdge().stepped_min_edge_mm
 
-    def too_thin(k: int, r: float) -> bool:   # the layout's own rule, flat bevels included
+    def group(k: int, r: float):   # the layout's own elements: flat bevels and stepped elements included
         g = groups[k]
-        return any(lens_element(face(a), face(b), r, chamfer, chamfer, clear[a] if a == g[0] else None,
-                                clear[b] if b == g[-1] else None, min_thickness).edge_thickness()
-                   < min_thickness for a, b in zip(g[:-1], g[1:]))
+        return lens_group([face(i) for i in g], r, chamfer, [clear[i] for i in g], min_thickness, stepped_min)
+
+    def thin(k: int, r: float) -> bool:   # a stepped element's edge does not follow the group's rim
+        g, stepped = groups[k], group(k, r)[1]
+        return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
+                   < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a]))
+                   for j, (a, b) in enumerate(zip(g[:-1], g[1:])) if j not in stepped)
+
+    def too_thin(k: int, r: float) -> bool:
+        els, stepped = group(k, r)
+        return any(el.edge_thickness() < min_thickness for j, el in enumerate(els) if j not in stepped)
+
+    def seat_heights(k: int, r: float) -> tuple[float, float]:   # (front, back) contact heights
+        front, back = seat_of_group(*group(k, r), groups[k], clear, contact)
+        return front[1], back[1]
 
     numbers = np.cumsum([0] + [len(g) - 1 for g in groups])[:-1] + 1   # first element of each group
     natural = [max(clear[i] for i in g) + allowance for g in groups]
-    floor = [max(clear[i] for i in g) + contact + chamfer + 0.01 for g in groups]
+    # the seat's contact inside the chamfer (beside a stepped element: on its partner, outside its rim)
+    floor = [max(max(seat_heights(k, n)) + chamfer + 0.01, max(clear[i] for i in g) + contact + chamfer + 0.01)
+             for k, (g, n) in enumerate(zip(groups, natural))]
     seats = {}
     radii_fixed = {}
     stop = p.stop_index
     for k in range(len(groups) - 1):
         ia, ib = groups[k][-1], groups[k + 1][0]
-        wall = max(clear[ia], clear[ib]) + contact + min_thickness + 0.02   # a spacer's outside
+        wall = max(seat_heights(k, natural[k])[1], seat_heights(k + 1, natural[k + 1])[0]) + min_thickness + 0.02
         if wall <= min(natural[k], natural[k + 1]):
             continue
         meet = _faces_meet(face(ia), face(ib), min(clear[ia], clear[ib]) + contact, max(natural[k], natural[k + 1]))
@@ -181,13 +198,41 @@ def _faces_meet(a, b, r_lo: float, r_hi: float) -> float | None:
     return float(rs[j - 1] + (rs[j] - rs[j - 1]) * gap[j - 1] / (gap[j - 1] - gap[j]))
 
 
+def _allowance(p: Prescription) -> float:
+    """The edge allowance: mechanical minus clear semi-diameter, from the largest clear semi-diameter."""
+    return _clamp(0.06 * max(float(s.clear_semi_diameter) for s in p.surfaces), 0.3, 2.0)
+
+
+def _faces_curling_toward_the_stop(p: Prescription) -> tuple[int, ...]:
+    """1-based numbers of the lens faces bounding the stop's air gap that curl toward the stop between
+    their clear semi-diameter and the rim (a double Gauss's deep inner faces): candidates for a flat."""
+    if p.has_mirrors:
+        return ()
+    stop, zv = p.stop_index, p.vertex_z
+    out = []
+    for g in p.lens_groups():
+        for i, side in ((g[-1], +1), (g[0], -1)):
+            between = range(min(i, stop) + 1, max(i, stop))
+            if i == stop or (stop - i) * side < 0 or any(not p.surfaces[j].is_air_after for j in between):
+                continue
+            s = p.surfaces[i]
+            c = float(s.clear_semi_diameter)
+            r = min(c + _allowance(p), Profile.of(s).max_radius())
+            sag = lambda h, s=s: float(Profile.of(s).sag(h * h))  # noqa: E731
+            if (sag(r) - sag(c)) * side > 0:
+                out.append(i + 1)
+    return tuple(out)
+
+
 def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     """mount.toml as a dict of tables, every dimension derived from the lens (module docstring),
     and why the mount cannot be built (None when it can).
 
     Two seatings are tried, checked with the layout planner and the profile checks that
     `regenerate` runs (no CAD): spacers with widened edges, then shoulders and rings where
-    a spacer cannot reach; the first that passes wins.
+    a spacer cannot reach; the first that passes wins. If neither does and faces beside the
+    stop curl toward it, both are tried again with those faces ground flat from their clear
+    semi-diameter (lens_edge.flat_faces: room for the diaphragm between deep inner faces).
     When neither does, the first is returned with the planner's error for the user.
     """
     from lensmount.cad.checks import check_layout
@@ -196,8 +241,11 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     from lensmount.errors import InputError
 
     first = None
-    for widen in (True, False):
+    gap = _faces_curling_toward_the_stop(p)
+    for flats, widen in [(f, w) for f in ((), gap)[:1 + bool(gap)] for w in (True, False)]:
         mount = _mount(p, name, widen)
+        if flats:
+            mount["lens_edge"]["flat_faces"] = list(flats)
         try:
             spec = parse_mount(mount)
             layout = plan(p, spec)
@@ -212,7 +260,7 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     from lensmount.cad.layout import Envelope
 
     a = max(float(s.clear_semi_diameter) for s in p.surfaces)
-    allowance = _clamp(0.06 * a, 0.3, 2.0)
+    allowance = _allowance(p)
     chamfer = _round(min(0.1, allowance / 8), 3)
     wall = _round(_clamp(0.15 * a, 0.8, 4.0), 1)
     lip = _round(_clamp(0.1 * a, 0.5, 2.0), 1)

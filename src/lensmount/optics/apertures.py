@@ -88,7 +88,7 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
     given = np.array([s.clear_semi_diameter is not None for s in prescription.surfaces])
     # Surfaces with a given clear semi-diameter clip the beam (those rays are legitimately
     # vignetted); a ray stopped where nothing clips missed the surface or met TIR.
-    for rays in _beam(prescription, fields, pupil, clip=True):
+    for rays in _beam(_stop_passing_the_rim(prescription), fields, pupil, clip=True):
         at = rays.vignetted_at
         lost = at[(at >= 0) & (at < nsurf)]
         lost = lost[~given[lost]]
@@ -142,21 +142,27 @@ def _envelope_beam(prescription: Prescription) -> tuple:
     different z, and the real-ray aiming is most of a regenerate's time. Callers only read them."""
     fields = _field_samples(prescription, ENVELOPE_FIELDS)
     pupil = pupil_rings(ENVELOPE_RINGS, ENVELOPE_SPOKES, half=True)
-    # The mount's diaphragm passes the designed pupil (cad.layout.pupil_edge_radius), so a stop
-    # DIAM rounded a hair under the marginal ray (the Cooke triplet's 3.8 mm for 3.8046 mm) must
-    # not drop the rim rays, which the diaphragm lets through, from the envelope.
-    stop = prescription.surfaces[prescription.stop_index]
-    r_stop = (1.0 + 1e-6) * stop_semi_diameter(prescription)
-    if stop.clear_semi_diameter is not None and stop.clear_semi_diameter < r_stop:
-        surfaces = list(prescription.surfaces)
-        surfaces[prescription.stop_index] = replace(stop, clear_semi_diameter=r_stop)
-        prescription = prescription.with_surfaces(surfaces)
-    beam = tuple(_beam(prescription, fields, pupil, clip=True))
+    beam = tuple(_beam(_stop_passing_the_rim(prescription), fields, pupil, clip=True))
     for rays in beam:
         for value in vars(rays).values():
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False
     return beam
+
+
+def _stop_passing_the_rim(prescription: Prescription) -> Prescription:
+    """The lens with a stop that passes the rays aimed at its rim. The mount's diaphragm passes the
+    designed pupil (cad.layout.pupil_edge_radius), so a stop DIAM a hair under the paraxial marginal ray
+    (the Cooke triplet's 3.8 mm for 3.8046 mm; Zemax's real-ray 4.215 mm for US 583,336's paraxial
+    4.251 mm) must not drop the rim rays the beam is aimed with from the envelope or the automatic
+    semi-diameters behind it."""
+    stop = prescription.surfaces[prescription.stop_index]
+    r_stop = (1.0 + 1e-6) * stop_semi_diameter(prescription)
+    if stop.clear_semi_diameter is None or stop.clear_semi_diameter >= r_stop or prescription.object_telecentric:
+        return prescription
+    surfaces = list(prescription.surfaces)
+    surfaces[prescription.stop_index] = replace(stop, clear_semi_diameter=r_stop)
+    return prescription.with_surfaces(surfaces)
 
 
 def _polyline_radius(rays, zq: np.ndarray) -> np.ndarray:

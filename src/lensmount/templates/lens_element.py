@@ -154,4 +154,47 @@ class LensElement(RevolvedPart):
         return d
 
 
-__all__ = ["OpticalFace", "LensElement"]
+@dataclass(frozen=True)
+class GroupOutline:
+    """What a cemented group shows its seats when one outer element is edged smaller than its
+    partner (a stepped group): at each radius the glass's object-side boundary is that of the first
+    element reaching that far, the image-side boundary that of the last. A seat touching the outline
+    outside the small element touches the partner's cemented face there."""
+
+    elements: tuple[LensElement, ...]
+
+    @property
+    def outer_radius(self) -> float:
+        return max(el.outer_radius for el in self.elements)
+
+    @property
+    def _widest(self) -> LensElement:
+        return max(self.elements, key=lambda el: el.outer_radius)
+
+    @property
+    def front_chamfer(self) -> float:
+        return self._widest.front_chamfer
+
+    @property
+    def back_chamfer(self) -> float:
+        return self._widest.back_chamfer
+
+    def edge_z(self) -> tuple[float, float]:
+        return self._widest.edge_z()
+
+    def _boundary(self, r, order, side: str) -> np.ndarray:
+        r = np.asarray(r, dtype=np.float64)
+        z = np.full(r.shape, np.nan)
+        for el in order:
+            z = np.where(np.isnan(z) & (r <= el.outer_radius + 1e-12),
+                         getattr(el, side)(np.minimum(r, el.outer_radius)), z)
+        return np.where(np.isnan(z), getattr(self._widest, side)(np.minimum(r, self.outer_radius)), z)
+
+    def front_z(self, r) -> np.ndarray:
+        return self._boundary(r, self.elements, "front_z")
+
+    def back_z(self, r) -> np.ndarray:
+        return self._boundary(r, self.elements[::-1], "back_z")
+
+
+__all__ = ["OpticalFace", "LensElement", "GroupOutline"]

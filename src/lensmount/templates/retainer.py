@@ -34,7 +34,8 @@ class Retainer(RevolvedPart):
     far_r: float | None = None
 
     def contact_face_z(self, r):
-        return self.contact_z - self.side * self.slope * (r - self.contact_r)
+        # away from the lens: toward -z for a ring in front (side -1), +z behind (the spacer's rule)
+        return self.contact_z + self.side * self.slope * (r - self.contact_r)
 
     def far_face_z(self) -> float:
         """z of the flat face away from the lens."""

@@ -13,7 +13,8 @@ What a lens file holds and how it is read:
                                  (flag 2 k), another solve (value as written) and a CLAP are
                                  honoured and vignette; an automatic one (flag 0, or a pickup of
                                  one) is only Zemax's last computed value and is recomputed from
-                                 lensmount's real rays, as for surfaces without a DIAM
+                                 lensmount's real rays, as for surfaces without a DIAM (the
+                                 stop's stays: Zemax's size of the diaphragm)
     VDXN/VDYN/VCXN/VCYN/VANN     vignetting factors per field: the automatic semi-diameters come
                                  from the beam they leave (Prescription.vignetting)
     ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
@@ -449,14 +450,15 @@ def _automatic(lens: ZmxLens) -> set[int]:
 
     An automatic value is only what Zemax last computed for the beam of its own settings, not an
     aperture the designer set, so lensmount recomputes it from its real rays (lensmount.optics.
-    apertures). When the aperture floats by stop size, the stop's DIAM is the aperture: it stays."""
+    apertures). The stop's is the exception: it is the size Zemax gives the diaphragm for the system
+    aperture with its own ray aiming (US 583,336: 4.215 mm, the real on-axis ray at EPD/2, where the
+    paraxial rule says 4.251 mm), and with FLOA it is the aperture: it stays."""
     by_number = {zs.number: zs for zs in lens.surfaces}
-    floating = lens.aperture is not None and lens.aperture[0] == "float"
 
     def automatic(zs: ZmxSurface, seen: frozenset) -> bool:
         if zs.diam_flag == 2 and zs.diam_from in by_number and zs.diam_from not in seen:
             return automatic(by_number[zs.diam_from], seen | {zs.number})
-        return zs.diam_flag == 0 and not (floating and zs.stop)
+        return zs.diam_flag == 0 and not zs.stop
 
     return {zs.number for zs in lens.surfaces if zs.diam and automatic(zs, frozenset())}
 
@@ -470,7 +472,8 @@ def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int]) -> tup
                                 "file's fields and aperture"))
         clear = None
     elif clear is not None:
-        kind = {1: "fixed", 2: f"picked up from surface {zs.diam_from}"}.get(zs.diam_flag, "solve (value as written)")
+        kind = {0: "automatic, the stop's: the diaphragm's size", 1: "fixed",
+                2: f"picked up from surface {zs.diam_from}"}.get(zs.diam_flag, "solve (value as written)")
         notes.append(ImportNote("imported", where, f"semi-diameter {clear:.4g} mm, {kind}"))
     if zs.clap:
         r = zs.clap * s

@@ -1,0 +1,97 @@
+"""Lens elements of a group as the mount holds them: flat bevels, stepped cemented elements, and where
+the group's seats touch it (shared by the layout planner and `lensmount init`'s starter mount).
+
+* An element whose edge would be thinner than the minimum gets a flat bevel on an outer face that
+  closes in toward the rim (a thin meniscus); `lens_edge.flat_faces` grinds listed faces flat anyway.
+* An outer element of a cemented group too thin at the group's rim even so (a thin-edged crown) is
+  stepped: edged to its clear semi-diameter plus a bevel, inside its partner's rim; the seat then
+  touches the partner's cemented face outside it (`templates.lens_element.GroupOutline`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from lensmount.templates.lens_element import GroupOutline, LensElement, OpticalFace
+
+
+def lens_element(fa: OpticalFace, fb: OpticalFace, R: float, bf: float, bb: float, clear_a: float | None,
+                 clear_b: float | None, min_t: float) -> LensElement:
+    """The element between faces fa and fb, radius R; where its edge would be thinner than min_t, each
+    outer face (clear_a / clear_b given) that closes in toward the rim gets a flat bevel from its clear
+    semi-diameter out, when that makes the edge thick enough (a thin meniscus: the optics end at the
+    clear aperture, the ground flat carries the seat)."""
+    el = LensElement(fa, fb, R, bf, bb)
+    if el.edge_thickness() >= min_t:
+        return el
+    front = clear_a if clear_a is not None and clear_a < R - bf and float(fa.z(R)) > float(fa.z(clear_a)) else None
+    back = clear_b if clear_b is not None and clear_b < R - bb and float(fb.z(R)) < float(fb.z(clear_b)) else None
+    flat = LensElement(fa, fb, R, bf, bb, front, back)
+    return flat if (front is not None or back is not None) and flat.edge_thickness() >= min_t else el
+
+
+def lens_group(faces: list[OpticalFace], R: float, chamfer: float, clear: list[float], min_t: float,
+               stepped_min: float, flat: tuple[bool, bool] = (False, False)) -> tuple[list[LensElement], tuple[int, ...]]:
+    """The elements of one lens group (faces and clear semi-diameters front to back), radius R, and
+    the positions of its stepped elements.
+
+    An outer element of a cemented group that is too thin at R even with a flat bevel (a thin-edged
+    crown) is stepped: edged to its clear aperture plus a bevel (the chamfer, smaller where the edge
+    would else be under `stepped_min`), inside its partner's rim. It carries no seat; the cement
+    holds it, and the group is seated on the partner's cemented face outside it, which gets the
+    protective chamfer at its rim (`seat_of_group`). `flat`: grind the group's front (back) face flat
+    from its clear semi-diameter out (lens_edge.flat_faces)."""
+    n = len(faces) - 1
+    els = [lens_element(faces[k], faces[k + 1], R, chamfer if k == 0 else 0.0, chamfer if k == n - 1 else 0.0,
+                        clear[k] if k == 0 else None, clear[k + 1] if k == n - 1 else None, min_t) for k in range(n)]
+    if flat[0] and clear[0] < R - els[0].front_chamfer:
+        els[0] = replace(els[0], front_flat_from=clear[0])
+    if flat[1] and clear[-1] < R - els[-1].back_chamfer:
+        els[-1] = replace(els[-1], back_flat_from=clear[-1])
+    stepped: list[int] = []
+    for k, partner, front in ((0, 1, True), (n - 1, n - 2, False)):
+        if n < 2 or els[k].edge_thickness() >= min_t or partner in stepped:
+            continue
+        small = _stepped(faces[k], faces[k + 1], max(clear[k], clear[k + 1]), chamfer, front, stepped_min)
+        if small is None:
+            continue
+        els[k] = small
+        els[partner] = replace(els[partner], **({"front_chamfer": chamfer} if front else {"back_chamfer": chamfer}))
+        stepped.append(k)
+    return els, tuple(stepped)
+
+
+def _stepped(fa: OpticalFace, fb: OpticalFace, clear: float, chamfer: float, front: bool,
+             stepped_min: float) -> LensElement | None:
+    """The element edged at its clear semi-diameter plus a bevel b <= chamfer on its outer face (none
+    on the cemented one), b as large as keeps the edge >= stepped_min; None if even b = 0 does not."""
+    def element(b: float) -> LensElement:
+        return LensElement(fa, fb, clear + b, b if front else 0.0, 0.0 if front else b)
+
+    if element(0.0).edge_thickness() < stepped_min:
+        return None
+    if element(chamfer).edge_thickness() >= stepped_min:
+        return element(chamfer)
+    lo, hi = 0.0, chamfer
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if element(mid).edge_thickness() >= stepped_min else (lo, mid)
+    return element(lo)
+
+
+def seat_of_group(elements: list, stepped: tuple[int, ...], group: tuple[int, ...], clear: list[float],
+                  margin: float) -> tuple[tuple[int, float, object], tuple[int, float, object]]:
+    """Where the seats touch a lens group, front and back: (surface index, contact height, outline
+    whose front_z / back_z the seat follows). Normally the outer faces at the clear semi-diameter
+    plus the contact margin; beside a stepped element, the partner's cemented face at the stepped
+    rim plus the margin (the light there stays inside the stepped element's clear aperture)."""
+    n = len(elements)
+    outline = GroupOutline(tuple(elements)) if stepped else None
+    front = (group[1], elements[0].outer_radius + margin, outline) if 0 in stepped else \
+        (group[0], clear[group[0]] + margin, outline or elements[0])
+    back = (group[-2], elements[-1].outer_radius + margin, outline) if n - 1 in stepped else \
+        (group[-1], clear[group[-1]] + margin, outline or elements[-1])
+    return front, back
+
+
+__all__ = ["lens_element", "lens_group", "seat_of_group"]
