@@ -31,7 +31,7 @@ from lensmount.scene import primitives  # noqa: E402
 from lensmount.scene.primitives import _cap  # noqa: E402
 from lensmount.trace.rays import RayBatch  # noqa: E402
 from lensmount.trace.sampler import Streams  # noqa: E402
-from lensmount.trace.tracer import FACE, GONE, Tracer  # noqa: E402
+from lensmount.trace.tracer import FACE, GONE, MIRROR_SCATTER_MIN_SHARE, Tracer  # noqa: E402
 
 FAR = {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": 1.0e4}  # behind the mirror: nothing lands
 
@@ -84,6 +84,22 @@ def test_a_mirror_with_a_finish_ends_a_share_a_on_its_face_and_reflects_the_rest
     # without numbers (geometric callers) the mirror stays specular
     plain = Tracer(scene).next_event(RayBatch.make(o, d))
     assert np.all(plain.kind == GONE)
+
+
+def test_a_polished_mirror_scatters_a_tenth_of_its_rays_weighted_to_keep_r_a_scattered_and_r_one_minus_a_specular():
+    # TIS 1e-2 (dust): p = 0.1 of the rays take the finish with weight R·a/p, the others R(1 − a)/(1 − p)
+    n, rho, r = 20_000, 0.01, 0.9
+    scene = _flat_mirror({"model": "lambertian", "reflectance": rho}, r)
+    o, d = _beam(n, 20.0)
+    ev = Tracer(scene).next_event(RayBatch.make(o, d), Streams(9, "mirror", np.arange(n)))
+    at_face = ev.kind == FACE
+    p = MIRROR_SCATTER_MIN_SHARE
+    assert _within(at_face.mean(), p, math.sqrt(p * (1 - p) / n))
+    np.testing.assert_allclose(ev.weight[at_face], r * rho / p, rtol=1e-12)
+    np.testing.assert_allclose(ev.weight[~at_face], r * (1 - rho) / (1 - p), rtol=1e-12)
+    scattered, specular = np.where(at_face, ev.weight, 0.0), np.where(at_face, 0.0, ev.weight)
+    assert _within(scattered.mean(), r * rho, scattered.std() / math.sqrt(n))
+    assert _within(specular.mean(), r * (1 - rho), specular.std() / math.sqrt(n))
 
 
 def _walk(scene, n: int, seed: int = 3):

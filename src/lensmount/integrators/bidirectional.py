@@ -27,11 +27,11 @@ are counted the same forward way when the scene turns `direct` or `ghosts` on, e
 (four-) reflection ghosts, which the deterministic routes count (`ghost_routes`).
 
 A mirror's coated face with a finish (`[assign] "surface:N"`) is counted by the photons too, a
-decision, not an approximation: the tracer ends a ray there only with probability a(wi) (the
-finish's albedo; `Tracer.next_event`), backward rays included, so a hit point there would be
-made for a share a of the samples and gather a share a of the photons; the specular share the
-backward rays carry on (weight R, probability 1 − a) is exactly the importance of the light
-the mirror reflects specularly. Every path is still counted once: one whose last scattering
+decision, not an approximation: the tracer ends a ray there only with probability p (at least
+the finish's albedo a; `Tracer.next_event`), backward rays included, so a hit point there would
+be made for a share p of the samples with weight R·a/p and gather a share p of the photons; the
+specular share the backward rays carry on (weight R(1 − a)/(1 − p), probability 1 − p) is
+exactly the importance of the light the mirror reflects specularly. Every path is still counted once: one whose last scattering
 vertex is the mirror by its photon on the detector, one scattering at the mirror earlier by
 the gather at its last face. The cost: light scattered by a mirror converges as in the forward
 estimator.

@@ -184,7 +184,7 @@ class FaceTally:
     """Per-face illuminated flux and detector étendue of one pass (`PassFaces`).
 
     left_out : (n_tags,) bool, faces kept at 0 (a mirror's coated face: the tracer ends a ray there
-        only with the probability a of its finish, so its tallies would read a·R of its light; what
+        only with probability p, weighted R·a/p, so its tallies would read a·R of its light; what
         it scatters is in the paths and its part's channel). None: every face is tallied."""
 
     def __init__(self, n_tags: int, shape: tuple[int, int], pixel_area_mm2: float, block: int,

@@ -9,8 +9,9 @@ channels they share (tests/integrators/test_plan_effects.py measures it).
   finish, named by `effects.scatter`); the view map makes hit points only there. Every other
   mechanical face ends the photon where it lands.
 - *Scatter at a mirror.* A mirror's coated face with a finish (`"surface:N"`) among the
-  scatterers: the tracer ends a ray there with probability a(wi), the finish's albedo (weight
-  R), and reflects it specularly otherwise (`Tracer.next_event`); its own line says so. A black
+  scatterers: the tracer ends a ray there with probability p = max(a, 0.1) (a(wi): the finish's
+  albedo; weight R·a/p) and reflects it specularly otherwise (weight R(1 − a)/(1 − p);
+  `Tracer.next_event`); its own line says so. A black
   finish, or one `[effects] scatter` leaves out, leaves the mirror specular (R), as without one.
 - *Where a photon ends.* At the first event after which no counted path is possible:
   an absorber, a face outside the scatterers, the detector, or leaving the assembly. This is
@@ -56,6 +57,7 @@ from lensmount.integrators.settings import EstimatorSettings
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.ghosts import reflecting, route_count
 from lensmount.trace.sources import ObjectSource
+from lensmount.trace.tracer import MIRROR_SCATTER_MIN_SHARE
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
 _WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
@@ -147,7 +149,8 @@ def _mirrors(scene, scatters: np.ndarray) -> list[Decision]:
         if scatters[k]:
             out.append(Decision(what, True, f"{finish} (TIS {b.tis:.3g}): the tracer reflects R(1 − a) specularly "
                                 "and ends R·a on the face for the walk to scatter (a: the finish's albedo at each "
-                                "incidence); bidirectional counts that light by its photons (no hit points on a "
+                                f"incidence; at least {MIRROR_SCATTER_MIN_SHARE:g} of the rays take that branch); "
+                                "bidirectional counts that light by its photons (no hit points on a "
                                 "mirror)"))
         else:
             out.append(Decision(what, False, f"{finish} " + ("is black" if b.is_black else

@@ -41,6 +41,7 @@ from lensmount.trace.sampler import ray_streams
 GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind: the one set of event codes (the integrators use these)
 FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM + interface count in the call
 MIRROR_SCATTER_DIM = 1 << 21  # ... and of a scattering mirror's branch: MIRROR_SCATTER_DIM + interface count
+MIRROR_SCATTER_MIN_SHARE = 0.1  # a scattering mirror's branch takes its finish at least this often (`_scatters`)
 
 _MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
 _MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
@@ -497,11 +498,12 @@ class Tracer:
         FRESNEL_DIM + k of its own stream, so the branch does not depend on the batch), or a
         Generator. A mirror reflects every ray with weight R (its coating); where the scene gives
         its coated face a finish (`[assign] "surface:N"`, and the face scatters by `[effects]`) a
-        ray ends there as a FACE event (its tag, the arriving direction, weight R) with probability
-        a(wi), the finish's albedo at that incidence (dimension MIRROR_SCATTER_DIM + k), and
-        reflects specularly otherwise: R(1 − a) specular and R·a scattered on average, the walk
+        ray ends there as a FACE event (its tag, the arriving direction, weight R·a/p) with
+        probability p = max(a, MIRROR_SCATTER_MIN_SHARE) (a(wi): the finish's albedo at that
+        incidence; p = 0 where a = 0; dimension MIRROR_SCATTER_DIM + k), and reflects specularly
+        otherwise with R(1 − a)/(1 − p): R(1 − a) specular and R·a scattered on average, the walk
         sampling the scatter (`trace.bsdf.MirrorFinish`). Without `rng` every ray reflects
-        specularly. The input batch is not modified.
+        specularly with R. The input batch is not modified.
 
         origin_normal (N, 3), optional (addition to the architecture's signature): the normal of
         the surface each ray starts on — pass `Events.normal` of the event a ray was scattered at.
@@ -580,8 +582,10 @@ class Tracer:
                 lost[gi[bad]] = True
                 keep = ~bad
                 if scattering_mirror:  # the finish's share ends here, on the mirror's face (the walk scatters it)
-                    on = keep & self._scatters(h.surface[glass], h.normal[glass], d_in,
+                    on, share = self._scatters(h.surface[glass], h.normal[glass], d_in,
                                                streams.at(gi, MIRROR_SCATTER_DIM + count[gi] - 1))
+                    on &= keep
+                    w[gi] *= share
                     si, k, nk = gi[on], h.surface[glass][on], h.normal[glass][on]
                     kind[si], tag[si], prim[si] = FACE, self._mirror_face[k, 0], self._mirror_face[k, 1]
                     normal[si] = nk * np.where(np.einsum("ij,ij->i", nk, d_in[on]) > 0.0, -1.0, 1.0)[:, None]
@@ -600,18 +604,27 @@ class Tracer:
         return Events(kind, o, d, normal, tag, prim, pixel, w, rays.wavelength.copy(), rays.id.copy(), lost,
                       reflections, ghost_pair)
 
-    def _scatters(self, surf: np.ndarray, nrm: np.ndarray, d_in: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """(m,) bool: rays that met optical surfaces `surf` (normals nrm, arriving along d_in) and
-        scatter there: at a mirror with a finish, with probability a(wi), the finish's albedo at
-        that incidence (its TIS at normal incidence); u (m,) uniforms."""
-        out = np.zeros(len(surf), bool)
+    def _scatters(self, surf: np.ndarray, nrm: np.ndarray, d_in: np.ndarray, u: np.ndarray):
+        """Which rays scatter at the optical surfaces `surf` they met (normals nrm, arriving along
+        d_in; u (m,) uniforms), and the factor on their weight: (on (m,) bool, share (m,)).
+
+        At a mirror with a finish of albedo a (at that incidence; its TIS at normal incidence) a ray
+        scatters with probability p = max(a, MIRROR_SCATTER_MIN_SHARE) where a > 0, carrying a/p,
+        else it reflects with (1 − a)/(1 − p): R·a scattered and R(1 − a) specular on average for any
+        p. Why a floor: a polished mirror's TIS is ~1e-3, so p = a would send one photon in a thousand
+        down the primary's scatter, the main stray path of a Cassegrain; at p = 0.1 a hundred times
+        more, for 10 % fewer specular ones. Elsewhere on = False, share = 1."""
+        on, share = np.zeros(len(surf), bool), np.ones(len(surf))
         bsdf_of_tag = self.scene.bsdf_of_tag
         for k in np.unique(surf[self._mirror_face[surf, 0] >= 0]):
             sel = surf == k
             wi = -d_in[sel]
             n = nrm[sel] * np.where(np.einsum("ij,ij->i", nrm[sel], wi) < 0.0, -1.0, 1.0)[:, None]
-            out[sel] = u[sel] < bsdf_of_tag[self._mirror_face[k, 0]].finish.albedo(wi, n)
-        return out
+            a = bsdf_of_tag[self._mirror_face[k, 0]].finish.albedo(wi, n)
+            p = np.where(a > 0.0, np.maximum(a, MIRROR_SCATTER_MIN_SHARE), 0.0)
+            on[sel] = u[sel] < p
+            share[sel] = np.where(on[sel], a / np.where(p > 0.0, p, 1.0), (1.0 - a) / np.maximum(1.0 - p, 1e-300))
+        return on, share
 
     def _bulk_transmittance(self, h: Hits, d: np.ndarray, wl: np.ndarray) -> np.ndarray:
         """exp(-a(λ) L) over the segment each ray just travelled (its length h.t).
@@ -690,4 +703,5 @@ def _newton_asphere(prof, o, d, t0, steps: int = 40, tol: float = 1e-12):
     return np.where(ok & np.isfinite(resid) & (resid < 1e-9), t, np.inf)
 
 
-__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "FRESNEL_DIM", "MIRROR_SCATTER_DIM"]
+__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "FRESNEL_DIM", "MIRROR_SCATTER_DIM",
+           "MIRROR_SCATTER_MIN_SHARE"]

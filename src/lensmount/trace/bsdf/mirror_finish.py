@@ -3,9 +3,10 @@
 A mirror with a finish (micro-roughness, dust; `[assign] "surface:N"`) reflects R (its coating)
 of what it receives: R·(1 − a(wi)) specularly and R·f(wi, wo) scattered, where f is the finish's
 BSDF and a(wi) its albedo at that incidence (= its TIS at normal incidence). The tracer picks the
-branch: a ray scatters with probability a(wi) and then carries R, else it reflects specularly
-with R (`Tracer.next_event`). So given that a ray scattered, its lobe is f / a(wi), whose
-albedo is 1 at every incidence: that is this BSDF, the one the walk samples at the mirror's face.
+branch: a ray scatters with probability p and then carries R·a/p, else it reflects specularly with
+R(1 − a)/(1 − p) (`Tracer.next_event`, p = max(a, 0.1)). So the scattered light, R·a in all, leaves
+with the lobe f / a(wi), whose albedo is 1 at every incidence: that is this BSDF, the one the walk
+samples at the mirror's face.
 
 Not a model a scene file names (scene files name the finish; `scene.build` wraps it). `finish`
 is the wrapped BSDF; `tis`, `lobe_half_width_deg` and `is_black` are its.
