@@ -110,8 +110,6 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
     # y_stop = A y1 + B u1 = 0, and the ray meets the axis at z = -y1/u1 = B/A.
     front = _chain(refr, trans, 0, stop, include_last_refraction=False)
     entrance_pupil_z = _finite(front[0, 1] / _nonzero(front[0, 0]))  # telecentric: far away
-    if prescription.object_telecentric:  # the designer's chief rays run parallel, whatever the stop
-        entrance_pupil_z = _finite(math.inf)
     kind, value = prescription.aperture.kind, float(prescription.aperture.value)
     if kind == "epd":
         epd = value

@@ -96,7 +96,9 @@ class Prescription:
         object_telecentric: a finite object seen from telecentric object space (Zemax's FTYP
             flag): every field's chief ray runs parallel to the axis and its rays fill the cone
             of the object-space NA (direction cosines NA times the pupil point), whatever the
-            stop; the entrance pupil is at infinity.
+            stop. Only the real-ray aiming follows it: the paraxial data stay the stop's (a lens
+            designed telecentric has its stop at the front group's focus, so its paraxial entrance
+            pupil is far away anyway).
     """
 
     surfaces: tuple[Surface, ...]
