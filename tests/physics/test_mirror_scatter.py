@@ -174,6 +174,14 @@ def test_a_finish_is_given_only_to_a_mirror_surface_and_is_not_itself_a_mirror()
     with pytest.raises(InputError, match="names no face"):
         make_scene(p, mesh, detector=FAR, assign={"surface:1": "black-anodised"},
                    effects={"scatter": ["surface:2"], "ghosts": False, "direct": False})
+    for selector, scatters in (("part:mirror-1", True), ("kind:mirror", True), ("finish:black-anodised", True),
+                               ("finish:polished", False)):  # finish: the scene's, not the mount's
+        with_face = make_scene(p, mesh, detector=FAR, assign={"surface:1": "black-anodised"},
+                               objects=[{"type": "disk", "name": "plate", "centre_mm": [0.0, 0.0, -80.0],
+                                         "radius_mm": 5.0, "finish": "polished"}],
+                               finishes={"polished": {"model": "lambertian", "reflectance": 0.5}},
+                               effects={"scatter": [selector], "ghosts": False, "direct": False})
+        assert [d.ran for d in plan(with_face).decisions if d.what.startswith("scatter at mirror")] == [scatters]
 
 
 def _cassegrain(finish: dict | None, off_axis_deg: float = 1.0, baffle: float = 0.5, direct: bool = True):
@@ -285,3 +293,56 @@ def test_the_ghost_routes_carry_only_the_specular_share_of_a_scattering_mirror()
     routes, routes_se = channel(EstimatorSettings(), 20_000, 3)
     assert routes == pytest.approx(branch, abs=4 * math.hypot(branch_se, routes_se))
     assert 4 * math.hypot(branch_se, routes_se) < 0.2 * branch  # 1/(1 − a) = 1.43 would fail it
+
+
+CASSEGRAIN_ZMX = Path(__file__).resolve().parents[1] / "optics" / "corpus" / "HoO-V2C18Ex03.zmx"
+
+
+def _init(design: Path) -> None:
+    from typer.testing import CliRunner
+
+    from lensmount.cli import app
+
+    result = CliRunner().invoke(app, ["init", str(design), "--lens", str(CASSEGRAIN_ZMX)])
+    assert result.exit_code == 0, result.output
+
+
+def test_init_writes_a_mirror_lens_a_case2_scene_whose_mirrors_scatter_as_polished_mirrors(tmp_path):
+    from lensmount.design.scene import load_scene
+    from lensmount.trace.bsdf import make_bsdf
+
+    _init(tmp_path / "design")
+    case2 = load_scene(tmp_path / "design" / "scenes" / "case2-lambertian.toml")
+    spec = load_scene(tmp_path / "design" / "scenes" / "mirrors-scatter.toml")
+    assert spec.source == case2.source and spec.assign == case2.assign | {"surface:2": "polished-mirror",
+                                                                           "surface:3": "polished-mirror"}
+    params = dict(spec.finishes["polished-mirror"])
+    tis = make_bsdf(params.pop("model"), **params).tis
+    assert tis == pytest.approx((4 * math.pi * 0.002 / 0.55) ** 2, rel=0.01)  # 2 nm rms at 550 nm
+
+
+@pytest.mark.slow  # ~30 s: the regenerate
+def test_the_corpus_cassegrain_simulates_its_mirrors_scatter(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from lensmount.cli import app
+
+    design = tmp_path / "design"
+    _init(design)
+    runner = CliRunner()
+    assert runner.invoke(app, ["regenerate", str(design), "--quiet"]).exit_code == 0
+    out = tmp_path / "run"
+    run = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "mirrors-scatter.toml"),
+                              "--photons-per-pass", "20000", "--passes", "3", "--workers", "1",
+                              "--method", "forward", "--out", str(out), "--no-record"])
+    assert run.exit_code == 0, run.output
+    summary = json.loads((out / "summary.json").read_text())
+    ran = [d["what"] for d in summary["plan"]["ran"]]
+    assert "scatter at mirror surface 2 (mirror-2)" in ran and "scatter at mirror surface 3 (mirror-1)" in ran
+    assert math.isfinite(summary["stray_fraction"]) and summary["stray_fraction"] > 0.0
+    paths = [[(e.get("part"), e.get("role")) for e in p["events"]] for p in summary["top_paths"]["paths"]]
+    # the sun on the primary, scattered by it to the detector: 3.3e-6 of 1.9e-5, third after the secondary's
+    # cell and its bevel (Lambertian 5 %) at 3 x 20k photons
+    assert [("mirror-2", "optical")] in paths

@@ -116,19 +116,21 @@ def init(
 
 
 def _init_from_lens(directory: Path, lens: Path) -> str | None:
-    """Copy the lens, write the derived mount.toml and case-2 scene, and for a finite object the
-    object-lambertian scene (everything checked before writing)."""
+    """Copy the lens, write the derived mount.toml and case-2 scene, for a finite object the
+    object-lambertian scene and for a lens with mirrors the mirrors-scatter one (everything checked
+    before writing)."""
     import tomli_w
 
     from lensmount.atomic import atomic_path, write_text
     from lensmount.design.lens import load_lens
-    from lensmount.design.starter import case2_scene, object_scene, starter_mount
+    from lensmount.design.starter import case2_scene, mirror_scene, object_scene, starter_mount
 
     prescription = load_lens(lens)
     name = prescription.name if prescription.name not in ("", "lens") else lens.stem
     mount, problem = starter_mount(prescription, name)
     scene = case2_scene(prescription, mount, name)
     obj = object_scene(prescription, scene, name)
+    mirrors = mirror_scene(prescription, scene)
     target = "lens.zmx" if lens.suffix.lower() == ".zmx" else "lens.toml"
     directory.mkdir(parents=True, exist_ok=True)
     (directory / "scenes").mkdir(exist_ok=True)
@@ -137,6 +139,8 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
     write_text(directory / "scenes" / "case2-lambertian.toml", tomli_w.dumps(scene))
     if obj is not None:  # a finite object: the object itself as the source
         write_text(directory / "scenes" / "object-lambertian.toml", tomli_w.dumps(obj))
+    if mirrors is not None:  # mirrors: case 2 with their scatter
+        write_text(directory / "scenes" / "mirrors-scatter.toml", tomli_w.dumps(mirrors))
     if problem:  # the user starts from it and edits; say what to edit
         header += f"# This mount does not build yet: {problem}\n"
     write_text(directory / "mount.toml", header + tomli_w.dumps(mount))

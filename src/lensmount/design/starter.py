@@ -44,6 +44,7 @@ from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import chief_ray
+from lensmount.scene.finishes import surface_rule
 
 SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
 MIN_EDGE_FRACTION = 0.25     # edge thickness at least this fraction of the centre thickness
@@ -335,6 +336,28 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
     }
 
 
+# A polished mirror's micro-roughness: ABg g = 2 with its knee at 0.57° (B = 1e-4) and TIS = πA ln(1 + 1/B)
+# = 2.1e-3 = (4πσ/λ)² for σ = 2 nm rms at 550 nm. A starting point: measured data replace it (fit-abg).
+POLISHED_MIRROR = {"model": "abg", "A": 7.2e-5, "B": 1e-4, "g": 2.0}
+
+
+def mirror_scene(p: Prescription, case2: dict) -> dict | None:
+    """For a lens with mirrors: case 2 with every mirror's coated face scattering as a polished mirror
+    (`POLISHED_MIRROR`, `[assign] "surface:N"`): in a Cassegrain the primary's scatter of a sun
+    outside the field is a main stray path (with black cells and baffles, often the main one).
+    None for a lens without mirrors."""
+    mirrors = [i for i, s in enumerate(p.surfaces) if s.mirror]
+    if not mirrors:
+        return None
+    numbers = ", ".join(str(i + 1) for i in mirrors)
+    return case2 | {
+        "description": case2["description"] + f"; the mirrors (surface {numbers}) scatter as polished mirrors "
+                       "(ABg, TIS 2.1e-3: 2 nm rms at 550 nm)",
+        "finishes": case2["finishes"] | {"polished-mirror": dict(POLISHED_MIRROR)},
+        "assign": case2["assign"] | {surface_rule(i): "polished-mirror" for i in mirrors},
+    }
+
+
 def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     """For a lens with a finite object: the object itself as the source, a Lambertian disc on the
     object plane filling the field (a point on the axis when the field is one point), with the
@@ -353,4 +376,5 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     }
 
 
-__all__ = ["starter_mount", "case2_scene", "object_scene", "detector_size", "image_height"]
+__all__ = ["starter_mount", "case2_scene", "mirror_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
+           "image_height"]
