@@ -105,3 +105,27 @@ def test_sequential_step_agrees_with_the_embree_path():
     hit = np.isfinite(t_ref) & keep
     assert np.array_equal(np.isfinite(t_step[keep]), hit[keep])
     np.testing.assert_allclose(t_step[hit], t_ref[hit], rtol=0, atol=1e-9)
+
+
+def test_a_ray_the_walk_lets_escape_meets_no_metal():
+    """Rays from the image side back out through the front: those that end GONE (the walk proves
+    most of them out of the mount's z range with the clear bore) cross no mechanical triangle
+    on their last line, by the independent float64 Möller–Trumbore; the others meet the barrel."""
+    from tests.trace.geometry import make_scene
+    from lensmount.trace.rays import RayBatch
+    from lensmount.trace.tracer import FACE, GONE, Tracer
+
+    p = double_gauss()
+    mesh = double_gauss_mesh(p, rings=6, segments=24)
+    tracer = Tracer(make_scene(p, mesh, detector={"width_mm": 10, "height_mm": 10, "pixels": [1, 1], "z_mm": 600.0}))
+    rng = np.random.default_rng(8)
+    n = 800
+    o = np.column_stack([rng.uniform(-20, 20, (n, 2)), np.full(n, p.vertex_z[-1] + 60.0)])
+    tilt, az = np.radians(12.0) * np.sqrt(rng.random(n)), 2 * np.pi * rng.random(n)
+    d = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), -np.cos(tilt)])
+    ev = tracer.next_event(RayBatch.make(o, d, wavelength=np.zeros(n, np.int64)))
+    gone = (ev.kind == GONE) & ~ev.lost
+    assert gone.sum() > n // 10 and (ev.kind == FACE).sum() > n // 10
+    mech = mesh.triangles[np.array([t.role != "optical" for t in mesh.tag_table])[mesh.tags]]
+    t_hit, _ = reference_nearest(ev.position[gone], ev.direction[gone], mesh.vertices[mech])
+    assert not np.isfinite(t_hit).any()

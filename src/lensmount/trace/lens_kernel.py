@@ -202,8 +202,8 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
          keys, ghosts, lens, bore, detector, fresnel_dim, max_optical):
     """Carry rays `work` (indices into the arrays) through the glass as far as each step is
     proven (module docstring), updating their state in place like `Tracer.next_event`'s loop.
-    Returns (len(work),) bool: the ray's call is over (detector, or lost on a bad number); the
-    others are where a step could not be proven, for Embree.
+    Returns (len(work),) bool: the ray's call is over (detector, escaped, or lost on a bad
+    number); the others are where a step could not be proven, for Embree.
 
     lens: (up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic, t_min, n_before, n_after, alpha_before,
     alpha_after, absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
@@ -231,6 +231,14 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
             on_det = t_det < t
             t_end = t_det if on_det else t
             if not math.isfinite(t_end):
+                # No glass and no detector ahead: the ray leaves if nothing mechanical is on its way
+                # out of the mount's z range (beyond it there is none).
+                if dz == 0.0:
+                    break
+                z_out = z0 - 1e3 * margin if dz < 0.0 else z0 + table.shape[1] / inv_h + 1e3 * margin
+                if not _clear(ox, oy, oz, dx, dy, dz, max((z_out - oz) / dz, 0.0), z0, inv_h, table, margin):
+                    break
+                over[j] = True  # escaped: GONE where it started this step, as the Embree path leaves it
                 break
             if not _clear(ox, oy, oz, dx, dy, dz, t_end, z0, inv_h, table, margin):
                 break
