@@ -63,13 +63,18 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
 
 
 def exit_disc(scene, det: Detector, margin: float = 0.05) -> ExitDisc | None:
-    """Disc covering the optical surface nearest the detector, in the plane of its point nearest
-    the detector, radius = clear semi-diameter · (1 + margin) + 0.5 mm. None without optics."""
+    """Disc covering the optical surface nearest the detector (with mirrors: the last one in the
+    sequence, which the detector sees the light come from: a Cassegrain's secondary through the
+    primary's hole, not the primary), in the plane of its point nearest the detector, radius =
+    clear semi-diameter · (1 + margin) + 0.5 mm. None without optics."""
     optical = list(scene.optical)
     if not optical:
         return None
     facing = -1.0 if det.z >= max(s.z_vertex for s in optical) else 1.0
-    last = max(optical, key=lambda s: facing * -s.z_vertex)
+    if any(s.mirror for s in optical):  # a folded path: the last surface the light crosses, not the nearest
+        last = max(optical, key=lambda s: s.index)
+    else:
+        last = max(optical, key=lambda s: facing * -s.z_vertex)
     h = float(last.clear_semi_diameter)
     if not math.isfinite(h) or h <= 0:
         h = float(last.mechanical_semi_diameter)
