@@ -118,7 +118,7 @@ def test_same_seed_same_summary_any_workers(tmp_path):
     def run(out, workers):
         result = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(scene),
                                           "--out", str(out),
-                                          "--passes", "3", "--photons-per-pass", "20000", "--seed", "4",
+                                          "--passes", "3", "--photons-per-pass", "5000", "--seed", "4",
                                           "--workers", str(workers)])
         assert result.exit_code == 0, result.output
         s = json.loads((out / "summary.json").read_text())

@@ -85,7 +85,8 @@ def test_case3_gaussian_is_brighter_than_case2_lambertian(bidirectional_case):
 
 
 def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
-    m, s, parts, _ = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 200_000, samples_per_pixel=16)
+    # 20 000 photons a pass, as the scene asks: most are aimed at the edge (integrators.photon_target)
+    m, s, parts, _ = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 20_000, samples_per_pixel=16)
     assert m > 0 and s < 0.3 * m
     lit = {name for name, f in parts.items() if f > 0}
     assert lit == {"diaphragm"}, parts
@@ -122,6 +123,6 @@ def test_relative_error_does_not_depend_on_the_edge_tis(reference):
     for seed, rho in ((1, 0.01), (2, 0.10)):
         scene = _scene(reference, "case1-diaphragm-edge",
                        **{"edge-lambert-10": {"model": "lambertian", "reflectance": rho}})
-        m, s, _, _ = _run(scene, "bidirectional", 8, 200_000, seed=seed, samples_per_pixel=16)
+        m, s, _, _ = _run(scene, "bidirectional", 8, 20_000, seed=seed, samples_per_pixel=16)
         rel.append(s / m)
     assert 1 / 2.5 < rel[0] / rel[1] < 2.5, rel

@@ -53,10 +53,11 @@ from lensmount.integrators.estimate import (EnergyLedger, Film, PassEstimate, fi
                                             scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
+from lensmount.integrators.photon_target import edge_band, guided_photons
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
-from lensmount.integrators.walk import emit_photons, photon_walk
+from lensmount.integrators.walk import photon_walk
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.tracer import FACE
 
@@ -154,10 +155,12 @@ class Bidirectional:
         view_map_s, gather_s = time.perf_counter() - clock, 0.0
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
-        # deposit into the hit points there before they scatter on.
+        # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
+        # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = time.perf_counter()
         scatters = scattering_tags(scene)
-        rays = emit_photons(scene, seed, self.purpose, int(pass_index) * int(photons), photons, photons)
+        band = edge_band(scene, tracer, broad, seed) if cfg.edge_photons and len(hits.weight) else None
+        rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE

@@ -32,6 +32,9 @@ class EstimatorSettings:
         ghost_routes: with ghosts on, the `ghosts` channel's two- (and four-) reflection light comes
             from deterministic ghost routes (`integrators.ghost_routes`), not from photons.
         ghost_rays_across: lattice points per pass across the first surface for those routes.
+        edge_photons: bidirectional with a broad `diaphragm-edge` face and the sun (or a collimated
+            source): most photons start where a pilot found they meet the edge
+            (`integrators.photon_target`), weighted by the mixture density (unbiased either way).
     """
 
     max_bounces: int = 64
@@ -47,6 +50,7 @@ class EstimatorSettings:
     radius_cap_mm: float = 5.0
     ghost_routes: bool = True
     ghost_rays_across: int = 33
+    edge_photons: bool = True
 
     def __post_init__(self):
         checks = {

@@ -1,0 +1,282 @@
+"""A learned photon target for the thin diaphragm edge: where sunlight must enter to meet it.
+
+Why. On the paper's case 1 only the 50 µm diaphragm edge scatters. Sunlight meets it only
+through a ring a few µm wide in the entrance pupil (the stop rim seen from object space), so
+of the 10⁶ photons a pass spreads uniformly over the emission disc ~50 reach the edge: the
+pass's value is a count of ~50 rare events (±14 %), whatever the view map does.
+
+What. A deterministic *pilot* (its own stream, `stream(seed, "photon-pilot", 0)`, once per
+(scene, tracer, seed) in each process, never from a pass) sends photons at the paraxial
+entrance pupil's rim and records where the ones that met the edge crossed the plane P normal
+to the sun's central direction d₀. A least-squares fit per wavelength gives the ring's radius
+
+    ρ*(φ, λ) = Σ_k a_kλ cos kφ + b_kλ sin kφ,   k ≤ 4   (polar coordinates on P)
+
+and its half width h_λ = `HALF_WIDTH_SIGMAS` × the residual spread; the plane's place along
+d₀ is fitted too (the one where the sun's 0.53° spread of directions blurs the ring least,
+near the entrance pupil), and a histogram of the hit rate over φ says which azimuths lead to
+the edge. A second stage samples from the first fit to refine it.
+
+Emission (`guided_photons`) is a mixture: with probability `UNIFORM_SHARE` a photon keeps the
+source's uniform position on its disc, otherwise its crossing of P is drawn in the band
+(φ from the histogram, ρ uniform in ρ* ± h) and its start moved back along its own direction
+to the disc's plane. Directions and wavelengths are the source's. Every photon carries
+Φ = 1 / (N q) with the mixture density q = c/A_S · [on the disc] + (1 − c) p_band evaluated
+at its own position, so the estimate stays unbiased whatever the fit's quality (uniform
+emission is Φ = A_S / N); the uniform share keeps every path of light reachable and bounds
+Φ at A_S / (c N).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lensmount.integrators.estimate import scattering_tags
+from lensmount.integrators.targets import edge_tags
+from lensmount.integrators.walk import emit_photons
+from lensmount.trace.rays import RayBatch
+from lensmount.trace.sampler import Streams, stream
+from lensmount.trace.sources import CollimatedSource, SunSource, orthonormal_basis
+from lensmount.trace.tracer import FACE
+
+UNIFORM_SHARE = 0.25  # photons emitted uniformly on the disc (every path stays reachable)
+N_PHI = 36  # azimuth bins of the hit-rate histogram
+FLOOR = 0.1  # share of the azimuth pmf spread uniformly
+HALF_WIDTH_SIGMAS = 3.0  # band half width in residual standard deviations
+PILOT_PHOTONS = 100_000  # per pilot stage
+MIN_HITS = 40  # per wavelength, to fit the 9 coefficients; fewer: no learned target
+_K = 4  # harmonics of φ
+_PLANE_SHIFTS = np.linspace(-40.0, 40.0, 21)  # mm along d₀ from the paraxial entrance pupil, tried by the fit
+_SCAN_HITS = 2000  # hits (every m-th) the plane's place is fitted from
+
+_CACHE: dict[tuple, tuple] = {}
+
+
+def _basis(phi: np.ndarray) -> np.ndarray:
+    """(N, 2K+1) columns 1, cos kφ, sin kφ."""
+    cols = [np.ones_like(phi)]
+    for k in range(1, _K + 1):
+        cols += [np.cos(k * phi), np.sin(k * phi)]
+    return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class EdgeBand:
+    """The band on the plane P (through `centre`, normal to the sun's central direction `d0`, axes
+    e1, e2 = `orthonormal_basis(d0)`) where photons meet the edge, per wavelength.
+
+    coef : (W, 2K+1) fit of ρ*(φ); half_width : (W,) mm; pmf : (N_PHI,) azimuth probabilities."""
+
+    centre: tuple[float, float, float]
+    d0: tuple[float, float, float]
+    coef: np.ndarray
+    half_width: np.ndarray
+    pmf: np.ndarray
+
+    def crossing(self, origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ρ, φ) (N,) where rays (origin, direction) cross P, in P's polar coordinates."""
+        c, d0 = np.asarray(self.centre), np.asarray(self.d0)
+        e1, e2 = orthonormal_basis(d0)
+        t = ((c - origin) @ d0) / (direction @ d0)
+        p = origin + t[:, None] * direction - c
+        a, b = p @ e1, p @ e2
+        return np.hypot(a, b), np.arctan2(b, a)
+
+    def _wl(self, wavelength) -> np.ndarray:
+        return np.clip(np.asarray(wavelength, np.int64), 0, len(self.coef) - 1)
+
+    def radius(self, phi: np.ndarray, wavelength) -> np.ndarray:
+        """(N,) ρ*(φ, λ) in mm."""
+        return np.einsum("nk,nk->n", _basis(phi), self.coef[self._wl(wavelength)])
+
+    def density(self, rho: np.ndarray, phi: np.ndarray, wavelength) -> np.ndarray:
+        """(N,) density per unit area of P at (ρ, φ): p(φ) / (2 h ρ) inside the band, else 0."""
+        h = self.half_width[self._wl(wavelength)]
+        b = np.clip(((phi + math.pi) * (N_PHI / (2 * math.pi))).astype(np.int64), 0, N_PHI - 1)
+        inside = (np.abs(rho - self.radius(phi, wavelength)) <= h) & (rho > 0)
+        return np.where(inside, self.pmf[b] * (N_PHI / (2 * math.pi)) / (2.0 * h * np.where(rho > 0, rho, 1.0)), 0.0)
+
+    def sample(self, u: np.ndarray, wavelength) -> np.ndarray:
+        """(N, 3) points of P for uniforms u (N, 2): φ from the histogram, ρ uniform in ρ* ± h; the
+        density of the points is `density` wherever ρ > 0."""
+        cdf = np.cumsum(self.pmf)
+        cdf[-1] = 1.0
+        b = np.minimum(np.searchsorted(cdf, u[:, 1], side="right"), N_PHI - 1)
+        lo = np.where(b > 0, cdf[np.maximum(b - 1, 0)], 0.0)
+        frac = np.clip((u[:, 1] - lo) / self.pmf[b], 0.0, 1.0 - 1e-12)
+        phi = -math.pi + (b + frac) * (2 * math.pi / N_PHI)
+        rho = self.radius(phi, wavelength) + self.half_width[self._wl(wavelength)] * (2.0 * u[:, 0] - 1.0)
+        rho = np.maximum(rho, 0.0)  # a band reaching the centre: the centre is one point of no density
+        e1, e2 = orthonormal_basis(np.asarray(self.d0))
+        return np.asarray(self.centre) + (rho * np.cos(phi))[:, None] * e1 + (rho * np.sin(phi))[:, None] * e2
+
+
+def guided_photons(scene, band: EdgeBand | None, seed: int, purpose: str, first: int, n: int) -> RayBatch:
+    """Photons first … first+n−1 of the run (`walk.emit_photons`), a share 1 − UNIFORM_SHARE of them
+    started so that they cross P in the band; each carries 1 / (n q) (module docstring)."""
+    rays = emit_photons(scene, seed, purpose, first, n, n)
+    if band is None:
+        return rays
+    disc = scene.source.disc
+    u = Streams(seed, purpose + "/emit-band", rays.id).random((n, 3))
+    guided = u[:, 0] >= UNIFORM_SHARE
+    d = rays.direction[guided]
+    p = band.sample(u[guided, 1:], rays.wavelength[guided])
+    # Back along the photon's own direction to the disc's plane (normal d0 through its centre).
+    centre, d0 = np.asarray(disc.centre), np.asarray(band.d0)
+    t = ((p - centre) @ d0) / (d @ d0)
+    rays.origin[guided] = p - t[:, None] * d
+    on_disc = np.linalg.norm(rays.origin - centre - ((rays.origin - centre) @ d0)[:, None] * d0, axis=1) <= disc.radius
+    rho, phi = band.crossing(rays.origin, rays.direction)
+    q = UNIFORM_SHARE * on_disc / disc.area + (1.0 - UNIFORM_SHARE) * band.density(rho, phi, rays.wavelength)
+    rays.alive &= q > 0
+    rays.weight = np.where(rays.alive, 1.0 / (n * np.where(q > 0, q, 1.0)), 0.0)
+    return rays
+
+
+def edge_band(scene, tracer, broad: np.ndarray, seed: int, n_photons: int = PILOT_PHOTONS) -> EdgeBand | None:
+    """The pilot's EdgeBand for (scene, tracer, seed), or None: no diaphragm edge, another face that
+    scatters too (case 2: aiming photons at the edge would starve the faces that carry most of the
+    light), a source other than the sun or a collimated one, too few pilot hits. Cached per
+    process; a pure function of its arguments, so every pass and worker gets the same."""
+    key = (id(scene), id(scene.mesh), id(tracer), int(seed), int(n_photons))
+    if key not in _CACHE:
+        if len(_CACHE) > 8:
+            _CACHE.clear()
+        _CACHE[key] = (scene, tracer, _pilot(scene, tracer, broad, int(seed), int(n_photons)))
+    return _CACHE[key][2]
+
+
+def entrance_pupil(scene, tags: np.ndarray) -> tuple[float, float] | None:
+    """(z, radius) of the paraxial image of the edge's rim through the optics in front of it (the
+    entrance pupil when the edge is the stop's), or None. Two paraxial rays from the first surface:
+    y_s = A y₀ + B ν₀ at the rim's plane; the chief ray (y_s = 0) crosses the axis at z₀ + n₀ B / A."""
+    tri = scene.mesh.triangles[np.isin(scene.mesh.tags, tags)]
+    v = scene.mesh.vertices[np.unique(tri)]
+    z_s, r_s = float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+    front = sorted((s for s in scene.optical if s.z_vertex < z_s), key=lambda s: s.z_vertex)
+    if not front:
+        return z_s, r_s
+    n0 = float(np.atleast_1d(front[0].n_before)[0])
+    ends = []
+    for y, nu in ((1.0, 0.0), (0.0, 1.0)):
+        z, n = front[0].z_vertex, n0
+        for s in front:
+            n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
+            y = y + (s.z_vertex - z) * nu / n1
+            z, n = s.z_vertex, n2
+            nu = nu - y * (n2 - n1) * s.profile.curvature
+        ends.append(y + (z_s - z) * nu / n)
+    a, b = ends
+    if abs(a) < 1e-12:
+        return None
+    z_ep, r_ep = front[0].z_vertex + n0 * b / a, abs(r_s / a)
+    return (z_ep, r_ep) if math.isfinite(z_ep) and math.isfinite(r_ep) and r_ep > 0 else None
+
+
+def _pilot(scene, tracer, broad, seed, n_photons):
+    tags = edge_tags(scene, broad)
+    others = np.setdiff1d(np.flatnonzero(scattering_tags(scene)), tags)
+    if len(tags) == 0 or len(others) or not isinstance(scene.source, (SunSource, CollimatedSource)):
+        return None
+    pupil = entrance_pupil(scene, tags)
+    if pupil is None:
+        return None
+    z_ep, r_ep = pupil
+    d0 = np.asarray(scene.source.direction, np.float64)
+    n_wl = len(scene.wavelengths_um)
+    # Stage 1: the annulus 0.85 r_ep cos θ … 1.15 r_ep around the paraxial pupil (its projection on
+    # P is an ellipse of axes r_ep and r_ep cos θ), one ring for all wavelengths (~20 hits in 10⁵
+    # photons on case 1). Stage 2: that fit with a band twice its width, one ring per wavelength.
+    centre = (0.0, 0.0, z_ep)
+    lo, hi = 0.85 * r_ep * abs(float(d0[2])), 1.15 * r_ep
+    band = EdgeBand(centre, tuple(d0), np.tile(np.r_[0.5 * (lo + hi), np.zeros(2 * _K)], (n_wl, 1)),
+                    np.full(n_wl, 0.5 * (hi - lo)), np.full(N_PHI, 1.0 / N_PHI))
+    fit = None
+    for stage in range(2):
+        rng = stream(seed, "photon-pilot", stage)
+        ids = np.arange(stage * n_photons, (stage + 1) * n_photons, dtype=np.int64)
+        rays, _ = scene.source.emit(n_photons, Streams(seed, "photon-pilot/emit", ids))
+        p = band.sample(rng.random((n_photons, 2)), rays.wavelength)
+        t = ((p - np.asarray(scene.source.disc.centre)) @ d0) / (rays.direction @ d0)
+        rays = RayBatch.make(p - t[:, None] * rays.direction, rays.direction, wavelength=rays.wavelength, ids=ids)
+        step = tracer.next_event(rays, Streams(seed, "photon-pilot/trace", ids))
+        hit = np.zeros(n_photons, bool)
+        hit[step.id[(step.kind == FACE) & np.isin(step.tag, tags) & (step.weight > 0)] - ids[0]] = True
+        new = _fit(rays, hit, centre, d0, n_wl, per_wavelength=stage > 0)
+        if new is None:
+            break
+        fit = new
+        band = EdgeBand(fit.centre, fit.d0, fit.coef, 2.0 * fit.half_width, fit.pmf)
+    return fit
+
+
+def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per_wavelength: bool) -> EdgeBand | None:
+    """EdgeBand from the pilot photons and which of them met the edge: the plane's shift along d₀
+    with the narrowest ring, then ρ*(φ) and h (per wavelength, or one for all from half as many
+    hits), and the azimuth histogram."""
+    wl = np.asarray(rays.wavelength, np.int64) if per_wavelength else np.zeros(len(hit), np.int64)
+    n_fit = n_wl if per_wavelength else 1
+    if any(np.count_nonzero(hit & (wl == k)) < MIN_HITS * (1 if per_wavelength else 0.5) for k in range(n_fit)):
+        return None
+    some = np.flatnonzero(hit)[::max(1, int(np.count_nonzero(hit)) // _SCAN_HITS)]
+    shift, step = 0.0, float(_PLANE_SHIFTS[1] - _PLANE_SHIFTS[0])
+    for shifts in (_PLANE_SHIFTS, None, None):  # coarse, then twice ±2 steps at a fifth of the step
+        if shifts is None:
+            step /= 5.0
+            shifts = shift + step * np.arange(-10, 11)
+        spread = [_ring(*_plane(centre, d0, z).crossing(rays.origin[some], rays.direction[some]),
+                        wl[some], n_fit)[1] for z in shifts]
+        spread = [np.inf if s is None else float(s.sum()) for s in spread]
+        shift = float(shifts[int(np.argmin(spread))])
+        if not np.isfinite(min(spread)):
+            return None
+    c = _plane(centre, d0, shift).centre
+    coef, sigma = _ring(*_plane(centre, d0, shift).crossing(rays.origin[hit], rays.direction[hit]), wl[hit], n_fit)
+    if coef is None:
+        return None
+    coef, sigma = np.broadcast_to(coef, (n_wl, coef.shape[1])).copy(), np.broadcast_to(sigma, (n_wl,)).copy()
+    wl = np.asarray(rays.wavelength, np.int64)
+    band = EdgeBand(c, tuple(d0), coef, np.maximum(HALF_WIDTH_SIGMAS * sigma, 1e-4), np.full(N_PHI, 1.0 / N_PHI))
+    # Azimuth histogram: hit rate per bin among the pilot photons that crossed P inside the band.
+    rho, phi = band.crossing(rays.origin, rays.direction)
+    inside = band.density(rho, phi, wl) > 0
+    b = np.clip(((phi + math.pi) * (N_PHI / (2 * math.pi))).astype(np.int64), 0, N_PHI - 1)
+    tried = np.bincount(b[inside], minlength=N_PHI)
+    got = np.bincount(b[inside & hit], minlength=N_PHI)
+    rate = got / np.maximum(tried, 1)
+    rate = 0.5 * rate + 0.25 * (np.roll(rate, 1) + np.roll(rate, -1))
+    shape = rate / rate.sum() if rate.sum() > 0 else np.full(N_PHI, 1.0 / N_PHI)
+    pmf = (1.0 - FLOOR) * shape + FLOOR / N_PHI
+    return EdgeBand(c, tuple(d0), coef, band.half_width, pmf / pmf.sum())
+
+
+def _plane(centre, d0: np.ndarray, shift: float) -> EdgeBand:
+    """A band-less EdgeBand on the plane P moved by `shift` mm along d₀ (for its `crossing`)."""
+    c = tuple(float(x) for x in np.asarray(centre) + shift * d0)
+    return EdgeBand(c, tuple(float(x) for x in d0), np.zeros((1, 2 * _K + 1)), np.ones(1), np.full(N_PHI, 1.0 / N_PHI))
+
+
+def _ring(rho, phi, wl, n_wl):
+    """Per wavelength, least-squares ρ*(φ) coefficients (n_wl, 2K+1) and residual spread (n_wl,),
+    refitted without hits far from the ring (other paths to the edge); (None, None) if not finite."""
+    coef, sigma = np.zeros((n_wl, 2 * _K + 1)), np.zeros(n_wl)
+    for k in range(n_wl):
+        m = wl == k
+        a, r = _basis(phi[m]), rho[m]
+        keep = np.ones(len(r), bool)
+        for _ in range(3):
+            ck, *_ = np.linalg.lstsq(a[keep], r[keep], rcond=None)
+            res = r - a @ ck
+            s = float(np.std(res[keep]))
+            keep = np.abs(res) <= 4.0 * s + 1e-9
+        if not (np.all(np.isfinite(ck)) and math.isfinite(s)):
+            return None, None
+        coef[k], sigma[k] = ck, s
+    return coef, sigma
+
+
+__all__ = ["EdgeBand", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE"]

@@ -1,0 +1,131 @@
+"""Photons aimed at the diaphragm edge: the band's density is exact, guided emission carries the
+sun's flux through any region of the plane unbiased, the pilot finds the edge and is deterministic.
+
+References are analytic: the band's support area 2h·2π·a₀ (the harmonics integrate to zero), the
+probability of each azimuth bin and half band, and the area of a region of the plane P, which
+uniform sunlight of unit irradiance crosses with flux equal to that area.
+"""
+
+import math
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lens_scenes import double_gauss_case  # noqa: E402
+
+from lensmount.integrators import photon_target as PT  # noqa: E402
+from lensmount.integrators.bidirectional import classify  # noqa: E402
+from lensmount.trace.sources import SunSource, emission_disc, orthonormal_basis, source_direction  # noqa: E402
+from lensmount.trace.tracer import FACE, Tracer  # noqa: E402
+
+THETA = 7.0
+D0 = source_direction(THETA, 90.0)
+CENTRE = (0.0, 0.0, 20.0)
+
+
+def _band(n_wl=2, half=0.05):
+    """ρ* = 10 + 0.5 cos φ + 0.3 sin 2φ (+0.2 per wavelength), a lopsided azimuth pmf."""
+    coef = np.zeros((n_wl, 2 * PT._K + 1))
+    coef[:, 0] = 10.0 + 0.2 * np.arange(n_wl)
+    coef[:, 1], coef[:, 4] = 0.5, 0.3
+    pmf = 1.0 + np.arange(PT.N_PHI) % 7
+    return PT.EdgeBand(CENTRE, tuple(D0), coef, np.full(n_wl, half), pmf / pmf.sum())
+
+
+def _sun(n_wl=2):
+    disc = emission_disc(D0, opening_z=0.0, opening_radius=15.0, clear_distance=300.0,
+                         half_angle_rad=math.radians(0.265))
+    return SimpleNamespace(source=SunSource(THETA, 90.0, disc, wavelength_weights=(1.0,) * n_wl))
+
+
+def test_band_samples_have_the_density_it_reports():
+    band, n = _band(), 400_000
+    rng = np.random.default_rng(3)
+    wl = rng.integers(0, 2, n)
+    p = band.sample(rng.random((n, 2)), wl)
+    e1, e2 = orthonormal_basis(D0)
+    q = p - np.asarray(CENTRE)
+    assert np.allclose(q @ D0, 0.0, atol=1e-9)  # on the plane P
+    rho, phi = np.hypot(q @ e1, q @ e2), np.arctan2(q @ e2, q @ e1)
+    dens = band.density(rho, phi, wl)
+    assert np.all(dens > 0)
+    # E[1/density] over the samples is the support's area, 2h · 2π a₀ per wavelength.
+    for k in range(2):
+        inv = 1.0 / dens[wl == k]
+        want = 2 * 0.05 * 2 * math.pi * band.coef[k, 0]
+        assert abs(inv.mean() - want) < 5 * inv.std() / math.sqrt(len(inv))
+    # Each azimuth bin, and the inner half of the band in it, get their analytic share.
+    b = np.clip(((phi + math.pi) * PT.N_PHI / (2 * math.pi)).astype(int), 0, PT.N_PHI - 1)
+    inner = rho < band.radius(phi, wl)
+    for cell, want in ((np.bincount(b, minlength=PT.N_PHI), band.pmf),
+                       (np.bincount(b[inner], minlength=PT.N_PHI), 0.5 * band.pmf)):
+        assert np.all(np.abs(cell / n - want) < 5 * np.sqrt(want / n))
+
+
+@pytest.mark.parametrize("region", ["straddles the band", "beside it", "inside it"])
+def test_guided_photons_carry_the_suns_flux_through_any_region(region):
+    """Σ Φ of the photons crossing a region of P equals its area (unit irradiance), whether the region
+    lies in the band, straddles its edge or lies where only the uniform share reaches."""
+    scene, band, n = _sun(), _band(), 200_000
+    rays = PT.guided_photons(scene, band, 7, "photons", 0, n)
+    assert np.all(np.isfinite(rays.weight)) and rays.alive.all()
+    rho, phi = band.crossing(rays.origin, rays.direction)
+    r0 = band.radius(phi, rays.wavelength)
+    lo, hi, sector = {"straddles the band": (-0.08, 0.02, (-1.0, 1.5)), "beside it": (0.5, 2.0, (-3.0, 3.0)),
+                      "inside it": (-0.03, 0.03, (0.2, 2.9))}[region]
+    # The region: ρ − ρ*(φ, λ=0) in [lo, hi] over an azimuth sector; area ∫ ((ρ*+hi)² − (ρ*+lo)²)/2 dφ.
+    r0_ref = band.radius(phi, np.zeros(n, int))
+    inside = (rho - r0_ref >= lo) & (rho - r0_ref < hi) & (phi >= sector[0]) & (phi < sector[1])
+    f = np.linspace(*sector, 20001)
+    rs = band.radius(f, np.zeros(len(f), int))
+    area = np.trapezoid(0.5 * ((rs + hi) ** 2 - (rs + lo) ** 2), f)
+    w = np.where(inside, rays.weight, 0.0)
+    assert abs(w.sum() - area) < 5 * w.std() * math.sqrt(n) + 1e-9, (w.sum(), area)
+    assert r0 is not None
+
+
+def test_uniform_share_keeps_every_start_on_the_disc_reachable():
+    scene, band, n = _sun(), _band(), 100_000
+    rays = PT.guided_photons(scene, band, 7, "photons", 0, n)
+    plain = PT.guided_photons(scene, None, 7, "photons", 0, n)
+    # No band: exactly the source's emission, Φ = A_S / N.
+    assert np.allclose(plain.weight, scene.source.disc.area / n)
+    # With it: no photon heavier than the uniform share allows, and 1 − c of them in the band.
+    assert rays.weight.max() <= scene.source.disc.area / (PT.UNIFORM_SHARE * n) * (1 + 1e-12)
+    rho, phi = band.crossing(rays.origin, rays.direction)
+    in_band = band.density(rho, phi, rays.wavelength) > 0
+    assert abs(in_band.mean() - (1 - PT.UNIFORM_SHARE)) < 0.01
+
+
+@pytest.fixture(scope="module")
+def case1():
+    scene = double_gauss_case(1, pixels=(16, 16))
+    return scene, Tracer(scene)
+
+
+@pytest.mark.slow  # two pilots of 2 × 10⁵ photons through the synthetic double Gauss: ~20 s
+def test_pilot_finds_the_edge_and_is_deterministic(case1):
+    scene, tracer = case1
+    broad, _ = classify(scene.bsdf_of_tag)
+    band = PT.edge_band(scene, tracer, broad, 5)
+    assert band is not None
+    again = PT._pilot(scene, tracer, broad, 5, PT.PILOT_PHOTONS)
+    assert np.array_equal(band.coef, again.coef) and np.array_equal(band.pmf, again.pmf)
+    n = 40_000
+    tags = PT.edge_tags(scene, broad)
+    hits = {}
+    for name, b in (("band", band), ("uniform", None)):
+        rays = PT.guided_photons(scene, b, 11, "photons", 0, n)
+        ev = tracer.next_event(rays, np.random.default_rng(0))
+        hits[name] = np.count_nonzero((ev.kind == FACE) & np.isin(ev.tag, tags))
+    assert hits["band"] > 50 * max(hits["uniform"], 1)
+
+
+def test_no_band_when_other_faces_scatter():
+    scene = double_gauss_case(2, pixels=(4, 4))
+    broad, _ = classify(scene.bsdf_of_tag)
+    assert PT.edge_band(scene, Tracer(scene), broad, 5, n_photons=1000) is None
