@@ -60,3 +60,24 @@ def test_a_thin_edged_crown_is_stepped_and_the_group_seated_on_its_flint():
     assert touch.height == pytest.approx(r_s + spec.lens_edge.contact_margin_mm)
     assert flint.front_chamfer == spec.lens_edge.chamfer_mm and flint.outer_radius > touch.height
     assert any("lens-2: stepped" in n for n in layout.notes) and any("lens-5: stepped" in n for n in layout.notes)
+
+
+def test_the_partners_bare_cemented_face_outside_the_step_is_ground_not_an_interface():
+    """Outside a stepped crown the flint's cemented face meets air, not the crown: it must not be tagged
+    as the crown/flint interface (the tracer would refract there with the crown's index)."""
+    from lensmount.cad.lens_groups import lens_group
+    from lensmount.templates.lens_element import OpticalFace
+
+    faces = [OpticalFace(0, 0.0, 1 / R_CROWN), OpticalFace(1, T_CROWN, 1 / R_CEMENT),
+             OpticalFace(2, T_CROWN + 1.386, 1.137268281587626600e-1)]
+    els, stepped = lens_group(faces, 6.5, 0.068, [CLEAR, CLEAR, 4.5], 0.3, 0.2)
+    assert stepped == (0,)
+    crown, flint = els
+    segs = flint.segments()
+    optical = [s for s in segs if s.role == "optical" and s.surface == 1]
+    ground = [s for s in segs if s.role == "bevel" and abs(s.start[0] - crown.outer_radius) < 1e-12]
+    assert max(p[0] for s in optical for p in s.points) == pytest.approx(crown.outer_radius, abs=1e-12)
+    assert len(ground) == 1 and ground[0].end[0] == pytest.approx(6.5 - 0.068, abs=1e-12)
+    # the ground annulus follows the cemented sphere (hand sag), it is not flattened
+    r, z = ground[0].end
+    assert z == pytest.approx(T_CROWN + _sag(R_CEMENT, r), abs=1e-12)

@@ -5,7 +5,8 @@ the group's seats touch it (shared by the layout planner and `lensmount init`'s 
   closes in toward the rim (a thin meniscus); `lens_edge.flat_faces` grinds listed faces flat anyway.
 * An outer element of a cemented group too thin at the group's rim even so (a thin-edged crown) is
   stepped: edged to its clear semi-diameter plus a bevel, inside its partner's rim; the seat then
-  touches the partner's cemented face outside it (`templates.lens_element.GroupOutline`).
+  touches the partner's cemented face outside it (`templates.lens_element.GroupOutline`), which is
+  ground there (role `bevel`: the tracer's analytic cemented interface ends at the step).
 """
 
 from __future__ import annotations
@@ -56,7 +57,10 @@ def lens_group(faces: list[OpticalFace], R: float, chamfer: float, clear: list[f
         if small is None:
             continue
         els[k] = small
-        els[partner] = replace(els[partner], **({"front_chamfer": chamfer} if front else {"back_chamfer": chamfer}))
+        # the partner's cemented face outside the step: bare glass, ground like an edge, with the chamfer
+        rim = small.outer_radius
+        els[partner] = replace(els[partner], **({"front_chamfer": chamfer, "front_ground_from": rim} if front
+                                                else {"back_chamfer": chamfer, "back_ground_from": rim}))
         stepped.append(k)
     return els, tuple(stepped)
 

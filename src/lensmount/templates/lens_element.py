@@ -8,7 +8,9 @@ lines, conics and aspheres a spline through sag samples. Cemented interfaces get
 no chamfer: both elements of a cemented group end on the same radius there.
 A flat bevel (`front_flat_from`, `back_flat_from`) turns a face into a flat annulus from
 that radius out (at the face's z there): a meniscus whose faces close in toward the rim
-keeps a thick edge, and the seat rests on the flat.
+keeps a thick edge, and the seat rests on the flat. A ground annulus (`front_ground_from`,
+`back_ground_from`) keeps the face's curve but not its polish (role `bevel`): a cemented
+face left bare outside a smaller (stepped) partner, which the light of its interface never reaches.
 """
 
 from __future__ import annotations
@@ -67,6 +69,21 @@ class OpticalFace:
         return Segment(kind, tuple((float(a), float(b)) for a, b in pts), "optical", self.index)
 
 
+def face_piece(face: OpticalFace, r0: float, r1: float, role: str = "optical") -> Segment:
+    """The face's profile from radius r0 to r1 (either order): a line, an exact arc or a spline."""
+    prof = face.profile
+    surface = face.index if role == "optical" else -1
+    if prof.is_plane or (abs(face.curvature) < 1e-9 and not any(face.aspheric)):
+        pts = [(r0, float(face.z(r0))), (r1, float(face.z(r1)))]
+        return Segment("line", tuple(pts), role, surface)
+    if face.conic == 0.0 and not any(face.aspheric):
+        rm = 0.5 * (r0 + r1)
+        pts = [(r0, float(face.z(r0))), (rm, float(face.z(rm))), (r1, float(face.z(r1)))]
+        return Segment("arc", tuple(pts), role, surface)
+    rs = np.linspace(r0, r1, _SPLINE_POINTS)
+    return Segment("spline", tuple(zip(rs.tolist(), face.z(rs).tolist())), role, surface)
+
+
 @dataclass
 class LensElement(RevolvedPart):
     """A lens element.
@@ -86,6 +103,8 @@ class LensElement(RevolvedPart):
     back_chamfer: float = 0.0
     front_flat_from: float | None = None   # flat bevel: the front face is flat from this radius out
     back_flat_from: float | None = None
+    front_ground_from: float | None = None   # the face ground (not polished) on its own curve from here
+    back_ground_from: float | None = None    # out: a cemented face left bare outside a stepped partner
 
     def _face(self, front: bool, r) -> np.ndarray:
         """The optical face's z, held at its value at the flat bevel's radius beyond it."""
@@ -129,7 +148,9 @@ class LensElement(RevolvedPart):
         R, bf, bb = self.outer_radius, self.front_chamfer, self.back_chamfer
         ff = R - bf if self.front_flat_from is None else min(self.front_flat_from, R - bf)
         fb = R - bb if self.back_flat_from is None else min(self.back_flat_from, R - bb)
-        segs = [self.front.segment(ff)]
+        gf = self.front_ground_from
+        segs = [self.front.segment(ff)] if gf is None or gf >= ff else [self.front.segment(gf),
+                                                                         face_piece(self.front, gf, ff, "bevel")]
         if ff < R - bf:   # the flat bevel, ground like the chamfer
             segs.append(Segment("line", (segs[-1].end, (R - bf, segs[-1].end[1])), "bevel"))
         zf_edge, zb_edge = self.edge_z()
@@ -137,12 +158,17 @@ class LensElement(RevolvedPart):
         if bf > 0:
             segs.append(Segment("line", (p, (R, zf_edge)), "bevel"))
         segs.append(Segment("line", ((R, zf_edge), (R, zb_edge)), "lens-edge"))
-        back = self.back.segment(fb, reverse=True)
-        flat_b = (R - bb, back.start[1])
+        gb = self.back_ground_from
+        ground = gb is not None and gb < fb
+        back = self.back.segment(gb if ground else fb, reverse=True)
+        z_fb = float(self._face(False, fb))
+        flat_b = (R - bb, z_fb)
         if bb > 0:
             segs.append(Segment("line", ((R, zb_edge), flat_b), "bevel"))
         if fb < R - bb:
-            segs.append(Segment("line", (flat_b, back.start), "bevel"))
+            segs.append(Segment("line", (flat_b, (fb, z_fb)), "bevel"))
+        if ground:
+            segs.append(face_piece(self.back, fb, gb, "bevel"))
         segs.append(back)
         segs.append(Segment("line", (back.end, segs[0].start), "mount"))  # on the axis: no face
         return segs
@@ -197,4 +223,4 @@ class GroupOutline:
         return self._boundary(r, self.elements[::-1], "back_z")
 
 
-__all__ = ["OpticalFace", "LensElement", "GroupOutline"]
+__all__ = ["OpticalFace", "face_piece", "LensElement", "GroupOutline"]

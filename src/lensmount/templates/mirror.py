@@ -20,25 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.templates.lens_element import OpticalFace
+from lensmount.templates.lens_element import OpticalFace, face_piece
 from lensmount.templates.profile import RevolvedPart, Segment
-
-_SPLINE_POINTS = 41
-
-
-def face_piece(face: OpticalFace, r0: float, r1: float, role: str = "optical") -> Segment:
-    """The face's profile from radius r0 to r1 (either order): a line, an exact arc or a spline."""
-    prof = face.profile
-    surface = face.index if role == "optical" else -1
-    if prof.is_plane or (abs(face.curvature) < 1e-9 and not any(face.aspheric)):
-        pts = [(r0, float(face.z(r0))), (r1, float(face.z(r1)))]
-        return Segment("line", tuple(pts), role, surface)
-    if face.conic == 0.0 and not any(face.aspheric):
-        rm = 0.5 * (r0 + r1)
-        pts = [(r0, float(face.z(r0))), (rm, float(face.z(rm))), (r1, float(face.z(r1)))]
-        return Segment("arc", tuple(pts), role, surface)
-    rs = np.linspace(r0, r1, _SPLINE_POINTS)
-    return Segment("spline", tuple(zip(rs.tolist(), face.z(rs).tolist())), role, surface)
 
 
 @dataclass
