@@ -198,8 +198,8 @@ def _cassegrain(finish: dict | None, off_axis_deg: float = 1.0, baffle: float = 
     """A small Cassegrain (f = 333 mm, f/5.6): concave primary R −200 (30 mm, 7.5 mm hole), convex
     secondary R −85.7 70 mm in front of it (10 mm, its back an absorbing disc), both R = 0.9, a central
     baffle tube (Lambertian `baffle`, z `tube_from` … −0.5 mm, bore 7.6 mm: from −20 the image beam of a
-    source 1° off axis clears it by 0.2 mm; from −40 it lights its front end) in front of the hole, the image 30 mm behind the primary; the primary's
-    coated face given `finish`."""
+    source 1° off axis clears it by 0.2 mm; from −40 it lights its front end) in front of the hole, the
+    image 30 mm behind the primary; the primary's coated face given `finish`."""
     primary = Surface(radius=-200.0, thickness=-70.0, mirror=True, is_stop=True, clear_semi_diameter=30.0,
                       mechanical_semi_diameter=30.0, coating="R=0.9")
     secondary = Surface(radius=-600.0 / 7.0, thickness=100.0, mirror=True, clear_semi_diameter=10.0,

@@ -31,10 +31,10 @@ decision, not an approximation: the tracer ends a ray there only with probabilit
 the finish's albedo a; `Tracer.next_event`), backward rays included, so a hit point there would
 be made for a share p of the samples with weight R·a/p and gather a share p of the photons; the
 specular share the backward rays carry on (weight R(1 − a)/(1 − p), probability 1 − p) is
-exactly the importance of the light the mirror reflects specularly. Every path is still counted once: one whose last scattering
-vertex is the mirror by its photon on the detector, one scattering at the mirror earlier by
-the gather at its last face. The cost: light scattered by a mirror converges as in the forward
-estimator.
+exactly the importance of the light the mirror reflects specularly. Every path is still counted
+once: one whose last scattering vertex is the mirror by its photon on the detector, one
+scattering at the mirror earlier by the gather at its last face. The cost: light scattered by a
+mirror converges as in the forward estimator.
 
 Photons are walked by the same code as the forward estimator (`walk.photon_walk`), photon k
 of pass i being photon i·N + k of the run with its numbers keyed by that index; backward

@@ -292,7 +292,7 @@ class Tracer:
 
     def _scattering_mirror_faces(self) -> np.ndarray:
         """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
-        scatter (a mirror with a finish, `scene.scattering_tags`), else (-1, -1). The triangle is the
+        scatter (a mirror with a finish, `scene.scattering_mirror_tags`), else (-1, -1). The triangle is the
         face's one nearest the axis: an event found by the sequential step has none of its own."""
         from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
 
