@@ -353,6 +353,8 @@ def test_the_corpus_cassegrain_simulates_its_mirrors_scatter(tmp_path):
     assert "scatter at mirror surface 2 (mirror-2)" in ran and "scatter at mirror surface 3 (mirror-1)" in ran
     assert math.isfinite(summary["stray_fraction"]) and summary["stray_fraction"] > 0.0
     paths = [[(e.get("part"), e.get("role")) for e in p["events"]] for p in summary["top_paths"]["paths"]]
+    names = [e["name"] for p in summary["top_paths"]["paths"] for e in p["events"]]
+    assert "mirror-2 face 0 (mirror surface 2)" in names
     # the sun on the primary, scattered by it to the detector: 3.3e-6 of 1.9e-5, third after the secondary's
     # cell and its bevel (Lambertian 5 %) at 3 x 20k photons
     assert [("mirror-2", "optical")] in paths

@@ -183,8 +183,11 @@ def describe_event(code: int, tag_table) -> dict:
         return {"ghost_reflections": n, "ghost_pair": pair, "role": "ghost",
                 "name": f"ghost {'–'.join(f'S{s}' for s in pair)}" + (f" ({n} reflections)" if n != 2 else "")}
     t = tag_table[code]
-    return {"part": t.part, "face": int(t.face), "role": t.role, "kind": t.kind, "finish": t.finish, "tag": int(code),
-            "name": f"{t.part} face {int(t.face)} ({t.role})"}
+    out = {"part": t.part, "face": int(t.face), "role": t.role, "kind": t.kind, "finish": t.finish, "tag": int(code),
+           "name": f"{t.part} face {int(t.face)} ({t.role})"}
+    if t.role == "optical":  # a mirror's coated face, scattering: named by its surface as the lens file numbers it
+        out |= {"surface": int(t.surface) + 1, "name": f"{t.part} face {int(t.face)} (mirror surface {t.surface + 1})"}
+    return out
 
 
 def signature_from_hex(text: str) -> int:

@@ -133,7 +133,9 @@ def _scatter(scene, scatters: np.ndarray) -> Decision:
         return Decision("scatter", False, "no face the scene lets scatter has a scattering finish (all absorbers)"
                         + (f" among {', '.join(e.scatterers)}" if e.scatterers else ""))
     named = f"the faces {', '.join(e.scatterers)} name" if e.scatterers else "every face with a scattering finish"
-    return Decision("scatter", True, f"photons scatter and hit points are made on {named}: {_faces(scene, scatters)}")
+    mirrors = scatters & optical_faces(scene.mesh.tag_table)  # no hit points there: the lines below say why
+    return Decision("scatter", True, f"photons scatter and hit points are made on {named}: "
+                    f"{_faces(scene, scatters & ~mirrors)}" + ("; mirrors: below" if mirrors.any() else ""))
 
 
 def _mirrors(scene, scatters: np.ndarray) -> list[Decision]:
