@@ -65,8 +65,16 @@ def inspect_document(prescription, notes=None) -> dict:
         "surfaces": surfaces,
     }
     if notes:
-        doc["import_notes"] = [{"kind": n.kind, "where": n.where, "what": n.what} for n in notes]
+        doc["import_notes"] = [{"kind": n.kind, "where": n.where, "what": n.what + _recomputed(prescription, n)}
+                               for n in notes]
     return doc
+
+
+def _recomputed(prescription, note) -> str:
+    """': 9.005 mm' for a note on a value the import left to real rays, as the loaded lens has it."""
+    if note.surface is None or prescription.surfaces[note.surface].clear_semi_diameter is None:
+        return ""
+    return f": {prescription.surfaces[note.surface].clear_semi_diameter:.4g} mm"
 
 
 def _print_tables(doc: dict) -> None:

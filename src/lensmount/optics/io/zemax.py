@@ -99,6 +99,7 @@ class ImportNote:
     kind: str
     where: str
     what: str
+    surface: int | None = None  # lensmount's 0-based surface, for a value the import leaves to real rays
 
 
 def read_text(path) -> str:
@@ -322,7 +323,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
-        clear, mech = _semi_diameters(zs, s, notes, automatic)
+        clear, mech = _semi_diameters(zs, s, notes, automatic, len(surfaces))
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -463,13 +464,13 @@ def _automatic(lens: ZmxLens) -> set[int]:
     return {zs.number for zs in lens.surfaces if zs.diam and automatic(zs, frozenset())}
 
 
-def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int]) -> tuple[float | None, float | None]:
+def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int], index: int):
     where = f"SURF {zs.number}"
     clear = zs.diam * s if zs.diam else None
     if zs.number in automatic:
         notes.append(ImportNote("substituted", where, f"semi-diameter {clear:.4g} mm, automatic in the file (what "
                                 "Zemax last computed, not an aperture) -> recomputed from real rays of the "
-                                "file's fields and aperture"))
+                                "file's fields and aperture", surface=index))
         clear = None
     elif clear is not None:
         kind = {0: "automatic, the stop's: the diaphragm's size", 1: "fixed",
