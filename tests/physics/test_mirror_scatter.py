@@ -163,6 +163,8 @@ def test_a_finish_is_given_only_to_a_mirror_surface_and_is_not_itself_a_mirror()
     with pytest.raises(InputError, match="names no mirror surface") as err:
         make_scene(p, mesh, detector=FAR, assign={"*": "absorber", "surface:2": "black-anodised"})
     assert "surface:N for the mirror surfaces 1" in err.value.paragraph()
+    with pytest.raises(InputError, match="does not name a surface number"):
+        make_scene(p, mesh, detector=FAR, assign={"surface:primary": "black-anodised"})
     with pytest.raises(InputError, match="already reflects specularly"):
         make_scene(p, mesh, detector=FAR, assign={"*": "absorber", "surface:1": "mirror"})
     # "*" does not reach the coated face; "surface:1" does, and a scatter selector names it
