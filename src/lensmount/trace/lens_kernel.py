@@ -110,24 +110,28 @@ def _clear_piece(ax, ay, az, bx, by, bz, z0, inv_h, table, margin):
 
 @njit(cache=True)
 def _clear(ox, oy, oz, dx, dy, dz, t_end, z0, inv_h, table, margin):
-    """No mechanical face on the segment o + [0, t_end] d (see `clear_bore`): whole, else in
-    2, 4, ... 32 equal pieces (a beam narrowing through a diaphragm between two lens groups is
-    far inside the bore everywhere, but its ends are not inside the diaphragm's)."""
-    pieces = 1
-    while pieces <= 32:
-        clear = True
-        ax, ay, az = ox, oy, oz
-        for m in range(1, pieces + 1):
-            t = t_end * m / pieces if m < pieces else t_end
-            bx, by, bz = ox + t * dx, oy + t * dy, oz + t * dz
-            if not _clear_piece(ax, ay, az, bx, by, bz, z0, inv_h, table, margin):
-                clear = False
-                break
-            ax, ay, az = bx, by, bz
-        if clear:
-            return True
-        pieces *= 2
-    return False
+    """No mechanical face on the segment o + [0, t_end] d (see `clear_bore`): whole, else each
+    half that is not, down to 32nds (a beam narrowing through a diaphragm between two lens
+    groups is far inside the bore everywhere, but its ends are not inside the diaphragm's).
+    Depth first, in order: piece `index` of 2**level spans t_end·[index, index + 1] / 2**level
+    (powers of two: neighbouring pieces share their end points exactly)."""
+    level, index = 0, 0
+    while True:
+        n = 1 << level
+        ta, tb = t_end * index / n, t_end * (index + 1) / n
+        if _clear_piece(ox + ta * dx, oy + ta * dy, oz + ta * dz, ox + tb * dx, oy + tb * dy, oz + tb * dz,
+                        z0, inv_h, table, margin):
+            while index & 1:  # the right half done: up to the parent's
+                level -= 1
+                index >>= 1
+            if level == 0:
+                return True
+            index += 1
+        elif level == 5:
+            return False
+        else:
+            level += 1
+            index <<= 1
 
 
 # ---------------------------------------------------------------------------------- interface
