@@ -23,7 +23,6 @@ $(VENV)/.installed: pyproject.toml
 	$(REQUIREMENTS) > $(VENV)/requirements.txt
 	$(PY) -m pip install --quiet -r $(VENV)/requirements.txt
 	$(PY) -m pip install --quiet --no-deps -e . '$(GLASS)'
-	$(PY) -m lensmount.trace.warm  # numba compiles the tracer's kernels once, here, not in the first run
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed
@@ -31,8 +30,13 @@ $(VENV)/.installed-test: $(VENV)/.installed
 	$(PY) -m pip install --quiet -r $(VENV)/requirements-test.txt
 	touch $@
 
-install: $(VENV)/.installed
-install-test: $(VENV)/.installed-test
+# numba compiles the tracer's kernels once, here, not in the first run (again when their source changes).
+$(VENV)/.warm: $(VENV)/.installed src/lensmount/trace/kernels.py src/lensmount/trace/lens_kernel.py
+	$(PY) -m lensmount.trace.warm
+	touch $@
+
+install: $(VENV)/.installed $(VENV)/.warm
+install-test: $(VENV)/.installed-test $(VENV)/.warm
 
 demo: install
 	$(LM) regenerate $(DESIGN) --out out/double-gauss-360
