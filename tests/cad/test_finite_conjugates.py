@@ -19,7 +19,6 @@ from typer.testing import CliRunner
 
 from lensmount.cli import app
 from lensmount.design.lens import load_lens
-from lensmount.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 COOKE = ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx"
@@ -106,9 +105,12 @@ def test_a_finite_conjugate_lens_inspects_regenerates_and_images_a_point_on_its_
 
 @pytest.mark.slow
 def test_us05831776_inspects_regenerates_and_simulates(tmp_path):
-    try:
-        load_lens(US05831776)
-    except InputError as exc:  # the corpus's own refusal: the designed beam meets element 15/16 where its faces cross
-        pytest.xfail(f"US05831776 does not import yet: {exc.paragraph()[:200]}")
+    runner = CliRunner()
+    shown = runner.invoke(app, ["inspect", str(US05831776)])   # imports: element 8 and two air gaps clipped
+    assert shown.exit_code == 0 and "clipped" in shown.output, shown.output
+    made = runner.invoke(app, ["init", str(tmp_path / "probe"), "--lens", str(US05831776)])
+    assert made.exit_code == 0, made.output
+    if "does not build yet" in made.output:   # the starter mount of this 20-element lens (test_init_lens.KNOWN)
+        pytest.xfail(f"US05831776's starter mount does not build yet: {made.output[:300]}")
     summary = _chain(US05831776, tmp_path, point_height=30.0)
     assert math.isfinite(summary["stray_fraction"])

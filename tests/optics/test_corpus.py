@@ -11,6 +11,7 @@ own database, so that the comparison is of the optics, not of the name lookup.
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 from pathlib import Path
@@ -20,7 +21,8 @@ import pytest
 from typer.testing import CliRunner
 
 from lensmount.cli import app
-from lensmount.design.lens import load_lens
+from lensmount.design.edges import MAX_CLIP_VIGNETTING
+from lensmount.design.lens import load_lens, load_lens_and_clips
 from lensmount.errors import InputError
 from lensmount.optics.io.zemax import read_zmx_with_notes
 from lensmount.optics.paraxial import paraxial
@@ -82,15 +84,6 @@ def test_corpus_file_efl_matches_optiland(path):
     assert efl == pytest.approx(reference, rel=1e-4)
 
 
-# A published file whose lens cannot be built as written: the loader must say so.
-REFUSED = {
-    # 248 nm lithography lens: between surfaces 15 and 16 (41.227 mm of silica on the axis) the
-    # faces meet at h = 114.1 mm, and the beam of the full field (telecentric object space, as Zemax
-    # aims it) reaches 119.3 / 118.4 mm there, Zemax's own automatic DIAMs (negative edge thickness).
-    "US05831776-1": "surfaces 15 and 16 cross each other",
-}
-
-
 def _sphere_sag(curvature: float, h: float) -> float:
     r = 1.0 / curvature
     return r - np.sign(r) * np.sqrt(r * r - h * h)
@@ -98,18 +91,35 @@ def _sphere_sag(curvature: float, h: float) -> float:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", FILES, ids=[p.stem for p in FILES])
-def test_corpus_file_loads_with_real_ray_semi_diameters_or_is_refused_for_its_geometry(path):
-    if path.stem not in REFUSED:
-        lens = load_lens(path)
-        assert all(s.clear_semi_diameter is not None and s.clear_semi_diameter > 0 for s in lens.surfaces)
-        return
-    with pytest.raises(InputError) as err:
-        load_lens(path)
-    assert REFUSED[path.stem] in err.value.paragraph()
-    assert "reached by the beam of the full field" in err.value.paragraph()
-    h = 1.184252812325e2       # DIAM of surface 16 (the smaller of the two); edge thickness by the sphere's sag
-    edge = 41.227 + _sphere_sag(-4.410343667209579800e-3, h) - _sphere_sag(1.588451323497642800e-3, h)
-    assert edge < 0.0
+def test_corpus_file_loads_with_real_ray_semi_diameters(path):
+    lens = load_lens(path)
+    assert all(s.clear_semi_diameter is not None and s.clear_semi_diameter > 0 for s in lens.surfaces)
+
+
+@pytest.mark.slow
+def test_us05831776_element_8_is_edged_where_its_faces_keep_1_3_mm_and_inspect_says_so():
+    """248 nm lithography lens: between surfaces 15 and 16 (41.227 mm of silica on the axis) the beam of
+    the 48 mm field (telecentric object space, as Zemax aims it) reaches 119.3 mm, Zemax's own automatic
+    DIAM, where the faces have crossed (edge < 0 by the spheres' sags). The import edges the element where
+    1.3 mm of glass remains (0.3 mm minimum edge after two 0.5 mm chamfers); two air gaps whose
+    neighbouring faces cross inside the beam are clipped the same way. The axis loses nothing."""
+    path = CORPUS / "US05831776-1.zmx"
+    c15, c16 = 1.588451323497642800e-3, -4.410343667209579800e-3   # the file's CURV of surfaces 15 and 16
+    assert 41.227 + _sphere_sag(c16, 118.4) - _sphere_sag(c15, 118.4) < 0.0
+    lens, clips = load_lens_and_clips(path)
+    assert [c.surfaces for c in clips] == [(14, 15), (23, 24), (27, 28)]
+    h = lens.surfaces[14].clear_semi_diameter
+    assert lens.surfaces[15].clear_semi_diameter == h and clips[0].height == h
+    assert 41.227 + _sphere_sag(c16, h) - _sphere_sag(c15, h) == pytest.approx(1.3, abs=1e-6)
+    lost = np.sum([c.lost for c in clips], axis=0)
+    assert lost[0] == 0.0 and 0.0 < lost.max() < MAX_CLIP_VIGNETTING
+    result = CliRunner().invoke(app, ["inspect", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)["import_notes"]
+    clipped = [r for r in rows if r["kind"] == "clipped"]
+    assert [r["where"] for r in clipped] == ["SURF 15-16", "SURF 24-25", "SURF 28-29"]
+    assert "vignettes the designed pupil by 0.00 % at 0 mm" in clipped[0]["what"]
+    assert next(r for r in rows if r["where"] == "SURF 15")["what"].endswith(f"clipped to {h:.4g} mm")
 
 
 def test_refused_folder_holds_the_floating_stop_fixture():

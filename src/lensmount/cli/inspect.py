@@ -16,11 +16,13 @@ from lensmount.cli import app  # defined before lensmount.cli imports this modul
 from lensmount.errors import InputError
 
 
-def inspect_document(prescription, notes=None) -> dict:
+def inspect_document(prescription, notes=None, clips=()) -> dict:
     """The `--json` document: paraxial data and one entry per surface (mm; radius null = plane).
 
     notes: for a .zmx, the import notes (kind imported/substituted/ignored, where, what).
+    clips: the elements edged inside the beam (design.edges.EdgeClip): a row "clipped" per clip.
     """
+    from lensmount.design.edges import clip_warnings
     from lensmount.optics.glass import refractive_index
     from lensmount.optics.paraxial import paraxial
 
@@ -64,22 +66,31 @@ def inspect_document(prescription, notes=None) -> dict:
         "object_heights_mm": list(prescription.object_heights_mm),
         "surfaces": surfaces,
     }
-    if notes:
-        doc["import_notes"] = [{"kind": n.kind, "where": n.where, "what": n.what + _recomputed(prescription, n)}
-                               for n in notes]
+    clipped = {j: c.needed[k] for c in clips for k, j in enumerate(c.surfaces)}
+    rows = [{"kind": n.kind, "where": n.where, "what": n.what + _recomputed(prescription, n, clipped)}
+            for n in notes or ()]
+    rows += [{"kind": "clipped", "where": f"SURF {c.surfaces[0] + 1}-{c.surfaces[1] + 1}", "what": what}
+             for c, what in zip(clips, clip_warnings(clips))]
+    if rows:
+        doc["import_notes"] = rows
     return doc
 
 
-def _recomputed(prescription, note) -> str:
-    """': 9.005 mm' for a note on a value the import left to real rays, as the loaded lens has it."""
+def _recomputed(prescription, note, clipped) -> str:
+    """': 9.005 mm' for a note on a value the import left to real rays, as the loaded lens has it
+    (the beam's own value beside the clipped one for a surface edged inside the beam)."""
     if note.surface is None or prescription.surfaces[note.surface].clear_semi_diameter is None:
         return ""
-    return f": {prescription.surfaces[note.surface].clear_semi_diameter:.4g} mm"
+    got = prescription.surfaces[note.surface].clear_semi_diameter
+    if note.surface in clipped:
+        return f": {clipped[note.surface]:.4g} mm, clipped to {got:.4g} mm"
+    return f": {got:.4g} mm"
 
 
 def _print_tables(doc: dict) -> None:
     from rich import box
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     console = Console()
@@ -88,7 +99,7 @@ def _print_tables(doc: dict) -> None:
         for col in ("", "where", "what"):
             imp.add_column(col, no_wrap=col != "what")
         for n in doc["import_notes"]:
-            imp.add_row(n["kind"], n["where"], n["what"])
+            imp.add_row(n["kind"], n["where"], escape(n["what"]))   # "[checks]" is text, not markup
         console.print(imp)
     t = Table(title=f"{doc['name']} (mm; n at {doc['primary_wavelength_um']:g} µm; sd = semi-diameter)",
               title_justify="left", box=box.SIMPLE_HEAD)
@@ -136,16 +147,16 @@ def inspect_command(
 ) -> None:
     """Show a lens: what the import of a .zmx did (imported, substituted, ignored), the surfaces
     with their clear semi-diameters, and the paraxial data."""
-    from lensmount.design.lens import import_notes, load_lens, save_lens_toml
+    from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 
     try:
-        prescription = load_lens(lens, margin_mm=margin)
+        prescription, clips = load_lens_and_clips(lens, margin_mm=margin)
         if save_toml is not None:
             raw = load_lens(lens, auto_clear_apertures=False)
             # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give
             save_lens_toml(prescription if raw.vignetting else raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
-        doc = inspect_document(prescription, import_notes(lens))
+        doc = inspect_document(prescription, import_notes(lens), clips)
     except InputError as error:
         from lensmount.cli import fail  # defined after the command modules are imported
 

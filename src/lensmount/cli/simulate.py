@@ -185,7 +185,7 @@ def print_summary(summary: dict, paths: dict) -> None:
 
     console = Console()
     for warning in summary.get("warnings", []):
-        console.print(f"warning: {warning}", style="yellow")
+        console.print(f"warning: {warning}", style="yellow", markup=False)  # "[checks]" is text
     if summary.get("no_light_enters"):
         console.print(f"no light enters: {summary['no_light_enters']}", style="yellow")
     table = Table(title=f"{summary['method']} · {summary['passes']} passes · {summary['photons']:,} photons "

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import lensmount
-from lensmount.design.lens import LENS_NAMES, find_lens, load_lens
+from lensmount.design.edges import clip_warnings
+from lensmount.design.lens import LENS_NAMES, find_lens, load_lens_and_clips
 from lensmount.design.mount import MountSpec, load_mount
 from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription
@@ -40,6 +41,8 @@ class Design:
         scenes: scene name → path.
         template_paths: part kind → user template file.
         input_hash: content hash of the CAD inputs (hex).
+        lens_warnings: what the import changed that a result depends on (design.edges: elements
+            edged inside the beam, and what that vignettes); regenerate and simulate report them.
     """
 
     root: Path
@@ -50,6 +53,7 @@ class Design:
     scenes: dict[str, Path]
     template_paths: dict[str, Path]
     input_hash: str
+    lens_warnings: tuple[str, ...] = ()
 
 
 def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path]) -> str:
@@ -94,12 +98,12 @@ def load_design(directory: str | Path) -> Design:
             raise InputError(f"user template file {rel!r} not found", file=str(mount_path),
                              field=f"templates.{kind}", valid="a .py file path relative to the design folder")
         templates[kind] = path
-    prescription = load_lens(lens_path)
+    prescription, clips = load_lens_and_clips(lens_path)
     _check_element_numbers(mount, prescription)
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
-                  content_hash(lens_path, mount_path, templates))
+                  content_hash(lens_path, mount_path, templates), tuple(clip_warnings(clips)))
 
 
 __all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

@@ -10,7 +10,9 @@ Checks beyond the file's syntax:
 - glass thicknesses are positive;
 - exactly one stop;
 - |radius| is at least the clear semi-diameter (given, or needed by the beam);
-- neighbouring surfaces do not cross inside their common semi-diameter.
+- neighbouring surfaces do not cross inside their common semi-diameter; an element whose faces
+  meet inside automatic semi-diameters is edged where it can exist (design.edges), when that
+  leaves the design's aperture as it is.
 """
 
 from __future__ import annotations
@@ -20,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lensmount.design.edges import EdgeClip, clip_crossing_elements
 from lensmount.errors import InputError
-from lensmount.optics.apertures import with_clear_semi_diameters
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
 from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
@@ -33,7 +35,14 @@ _CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is 
 
 
 def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None) -> Prescription:
-    """Read `lens.toml` or `.zmx` into a validated Prescription.
+    """Read `lens.toml` or `.zmx` into a validated Prescription (`load_lens_and_clips`, without the clips)."""
+    return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm)[0]
+
+
+def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
+                        margin_mm: float | None = None) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+    """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
+    the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
     Args:
         path: the lens file; `.zmx` is read as Zemax, anything else as lens.toml. A
@@ -52,12 +61,12 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
     margin = file_margin if margin_mm is None else margin_mm
     try:
         validate(prescription, file)
-        complete = with_clear_semi_diameters(prescription, margin)
+        complete, clips = clip_crossing_elements(prescription, margin, file)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
     except InputError as exc:
         raise _located(exc, path) from None
-    return complete if auto_clear_apertures else prescription
+    return (complete, clips) if auto_clear_apertures else (prescription, ())
 
 
 def import_notes(path) -> list:
@@ -221,4 +230,4 @@ def _resolve(path: Path) -> Path:
     return path
 
 
-__all__ = ["load_lens", "import_notes", "save_lens_toml", "validate", "find_lens", "LENS_NAMES"]
+__all__ = ["load_lens", "load_lens_and_clips", "import_notes", "save_lens_toml", "validate", "find_lens", "LENS_NAMES"]

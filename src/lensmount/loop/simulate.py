@@ -231,7 +231,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.trace.sources import ObjectSource
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
-    warnings: list[str] = list(sc.warnings)  # legal but suspicious inputs (scene.build)
+    # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
+    warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
 
     photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
     if not any(v is not None for v in (photons, time_s, target, passes)):
