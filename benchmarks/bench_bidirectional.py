@@ -38,7 +38,8 @@ def _case1_scene():
 
 
 def _time_to_target(run_pass, budget_s: float, min_passes: int = 8):
-    """Run passes until 5 % or the budget; return (time to 5 % (measured or extrapolated), passes, rel, measured?).
+    """Run passes until 5 % or the budget: (time to 5 % (measured or extrapolated), passes, rel, measured?,
+    seconds run, Accumulator).
 
     The relative error is the one `simulate --target-rel-error` stops on (`Accumulator.rel_error`:
     the standard error widened by Student's t, plus the kernel-bias bound for bidirectional), checked
@@ -55,11 +56,10 @@ def _time_to_target(run_pass, budget_s: float, min_passes: int = 8):
         elapsed = time.perf_counter() - start
         rel = acc.rel_error()
         if acc.n >= min_passes and rel <= TARGET:
-            return elapsed, acc.n, rel, True
-        if elapsed >= budget_s and acc.n >= 3:
-            if not math.isfinite(rel):
-                return math.inf, acc.n, rel, False
-            return elapsed * (rel / TARGET) ** 2, acc.n, rel, False
+            return elapsed, acc.n, rel, True, elapsed, acc
+        if elapsed >= budget_s and (acc.n >= min_passes or (acc.n >= 3 and not math.isfinite(rel))):
+            t = elapsed * (rel / TARGET) ** 2 if math.isfinite(rel) else math.inf
+            return t, acc.n, rel, False, elapsed, acc
 
 
 def bench_case1(budget_s: float) -> None:
@@ -74,13 +74,26 @@ def bench_case1(budget_s: float) -> None:
           f"(setup {time.perf_counter() - t0:.1f} s)")
     bidirectional = Bidirectional()
     # Photons per pass: the scene's for bidirectional (20 000, most aimed at the edge), 10⁶ for forward.
+    fw_photons = 1_000_000
     bi = _time_to_target(lambda i: bidirectional.run_pass(scene, tracer, i, 20_000, 1), budget_s)
-    fw = _time_to_target(lambda i: forward_pass(scene, tracer, 1_000_000, 1, i), budget_s)
-    for name, (t, n, rel, measured) in (("bidirectional", bi), ("forward", fw)):
+    fw = _time_to_target(lambda i: forward_pass(scene, tracer, fw_photons, 1, i), budget_s)
+    for name, (t, n, rel, measured, _, _) in (("bidirectional", bi), ("forward", fw)):
         how = "measured" if measured else f"extrapolated from {100 * rel:.1f} % after {n} passes"
         print(f"  {name:13s}: time to {100 * TARGET:.0f} % rel. error = {t:9.1f} s ({how}; {n} passes)")
+    fw_time = fw[0]
+    if not math.isfinite(fw_time) and math.isfinite(bi[0]):
+        # No forward photon reached the detector: its time from counting statistics instead. A forward photon
+        # reaches the detector only after one Lambertian scatter at the edge (ρ = 0.1), carrying ρ A_S / N, so
+        # it counts with probability p = flux / (ρ A_S) and 5 % needs 1 / (p · 0.05²) photons.
+        p = bi[5].flux / (0.10 * scene.source.disc.area)
+        photons = 1.0 / (p * TARGET**2)
+        rate = fw[1] * fw_photons / fw[4]
+        fw_time = photons / rate
+        print(f"  forward      : no photon of {fw[1] * fw_photons:,} reached the detector; at p = {p:.2g} per photon "
+              f"(bidirectional's flux / (ρ A_S)) 5 % needs {photons:.2g} photons = {fw_time:.3g} s at its "
+              f"measured {rate:,.0f} photons/s")
     if math.isfinite(bi[0]) and bi[0] > 0:
-        ratio = fw[0] / bi[0]
+        ratio = fw_time / bi[0]
         print(f"  forward / bidirectional time ratio = {ratio:.1f}" if math.isfinite(ratio)
               else "  forward / bidirectional time ratio = inf (forward put no photon on the detector)")
 

@@ -66,7 +66,7 @@ def test_band_samples_have_the_density_it_reports():
         assert np.all(np.abs(cell / n - want) < 5 * np.sqrt(want / n))
 
 
-@pytest.mark.parametrize("region", ["straddles the band", "beside it", "inside it"])
+@pytest.mark.parametrize("region", ["straddles the band", "beside it", "inside it", "in the wide band only"])
 def test_guided_photons_carry_the_suns_flux_through_any_region(region):
     """Σ Φ of the photons crossing a region of P equals its area (unit irradiance), whether the region
     lies in the band, straddles its edge or lies where only the uniform share reaches."""
@@ -76,7 +76,7 @@ def test_guided_photons_carry_the_suns_flux_through_any_region(region):
     rho, phi = band.crossing(rays.origin, rays.direction)
     r0 = band.radius(phi, rays.wavelength)
     lo, hi, sector = {"straddles the band": (-0.08, 0.02, (-1.0, 1.5)), "beside it": (0.5, 2.0, (-3.0, 3.0)),
-                      "inside it": (-0.03, 0.03, (0.2, 2.9))}[region]
+                      "inside it": (-0.03, 0.03, (0.2, 2.9)), "in the wide band only": (0.1, 0.3, (-2.0, 2.0))}[region]
     # The region: ρ − ρ*(φ, λ=0) in [lo, hi] over an azimuth sector; area ∫ ((ρ*+hi)² − (ρ*+lo)²)/2 dφ.
     r0_ref = band.radius(phi, np.zeros(n, int))
     inside = (rho - r0_ref >= lo) & (rho - r0_ref < hi) & (phi >= sector[0]) & (phi < sector[1])
@@ -94,11 +94,17 @@ def test_uniform_share_keeps_every_start_on_the_disc_reachable():
     plain = PT.guided_photons(scene, None, 7, "photons", 0, n)
     # No band: exactly the source's emission, Φ = A_S / N.
     assert np.allclose(plain.weight, scene.source.disc.area / n)
-    # With it: no photon heavier than the uniform share allows, and 1 − c of them in the band.
+    # With it: no photon heavier than the uniform share allows; in the band the narrow share, its part
+    # of the wide one (1/WIDE_FACTOR) and the uniform photons' (nil); near it no photon heavier than
+    # the wide share allows.
     assert rays.weight.max() <= scene.source.disc.area / (PT.UNIFORM_SHARE * n) * (1 + 1e-12)
     rho, phi = band.crossing(rays.origin, rays.direction)
     in_band = band.density(rho, phi, rays.wavelength) > 0
-    assert abs(in_band.mean() - (1 - PT.UNIFORM_SHARE)) < 0.01
+    want = 1 - PT.UNIFORM_SHARE - PT.WIDE_SHARE + PT.WIDE_SHARE / PT.WIDE_FACTOR
+    assert abs(in_band.mean() - want) < 0.01
+    wide = band.widened(PT.WIDE_FACTOR)
+    near = wide.density(rho, phi, rays.wavelength) > 0
+    assert rays.weight[near].max() <= 1 / (n * PT.WIDE_SHARE * wide.density(rho, phi, rays.wavelength)[near].min())
 
 
 @pytest.fixture(scope="module")
