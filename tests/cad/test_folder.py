@@ -40,3 +40,20 @@ def test_missing_pieces_are_input_errors(tmp_path, design_copier):
     with pytest.raises(InputError) as exc:
         load_design(d2)
     assert exc.value.field == "templates.hood"
+
+
+@pytest.mark.slow  # US 5,831,776's three automatic-semi-diameter traces: ~5 s
+def test_a_lens_edged_inside_its_beam_carries_the_warning_into_the_design(tmp_path, design_copier):
+    """What the import clipped (design.edges) rides with the design, so that regenerate's manifest and
+    simulate's summary.json say it; a lens with nothing clipped carries nothing."""
+    from pathlib import Path
+
+    d = design_copier("cooke-triplet", tmp_path / "d")
+    assert load_design(d).lens_warnings == ()
+    (d / "lens.toml").unlink()
+    corpus = Path(__file__).resolve().parents[1] / "optics" / "corpus" / "US05831776-1.zmx"
+    (d / "lens.zmx").write_bytes(corpus.read_bytes())
+    warnings = load_design(d).lens_warnings
+    assert [w.split(" are edged")[0] for w in warnings] == ["surfaces 15 and 16", "surfaces 24 and 25",
+                                                            "surfaces 28 and 29"]
+    assert "0.00 % at 0 mm" in warnings[-1] and "all 3 clips together" in warnings[-1]
