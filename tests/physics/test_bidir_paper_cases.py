@@ -87,7 +87,8 @@ def test_case3_gaussian_is_brighter_than_case2_lambertian(bidirectional_case):
 def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
     # 20 000 photons a pass, as the scene asks: most are aimed at the edge (integrators.photon_target)
     m, s, parts, _ = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 20_000, samples_per_pixel=16)
-    assert m > 0 and s < 0.3 * m
+    # ~1.5 % with the photons aimed; uniform emission puts ~1 photon a pass on the edge here (~100 %)
+    assert m > 0 and s < 0.05 * m, (m, s)
     lit = {name for name, f in parts.items() if f > 0}
     assert lit == {"diaphragm"}, parts
 
