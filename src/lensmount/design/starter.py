@@ -20,7 +20,12 @@ dimension follows from the lens itself, in the mount layer's own keys
   the rim where that makes it thick enough; a cemented group's thin-edged outer element
   is stepped (`cad.lens_groups.lens_group`: edged to its clear aperture, the group seated on its
   partner), and where nothing else builds, the faces beside the stop that curl toward it
-  are ground flat from their clear aperture (`lens_edge.flat_faces`);
+  are ground flat from their clear aperture (`lens_edge.flat_faces`); so are a larger
+  element's face that curls past its smaller neighbour's rim (nested: no barrel step fits
+  between them) and both faces of an air gap the import clipped where they cross
+  (design.edges); an element whose faces cross inside its rim keeps its rim (its flat
+  bevels carry the edge), and one held by a ring is wide enough for the ring's wall above
+  the beam; where the planner refuses a seat, the others are tried for it;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -35,7 +40,9 @@ and lens edge Lambertian 5 %, the diaphragm edge absorbing, on that detector.
 
 from __future__ import annotations
 
+import copy
 import math
+import re
 
 import numpy as np
 
@@ -80,9 +87,11 @@ def detector_size(p: Prescription) -> tuple[float, float]:
 
 
 def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact: float, min_thickness: float,
-                     retainer: float, margin: float, widen: bool) -> tuple[dict[int, float], dict[int, str]]:
-    """Element number → mechanical semi-diameter where clear + allowance would not do, and
-    element number → seat where a spacer could not reach both neighbours' contacts.
+                     retainer: float, margin: float, widen: bool
+                     ) -> tuple[dict[int, float], dict[int, str], tuple[int, ...]]:
+    """Element number → mechanical semi-diameter where clear + allowance would not do,
+    element number → seat where a spacer could not reach both neighbours' contacts, and the
+    1-based faces to grind flat (two neighbours' faces that meet across the air inside both rims).
     `widen`: there, widen the smaller edge for a spacer (unless that makes it too thin)
     rather than seat the element on a shoulder or ring.
 
@@ -107,15 +116,20 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
 
     stepped_min = LensEdge().stepped_min_edge_mm
 
-    def group(k: int, r: float):   # the layout's own elements: flat bevels and stepped elements included
+    def group(k: int, r: float, flats: tuple[bool, bool] = (False, False)):
+        """The layout's own elements: flat bevels and stepped elements included."""
         g = groups[k]
-        return lens_group([face(i) for i in g], r, chamfer, [clear[i] for i in g], min_thickness, stepped_min)
+        return lens_group([face(i) for i in g], r, chamfer, [clear[i] for i in g], min_thickness, stepped_min, flats)
 
     def thin(k: int, r: float) -> bool:   # a stepped element's edge does not follow the group's rim
         g, stepped = groups[k], group(k, r)[1]
         return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
                    < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a]))
                    for j, (a, b) in enumerate(zip(g[:-1], g[1:])) if j not in stepped)
+
+    def crossed(k: int, r: float) -> bool:   # faces meet inside r: edged by a flat bevel (an import clip)
+        g = groups[k]
+        return any(LensElement(face(a), face(b), r).edge_thickness() < 0.0 for a, b in zip(g[:-1], g[1:]))
 
     def too_thin(k: int, r: float) -> bool:
         els, stepped = group(k, r)
@@ -132,21 +146,37 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
              for k, (g, n) in enumerate(zip(groups, natural))]
     seats = {}
     radii_fixed = {}
+    flat: set[int] = set()   # 1-based faces to grind flat (lens_edge.flat_faces)
     stop = p.stop_index
     for k in range(len(groups) - 1):
         ia, ib = groups[k][-1], groups[k + 1][0]
         wall = max(seat_heights(k, natural[k])[1], seat_heights(k + 1, natural[k + 1])[0]) + min_thickness + 0.02
-        if wall <= min(natural[k], natural[k + 1]):
-            continue
         meet = _faces_meet(face(ia), face(ib), min(clear[ia], clear[ib]) + contact, max(natural[k], natural[k + 1]))
-        if not ia <= stop <= ib and meet is not None:
+        if meet is not None and clear[ia] == clear[ib] and meet < min(natural[k], natural[k + 1]):
+            # faces the import clipped where they cross across the air (design.edges: both to one
+            # height, 1.3 mm apart there), inside both rims: both are ground flat from there out
+            flat |= {ia + 1, ib + 1}
+            continue
+        # nested: at their smallest or their natural rims the larger element's face beyond the smaller's
+        # rim reaches past that rim along the axis, so no barrel step fits between them
+        nested = [_step_blocked(group(k, r[k])[0][-1], group(k + 1, r[k + 1])[0][0]) for r in (floor, natural)]
+        if wall <= min(natural[k], natural[k + 1]) and not any(nested):
+            continue
+        small = k if natural[k] <= natural[k + 1] else k + 1
+        if not ia <= stop <= ib and meet is not None and small not in radii_fixed \
+                and floor[small] <= meet + chamfer <= natural[small] + chamfer:
             # the faces meet just outside the light: the smaller element rests its rim there on the
             # other's face (compact camera lenses), its chamfer starting where they meet
-            small = k if natural[k] <= natural[k + 1] else k + 1
-            if floor[small] <= meet + chamfer <= natural[small] + chamfer:
-                radii_fixed[small] = floor[small] = meet + chamfer
-                seats[int(numbers[k + 1])] = "glass"
-                continue
+            radii_fixed[small] = floor[small] = meet + chamfer
+            seats[int(numbers[k + 1])] = "glass"
+            continue
+        big_is_a = small != k
+        if any(nested) and not any(_step_blocked(group(k, r[k], (False, big_is_a))[0][-1],
+                                                 group(k + 1, r[k + 1], (not big_is_a, False))[0][0])
+                                   for r in (floor, natural)):
+            # the larger element's face curls past the smaller one's rim (a meniscus inside a deep
+            # concave face): ground flat from its clear semi-diameter out, it leaves the barrel room
+            flat.add((ia if big_is_a else ib) + 1)
         if ia <= stop <= ib or (widen and not any(thin(j, wall) for j in (k, k + 1) if natural[j] < wall)):
             # widen the smaller edge(s) so that a spacer fits (the diaphragm's gap always has spacers)
             floor[k], floor[k + 1] = max(floor[k], wall), max(floor[k + 1], wall)
@@ -154,14 +184,21 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             seats[int(numbers[k + 1])] = "shoulder"
         else:   # contacts far apart in height: a shoulder behind A, a ring in front of B
             seats[int(numbers[k + 1])] = "retainer"
-    i0 = groups[0][0]
-    if stop >= i0:  # a retainer holds element 1: its wall stands above the beam at its far face
-        zc = float(face(i0).z(clear[i0] + contact))
+
+    def above_the_ring(i: int) -> float:   # a retainer's wall in front of face i stands above the beam there
+        zc = float(face(i).z(clear[i] + contact))
         beam = Envelope(p, zc - retainer - 1.0, zc, step=0.1).max_over(zc - retainer - 1.0, zc)
-        floor[0] = max(floor[0], beam + margin + min_thickness + 0.02)
+        return beam + margin + min_thickness + 0.02
+
+    i0 = groups[0][0]
+    if stop >= i0:  # a retainer holds element 1
+        floor[0] = max(floor[0], above_the_ring(i0))
+    for k in range(1, len(groups)):
+        if seats.get(int(numbers[k])) == "retainer":
+            floor[k] = max(floor[k], above_the_ring(groups[k][0]))
     radii = [radii_fixed.get(k, max(n, f)) for k, (n, f) in enumerate(zip(natural, floor))]
     for k in range(len(groups)):   # thick enough at the edge
-        while radii[k] - step >= floor[k] and thin(k, radii[k]):
+        while radii[k] - step >= floor[k] and thin(k, radii[k]) and not crossed(k, radii[k]):
             radii[k] -= step
         if too_thin(k, radii[k]) and k not in radii_fixed:   # a flat-bevelled meniscus thickens outward
             wider = [r for r in np.arange(radii[k], 1.5 * max(clear[i] for i in groups[k]), step)
@@ -169,11 +206,12 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             radii[k] = wider[0] if wider else radii[k]
     for k in range(len(groups) - 1):      # room for the barrel's step between neighbouring edges
         ia, ib = groups[k][-1], groups[k + 1][0]
-        if seats.get(int(numbers[k + 1])) == "glass":
+        if seats.get(int(numbers[k + 1])) == "glass" or ia + 1 in flat:
             continue
         for _ in range(40):
             r = min(radii[k], radii[k + 1])
-            if float(face(ib).z(r) - face(ia).z(r)) > min_thickness + 2 * chamfer:
+            if float(face(ib).z(r) - face(ia).z(r)) > min_thickness + 2 * chamfer and (
+                    ia + 1 in flat or not _step_blocked(group(k, radii[k])[0][-1], group(k + 1, radii[k + 1])[0][0])):
                 break
             big = k if radii[k] >= radii[k + 1] else k + 1
             if radii[big] - step < floor[big]:
@@ -184,7 +222,17 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
         if abs(r - n) > 1e-9:
             for k in range(len(g) - 1):
                 out[int(first) + k] = _round(r, 3)
-    return out, seats
+    return out, seats, tuple(sorted(flat))
+
+
+def _step_blocked(a, b) -> bool:
+    """No barrel step fits between lens element a and the next, b (templates.lens_element.LensElement,
+    flat bevels included): the larger one's face between the two rims reaches past the smaller one's
+    rim along the axis (the layout's test, cad.layout: edges overlapping axially)."""
+    r = min(a.outer_radius, b.outer_radius)
+    za = float(np.max(a.back_z(np.linspace(r, a.outer_radius, 50))))
+    zb = float(np.min(b.front_z(np.linspace(r, b.outer_radius, 50))))
+    return zb <= za
 
 
 def _faces_meet(a, b, r_lo: float, r_hi: float) -> float | None:
@@ -234,7 +282,8 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     a spacer cannot reach; the first that passes wins. If neither does and faces beside the
     stop curl toward it, both are tried again with those faces ground flat from their clear
     semi-diameter (lens_edge.flat_faces: room for the diaphragm between deep inner faces).
-    When neither does, the first is returned with the planner's error for the user.
+    Where the planner refuses an element's seat, the others are tried for it (`_reseat`).
+    When none passes, the first is returned with the planner's error for the user.
     """
     from lensmount.cad.checks import check_layout
     from lensmount.cad.layout import plan
@@ -246,15 +295,35 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     for flats, widen in [(f, w) for f in ((), gap)[:1 + bool(gap)] for w in (True, False)]:
         mount = _mount(p, name, widen)
         if flats:
-            mount["lens_edge"]["flat_faces"] = list(flats)
-        try:
-            spec = parse_mount(mount)
-            layout = plan(p, spec)
-            check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
-            return mount, None
-        except InputError as error:
-            first = first or (mount, error.paragraph())
+            mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
+        tried: dict[str, set[str]] = {}
+        for _ in range(1 + 3 * len(p.lens_groups())):   # each seat tried at most three ways
+            try:
+                spec = parse_mount(mount)
+                layout = plan(p, spec)
+                check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
+                return mount, None
+            except InputError as error:
+                first = first or (copy.deepcopy(mount), error.paragraph())
+                if not _reseat(mount, error.field or "", tried):
+                    break
     return first
+
+
+def _reseat(mount: dict, field: str, tried: dict[str, set[str]]) -> bool:
+    """After the planner refused the seat of element N (field `seats.element.N`), seat it another way
+    (a shoulder, then a spacer, then a ring) that has not been tried; False when none is left."""
+    m = re.fullmatch(r"seats\.element\.(\d+)", field)
+    if m is None:
+        return False
+    seats = mount["seats"].setdefault("element", {})
+    done = tried.setdefault(m.group(1), {seats.get(m.group(1), mount["seats"]["default"])})
+    left = [s for s in ("shoulder", "spacer", "retainer") if s not in done]
+    if not left:
+        return False
+    seats[m.group(1)] = left[0]
+    done.add(left[0])
+    return True
 
 
 def _mount(p: Prescription, name: str, widen: bool) -> dict:
@@ -286,10 +355,12 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     retainer = _round(_clamp(0.05 * a, 0.3, 3.0), 1)
     # a lens with mirrors is laid out in cells (lensmount.cad.catadioptric): no seats or edges to choose,
     # and no hood or housing yet (the hood and housing tables keep the exclusion angle and the detector)
-    semi, seat_of = ({}, {}) if p.has_mirrors else _edges_and_seats(p, allowance, chamfer, contact, min_thickness,
-                                                                     retainer, margin, widen)
+    semi, seat_of, flat = ({}, {}, ()) if p.has_mirrors else _edges_and_seats(
+        p, allowance, chamfer, contact, min_thickness, retainer, margin, widen)
     if semi:
         edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
+    if flat:
+        edge["flat_faces"] = list(flat)
     return {
         "name": f"{name} mount",
         "barrel": {"wall_mm": wall, "radial_clearance_mm": 0.03, "lip_mm": lip},
