@@ -18,6 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import singlet_barrel  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
+from lensmount.integrators.estimate import AIMED_PASSES  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.plan import DIRECT_MARGIN_DEG, dispersion_free, plan  # noqa: E402
 from lensmount.scene.scene import Effects  # noqa: E402
@@ -58,6 +59,15 @@ def test_scatter_selectors_leave_only_the_named_faces_scattering():
     assert _decision(p, "scatter").ran and "barrel" in _decision(p, "scatter").why
     p = plan(_singlet(effects=Effects(scatter=False)))
     assert not p.scatters.any() and not _decision(p, "scatter").ran
+
+
+def test_summary_says_when_photons_were_aimed_at_the_edge():
+    p = plan(_singlet())
+    whats = lambda block: [item["what"] for item in block["ran"]]  # noqa: E731
+    assert not any("aimed" in w for w in whats(p.as_dict({})))
+    block = p.as_dict({AIMED_PASSES: 3.0})
+    line = next(item for item in block["ran"] if "aimed" in item["what"])
+    assert line["why"].startswith("3 pass")
 
 
 def test_ghosts_skipped_with_perfect_ar_and_without_ghosts():

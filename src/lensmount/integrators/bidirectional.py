@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from lensmount.integrators.estimate import (EnergyLedger, Film, PassEstimate, film_channels, phase_times,
+from lensmount.integrators.estimate import (AIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times,
                                             scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
@@ -161,6 +161,9 @@ class Bidirectional:
         scatters = scattering_tags(scene)
         band = edge_band(scene, tracer, broad, seed) if cfg.edge_photons and len(hits.weight) else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
+        # summed over passes in the summary: how many passes aimed (a pilot with too few edge hits
+        # falls back to uniform emission, correct but slower; the summary must say which ran)
+        diagnostics[AIMED_PASSES] = float(band is not None)
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE

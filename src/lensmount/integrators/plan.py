@@ -50,7 +50,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lensmount.integrators.estimate import TIME_PREFIX
+from lensmount.integrators.estimate import AIMED_PASSES, TIME_PREFIX
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
@@ -93,7 +93,13 @@ class Plan:
         """The summary.json block: ran / skipped (what, why) and seconds per phase."""
         times = {k[len(TIME_PREFIX):]: round(float(v), 3) for k, v in sorted((diagnostics or {}).items())
                  if k.startswith(TIME_PREFIX)}
-        return {"ran": [{"what": d.what, "why": d.why} for d in self.decisions if d.ran],
+        ran = [{"what": d.what, "why": d.why} for d in self.decisions if d.ran]
+        aimed = int((diagnostics or {}).get(AIMED_PASSES, 0))
+        if aimed:
+            ran.append({"what": "photons aimed at the diaphragm edge",
+                        "why": f"{aimed} pass(es): most photons start in the pilot's band in the entrance pupil, "
+                               "each weighted by the mixture density (unbiased)"})
+        return {"ran": ran,
                 "skipped": [{"what": d.what, "why": d.why} for d in self.decisions if not d.ran],
                 "time_s": times}
 
