@@ -112,7 +112,7 @@ def test_hit_points_on_the_50_um_diaphragm_edge():
     for width in (0.05, 0.025):
         scene = double_gauss_case(1, pixels=(12, 12), edge_width=width)
         tracer = Tracer(scene)
-        est = [bidirectional_pass(scene, tracer, 200_000, 5, i, 1.0, samples_per_pixel=400) for i in range(4)]
+        est = [bidirectional_pass(scene, tracer, 20_000, 5, i, 1.0, samples_per_pixel=400) for i in range(4)]
         names = est[0].part_names
         for e in est:
             assert np.all(np.isfinite(e.image))
