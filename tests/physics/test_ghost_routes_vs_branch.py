@@ -10,8 +10,9 @@ import math
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
+
+from tests.physics.ghost_channel import ghosts_channel
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -19,8 +20,6 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 @pytest.mark.slow
 def test_ghost_routes_agree_with_the_stochastic_branch_on_the_cooke_triplet(tmp_path):
     from lensmount.analysis.ghosts import ghost_report
-    from lensmount.integrators.estimate import film_channels
-    from lensmount.integrators.forward import Forward
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.loop.prepare import prepare
     from lensmount.trace.tracer import Tracer
@@ -29,15 +28,8 @@ def test_ghost_routes_agree_with_the_stochastic_branch_on_the_cooke_triplet(tmp_
                                   ignore=shutil.ignore_patterns("build", ".lensmount")))
     scene = prepare(design, design / "scenes" / "ghosts-uncoated.toml").scene
     tracer = Tracer(scene)
-    ghosts = film_channels(scene).index("ghosts")
-
-    def channel(settings, photons, passes):
-        flux = np.array([Forward(settings).run_pass(scene, tracer, i, photons, 11).part_flux[ghosts]
-                         for i in range(passes)])
-        return flux.mean(), flux.std(ddof=1) / math.sqrt(passes)
-
-    branch, branch_se = channel(EstimatorSettings(ghost_routes=False), 200_000, 8)
-    routes, routes_se = channel(EstimatorSettings(), 40_000, 6)
+    branch, branch_se = ghosts_channel(scene, tracer, EstimatorSettings(ghost_routes=False), 200_000, 8)
+    routes, routes_se = ghosts_channel(scene, tracer, EstimatorSettings(), 40_000, 6)
     print(f"\nghosts channel: branch {branch:.4g} ± {branch_se:.2g} mm², routes {routes:.4g} ± {routes_se:.2g} mm²")
     assert routes == pytest.approx(branch, abs=4 * math.hypot(branch_se, routes_se))
     # Teeth: the tolerance is below 15 %: dropping the transmittance T = 1 − R at the ~10 crossings of a

@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from tests.physics.ghost_channel import ghosts_channel  # noqa: E402
 from tests.trace.geometry import make_scene  # noqa: E402
 
 from lensmount.cad.mesh import FaceTag, TaggedMesh  # noqa: E402
 from lensmount.errors import InputError  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
-from lensmount.integrators.estimate import EnergyLedger, Film, film_channels, ledger_residual  # noqa: E402
-from lensmount.integrators.forward import Forward, forward_pass  # noqa: E402
+from lensmount.integrators.estimate import EnergyLedger, Film, ledger_residual  # noqa: E402
+from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.integrators.plan import plan  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.integrators.walk import emit_photons, photon_walk  # noqa: E402
@@ -62,15 +63,21 @@ def _beam(n: int, incidence_deg: float):
     return o, np.tile([0.0, math.sin(th), math.cos(th)], (n, 1))
 
 
+def _events_at_a_lambertian_mirror(n: int, rho: float, r: float, incidence_deg: float, seed: int):
+    """(scene, (origins, directions), events) of `_beam` on a flat mirror of reflectance r whose
+    finish is Lambertian with albedo rho."""
+    scene = _flat_mirror({"model": "lambertian", "reflectance": rho}, r)
+    o, d = _beam(n, incidence_deg)
+    return scene, (o, d), Tracer(scene).next_event(RayBatch.make(o, d), Streams(seed, "mirror", np.arange(n)))
+
+
 def _within(observed: float, expected: float, sigma: float, k: float = 4.0) -> bool:
     return abs(observed - expected) <= k * sigma
 
 
 def test_a_mirror_with_a_finish_ends_a_share_a_on_its_face_and_reflects_the_rest_specularly_both_with_r():
     n, rho, r = 20_000, 0.3, 0.9
-    scene = _flat_mirror({"model": "lambertian", "reflectance": rho}, r)
-    o, d = _beam(n, 30.0)
-    ev = Tracer(scene).next_event(RayBatch.make(o, d), Streams(5, "mirror", np.arange(n)))
+    scene, (o, d), ev = _events_at_a_lambertian_mirror(n, rho, r, 30.0, 5)
     at_face = ev.kind == FACE
     assert _within(at_face.mean(), rho, math.sqrt(rho * (1 - rho) / n))
     np.testing.assert_allclose(ev.weight, r, rtol=1e-12)  # both branches carry R: R(1 − a) + R·a on average
@@ -89,9 +96,7 @@ def test_a_mirror_with_a_finish_ends_a_share_a_on_its_face_and_reflects_the_rest
 def test_a_polished_mirror_scatters_a_tenth_of_its_rays_weighted_to_keep_r_a_scattered_and_r_one_minus_a_specular():
     # TIS 1e-2 (dust): p = 0.1 of the rays take the finish with weight R·a/p, the others R(1 − a)/(1 − p)
     n, rho, r = 20_000, 0.01, 0.9
-    scene = _flat_mirror({"model": "lambertian", "reflectance": rho}, r)
-    o, d = _beam(n, 20.0)
-    ev = Tracer(scene).next_event(RayBatch.make(o, d), Streams(9, "mirror", np.arange(n)))
+    _, _, ev = _events_at_a_lambertian_mirror(n, rho, r, 20.0, 9)
     at_face = ev.kind == FACE
     p = MIRROR_SCATTER_MIN_SHARE
     assert _within(at_face.mean(), p, math.sqrt(p * (1 - p) / n))
@@ -294,15 +299,8 @@ def test_the_ghost_routes_carry_only_the_specular_share_of_a_scattering_mirror()
                        finishes={"roughness": _abg(0.3, 0.01)}, assign={"*": "absorber", "surface:3": "roughness"},
                        effects={"scatter": True, "ghosts": True, "direct": False, "absorption": False})
     tracer = Tracer(scene)
-    ghosts = film_channels(scene).index("ghosts")
-
-    def channel(settings, photons, passes):
-        flux = np.array([Forward(settings).run_pass(scene, tracer, i, photons, 11).part_flux[ghosts]
-                         for i in range(passes)])
-        return flux.mean(), flux.std(ddof=1) / math.sqrt(passes)
-
-    branch, branch_se = channel(EstimatorSettings(ghost_routes=False), 100_000, 6)
-    routes, routes_se = channel(EstimatorSettings(), 20_000, 3)
+    branch, branch_se = ghosts_channel(scene, tracer, EstimatorSettings(ghost_routes=False), 100_000, 6)
+    routes, routes_se = ghosts_channel(scene, tracer, EstimatorSettings(), 20_000, 3)
     assert routes == pytest.approx(branch, abs=4 * math.hypot(branch_se, routes_se))
     assert 4 * math.hypot(branch_se, routes_se) < 0.2 * branch  # 1/(1 − a) = 1.43 would fail it
 
