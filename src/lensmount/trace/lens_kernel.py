@@ -36,6 +36,9 @@ from numba import njit
 from lensmount.trace.kernels import step_one
 
 COATING_CODES = {"perfect-ar": 0, "uncoated": 1, "mgf2-quarter-wave": 2, "constant": 3}
+# Constants copied from interfaces and sampler on purpose: numba freezes globals into its on-disk cache,
+# which it invalidates only when this file changes, so an imported value edited there would leave a
+# stale kernel. tests/trace/test_lens_kernel.py holds the copies to their originals.
 _MGF2_INDEX = 1.38
 _MGF2_THICKNESS_UM = 0.55 / (4.0 * 1.38)  # interfaces.MGF2_DESIGN_WAVELENGTH_UM / (4 MGF2_INDEX)
 _COS_FLOOR = 1e-12
