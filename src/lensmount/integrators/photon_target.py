@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lensmount.integrators.estimate import scattering_tags
-from lensmount.integrators.targets import edge_tags
+from lensmount.integrators.targets import edge_rim, edge_tags, paraxial_trace, robust_fit
 from lensmount.integrators.walk import emit_photons
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import Streams, stream
@@ -167,21 +167,14 @@ def entrance_pupil(scene, tags: np.ndarray) -> tuple[float, float] | None:
     """(z, radius) of the paraxial image of the edge's rim through the optics in front of it (the
     entrance pupil when the edge is the stop's), or None. Two paraxial rays from the first surface:
     y_s = A y₀ + B ν₀ at the rim's plane; the chief ray (y_s = 0) crosses the axis at z₀ + n₀ B / A."""
-    tri = scene.mesh.triangles[np.isin(scene.mesh.tags, tags)]
-    v = scene.mesh.vertices[np.unique(tri)]
-    z_s, r_s = float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+    z_s, r_s = edge_rim(scene, tags)
     front = sorted((s for s in scene.optical if s.z_vertex < z_s), key=lambda s: s.z_vertex)
     if not front:
         return z_s, r_s
-    n0 = float(np.atleast_1d(front[0].n_before)[0])
+    n0, n = float(np.atleast_1d(front[0].n_before)[0]), float(np.atleast_1d(front[-1].n_after)[0])
     ends = []
     for y, nu in ((1.0, 0.0), (0.0, 1.0)):
-        z, n = front[0].z_vertex, n0
-        for s in front:
-            n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
-            y = y + (s.z_vertex - z) * nu / n1
-            z, n = s.z_vertex, n2
-            nu = nu - y * (n2 - n1) * s.profile.curvature
+        y, nu, z = paraxial_trace(front, y, nu, front[0].z_vertex)
         ends.append(y + (z_s - z) * nu / n)
     a, b = ends
     if abs(a) < 1e-12:
@@ -279,14 +272,8 @@ def _ring(rho, phi, wl, n_wl):
     coef, sigma = np.zeros((n_wl, 2 * _K + 1)), np.zeros(n_wl)
     for k in range(n_wl):
         m = wl == k
-        a, r = _basis(phi[m]), rho[m]
-        keep = np.ones(len(r), bool)
-        for _ in range(3):
-            ck, *_ = np.linalg.lstsq(a[keep], r[keep], rcond=None)
-            res = r - a @ ck
-            s = float(np.std(res[keep]))
-            keep = np.abs(res) <= 4.0 * s + 1e-9
-        if not (np.all(np.isfinite(ck)) and math.isfinite(s)):
+        ck, s = robust_fit(_basis(phi[m]), rho[m])
+        if ck is None:
             return None, None
         coef[k], sigma[k] = ck, s
     return coef, sigma

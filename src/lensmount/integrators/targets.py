@@ -131,6 +131,38 @@ def edge_tags(scene, broad: np.ndarray) -> np.ndarray:
                      if t.role == "diaphragm-edge" and k < len(broad) and broad[k]], np.int64)
 
 
+def edge_rim(scene, tags) -> tuple[float, float]:
+    """(z, radius) of the diaphragm edge: the mean z and distance from the axis of its vertices."""
+    tri = scene.mesh.triangles[np.isin(scene.mesh.tags, tags)]
+    v = scene.mesh.vertices[np.unique(tri)]
+    return float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+
+
+def paraxial_trace(surfaces, y: float, nu: float, z: float) -> tuple[float, float, float]:
+    """(y, nu, z) of a paraxial ray (height y, reduced angle nu = n u at z) after `surfaces` in
+    order of z (wavelength 0): transfer to each vertex, then refraction by its power."""
+    for s in surfaces:
+        n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
+        y = y + (s.z_vertex - z) * nu / n1
+        z = s.z_vertex
+        nu = nu - y * (n2 - n1) * s.profile.curvature
+    return y, nu, z
+
+
+def robust_fit(a: np.ndarray, r: np.ndarray):
+    """Least-squares coefficients of r ≈ a c and the residual spread, refitted three times without
+    the points beyond 4 spreads (other paths to the edge); (None, None) if not finite."""
+    keep = np.ones(len(r), bool)
+    for _ in range(3):
+        c, *_ = np.linalg.lstsq(a[keep], r[keep], rcond=None)
+        res = r - a @ c
+        sigma = float(np.std(res[keep]))
+        keep = np.abs(res) <= 4.0 * sigma + 1e-9
+    if not (np.all(np.isfinite(c)) and math.isfinite(sigma)):
+        return None, None
+    return c, sigma
+
+
 def learned_rim(scene, tracer, det, broad: np.ndarray, seed: int, rim, n_rays: int = PILOT_RAYS):
     """The pilot's LearnedRim for (scene, tracer, seed), or None (no rim, too few pilot hits).
 
@@ -194,14 +226,8 @@ def _fit(x, omega, wl, hit, z, facing, r_max, n_wl, stage):
         m = hit[wl[hit] == k]
         if len(m) < MIN_HITS:
             return None
-        a = _basis(s[m], dphi[m])
-        keep = np.ones(len(m), bool)
-        for _ in range(3):  # refit without stray hits far from the window (other paths to the edge)
-            c, *_ = np.linalg.lstsq(a[keep], rho[m][keep], rcond=None)
-            res = rho[m] - a @ c
-            sigma = float(np.std(res[keep]))
-            keep = np.abs(res) <= 4.0 * sigma + 1e-9
-        if not (np.all(np.isfinite(c)) and math.isfinite(sigma)):
+        c, sigma = robust_fit(_basis(s[m], dphi[m]), rho[m])
+        if c is None:
             return None
         coef[k], half[k] = c, max(HALF_WIDTH_SIGMAS * sigma, 1e-4)
     # Azimuth histogram per zone: hit rate = hits / samples per (zone, bin), smoothed, with a floor.
@@ -219,4 +245,4 @@ def _fit(x, omega, wl, hit, z, facing, r_max, n_wl, stage):
     return LearnedRim(float(z), float(facing), coef, half, float(r_max), pmf)
 
 
-__all__ = ["LearnedRim", "learned_rim", "edge_tags"]
+__all__ = ["LearnedRim", "learned_rim", "edge_tags", "edge_rim", "paraxial_trace", "robust_fit"]

@@ -25,7 +25,7 @@ import numpy as np
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.photon_gather import HitPoints
 from lensmount.integrators.radius import initial_radii
-from lensmount.integrators.targets import edge_tags, learned_rim
+from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
 from lensmount.integrators.media import air_radiance_factor
 from lensmount.trace.detector import Detector
 from lensmount.trace.rays import RayBatch
@@ -96,24 +96,16 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
     over the whole exit disc. The stop rim is the mean radius and z of the edge's vertices;
     its image is a y–nu trace through the optical surfaces behind it (wavelength 0).
     """
-    mesh = scene.mesh
-    edge_tags = [k for k, t in enumerate(mesh.tag_table) if t.role == "diaphragm-edge" and k < len(broad) and broad[k]]
+    tags = edge_tags(scene, broad)
     optical = sorted(scene.optical, key=lambda s: s.z_vertex)
-    if not edge_tags or not optical:
+    if not len(tags) or not optical:
         return None
-    tri = mesh.triangles[np.isin(mesh.tags, edge_tags)]
-    v = mesh.vertices[np.unique(tri)]
-    z_s, r_s = float(v[:, 2].mean()), float(np.hypot(v[:, 0], v[:, 1]).mean())
+    z_s, r_s = edge_rim(scene, tags)
     behind = [s for s in optical if s.z_vertex > z_s] if det.z > z_s else []
     if not behind:
         return None
-    y, nu, z = 0.0, 1.0, z_s  # a ray from the stop's axial point
-    nu_in = nu
-    for s in behind:
-        n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
-        y = y + (s.z_vertex - z) * nu / n1
-        z = s.z_vertex
-        nu = nu - y * (n2 - n1) * s.profile.curvature
+    nu_in = 1.0
+    y, nu, z = paraxial_trace(behind, 0.0, nu_in, z_s)  # a ray from the stop's axial point
     n_last = float(np.atleast_1d(behind[-1].n_after)[0])
     if abs(nu) < 1e-12:
         return None
