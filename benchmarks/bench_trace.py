@@ -2,11 +2,14 @@
 
 Prints:
 - rays/s of a full non-sequential trace (`Tracer.next_event`: every refraction of the double
-  Gauss, analytic refinement, to the detector) of an f/7 bundle at 0° and 3.5°;
+  Gauss, analytic refinement, to the detector) of an f/7 bundle at 0° and 3.5°, as a lone
+  process runs it (the compiled walk on every core) and on one core (as each `simulate` worker
+  runs it);
 - the raw embreex intersection rate (one nearest-hit query per ray) on the same mesh and the
   same number of rays, and the ratio of the two;
 - Embree queries per traced ray (probes + relaunches past facets);
-- optiland's non-sequential tracer through the same lens, in the same run (rays/s and ratio);
+- optiland's non-sequential tracer through the same lens, in the same run (rays/s and ratio,
+  against both of ours: optiland's numpy runs on one core);
 - the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
   a time in Python) as a peer, with the largest landing-point difference.
 
@@ -155,6 +158,10 @@ def main() -> None:
     t0 = time.perf_counter()
     p, mesh, scene, origin = _reference()
     print(f"mesh: {len(mesh.triangles)} triangles from {origin} ({time.perf_counter() - t0:.1f} s)")
+    import numba
+
+    from lensmount.trace import lens_kernel
+
     t0 = time.perf_counter()
     tracer = Tracer(scene)
     print(f"Tracer build (Embree BVH): {time.perf_counter() - t0:.3f} s")
@@ -168,7 +175,8 @@ def main() -> None:
     ev = tracer.next_event(rays)
     full, full_cpu = time.perf_counter() - t0, time.process_time() - c0
     arrived = (ev.kind == DETECTOR).mean()
-    print(f"full non-sequential trace: {N_RAYS / full:,.0f} rays/s ({N_RAYS} rays, {full:.2f} s, "
+    print(f"full non-sequential trace on {numba.get_num_threads()} threads ({numba.threading_layer()}): "
+          f"{N_RAYS / full:,.0f} rays/s ({N_RAYS} rays, {full:.2f} s, "
           f"{arrived:.1%} reach the detector, {tracer.embree_rays / N_RAYS:.1f} Embree queries per ray: "
           f"{tracer.mechanical.queries / N_RAYS:.1f} against the metal, {tracer._optical_queries / N_RAYS:.1f} for glass "
           f"facets; the compiled walk proves the other steps without Embree)")
@@ -213,13 +221,23 @@ def main() -> None:
           f"raw cost of one query in wall time, {s_cpu / seg / raw_cpu:.2f}x in CPU time; per Embree query "
           f"{s_cpu / q / raw_cpu:.1f}x in CPU time, the walk's steps included")
 
+    # One core, as each worker process of `simulate` traces (its neighbours have the other cores).
+    lens_kernel.one_core_per_process()
+    tracer.next_event(rays.subset(slice(0, 2000)))
+    t0 = time.perf_counter()
+    tracer.next_event(rays)
+    one_core = time.perf_counter() - t0
+    print(f"full non-sequential trace on one core: {N_RAYS / one_core:,.0f} rays/s "
+          f"(on every core it took {full / one_core:.2f}x this time)")
+
     peer = _optiland_peer(p, N_OPTILAND)
     if isinstance(peer, str):
         print(f"peer optiland: {peer}")
     else:
-        print(f"peer optiland {version('optiland')} non-sequential (same lens, same run): {peer[0]:,.0f} rays/s "
-              f"({N_OPTILAND} rays, {peer[1]:.0%} of the flux detected); lensmount full trace is "
-              f"{(N_RAYS / full) / peer[0]:.1f}x faster in wall time, {(N_RAYS / full_cpu) / peer[2]:.1f}x in CPU time")
+        print(f"peer optiland {version('optiland')} non-sequential (same lens, same run, one core): {peer[0]:,.0f} "
+              f"rays/s ({N_OPTILAND} rays, {peer[1]:.0%} of the flux detected); lensmount full trace is "
+              f"{(N_RAYS / full) / peer[0]:.1f}x faster in wall time on every core, "
+              f"{(N_RAYS / one_core) / peer[0]:.1f}x on one core, {(N_RAYS / full_cpu) / peer[2]:.1f}x in CPU time")
 
     sel = slice(0, N_PEER)
     rate, pts = _rayoptics_peer(p, o[sel], d[sel])

@@ -30,6 +30,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
 from lensmount.errors import InputError
+from lensmount.trace import lens_kernel
 
 SCHEDULER_ENV = "LENSMOUNT_SCHEDULER"
 _PR_SET_PDEATHSIG = 1
@@ -77,6 +78,7 @@ def _tracer_for(scene, tracer_path: str):
 
 def _init_local(scene, tracer_path: str) -> None:
     die_with_parent()
+    lens_kernel.one_core_per_process()  # the workers share the cores already
     _INITIAL["scene"] = (scene, tracer_path)
 
 
@@ -86,6 +88,7 @@ def _local_pass(run_pass_path: str, job):
 
 
 def _dask_pass(run_pass_path: str, scene, tracer_path: str, job):
+    lens_kernel.one_core_per_process()  # a Dask worker's threads and its neighbours share the cores
     return job.index, resolve(run_pass_path)(scene, _tracer_for(scene, tracer_path), job)
 
 

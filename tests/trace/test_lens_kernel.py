@@ -7,6 +7,8 @@
   the segments of an axial beam (else the walk would never run).
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -129,3 +131,68 @@ def test_a_ray_the_walk_lets_escape_meets_no_metal():
     mech = mesh.triangles[np.array([t.role != "optical" for t in mesh.tag_table])[mesh.tags]]
     t_hit, _ = reference_nearest(ev.position[gone], ev.direction[gone], mesh.vertices[mech])
     assert not np.isfinite(t_hit).any()
+
+
+def _ghost_bundle(n=20_000, seed=4):
+    """Rays at up to 6° over 1.2× the double Gauss's aperture: some reach the detector, some meet
+    the barrel or the diaphragm, and the uncoated glass reflects some of them (ghosts on)."""
+    from tests.trace.geometry import make_scene
+    from lensmount.trace.rays import RayBatch
+    from lensmount.trace.tracer import Tracer
+
+    p = double_gauss()
+    tracer = Tracer(make_scene(p, double_gauss_mesh(p, rings=6, segments=24), coatings={"default": "uncoated"},
+                               effects={"scatter": True, "ghosts": True, "direct": True}))
+    rng = np.random.default_rng(seed)
+    r, phi = 30.0 * np.sqrt(rng.random(n)), 2 * np.pi * rng.random(n)
+    tilt, az = np.radians(6.0) * rng.random(n), 2 * np.pi * rng.random(n)
+    d = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    o = np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n, -40.0)])
+    return tracer, RayBatch.make(o, d, wavelength=np.zeros(n, np.int64)), Streams(3, "ghosts", np.arange(n))
+
+
+def test_the_walk_on_all_cores_is_the_walk_on_one_core(monkeypatch):
+    """A ray's walk reads and writes only its own rows: traced on every core, every event is the
+    same bits as on one core (Fresnel branch on, so the ghost pairs and stream draws are compared too)."""
+    tracer, rays, streams = _ghost_bundle()
+    assert len(rays) >= lens_kernel.THREADED_FROM
+    threaded = tracer.next_event(rays, streams)
+    monkeypatch.setattr(lens_kernel, "_ONE_CORE", [True])
+    one_core = tracer.next_event(rays, streams)
+    assert threaded.reflections.sum() > 100 and (threaded.kind == 1).sum() > 100  # ghosts and metal were walked
+    for field in ("kind", "position", "direction", "normal", "tag", "prim", "pixel", "weight", "lost", "reflections",
+                  "ghost_pair"):
+        assert np.array_equal(getattr(threaded, field), getattr(one_core, field)), field
+
+
+def test_a_forked_worker_traces_after_its_parent_walked_on_all_cores():
+    """GNU OpenMP, numba's threading layer here, is not fork-safe: a child that starts threads its
+    parent already started is killed. The executor's workers walk on one core, so a run whose driver
+    traced first (the photon aiming's pilot does) still gets its passes back."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import sys
+        sys.path.insert(0, %r)
+        import numpy as np
+        from concurrent.futures import ProcessPoolExecutor
+        from lensmount import executor
+        from tests.trace.test_lens_kernel import _ghost_bundle
+
+        def pass_in_worker(seed):
+            tracer, rays, streams = _ghost_bundle(seed=seed)
+            return int((tracer.next_event(rays, streams).kind == 2).sum())
+
+        if __name__ == "__main__":
+            tracer, rays, streams = _ghost_bundle()
+            here = int((tracer.next_event(rays, streams).kind == 2).sum())  # threads started in the parent
+            with ProcessPoolExecutor(1, initializer=executor._init_local, initargs=(None, "")) as pool:
+                there = pool.submit(pass_in_worker, 4).result(timeout=240)
+            print(here, there)
+    """) % str(Path(__file__).resolve().parents[2])
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    here, there = map(int, out.stdout.split())
+    assert here == there > 0

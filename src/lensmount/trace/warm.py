@@ -4,9 +4,10 @@
 Why: numba compiles a kernel on its first call and keeps the machine code beside the source
 (`cache=True`). Cold, the tracer's kernels take ~10-20 s to compile on the 2-core machine; the
 first `simulate` would pay that, and so would each of its worker processes that starts before
-the cache is written. Tracing a few rays through an uncoated window inside a tube, with the
-Fresnel branch off and on, calls every kernel with the argument types of a real run (a new
-combination of types would compile again).
+the cache is written. Tracing rays through an uncoated window inside a tube, with the Fresnel
+branch off and on, in a batch large enough for the walk on every core and in a small one, calls
+every kernel with the argument types of a real run (a new combination of types would compile
+again).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ def main() -> None:
     from lensmount.scene.build import build_scene
     from lensmount.trace.rays import RayBatch
     from lensmount.trace.sampler import Streams
+    from lensmount.trace import lens_kernel
     from lensmount.trace.tracer import Tracer
 
     start = time.perf_counter()
@@ -32,7 +34,7 @@ def main() -> None:
                         Aperture("epd", 40.0))
     mesh = TaggedMesh.concatenate([primitives.lens_elements(lens, [20.0, 20.0], rings=4, segments=24),
                                    primitives.tube(-10.0, 60.0, 21.0, 25.0)])
-    n = 64
+    n = lens_kernel.THREADED_FROM  # as many as a real batch: the walk on every core compiles too
     rng = np.random.default_rng(0)
     r = 30.0 * np.sqrt(rng.random(n))  # inside the glass, on the tube, and past it
     phi = 2.0 * np.pi * rng.random(n)
@@ -54,6 +56,8 @@ def main() -> None:
         tracer.next_event(RayBatch.make(events.position, -events.direction, wavelength=np.zeros(n, np.int64)),
                           Streams(0, "warm", np.arange(n)), origin_normal=events.normal)
         tracer.intersect(rays)
+        few = rays.subset(slice(0, 64))  # fewer than THREADED_FROM: the walk on one core
+        tracer.next_event(few, Streams(0, "warm", np.arange(64)))
     print(f"lensmount: tracer kernels compiled and cached ({time.perf_counter() - start:.1f} s)")
 
 
