@@ -156,6 +156,7 @@ def test_the_walk_on_all_cores_is_the_walk_on_one_core(monkeypatch):
     same bits as on one core (Fresnel branch on, so the ghost pairs and stream draws are compared too)."""
     tracer, rays, streams = _ghost_bundle()
     assert len(rays) >= lens_kernel.THREADED_FROM
+    monkeypatch.setattr(lens_kernel, "_ONE_CORE", [False])
     threaded = tracer.next_event(rays, streams)
     monkeypatch.setattr(lens_kernel, "_ONE_CORE", [True])
     one_core = tracer.next_event(rays, streams)
