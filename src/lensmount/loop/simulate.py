@@ -135,10 +135,16 @@ def check_options(o: SimulateOptions) -> None:
 
 
 def check_writable(folder: Path, field: str = "--out") -> None:
-    """The results folder exists (or can be made) and takes files: checked before a long build."""
+    """The results folder takes files, or the nearest folder that exists above it does (it is made
+    when the first result is written): checked before a long build, and leaving nothing behind,
+    so a run refused later (a bad scene, no checkpoint) has not made an empty folder."""
+    existing = Path(folder).absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=".lensmount-write-test.")
+        if not existing.is_dir():
+            raise NotADirectoryError(f"{existing} is a file, not a folder")
+        fd, probe = tempfile.mkstemp(dir=existing, prefix=".lensmount-write-test.")
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
