@@ -16,6 +16,17 @@ import math
 import numpy as np
 from numba import njit
 
+# Columns of the per-surface table the sequential step reads (`face_table`). One array, not nine: the
+# compiled walk inlines `step_one` on every step, and numba takes and drops an atomic reference on each
+# array passed to it there; nine arrays made those counts more than a third of the walk's time.
+UP, DOWN, SAFE, SLAB_LO, SLAB_HI, REACH_INV, Z_VERTEX, CURVATURE, CONIC = range(9)
+
+
+def face_table(up, down, safe, slab, reach_inv, z_vertex, curvature, conic) -> np.ndarray:
+    """(k_n, 9) float64 in the columns above (up/down: surface numbers, exact as floats)."""
+    return np.column_stack([up, down, safe, slab[:, 0], slab[:, 1], reach_inv, z_vertex, curvature,
+                            conic]).astype(np.float64)
+
 
 @njit(cache=True, inline="always")
 def _conic_root_pair(c, k1, zv, t_min, ox, oy, oz0, dx, dy, dz):
@@ -50,8 +61,7 @@ def conic_roots(c, k1, zv, t_min, o, d):
 
 
 @njit(cache=True, inline="always")
-def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic,
-             t_min):
+def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, reach, t_min):
     """One ray of `sequential_step`: (sure, t, surface).
 
     A ray leaving the last faceted surface in its direction (no next one) can only meet that
@@ -59,18 +69,19 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_
     in can only meet the first faceted surface it travels toward: the same proof (safe radius,
     no other slab entered) covers both.
     """
-    k_n = curvature.shape[0]
+    k_n = faces.shape[0]
     if lk < 0:
         nxt = -1
         for k in range(k_n):
-            if math.isfinite(slab[k, 0]) and (dz < 0.0 or nxt < 0):
+            if math.isfinite(faces[k, SLAB_LO]) and (dz < 0.0 or nxt < 0):
                 nxt = k  # the first faceted surface going +z, the last going -z
-        if nxt < 0 or not (safe[nxt] > 0.0) or not (oz < slab[nxt, 0] if dz > 0.0 else oz > slab[nxt, 1]):
+        if (nxt < 0 or not (faces[nxt, SAFE] > 0.0)
+                or not (oz < faces[nxt, SLAB_LO] if dz > 0.0 else oz > faces[nxt, SLAB_HI])):
             return False, np.inf, -1
     else:
         kk = min(lk, k_n - 1)
-        nxt = up[kk] if dz > 0.0 else down[kk]
-        if not (safe[kk] > 0.0) or (nxt >= 0 and not (safe[min(nxt, k_n - 1)] > 0.0)):
+        nxt = int(faces[kk, UP] if dz > 0.0 else faces[kk, DOWN])
+        if not (faces[kk, SAFE] > 0.0) or (nxt >= 0 and not (faces[min(nxt, k_n - 1), SAFE] > 0.0)):
             return False, np.inf, -1
     good = True
     tb = np.inf
@@ -79,14 +90,15 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_
         k = lk if j == 0 else nxt
         if k < 0:
             continue
-        r1, r2 = _conic_root_pair(curvature[k], 1.0 + conic[k], z_vertex[k], t_min, ox, oy, oz, dx, dy, dz)
+        r1, r2 = _conic_root_pair(faces[k, CURVATURE], 1.0 + faces[k, CONIC], faces[k, Z_VERTEX], t_min, ox, oy, oz,
+                                  dx, dy, dz)
         for m in range(2):
             t = r1 if m == 0 else r2
             before = t < ts
             tt = t if before else 0.0
             px = ox + tt * dx
             py = oy + tt * dy
-            inside = px * px + py * py <= safe[k] * safe[k]
+            inside = px * px + py * py <= faces[k, SAFE] * faces[k, SAFE]
             if before and not inside:  # past the safe radius it may or may not be glass: decline
                 good = False
             if before and inside and t < tb:
@@ -101,7 +113,7 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_
     lo, hi = min(oz, z1), max(oz, z1)
     r_far = -1.0
     for k in range(k_n):
-        if k != lk and k != nxt and lo <= slab[k, 1] and hi >= slab[k, 0]:
+        if k != lk and k != nxt and lo <= faces[k, SLAB_HI] and hi >= faces[k, SLAB_LO]:
             # In the slab: still clear if the facets that come as near the axis as the path (its
             # distance from the axis is largest at an end) lie outside its z range.
             if not math.isfinite(t_end):
@@ -109,7 +121,7 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_
             if r_far < 0.0:
                 ex, ey = ox + t_end * dx, oy + t_end * dy
                 r_far = math.sqrt(max(ox * ox + oy * oy, ex * ex + ey * ey))
-            b = min(int(r_far * reach_inv[k]) + 1, reach.shape[1] - 1)
+            b = min(int(r_far * faces[k, REACH_INV]) + 1, reach.shape[1] - 1)
             if lo <= reach[k, b, 1] and hi >= reach[k, b, 0]:
                 return False, np.inf, -1
     if not good:
@@ -118,12 +130,12 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, up, down, safe, slab, reach, reach_
 
 
 @njit(cache=True)
-def sequential_step(left, o, d, t_stop, up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic, t_min):
+def sequential_step(left, o, d, t_stop, faces, reach, t_min):
     """`Tracer._sequential_step` per ray: (sure (n,) bool, t (n,), surface (n,) int64).
 
-    left (n,): the optical surface each ray just left (-1: none); up/down (k_n,): the next faceted
-    surface above/below (-1: none); safe (k_n,): the facets' safe radius; slab (k_n, 2): their padded z range;
-    reach, reach_inv: that range by radius (`Tracer._optical_faces`).
+    left (n,): the optical surface each ray just left (-1: none); faces (k_n, 9): `face_table` of up/down (the
+    next faceted surface above/below, -1: none), the facets' safe radius, their padded z range (slab), reach_inv
+    and the conic; reach, reach_inv: that range by radius (`Tracer._optical_faces`).
     """
     n = o.shape[0]
     sure = np.zeros(n, np.bool_)
@@ -131,8 +143,7 @@ def sequential_step(left, o, d, t_stop, up, down, safe, slab, reach, reach_inv, 
     s_best = np.full(n, -1, np.int64)
     for i in range(n):
         sure[i], t_best[i], s_best[i] = step_one(left[i], o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
-                                                 t_stop[i], up, down, safe, slab, reach, reach_inv, z_vertex,
-                                                 curvature, conic, t_min)
+                                                 t_stop[i], faces, reach, t_min)
     return sure, t_best, s_best
 
 
@@ -178,4 +189,4 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
                     and abs(nx * tx + ny * ty + nz * tz) <= t_tol)
         valid[i] = enters and not coplanar
     return t_out, lam, valid
-__all__ = ["conic_roots", "sequential_step", "triangle_crossings"]
+__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table"]

@@ -206,110 +206,115 @@ def reflectance(n1, n2, cos_i, code, r_const, wavelength_um):
 # ---------------------------------------------------------------------------------- the walk
 
 @njit(cache=True)
-def _walk_ray(j, work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair, lost, keys,
-              ghosts, lens, bore, detector, fresnel_dim, max_optical):
-    """One ray of `walk`: True when its call is over. Reads and writes only row work[j] of the arrays, so
-    rays can walk on any core in any order with the same result."""
-    (up, down, safe, slab, reach, reach_inv, zv, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const,
-     wavelengths, mirror) = lens
+def _walk_rays(j0, j1, over, work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair,
+               lost, keys, ghosts, lens, bore, detector, fresnel_dim, max_optical):
+    """Rays work[j0:j1] of `walk`; over[j]: True when ray j's call is over. Reads and writes only rows work[j] of
+    the arrays, so rays can walk on any core in any order with the same result. A run of rays per call, not one:
+    each call takes and drops a reference to every array it unpacks (an atomic count each, ~60 a call), which
+    per ray cost more than a tenth of the walk."""
+    faces, reach, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const, wavelengths, mirror = lens
     z0, inv_h, table, margin = bore
     det_z, det_hw, det_hh = detector
-    i = work[j]
-    while count[i] < max_optical:
-        ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
-        sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, up, down, safe, slab, reach, reach_inv,
-                              zv, curv, conic, t_min)
-        if not sure:
-            return False
-        t_det = np.inf
-        if abs(dz) > 1e-300:
-            td = (det_z - oz) / dz
-            tf = td if math.isfinite(td) else 0.0
-            if abs(ox + tf * dx) <= det_hw and abs(oy + tf * dy) <= det_hh and td > t_min:
-                t_det = td
-        on_det = t_det < t
-        t_end = t_det if on_det else t
-        if not math.isfinite(t_end):
-            # No glass and no detector ahead: the ray leaves if nothing mechanical is on its way
-            # out of the mount's z range (beyond it there is none).
-            if dz == 0.0:
-                return False
-            z_out = z0 - 1e3 * margin if dz < 0.0 else z0 + table.shape[1] / inv_h + 1e3 * margin
-            if not _clear(ox, oy, oz, dx, dy, dz, max((z_out - oz) / dz, 0.0), z0, inv_h, table, margin):
-                return False
-            return True  # escaped: GONE where it started this step, as the Embree path leaves it
-        if not _clear(ox, oy, oz, dx, dy, dz, t_end, z0, inv_h, table, margin):
-            return False
-        px, py, pz = ox + t_end * dx, oy + t_end * dy, oz + t_end * dz
-        if on_det:  # the air before the detector absorbs nothing
-            o[i, 0], o[i, 1], o[i, 2] = px, py, pz
-            if dz > 0.0:
-                kind[i] = _DETECTOR
-                normal[i, 0], normal[i, 1], normal[i, 2] = 0.0, 0.0, -1.0
-            return True
-        if mirror[s]:
-            return False
-        k, lam = s, wl[i]
-        # The analytic normal (Profile.normal), oriented +z.
-        lx, ly = px, py
-        g = curv[k] / math.sqrt(max(1.0 - (1.0 + conic[k]) * curv[k] * curv[k] * (lx * lx + ly * ly), 1e-300))
-        nx, ny, nz = -g * lx, -g * ly, 1.0
-        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
-        nx, ny, nz = nx / nn, ny / nn, nz / nn
-        cos_dn = dx * nx + dy * ny + dz * nz
-        forward = cos_dn >= 0.0
-        if absorbs:
-            alpha = abef[k, lam] if forward else aaft[k, lam]
-            w[i] *= math.exp(-alpha * max(t, 0.0))
-        n1 = nbef[k, lam] if forward else naft[k, lam]
-        n2 = naft[k, lam] if forward else nbef[k, lam]
-        eta = n1 / n2
-        # Snell (interfaces.refract)
-        sgn = 1.0 if forward else -1.0
-        mx, my, mz = nx * sgn, ny * sgn, nz * sgn
-        cos_i = abs(cos_dn)
-        sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
-        tir = sin2_t > 1.0
-        cos_t = math.sqrt(max(0.0, 1.0 - sin2_t))
-        rx, ry, rz = dx - 2.0 * cos_dn * nx, dy - 2.0 * cos_dn * ny, dz - 2.0 * cos_dn * nz
-        if tir:
-            tx, ty, tz = rx, ry, rz
-        else:
-            f = cos_t - eta * cos_i
-            tx, ty, tz = eta * dx + f * mx, eta * dy + f * my, eta * dz + f * mz
-        tn = max(math.sqrt(tx * tx + ty * ty + tz * tz), 1e-300)
-        tx, ty, tz = tx / tn, ty / tn, tz / tn
-        r = 1.0 if tir else min(max(reflectance(n1, n2, cos_i, code[k], r_const[k], wavelengths[lam]), 0.0), 1.0)
-        if ghosts:
-            u = uniform(keys[i], fresnel_dim + count[i]) if keys.shape[0] > 0 else 1.0
-            if tir or u < r:  # Tracer._interface: a reflected ray takes the unnormalised mirror direction
+    for j in range(j0, j1):  # over[j] stays False unless the ray's call is over
+        i = work[j]
+        while count[i] < max_optical:
+            ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
+            sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, faces, reach, t_min)
+            if not sure:
+                break
+            t_det = np.inf
+            if abs(dz) > 1e-300:
+                td = (det_z - oz) / dz
+                tf = td if math.isfinite(td) else 0.0
+                if abs(ox + tf * dx) <= det_hw and abs(oy + tf * dy) <= det_hh and td > t_min:
+                    t_det = td
+            on_det = t_det < t
+            t_end = t_det if on_det else t
+            if not math.isfinite(t_end):
+                # No glass and no detector ahead: the ray leaves if nothing mechanical is on its way
+                # out of the mount's z range (beyond it there is none).
+                if dz == 0.0:
+                    break
+                z_out = z0 - 1e3 * margin if dz < 0.0 else z0 + table.shape[1] / inv_h + 1e3 * margin
+                if not _clear(ox, oy, oz, dx, dy, dz, max((z_out - oz) / dz, 0.0), z0, inv_h, table, margin):
+                    break
+                over[j] = True  # escaped: GONE where it started this step, as the Embree path leaves it
+                break
+            if not _clear(ox, oy, oz, dx, dy, dz, t_end, z0, inv_h, table, margin):
+                break
+            px, py, pz = ox + t_end * dx, oy + t_end * dy, oz + t_end * dz
+            if on_det:  # the air before the detector absorbs nothing
+                o[i, 0], o[i, 1], o[i, 2] = px, py, pz
+                if dz > 0.0:
+                    kind[i] = _DETECTOR
+                    normal[i, 0], normal[i, 1], normal[i, 2] = 0.0, 0.0, -1.0
+                over[j] = True
+                break
+            if mirror[s]:
+                break
+            k, lam = s, wl[i]
+            # The analytic normal (Profile.normal), oriented +z.
+            lx, ly = px, py
+            g = curv[k] / math.sqrt(max(1.0 - (1.0 + conic[k]) * curv[k] * curv[k] * (lx * lx + ly * ly), 1e-300))
+            nx, ny, nz = -g * lx, -g * ly, 1.0
+            nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+            nx, ny, nz = nx / nn, ny / nn, nz / nn
+            cos_dn = dx * nx + dy * ny + dz * nz
+            forward = cos_dn >= 0.0
+            if absorbs:
+                alpha = abef[k, lam] if forward else aaft[k, lam]
+                w[i] *= math.exp(-alpha * max(t, 0.0))
+            n1 = nbef[k, lam] if forward else naft[k, lam]
+            n2 = naft[k, lam] if forward else nbef[k, lam]
+            eta = n1 / n2
+            # Snell (interfaces.refract)
+            sgn = 1.0 if forward else -1.0
+            mx, my, mz = nx * sgn, ny * sgn, nz * sgn
+            cos_i = abs(cos_dn)
+            sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
+            tir = sin2_t > 1.0
+            cos_t = math.sqrt(max(0.0, 1.0 - sin2_t))
+            rx, ry, rz = dx - 2.0 * cos_dn * nx, dy - 2.0 * cos_dn * ny, dz - 2.0 * cos_dn * nz
+            if tir:
                 tx, ty, tz = rx, ry, rz
-            if u < r and not tir:
-                reflections[i] += 1
-                slot = 0 if ghost_pair[i, 0] < 0 else 1
-                if ghost_pair[i, slot] < 0:
-                    ghost_pair[i, slot] = k
-        elif not tir:
-            w[i] = w[i] * (1.0 - r)
-        o[i, 0], o[i, 1], o[i, 2] = px, py, pz
-        d[i, 0], d[i, 1], d[i, 2] = tx, ty, tz
-        count[i] += 1
-        leaving[i] = True
-        left_n[i, 0], left_n[i, 1], left_n[i, 2] = 0.0, 0.0, 0.0
-        left_s[i] = k
-        if not (math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz) and math.isfinite(w[i])):
-            lost[i] = True
-            return True
-    return False
+            else:
+                f = cos_t - eta * cos_i
+                tx, ty, tz = eta * dx + f * mx, eta * dy + f * my, eta * dz + f * mz
+            tn = max(math.sqrt(tx * tx + ty * ty + tz * tz), 1e-300)
+            tx, ty, tz = tx / tn, ty / tn, tz / tn
+            r = 1.0 if tir else min(max(reflectance(n1, n2, cos_i, code[k], r_const[k], wavelengths[lam]), 0.0), 1.0)
+            if ghosts:
+                u = uniform(keys[i], fresnel_dim + count[i]) if keys.shape[0] > 0 else 1.0
+                if tir or u < r:  # Tracer._interface: a reflected ray takes the unnormalised mirror direction
+                    tx, ty, tz = rx, ry, rz
+                if u < r and not tir:
+                    reflections[i] += 1
+                    slot = 0 if ghost_pair[i, 0] < 0 else 1
+                    if ghost_pair[i, slot] < 0:
+                        ghost_pair[i, slot] = k
+            elif not tir:
+                w[i] = w[i] * (1.0 - r)
+            o[i, 0], o[i, 1], o[i, 2] = px, py, pz
+            d[i, 0], d[i, 1], d[i, 2] = tx, ty, tz
+            count[i] += 1
+            leaving[i] = True
+            left_n[i, 0], left_n[i, 1], left_n[i, 2] = 0.0, 0.0, 0.0
+            left_s[i] = k
+            if not (math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz) and math.isfinite(w[i])):
+                lost[i] = True
+                over[j] = True
+                break
+
+
+CHUNK = 256  # rays per task on every core: enough to spread the reference counts thin, small enough to balance
 
 
 @njit(cache=True)
 def _walk_one_core(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair, lost,
                    keys, ghosts, lens, bore, detector, fresnel_dim, max_optical):
     over = np.zeros(work.shape[0], np.bool_)
-    for j in range(work.shape[0]):
-        over[j] = _walk_ray(j, work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair,
-                            lost, keys, ghosts, lens, bore, detector, fresnel_dim, max_optical)
+    _walk_rays(0, work.shape[0], over, work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections,
+               ghost_pair, lost, keys, ghosts, lens, bore, detector, fresnel_dim, max_optical)
     return over
 
 
@@ -317,9 +322,10 @@ def _walk_one_core(work, o, d, w, wl, left_s, leaving, left_n, count, kind, norm
 def _walk_all_cores(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair, lost,
                     keys, ghosts, lens, bore, detector, fresnel_dim, max_optical):
     over = np.zeros(work.shape[0], np.bool_)
-    for j in prange(work.shape[0]):
-        over[j] = _walk_ray(j, work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair,
-                            lost, keys, ghosts, lens, bore, detector, fresnel_dim, max_optical)
+    for c in prange((work.shape[0] + CHUNK - 1) // CHUNK):
+        _walk_rays(c * CHUNK, min((c + 1) * CHUNK, work.shape[0]), over, work, o, d, w, wl, left_s, leaving, left_n,
+                   count, kind, normal, reflections, ghost_pair, lost, keys, ghosts, lens, bore, detector, fresnel_dim,
+                   max_optical)
     return over
 
 
@@ -341,8 +347,8 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
     number); the others are where a step could not be proven, for Embree. On every core of the
     machine unless `one_core_per_process` was called: the rays are independent, so the result is the same.
 
-    lens: (up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic, t_min, n_before, n_after, alpha_before,
-    alpha_after, absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
+    lens: (`kernels.face_table`, reach, curvature, conic, t_min, n_before, n_after, alpha_before, alpha_after,
+    absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
     detector: (z, half width, half height).
     """
     kernel = _walk_one_core if _ONE_CORE[0] or work.shape[0] < THREADED_FROM else _walk_all_cores
