@@ -133,3 +133,27 @@ def test_no_band_when_other_faces_scatter():
     scene = double_gauss_case(2, pixels=(4, 4))
     broad, _ = classify(scene.bsdf_of_tag)
     assert PT.edge_band(scene, Tracer(scene), broad, 5, n_photons=1000) is None
+
+
+def test_a_dimly_lit_edge_is_found_with_more_pilot_rounds(case1):
+    """With a quarter of the pilot's photons a round, the first round meets the edge too rarely to
+    fit the ring; more rounds of the same size find it, and the band it gives aims photons at the
+    edge (a single round gave no band: uniform emission, ~100× fewer photons on the edge)."""
+    scene, tracer = case1
+    broad, _ = classify(scene.bsdf_of_tag)
+    n = PT.PILOT_PHOTONS // 4
+    tags = PT.edge_tags(scene, broad)
+    first = PT.first_band(scene, tags)
+    one_round = PT._pilot_photons(scene, tracer, first, tags, 5, "photon-pilot", 0, np.arange(n))[1].sum()
+    assert 0 < one_round < PT.MIN_HITS
+    rays, hit = PT._stage_one(scene, tracer, first, tags, 5, n)
+    assert len(rays) > n and hit.sum() >= PT.MIN_HITS  # it went on past the first round until it had enough
+    assert hit[:-n].sum() < PT.MIN_HITS  # and stopped there
+    band = PT.edge_band(scene, tracer, broad, 5, n_photons=n)
+    assert band is not None
+    m = 20_000
+    got = {}
+    for name, b in (("band", band), ("uniform", None)):
+        ev = tracer.next_event(PT.guided_photons(scene, b, 11, "photons", 0, m), np.random.default_rng(0))
+        got[name] = np.count_nonzero((ev.kind == FACE) & np.isin(ev.tag, tags))
+    assert got["band"] > 20 * max(got["uniform"], 1), got

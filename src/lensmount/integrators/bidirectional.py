@@ -49,11 +49,11 @@ import time
 
 import numpy as np
 
-from lensmount.integrators.estimate import (AIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times,
+from lensmount.integrators.estimate import (AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times,
                                             scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
-from lensmount.integrators.photon_target import edge_band, guided_photons
+from lensmount.integrators.photon_target import aims_at_edge, edge_band, guided_photons
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
@@ -159,11 +159,13 @@ class Bidirectional:
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = time.perf_counter()
         scatters = scattering_tags(scene)
-        band = edge_band(scene, tracer, broad, seed) if cfg.edge_photons and len(hits.weight) else None
+        aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
+        band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
-        # summed over passes in the summary: how many passes aimed (a pilot with too few edge hits
-        # falls back to uniform emission, correct but slower; the summary must say which ran)
+        # summed over passes in the summary: how many passes aimed, and how many would have but the
+        # pilot found the edge too rarely lit (uniform emission: correct, far slower; the plan says so)
         diagnostics[AIMED_PASSES] = float(band is not None)
+        diagnostics[UNAIMED_PASSES] = float(aim and band is None)
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE

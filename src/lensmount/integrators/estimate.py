@@ -76,6 +76,7 @@ class PassEstimate:
 
 TIME_PREFIX = "time/"  # diagnostics keys holding seconds per phase, summed over passes (the plan's times)
 AIMED_PASSES = "passes/photons aimed at the diaphragm edge"  # diagnostics key, summed over passes
+UNAIMED_PASSES = "passes/diaphragm edge too rarely lit to aim at"  # diagnostics key, summed over passes
 PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
           "walk": "photon walk (scatter, direct and ghosts together)",
           "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}

@@ -15,7 +15,10 @@ to the sun's central direction d₀. A least-squares fit per wavelength gives th
 and its half width h_λ = `HALF_WIDTH_SIGMAS` × the residual spread; the plane's place along
 d₀ is fitted too (the one where the sun's 0.53° spread of directions blurs the ring least,
 near the entrance pupil), and a histogram of the hit rate over φ says which azimuths lead to
-the edge. A second stage samples from the first fit to refine it.
+the edge. A second stage samples from the first fit to refine it. The first stage takes more
+rounds of photons while fewer than MIN_HITS met the edge (a sun nearer the axis lights it through
+a narrower ring: at 3° a round finds a third of what it finds at 7°), so a dim edge is still
+found; the plan says when none was (`plan.Plan.as_dict`).
 
 Emission (`guided_photons`) is a mixture: with probability `UNIFORM_SHARE` a photon keeps the
 source's uniform position on its disc; with `WIDE_SHARE` its crossing of P is drawn in a band
@@ -53,7 +56,9 @@ WIDE_FACTOR = 8.0
 N_PHI = 36  # azimuth bins of the hit-rate histogram
 FLOOR = 0.1  # share of the azimuth pmf spread uniformly
 HALF_WIDTH_SIGMAS = 3.0  # band half width in residual standard deviations
-PILOT_PHOTONS = 100_000  # per pilot stage
+PILOT_PHOTONS = 100_000  # per pilot stage (stage 1: per round)
+PILOT_ROUNDS = 8  # stage 1's rounds at most, while fewer than MIN_HITS met the edge
+DARK_ROUNDS = 4  # rounds without a single hit after which the edge counts as unlit
 MIN_HITS = 40  # per wavelength, to fit the 9 coefficients; fewer: no learned target
 _K = 4  # harmonics of φ
 _PLANE_SHIFTS = np.linspace(-40.0, 40.0, 21)  # mm along d₀ from the paraxial entrance pupil, tried by the fit
@@ -183,41 +188,80 @@ def entrance_pupil(scene, tags: np.ndarray) -> tuple[float, float] | None:
     return (z_ep, r_ep) if math.isfinite(z_ep) and math.isfinite(r_ep) and r_ep > 0 else None
 
 
-def _pilot(scene, tracer, broad, seed, n_photons):
+def aims_at_edge(scene, broad: np.ndarray) -> bool:
+    """Photons are worth aiming at the diaphragm edge: it is the only face that scatters (case 2:
+    aiming would starve the faces that carry most of the light) and the source is the sun or a
+    collimated beam. Whether the pilot then finds the edge lit is `edge_band`'s answer."""
     tags = edge_tags(scene, broad)
     others = np.setdiff1d(np.flatnonzero(scattering_tags(scene)), tags)
-    if len(tags) == 0 or len(others) or not isinstance(scene.source, (SunSource, CollimatedSource)):
+    return len(tags) > 0 and not len(others) and isinstance(scene.source, (SunSource, CollimatedSource))
+
+
+def _pilot(scene, tracer, broad, seed, n_photons):
+    if not aims_at_edge(scene, broad):
         return None
+    tags = edge_tags(scene, broad)
+    band = first_band(scene, tags)
+    if band is None:
+        return None
+    rays, hit = _stage_one(scene, tracer, band, tags, seed, n_photons)
+    n_wl = len(scene.wavelengths_um)
+    fit = _fit(rays, hit, band.centre, np.asarray(band.d0), n_wl, per_wavelength=False)
+    if fit is None:
+        return None
+    # Stage 2: the stage-1 fit with a band twice its width, one ring per wavelength.
+    band2 = EdgeBand(fit.centre, fit.d0, fit.coef, 2.0 * fit.half_width, fit.pmf)
+    rays, hit = _pilot_photons(scene, tracer, band2, tags, seed, "photon-pilot", 1,
+                               np.arange(n_photons, 2 * n_photons, dtype=np.int64))
+    return _fit(rays, hit, band.centre, np.asarray(band.d0), n_wl, per_wavelength=True) or fit
+
+
+def first_band(scene, tags) -> EdgeBand | None:
+    """The pilot's stage-1 proposal: the annulus 0.85 r_ep cos θ … 1.15 r_ep around the paraxial
+    entrance pupil (its projection on P is an ellipse of axes r_ep and r_ep cos θ), one ring for all
+    wavelengths. ~40 of 10⁵ photons meet the edge there on case 1 at 7°, ~14 at 3° (`_stage_one`)."""
     pupil = entrance_pupil(scene, tags)
     if pupil is None:
         return None
     z_ep, r_ep = pupil
     d0 = np.asarray(scene.source.direction, np.float64)
     n_wl = len(scene.wavelengths_um)
-    # Stage 1: the annulus 0.85 r_ep cos θ … 1.15 r_ep around the paraxial pupil (its projection on
-    # P is an ellipse of axes r_ep and r_ep cos θ), one ring for all wavelengths (~20 hits in 10⁵
-    # photons on case 1). Stage 2: that fit with a band twice its width, one ring per wavelength.
-    centre = (0.0, 0.0, z_ep)
     lo, hi = 0.85 * r_ep * abs(float(d0[2])), 1.15 * r_ep
-    band = EdgeBand(centre, tuple(d0), np.tile(np.r_[0.5 * (lo + hi), np.zeros(2 * _K)], (n_wl, 1)),
+    return EdgeBand((0.0, 0.0, z_ep), tuple(d0), np.tile(np.r_[0.5 * (lo + hi), np.zeros(2 * _K)], (n_wl, 1)),
                     np.full(n_wl, 0.5 * (hi - lo)), np.full(N_PHI, 1.0 / N_PHI))
-    fit = None
-    for stage in range(2):
-        rng = stream(seed, "photon-pilot", stage)
-        ids = np.arange(stage * n_photons, (stage + 1) * n_photons, dtype=np.int64)
-        rays, _ = scene.source.emit(n_photons, Streams(seed, "photon-pilot/emit", ids))
-        p = band.sample(rng.random((n_photons, 2)), rays.wavelength)
-        t = ((p - np.asarray(scene.source.disc.centre)) @ d0) / (rays.direction @ d0)
-        rays = RayBatch.make(p - t[:, None] * rays.direction, rays.direction, wavelength=rays.wavelength, ids=ids)
-        step = tracer.next_event(rays, Streams(seed, "photon-pilot/trace", ids))
-        hit = np.zeros(n_photons, bool)
-        hit[step.id[(step.kind == FACE) & np.isin(step.tag, tags) & (step.weight > 0)] - ids[0]] = True
-        new = _fit(rays, hit, centre, d0, n_wl, per_wavelength=stage > 0)
-        if new is None:
+
+
+def _stage_one(scene, tracer, band, tags, seed, n_photons):
+    """Stage 1's photons and hits: rounds of n_photons until MIN_HITS met the edge, at most
+    PILOT_ROUNDS (an edge the sun lights through a narrower ring, e.g. closer to the axis, needs
+    more photons to be found; without its band a pass reaches it ~10⁴ times more rarely), giving
+    up after DARK_ROUNDS without any hit (an edge the sun does not reach)."""
+    rays, hit = _pilot_photons(scene, tracer, band, tags, seed, "photon-pilot", 0,
+                               np.arange(n_photons, dtype=np.int64))
+    batches, hits = [rays], [hit]
+    for r in range(1, PILOT_ROUNDS):
+        found = sum(int(h.sum()) for h in hits)
+        if found >= MIN_HITS or (found == 0 and r >= DARK_ROUNDS):
             break
-        fit = new
-        band = EdgeBand(fit.centre, fit.d0, fit.coef, 2.0 * fit.half_width, fit.pmf)
-    return fit
+        rays, hit = _pilot_photons(scene, tracer, band, tags, seed, "photon-pilot/more", r,
+                                   np.arange(r * n_photons, (r + 1) * n_photons, dtype=np.int64))
+        batches.append(rays)
+        hits.append(hit)
+    return RayBatch.concatenate(batches), np.concatenate(hits)
+
+
+def _pilot_photons(scene, tracer, band, tags, seed, purpose, index, ids):
+    """Pilot photons `ids` started so that they cross P in `band` (numbers from `purpose`'s stream
+    `index`), and which of them met the edge (a FACE event on one of `tags`)."""
+    d0 = np.asarray(band.d0)
+    rays, _ = scene.source.emit(len(ids), Streams(seed, purpose + "/emit", ids))
+    p = band.sample(stream(seed, purpose, index).random((len(ids), 2)), rays.wavelength)
+    t = ((p - np.asarray(scene.source.disc.centre)) @ d0) / (rays.direction @ d0)
+    rays = RayBatch.make(p - t[:, None] * rays.direction, rays.direction, wavelength=rays.wavelength, ids=ids)
+    step = tracer.next_event(rays, Streams(seed, purpose + "/trace", ids))
+    hit = np.zeros(len(ids), bool)
+    hit[step.id[(step.kind == FACE) & np.isin(step.tag, tags) & (step.weight > 0)] - ids[0]] = True
+    return rays, hit
 
 
 def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per_wavelength: bool) -> EdgeBand | None:
@@ -279,4 +323,4 @@ def _ring(rho, phi, wl, n_wl):
     return coef, sigma
 
 
-__all__ = ["EdgeBand", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
+__all__ = ["EdgeBand", "aims_at_edge", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]

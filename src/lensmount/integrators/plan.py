@@ -50,7 +50,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lensmount.integrators.estimate import AIMED_PASSES, TIME_PREFIX
+from lensmount.integrators.estimate import AIMED_PASSES, TIME_PREFIX, UNAIMED_PASSES
+from lensmount.integrators.photon_target import MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
@@ -99,8 +100,16 @@ class Plan:
             ran.append({"what": "photons aimed at the diaphragm edge",
                         "why": f"{aimed} pass(es): most photons start in the pilot's band in the entrance pupil, "
                                "each weighted by the mixture density (unbiased)"})
+        skipped = [{"what": d.what, "why": d.why} for d in self.decisions if not d.ran]
+        unaimed = int((diagnostics or {}).get(UNAIMED_PASSES, 0))
+        if unaimed:
+            skipped.append({"what": "photons aimed at the diaphragm edge",
+                            "why": f"{unaimed} pass(es): the pilot found fewer than {MIN_HITS} of its photons (up to "
+                                   f"{PILOT_ROUNDS * PILOT_PHOTONS:,}) aimed at the entrance pupil's rim "
+                                   "meeting the edge, so photons start uniformly on the source disc (unbiased, "
+                                   "but the edge's light is rare: expect a large error bar or no signal)"})
         return {"ran": ran,
-                "skipped": [{"what": d.what, "why": d.why} for d in self.decisions if not d.ran],
+                "skipped": skipped,
                 "time_s": times}
 
 
