@@ -16,16 +16,17 @@ import math
 import numpy as np
 from numba import njit
 
-# Columns of the per-surface table the sequential step reads (`face_table`). One array, not nine: the
-# compiled walk inlines `step_one` on every step, and numba takes and drops an atomic reference on each
-# array passed to it there; nine arrays made those counts more than a third of the walk's time.
-UP, DOWN, SAFE, SLAB_LO, SLAB_HI, REACH_INV, Z_VERTEX, CURVATURE, CONIC = range(9)
+# Columns of the per-surface table the sequential step reads (`face_table`); from REACH on, band b of reach
+# as (lo, hi) in columns REACH + 2b, REACH + 2b + 1. One array, not ten: the compiled walk inlines `step_one`
+# on every step, and numba takes and drops an atomic reference on each array passed to it there; ten
+# arrays made those counts more than a third of the walk's time.
+UP, DOWN, SAFE, SLAB_LO, SLAB_HI, REACH_INV, Z_VERTEX, CURVATURE, CONIC, REACH = range(10)
 
 
-def face_table(up, down, safe, slab, reach_inv, z_vertex, curvature, conic) -> np.ndarray:
-    """(k_n, 9) float64 in the columns above (up/down: surface numbers, exact as floats)."""
-    return np.column_stack([up, down, safe, slab[:, 0], slab[:, 1], reach_inv, z_vertex, curvature,
-                            conic]).astype(np.float64)
+def face_table(up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic) -> np.ndarray:
+    """(k_n, REACH + 2 bands) float64 in the columns above (up/down: surface numbers, exact as floats)."""
+    return np.column_stack([up, down, safe, slab[:, 0], slab[:, 1], reach_inv, z_vertex, curvature, conic,
+                            reach.reshape(len(reach), -1)]).astype(np.float64)
 
 
 @njit(cache=True, inline="always")
@@ -61,7 +62,7 @@ def conic_roots(c, k1, zv, t_min, o, d):
 
 
 @njit(cache=True, inline="always")
-def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, reach, t_min):
+def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, t_min):
     """One ray of `sequential_step`: (sure, t, surface).
 
     A ray leaving the last faceted surface in its direction (no next one) can only meet that
@@ -121,8 +122,8 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, reach, t_min):
             if r_far < 0.0:
                 ex, ey = ox + t_end * dx, oy + t_end * dy
                 r_far = math.sqrt(max(ox * ox + oy * oy, ex * ex + ey * ey))
-            b = min(int(r_far * faces[k, REACH_INV]) + 1, reach.shape[1] - 1)
-            if lo <= reach[k, b, 1] and hi >= reach[k, b, 0]:
+            b = REACH + 2 * min(int(r_far * faces[k, REACH_INV]) + 1, (faces.shape[1] - REACH) // 2 - 1)
+            if lo <= faces[k, b + 1] and hi >= faces[k, b]:
                 return False, np.inf, -1
     if not good:
         return False, np.inf, -1
@@ -130,12 +131,12 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, reach, t_min):
 
 
 @njit(cache=True)
-def sequential_step(left, o, d, t_stop, faces, reach, t_min):
+def sequential_step(left, o, d, t_stop, faces, t_min):
     """`Tracer._sequential_step` per ray: (sure (n,) bool, t (n,), surface (n,) int64).
 
-    left (n,): the optical surface each ray just left (-1: none); faces (k_n, 9): `face_table` of up/down (the
-    next faceted surface above/below, -1: none), the facets' safe radius, their padded z range (slab), reach_inv
-    and the conic; reach, reach_inv: that range by radius (`Tracer._optical_faces`).
+    left (n,): the optical surface each ray just left (-1: none); faces: `face_table` of up/down (the next
+    faceted surface above/below, -1: none), the facets' safe radius, their padded z range (slab), that range
+    by radius (reach, reach_inv) and the conic (`Tracer._optical_faces`).
     """
     n = o.shape[0]
     sure = np.zeros(n, np.bool_)
@@ -143,7 +144,7 @@ def sequential_step(left, o, d, t_stop, faces, reach, t_min):
     s_best = np.full(n, -1, np.int64)
     for i in range(n):
         sure[i], t_best[i], s_best[i] = step_one(left[i], o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
-                                                 t_stop[i], faces, reach, t_min)
+                                                 t_stop[i], faces, t_min)
     return sure, t_best, s_best
 
 

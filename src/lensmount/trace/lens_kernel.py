@@ -112,7 +112,7 @@ def _clear_piece(ax, ay, az, bx, by, bz, z0, inv_h, table, margin):
     return math.sqrt(max(ax * ax + ay * ay, bx * bx + by * by)) < bore - margin
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _clear(ox, oy, oz, dx, dy, dz, t_end, z0, inv_h, table, margin):
     """No mechanical face on the segment o + [0, t_end] d (see `clear_bore`): whole, else each
     half that is not, down to 32nds (a beam narrowing through a diaphragm between two lens
@@ -174,7 +174,8 @@ def _layer_r(m11, m12, m21, m22, e0, e2):
     return min(max(abs((e0 * b - c) / den) ** 2, 0.0), 1.0)
 
 
-@njit(cache=True)
+# Inlined (like `_clear`): the walk calls both on every step, most often to learn "0" (perfect AR) or "clear".
+@njit(cache=True, inline="always")
 def reflectance(n1, n2, cos_i, code, r_const, wavelength_um):
     """`interfaces.reflectance` for one ray: unpolarised R of coating `code` (COATING_CODES)."""
     cos_i = min(max(cos_i, 0.0), 1.0)
@@ -212,14 +213,14 @@ def _walk_rays(j0, j1, over, work, o, d, w, wl, left_s, leaving, left_n, count, 
     the arrays, so rays can walk on any core in any order with the same result. A run of rays per call, not one:
     each call takes and drops a reference to every array it unpacks (an atomic count each, ~60 a call), which
     per ray cost more than a tenth of the walk."""
-    faces, reach, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const, wavelengths, mirror = lens
+    faces, curv, conic, t_min, nbef, naft, abef, aaft, absorbs, code, r_const, wavelengths, mirror = lens
     z0, inv_h, table, margin = bore
     det_z, det_hw, det_hh = detector
     for j in range(j0, j1):  # over[j] stays False unless the ray's call is over
         i = work[j]
         while count[i] < max_optical:
             ox, oy, oz, dx, dy, dz = o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2]
-            sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, faces, reach, t_min)
+            sure, t, s = step_one(left_s[i], ox, oy, oz, dx, dy, dz, np.inf, faces, t_min)
             if not sure:
                 break
             t_det = np.inf
@@ -347,7 +348,7 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
     number); the others are where a step could not be proven, for Embree. On every core of the
     machine unless `one_core_per_process` was called: the rays are independent, so the result is the same.
 
-    lens: (`kernels.face_table`, reach, curvature, conic, t_min, n_before, n_after, alpha_before, alpha_after,
+    lens: (`kernels.face_table`, curvature, conic, t_min, n_before, n_after, alpha_before, alpha_after,
     absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
     detector: (z, half width, half height).
     """

@@ -196,8 +196,7 @@ class Tracer:
                          tri[optical].astype(np.int32))
         self._faces = self._optical_faces()
         mech = tri[self._tri_surface < 0] if self._has_mesh else np.zeros((0, 3), np.int64)
-        table, reach = self._faces
-        self._walk = ((table, reach, self._curvature, self._conic, self.t_min,
+        self._walk = ((self._faces, self._curvature, self._conic, self.t_min,
                        self._n_before, self._n_after, self._alpha_before, self._alpha_after, self._absorbs,
                        np.array([lens_kernel.COATING_CODES[s.coating.kind] for s in scene.optical] or [0]),
                        np.array([s.coating.reflectance for s in scene.optical] or [0.0]), self._wavelengths,
@@ -236,7 +235,7 @@ class Tracer:
 
     def _optical_faces(self):
         """Per optical surface: (safe radius, z slab (2,)) of its facets, for the sequential step, with
-        the next faceted surface up and down and the conic, as one `kernels.face_table`; and reach.
+        the next faceted surface up and down and the conic, as one `kernels.face_table`.
 
         safe radius: inside it the facets certainly cover the analytic surface (the outer
         boundary polygon's inscribed radius; 0 for a surface without facets, an annulus or an
@@ -253,8 +252,8 @@ class Tracer:
         reach_inv = np.zeros(max(k_n, 1))
         if not self._has_mesh:
             none = np.full(max(k_n, 1), -1)
-            return kernels.face_table(none, none, safe, slab, reach_inv, self._z_vertex, self._curvature,
-                                      self._conic), reach
+            return kernels.face_table(none, none, safe, slab, reach, reach_inv, self._z_vertex, self._curvature,
+                                      self._conic)
         mesh = self.scene.mesh
         for k in range(k_n):
             tri = mesh.triangles[self._tri_surface == k]
@@ -291,7 +290,7 @@ class Tracer:
             below = np.flatnonzero(faceted[:k])
             up[k] = k + 1 + above[0] if above.size else -1
             down[k] = below[-1] if below.size else -1
-        return kernels.face_table(up, down, safe, slab, reach_inv, self._z_vertex, self._curvature, self._conic), reach
+        return kernels.face_table(up, down, safe, slab, reach, reach_inv, self._z_vertex, self._curvature, self._conic)
 
     def _scattering_mirror_faces(self) -> np.ndarray:
         """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
@@ -353,8 +352,7 @@ class Tracer:
         safe radius; elsewhere (near a rim, other slabs in the way, aspheres) the step declines.
         Returns (sure (n,) bool, t (n,) inf = no optical hit before t_stop, surface (n,)).
         """
-        table, reach = self._faces
-        return kernels.sequential_step(np.asarray(left, np.int64), o, d, np.asarray(t_stop, np.float64), table, reach,
+        return kernels.sequential_step(np.asarray(left, np.int64), o, d, np.asarray(t_stop, np.float64), self._faces,
                                        self.t_min)
 
     def _optical_nearest(self, o: np.ndarray, d: np.ndarray, t_stop: np.ndarray):
