@@ -35,6 +35,9 @@ from numba import njit, prange
 
 from lensmount.trace.kernels import step_one
 
+# step_one (with `kernels.face_table`'s column numbers) is compiled into this file's cached walk, and numba
+# checks only this file for changes: after editing kernels.py, touch this file so the walk compiles again.
+
 COATING_CODES = {"perfect-ar": 0, "uncoated": 1, "mgf2-quarter-wave": 2, "constant": 3}
 # Constants copied from interfaces and sampler on purpose: numba freezes globals into its on-disk cache,
 # which it invalidates only when this file changes, so an imported value edited there would leave a
