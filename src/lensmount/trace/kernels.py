@@ -19,13 +19,16 @@ from numba import njit
 # Columns of the per-surface table the sequential step reads (`face_table`); from REACH on, band b of reach
 # as (lo, hi) in columns REACH + 2b, REACH + 2b + 1. One array, not ten: the compiled walk inlines `step_one`
 # on every step, and numba takes and drops an atomic reference on each array passed to it there; ten
-# arrays made those counts more than a third of the walk's time.
-UP, DOWN, SAFE, SLAB_LO, SLAB_HI, REACH_INV, Z_VERTEX, CURVATURE, CONIC, REACH = range(10)
+# arrays made those counts more than a third of the walk's time. HI_BELOW (the highest slab top of this surface
+# and those before it) and LO_ABOVE (the lowest slab bottom of this one and those after it) bound the slab
+# test's loop: surfaces before a HI_BELOW under the path, or from a LO_ABOVE over it, cannot overlap it.
+UP, DOWN, SAFE, SLAB_LO, SLAB_HI, HI_BELOW, LO_ABOVE, REACH_INV, Z_VERTEX, CURVATURE, CONIC, REACH = range(12)
 
 
 def face_table(up, down, safe, slab, reach, reach_inv, z_vertex, curvature, conic) -> np.ndarray:
     """(k_n, REACH + 2 bands) float64 in the columns above (up/down: surface numbers, exact as floats)."""
-    return np.column_stack([up, down, safe, slab[:, 0], slab[:, 1], reach_inv, z_vertex, curvature, conic,
+    return np.column_stack([up, down, safe, slab[:, 0], slab[:, 1], np.maximum.accumulate(slab[:, 1]),
+                            np.minimum.accumulate(slab[::-1, 0])[::-1], reach_inv, z_vertex, curvature, conic,
                             reach.reshape(len(reach), -1)]).astype(np.float64)
 
 
@@ -112,8 +115,13 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, t_min):
     else:
         z1 = np.inf if dz > 0 else -np.inf
     lo, hi = min(oz, z1), max(oz, z1)
+    if not good:
+        return False, np.inf, -1
     r_far = -1.0
-    for k in range(k_n):
+    first = min(lk, nxt)
+    for k in range(first if first > 0 and faces[first - 1, HI_BELOW] < lo else 0, k_n):
+        if faces[k, LO_ABOVE] > hi:
+            break
         if k != lk and k != nxt and lo <= faces[k, SLAB_HI] and hi >= faces[k, SLAB_LO]:
             # In the slab: still clear if the facets that come as near the axis as the path (its
             # distance from the axis is largest at an end) lie outside its z range.
@@ -125,8 +133,6 @@ def step_one(lk, ox, oy, oz, dx, dy, dz, ts, faces, t_min):
             b = REACH + 2 * min(int(r_far * faces[k, REACH_INV]) + 1, (faces.shape[1] - REACH) // 2 - 1)
             if lo <= faces[k, b + 1] and hi >= faces[k, b]:
                 return False, np.inf, -1
-    if not good:
-        return False, np.inf, -1
     return True, tb, sb
 
 
