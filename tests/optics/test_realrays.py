@@ -233,3 +233,38 @@ def test_random_lenses_and_rays_never_produce_nan():
         assert np.all(np.isfinite(r.points)) and np.all(np.isfinite(r.directions))
         assert np.all((r.vignetted_at >= -1) & (r.vignetted_at <= 2))
         np.testing.assert_array_equal(r.vignetted, r.vignetted_at >= 0)
+
+
+def test_a_ray_from_beyond_the_centre_of_a_concave_surface_meets_its_vertex_sheet():
+    """An object (or a previous surface) farther in front of a surface concave toward it than its
+    radius: the ray starts beyond the centre of curvature, where the first root of the quadratic is
+    the far sheet. Against the textbook sphere intersection |o + t d − C|² = R², the root nearer
+    the vertex plane, for origins in front of and beyond the centre (R = −50 mm, centre at z = −50)."""
+    from lensmount.optics.profiles import Profile
+
+    radius = -50.0
+    profile = Profile(curvature=1.0 / radius, conic=0.0, aspheric=())
+    rng = np.random.default_rng(4)
+    n = 400
+    o = np.column_stack([rng.uniform(-8, 8, (n, 2)), rng.uniform(-1000.0, -5.0, n)])
+    tilt, az = np.radians(4.0) * rng.random(n), 2 * np.pi * rng.random(n)
+    d = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    oc = o - [0.0, 0.0, radius]
+    b = np.einsum("ij,ij->i", oc, d)
+    disc = b * b - (np.einsum("ij,ij->i", oc, oc) - radius ** 2)
+    meets = disc >= 0.0
+    roots = -b[:, None] + np.array([-1.0, 1.0]) * np.sqrt(np.where(meets, disc, 0.0))[:, None]
+    z = o[:, 2, None] + roots * d[:, 2, None]
+    want = roots[np.arange(n), np.argmin(np.abs(z), axis=1)]  # the vertex sheet: the crossing near z = 0
+    assert np.sum(meets & (o[:, 2] < radius)) > n // 4  # many start beyond the centre and meet the sphere
+    got = profile.intersect(o, d)
+    np.testing.assert_allclose(got[meets], want[meets], rtol=1e-12, atol=1e-9)
+    assert np.all(np.isinf(got[~meets]))
+    # Through the sequential trace: a singlet 1 m behind an object point, concave toward it.
+    glass = dict(clear_semi_diameter=12.0, mechanical_semi_diameter=12.0)
+    lens = Prescription((Surface(radius=radius, thickness=6.0, material="SCHOTT:N-BK7", **glass),
+                         Surface(radius=-30.0, thickness=80.0, **glass)), Aperture("epd", 10.0))
+    slope = np.radians(0.25) * rng.random(n)
+    d = np.column_stack([np.sin(slope) * np.cos(az), np.sin(slope) * np.sin(az), np.cos(slope)])
+    r = trace(lens, np.tile([0.0, 0.0, -1000.0], (n, 1)), d)
+    assert not r.vignetted.any()

@@ -96,10 +96,13 @@ class Profile:
         ok = disc >= 0.0
         root = np.sqrt(np.where(ok, disc, 0.0))
         # -C / (B + sign(B) sqrt(disc)) and (B + sign(B) sqrt(disc)) / -A are the two roots without
-        # cancellation (the first stays exact as c -> 0). Travelling +z the hit is the first one, if
-        # it lies on the vertex sheet. Travelling -z (after a mirror) it is the root on the vertex
-        # sheet nearest the vertex plane: a hyperboloid's vertex sheet is met through the second
-        # root there (a Cassegrain secondary), and a ray can cross a paraboloid twice.
+        # cancellation (the first stays exact as c -> 0). Travelling +z the hit is the first one if
+        # it lies on the vertex sheet, else the second: a ray that starts beyond the centre of a
+        # surface concave toward it (an object or a previous surface farther than |R|) meets the
+        # far sheet through the first root and the vertex sheet through the second. Travelling -z
+        # (after a mirror) it is the root on the vertex sheet nearest the vertex plane: a
+        # hyperboloid's vertex sheet is met through the second root there (a Cassegrain
+        # secondary), and a ray can cross a paraboloid twice.
         den = b + np.where(b >= 0.0, root, -root)
         with np.errstate(divide="ignore", invalid="ignore"):
             t1 = np.where(ok & (den != 0.0), -cc / np.where(den != 0.0, den, 1.0), np.inf)
@@ -111,7 +114,7 @@ class Profile:
             return np.isfinite(t) & (k1 * c * z <= 1.0 + 1e-12)
 
         v1, v2 = valid(t1), valid(t2)
-        take2 = (d[:, 2] < 0.0) & v2 & (~v1 | (np.abs(t2 - t0) < np.abs(t1 - t0)))
+        take2 = v2 & (~v1 | ((d[:, 2] < 0.0) & (np.abs(t2 - t0) < np.abs(t1 - t0))))
         return np.where(take2, t2, np.where(v1, t1, np.inf))
 
     def _newton(self, o, d, t):
