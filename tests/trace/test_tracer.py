@@ -171,3 +171,24 @@ def test_dead_and_nonfinite_rays_are_ignored():
     assert list(ev.kind) == [FACE, GONE, GONE]
     assert np.all(np.isfinite(ev.position)) and np.all(np.isfinite(ev.weight))
     assert ev.weight[2] == 0.0
+
+
+def test_a_ray_still_in_the_glass_after_the_interface_limit_is_absorbed_there_not_lost(monkeypatch):
+    """Inside a BK7 window at 60° from the normal (past the 41° critical angle) a ray reflects
+    totally from face to face, 8.7 mm sideways a bounce, until the plate's rim (a mechanical face).
+    With the interface limit below its bounce count it counts as trapped: a ray circling an
+    element's rim by total internal reflection never reaches the edge, and a real one is absorbed
+    in the glass. Weight 0, GONE, not a numerical loss; with the real limit it meets the rim."""
+    import lensmount.trace.tracer as tracer_module
+
+    p = window()
+    mesh = primitives.lens_elements(p, [20.0, 20.0], rings=4, segments=64)
+    tracer = Tracer(make_scene(p, mesh, coatings={"default": "uncoated"}, effects={"absorption": False}))
+    o = np.array([[-15.0, 0.3, 2.5]])
+    d = np.array([[math.sin(math.radians(60.0)), 0.0, math.cos(math.radians(60.0))]])
+    ev = tracer.next_event(RayBatch.make(o, d))
+    assert ev.kind[0] == FACE and not ev.lost[0] and ev.weight[0] == 1.0  # the rim, after total reflections
+    monkeypatch.setattr(tracer_module, "_MAX_OPTICAL", 2)
+    ev = tracer.next_event(RayBatch.make(o, d))
+    assert ev.kind[0] == GONE and not ev.lost[0] and ev.weight[0] == 0.0
+    assert 0.0 <= ev.position[0, 2] <= 5.0  # where it was: on a face of the glass

@@ -44,7 +44,7 @@ MIRROR_SCATTER_DIM = 1 << 21  # ... and of a scattering mirror's branch: MIRROR_
 MIRROR_SCATTER_MIN_SHARE = 0.1  # a scattering mirror's branch takes its finish at least this often (`_scatters`)
 
 _MAX_SKIPS = 32          # relaunches per query before a ray is declared lost
-_MAX_OPTICAL = 256       # refractions/reflections per next_event call before a ray is declared lost
+_MAX_OPTICAL = 256       # refractions/reflections per next_event call: beyond, a ray is trapped in the glass
 _EPS_REL = 2e-6          # relaunch step past a fake glass facet, relative to the assembly size
 _TMIN_REL = 1e-10        # float64 self-hit threshold, relative to the assembly size
 _EMBREE_MISS = 1e30
@@ -93,7 +93,8 @@ class Events:
     prim : (N,) int64 triangle for FACE, else -1
     pixel : (N,) int64 flat detector pixel for DETECTOR, else -1
     weight : (N,) throughput after the optics (Fresnel transmittance when ghosts are off, bulk
-        absorption in the glass when `effects.absorption` is on)
+        absorption in the glass when `effects.absorption` is on); 0 for a ray trapped in the glass
+        by total internal reflection (GONE after _MAX_OPTICAL interfaces: absorbed there)
     wavelength, id : (N,) carried through
     lost : (N,) bool, ended by a numerical guard (its weight is the lost flux)
     reflections : (N,) int32 Fresnel (ghost) reflections during this call (TIR not counted)
@@ -542,8 +543,12 @@ class Tracer:
                                         reflections, ghost_pair, lost, keys, ghosts, *self._walk, FRESNEL_DIM,
                                         _MAX_OPTICAL)
                 work = work[~over]
+            # Still bouncing inside the glass after _MAX_OPTICAL interfaces: trapped by total internal
+            # reflection (a skew ray circling an element's rim between two faces that both reflect it
+            # totally keeps its distance from the axis, so it never reaches the edge). A real one is
+            # absorbed along its endless path; so is this one (weight 0: the ledger's 'glass'), not lost.
             spent = count[work] >= _MAX_OPTICAL
-            lost[work[spent]] = True  # still bouncing inside the glass after _MAX_OPTICAL interfaces
+            w[work[spent]] = 0.0
             work = work[~spent]
             if work.size == 0:
                 break
