@@ -21,18 +21,22 @@ otherwise N local processes (1 = this process, for tests and debugging).
 from __future__ import annotations
 
 import ctypes
-import logging
 import importlib
+import logging
+import multiprocessing
 import os
 import signal
 import sys
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+import traceback
+from collections import deque
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
 
 from lensmount.errors import InputError
 from lensmount.trace import lens_kernel
 
 SCHEDULER_ENV = "LENSMOUNT_SCHEDULER"
+WORKER_DEATHS = 3  # a pass that kills this many local workers is a fault of the pass, not of a worker
 _PR_SET_PDEATHSIG = 1
 
 
@@ -64,7 +68,6 @@ def _sigkill_when_parent_dies() -> None:
 # --- worker side: one Scene and one Tracer per process -------------------------------------
 
 _WORKER: dict = {}  # this process's (key, scene, tracer)
-_INITIAL: dict = {}  # a local worker's scene and tracer path, from the pool's initializer
 
 
 def _tracer_for(scene, tracer_path: str):
@@ -74,17 +77,6 @@ def _tracer_for(scene, tracer_path: str):
         _WORKER.clear()
         _WORKER.update(key=key, scene=scene, tracer=resolve(tracer_path)(scene))  # holds scene: id stays unique
     return _WORKER["tracer"]
-
-
-def _init_local(scene, tracer_path: str) -> None:
-    die_with_parent()
-    lens_kernel.one_core_per_process()  # the workers share the cores already
-    _INITIAL["scene"] = (scene, tracer_path)
-
-
-def _local_pass(run_pass_path: str, job):
-    scene, tracer_path = _INITIAL["scene"]
-    return job.index, resolve(run_pass_path)(scene, _tracer_for(scene, tracer_path), job)
 
 
 def _dask_pass(run_pass_path: str, scene, tracer_path: str, job):
@@ -135,60 +127,124 @@ class InProcess(Executor):
 
 
 class LocalProcesses(Executor):
-    """N worker processes on this machine; a killed worker's passes are sent out again."""
+    """N worker processes on this machine, each with its own pipe; a killed worker's pass is sent
+    out again.
+
+    Why not `concurrent.futures.ProcessPoolExecutor`: its workers write their results into one
+    shared pipe that a thread of the driver reads. A worker killed while writing (a run that
+    stops kills the passes in flight) leaves half a message there, and the driver's shutdown then
+    waits for the rest forever: a run hung after its last pass that way. Here a worker's death
+    closes only its own pipe, and the driver reads end-of-file.
+    """
 
     def __init__(self, workers: int):
         self.workers = max(1, int(workers))
         self.description = f"{self.workers} local processes"
-        self._pool = None
+        self._idle: list[_Worker] = []
+        self._busy: dict[_Worker, object] = {}  # worker → the pass it runs
 
     def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
         super().start(scene, tracer_path, run_pass_path)
-        self._open()
+        self._queue: deque = deque()  # passes not yet handed to a worker
+        self._deaths: dict[int, int] = {}  # pass index → workers it has killed
+        self._idle = [self._spawn() for _ in range(self.workers)]
 
-    def _open(self) -> None:
-        self._pool = ProcessPoolExecutor(self.workers, initializer=_init_local,
-                                         initargs=(self.scene, self.tracer_path))
+    @property
+    def in_flight(self) -> int:
+        return len(self._queue) + len(self._busy)
 
     def submit(self, job) -> None:
-        try:
-            self._jobs[self._pool.submit(_local_pass, self.run_pass_path, job)] = job
-        except BrokenProcessPool:
-            self._replace_pool(extra=job)
+        self._queue.append(job)
+        self._dispatch()
 
     def next_done(self) -> list:
-        done, _ = wait(list(self._jobs), return_when=FIRST_COMPLETED)
         finished = []
-        for handle in done:
+        for conn in wait([worker.conn for worker in self._busy]):
+            worker = next(w for w in self._busy if w.conn is conn)
+            job = self._busy.pop(worker)
             try:
-                finished.append(handle.result())
-            except BrokenProcessPool:
-                self._replace_pool()
-                return finished
-            del self._jobs[handle]
+                message = conn.recv()
+            except (EOFError, OSError):  # it died, maybe halfway through its message: run the pass again
+                self._replace(worker)
+                self._deaths[job.index] = self._deaths.get(job.index, 0) + 1
+                if self._deaths[job.index] >= WORKER_DEATHS:
+                    raise RuntimeError(f"pass {job.index} killed its worker process {WORKER_DEATHS} times (last "
+                                       f"exit code {worker.process.exitcode}): not a passing failure") from None
+                self._queue.appendleft(job)
+                continue
+            self._idle.append(worker)
+            if isinstance(message, _Failure):
+                message.error.add_note(f"in worker process {worker.process.pid}:\n{message.trace}")
+                raise message.error
+            finished.append(message)
+        self._dispatch()
         return finished
 
-    def _replace_pool(self, extra=None) -> None:
-        """A worker died: every pass in flight went with the pool. A new pool runs them again."""
-        jobs = list(self._jobs.values()) + ([extra] if extra is not None else [])
-        self._kill()
-        self._open()
-        self._jobs = {}
-        for job in jobs:
-            self._jobs[self._pool.submit(_local_pass, self.run_pass_path, job)] = job
+    def _dispatch(self) -> None:
+        while self._queue and self._idle:
+            worker, job = self._idle.pop(), self._queue.popleft()
+            try:
+                worker.conn.send(job)
+            except OSError:  # it died while idle
+                self._queue.appendleft(job)
+                self._replace(worker)
+                continue
+            self._busy[worker] = job
 
-    def _kill(self) -> None:
-        if self._pool is None:
-            return
-        # Passes in flight are not waited for: a stopped run redoes them on resume, identically.
-        for process in list((getattr(self._pool, "_processes", None) or {}).values()):
-            process.kill()
-        self._pool.shutdown(wait=True, cancel_futures=True)
-        self._pool = None
+    def _spawn(self) -> "_Worker":
+        context = multiprocessing.get_context("fork")  # the scene reaches the worker without pickling
+        conn, child = context.Pipe()
+        process = context.Process(target=_local_worker, daemon=True,
+                                  args=(child, self.scene, self.tracer_path, self.run_pass_path))
+        process.start()
+        child.close()  # the worker alone holds its end: its death is end-of-file here
+        return _Worker(process, conn)
+
+    def _replace(self, worker: "_Worker") -> None:
+        worker.stop()
+        self._idle.append(self._spawn())
 
     def close(self) -> None:
-        self._kill()
+        # Passes in flight are not waited for: a stopped run redoes them on resume, identically.
+        for worker in [*self._idle, *self._busy]:
+            worker.stop()
+        self._idle, self._busy = [], {}
         super().close()
+
+
+@dataclass(eq=False)
+class _Worker:
+    process: multiprocessing.process.BaseProcess
+    conn: Connection
+
+    def stop(self) -> None:
+        self.process.kill()
+        self.process.join()
+        self.conn.close()
+
+
+@dataclass
+class _Failure:
+    """A pass that raised in a worker: the driver raises the same error (a pass that fails fails the run)."""
+
+    error: BaseException
+    trace: str
+
+
+def _local_worker(conn: Connection, scene, tracer_path: str, run_pass_path: str) -> None:
+    """A local worker's life: passes from its pipe, their results back, one tracer, until killed."""
+    die_with_parent()
+    lens_kernel.one_core_per_process()  # the workers share the cores already
+    run_pass = resolve(run_pass_path)
+    tracer = None
+    while True:
+        job = conn.recv()
+        try:
+            tracer = tracer or resolve(tracer_path)(scene)
+            message = (job.index, run_pass(scene, tracer, job))
+        except Exception as error:
+            message = _Failure(error, traceback.format_exc())
+        conn.send(message)
 
 
 class DaskCluster(Executor):

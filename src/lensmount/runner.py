@@ -183,8 +183,9 @@ class Runner:
         next_index = self.acc.last_pass + 1
         finished: dict[int, PassEstimate] = {}
         window = 2 * self.executor.workers if self.executor.workers > 1 else 1
+        last = next_index + max(stopping.max_passes - self.acc.n, 0)  # no pass past the limit is started
         while not stopping.done(self.acc, base + time.perf_counter() - start):
-            while self.executor.in_flight + len(finished) < window:
+            while self.executor.in_flight + len(finished) < window and next_index < last:
                 self.executor.submit(self.make_job(next_index))
                 next_index += 1
             for index, estimate in self.executor.next_done():

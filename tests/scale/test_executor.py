@@ -106,3 +106,52 @@ def test_bad_cluster_is_refused_before_anything_is_built(tmp_path):
         assert e.value.field == "--cluster"
     with pytest.raises(InputError):
         check_options(SimulateOptions(tmp_path, tmp_path / "s.toml", cluster="local:2", scheduler="tcp://h:8786"))
+
+
+_BIG_RESULT = """
+import sys, time
+from pathlib import Path
+from types import SimpleNamespace
+import numpy as np
+from lensmount.executor import LocalProcesses
+
+MARKER, DELAY = Path(sys.argv[1]), float(sys.argv[2])
+
+class Announced:
+    \"\"\"320 MB whose pickling (just before the worker sends it) leaves the marker.\"\"\"
+    def __init__(self, data):
+        self.data = data
+    def __reduce__(self):
+        MARKER.write_text("sending")
+        return (Announced, (self.data,))
+
+def no_tracer(scene):
+    return None
+
+def big_pass(scene, tracer, job):
+    return Announced(np.ones(40_000_000))
+
+if __name__ == "__main__":
+    workers = LocalProcesses(2)
+    workers.start(None, "__main__:no_tracer", "__main__:big_pass")
+    workers.submit(SimpleNamespace(index=0))
+    while not MARKER.exists():
+        time.sleep(0.001)
+    time.sleep(DELAY)
+    workers.close()
+    print("closed")
+"""
+
+
+@pytest.mark.parametrize("delay_s", [0.2, 0.4, 0.6])
+def test_a_run_stopped_while_a_worker_sends_its_result_ends(tmp_path, delay_s):
+    """The driver stops (the pass limit reached, Ctrl-C) while a worker is pickling or halfway
+    through sending a pass's result: closing kills the worker and returns. With the results of all
+    workers in one shared pipe read by a driver thread (concurrent.futures' ProcessPoolExecutor,
+    used before), the close 0.4 s after the pickling began waited for the rest of the message
+    forever: a simulate run hung after its last pass that way."""
+    script = tmp_path / "big_result.py"
+    script.write_text(_BIG_RESULT)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "marker"), str(delay_s)], capture_output=True,
+                         text=True, timeout=60, cwd=HERE.parents[1])
+    assert out.returncode == 0 and out.stdout.strip() == "closed", out.stderr[-2000:]

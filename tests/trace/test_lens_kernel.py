@@ -177,21 +177,28 @@ def test_a_forked_worker_traces_after_its_parent_walked_on_all_cores():
     script = textwrap.dedent("""
         import sys
         sys.path.insert(0, %r)
-        import numpy as np
-        from concurrent.futures import ProcessPoolExecutor
-        from lensmount import executor
+        from types import SimpleNamespace
+        from lensmount.executor import LocalProcesses
         from tests.trace.test_lens_kernel import _ghost_bundle
 
-        def pass_in_worker(seed):
-            tracer, rays, streams = _ghost_bundle(seed=seed)
+        def bundle(scene):
+            return _ghost_bundle(seed=4)
+
+        def pass_in_worker(scene, bundle, job):
+            tracer, rays, streams = bundle
             return int((tracer.next_event(rays, streams).kind == 2).sum())
 
         if __name__ == "__main__":
-            tracer, rays, streams = _ghost_bundle()
+            tracer, rays, streams = _ghost_bundle(seed=4)
             here = int((tracer.next_event(rays, streams).kind == 2).sum())  # threads started in the parent
-            with ProcessPoolExecutor(1, initializer=executor._init_local, initargs=(None, "")) as pool:
-                there = pool.submit(pass_in_worker, 4).result(timeout=240)
-            print(here, there)
+            workers = LocalProcesses(2)
+            workers.start(None, "__main__:bundle", "__main__:pass_in_worker")
+            workers.submit(SimpleNamespace(index=0))
+            done = []
+            while not done:
+                done = workers.next_done()
+            workers.close()
+            print(here, done[0][1])
     """) % str(Path(__file__).resolve().parents[2])
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]

@@ -38,7 +38,8 @@ from lensmount.trace.kernels import step_one
 # step_one (with `kernels.face_table`'s column numbers) is compiled into this file's cached walk, and numba
 # keys that cache on this file's text alone: an edit of kernels.py leaves the walk stale until this file
 # changes or its cache (__pycache__/lens_kernel.*) is removed (tests/trace failed on one: it and
-# `kernels.sequential_step` disagree).
+# `kernels.sequential_step` disagree). `make install` removes the trace kernels' cache whenever either
+# file changes, before it compiles them again.
 
 COATING_CODES = {"perfect-ar": 0, "uncoated": 1, "mgf2-quarter-wave": 2, "constant": 3}
 # Constants copied from interfaces and sampler on purpose: numba freezes globals into its on-disk cache,
