@@ -59,8 +59,10 @@ def test_aiming_never_strands_a_ray_outside_the_lens(tmp_path, radius):
         np.testing.assert_allclose(rays.points[p.stop_index, :, :2], np.tile(pupil * r_stop, (3, 1)), atol=1e-8)
 
 
-@pytest.mark.parametrize("surface,radius", [(3, -8.0), (4, 7.0), (6, -7.0)])
+@pytest.mark.parametrize("surface,radius", [(3, -4.0), (4, 7.0), (6, -7.0)])
 def test_a_radius_the_beam_misses_is_named(tmp_path, surface, radius):
+    # (3, -8) was here: the beam does meet that R −8 mm bowl (from 6 mm in front, inside its sphere,
+    # which the intersection missed until it took the second root) and is lost at surface 4.
     with pytest.raises(InputError) as err:
         load_lens(_cooke_with_radius(tmp_path, surface, radius))
     assert err.value.field == f"surface[{surface}].radius" and f"miss surface {surface} " in err.value.detail

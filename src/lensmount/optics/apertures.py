@@ -97,10 +97,11 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
             s = prescription.surfaces[i]
             raise InputError(
                 f"rays of the full field and aperture miss surface {i + 1} (radius {s.radius:g} mm) "
-                "or are totally reflected there: the radius is smaller than the semi-diameter the beam needs",
+                "or are totally reflected there: its radius is smaller than the semi-diameter the beam needs, "
+                "or a surface before it bends the beam too far",
                 field=f"surface[{i + 1}].radius",
-                valid="a |radius| larger than the beam's semi-diameter on that surface, "
-                      "or a smaller aperture or field")
+                valid="a |radius| larger than the beam's semi-diameter on that surface (or radii before it "
+                      "that bend the beam less), or a smaller aperture or field")
         # a ray counts on surface j if it reached it (arrived, or stopped at a later surface)
         reached = (at[None, :] < 0) | (at[None, :] > np.arange(nsurf)[:, None])
         h = np.where(reached, rays.heights()[:nsurf], 0.0)

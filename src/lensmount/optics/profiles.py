@@ -97,9 +97,10 @@ class Profile:
         root = np.sqrt(np.where(ok, disc, 0.0))
         # -C / (B + sign(B) sqrt(disc)) and (B + sign(B) sqrt(disc)) / -A are the two roots without
         # cancellation (the first stays exact as c -> 0). Travelling +z the hit is the first one if
-        # it lies on the vertex sheet, else the second: a ray that starts beyond the centre of a
-        # surface concave toward it (an object or a previous surface farther than |R|) meets the
-        # far sheet through the first root and the vertex sheet through the second. Travelling -z
+        # it lies on the vertex sheet, else the second: a ray that starts inside the sphere of a
+        # surface concave toward it, or beyond its centre (an object or a previous surface farther
+        # than |R|), meets the far sheet through the first root and the vertex sheet through the
+        # second. Travelling -z
         # (after a mirror) it is the root on the vertex sheet nearest the vertex plane: a
         # hyperboloid's vertex sheet is met through the second root there (a Cassegrain
         # secondary), and a ray can cross a paraboloid twice.
