@@ -37,7 +37,7 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
+from lensmount.trace.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.sources import disc_radius_fraction, orthonormal_basis
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
@@ -203,8 +203,7 @@ class _Context:
         photons', `Tracer.next_event`), else 1."""
         if s.index not in self.mirror_finish:
             return 1.0
-        n = nrm * np.where(np.einsum("ij,ij->i", nrm, d) > 0.0, -1.0, 1.0)[:, None]
-        return 1.0 - self.mirror_finish[s.index].albedo(-d, n)
+        return 1.0 - self.mirror_finish[s.index].albedo(-d, facing(nrm, d))
 
     def walk(self, b: _Bundle, left: int, step: int, route: tuple[int, ...]) -> Iterator[Arrival]:
         """Bundle b has just left surface `left`, travelling `step` (+1: in sequence order)."""

@@ -97,6 +97,11 @@ def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
 
 
+def facing(n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Normals n (N, 3) turned to the side rays travelling along d (N, 3) arrive from (n · d ≤ 0)."""
+    return n * np.where(np.einsum("ij,ij->i", n, d) > 0.0, -1.0, 1.0)[:, None]
+
+
 def _admittances(n: np.ndarray, cos: np.ndarray):
     """(eta_s, eta_p) complex admittances of a medium for a (possibly complex) cos(theta)."""
     cos = np.where(np.abs(cos) < _COS_FLOOR, _COS_FLOOR, cos)
@@ -168,5 +173,5 @@ def reflectance(n1, n2, cos_i, coating: Coating, wavelength_um) -> np.ndarray:
     return 0.5 * (rs + rp)
 
 
-__all__ = ["Coating", "parse_coating", "mirror_reflectance", "PROTECTED_ALUMINIUM_R", "refract", "reflect",
+__all__ = ["Coating", "parse_coating", "mirror_reflectance", "PROTECTED_ALUMINIUM_R", "refract", "reflect", "facing",
            "fresnel_rt", "reflectance", "COATING_NAMES"]

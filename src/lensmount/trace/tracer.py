@@ -33,7 +33,7 @@ import numpy as np
 
 from lensmount.trace import kernels, lens_kernel
 from lensmount.trace.ghosts import reflecting
-from lensmount.trace.interfaces import mirror_reflectance, reflect, reflectance, refract
+from lensmount.trace.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import ray_streams
@@ -565,8 +565,7 @@ class Tracer:
             kind[fi] = FACE
             tag[fi] = h.tag[face]
             prim[fi] = h.prim[face]
-            side = np.where(np.einsum("ij,ij->i", h.normal[face], d[fi]) > 0.0, -1.0, 1.0)
-            normal[fi] = h.normal[face] * side[:, None]
+            normal[fi] = facing(h.normal[face], d[fi])
             glass = (h.surface >= 0) & np.isfinite(h.t)
             gi = work[glass]
             if gi.size:
@@ -593,7 +592,7 @@ class Tracer:
                     w[gi] *= share
                     si, k, nk = gi[on], h.surface[glass][on], h.normal[glass][on]
                     kind[si], tag[si], prim[si] = FACE, self._mirror_face[k, 0], self._mirror_face[k, 1]
-                    normal[si] = nk * np.where(np.einsum("ij,ij->i", nk, d_in[on]) > 0.0, -1.0, 1.0)[:, None]
+                    normal[si] = facing(nk, d_in[on])
                     d[si] = d_in[on]
                     keep &= ~on
                 gi = gi[keep]
@@ -623,9 +622,7 @@ class Tracer:
         bsdf_of_tag = self.scene.bsdf_of_tag
         for k in np.unique(surf[self._mirror_face[surf, 0] >= 0]):
             sel = surf == k
-            wi = -d_in[sel]
-            n = nrm[sel] * np.where(np.einsum("ij,ij->i", nrm[sel], wi) < 0.0, -1.0, 1.0)[:, None]
-            a = bsdf_of_tag[self._mirror_face[k, 0]].finish.albedo(wi, n)
+            a = bsdf_of_tag[self._mirror_face[k, 0]].finish.albedo(-d_in[sel], facing(nrm[sel], d_in[sel]))
             p = np.where(a > 0.0, np.maximum(a, MIRROR_SCATTER_MIN_SHARE), 0.0)
             on[sel] = u[sel] < p
             share[sel] = np.where(on[sel], a / np.where(p > 0.0, p, 1.0), (1.0 - a) / np.maximum(1.0 - p, 1e-300))
