@@ -13,8 +13,7 @@ Prints:
 - the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
   a time in Python) as a peer, with the largest landing-point difference.
 
-Mesh: `lensmount.cad.regenerate` of examples/double-gauss-360 when the CAD layer works,
-else the tests' revolved lens solids with a barrel.
+Mesh: `lensmount.cad.regenerate` of examples/double-gauss-360.
 """
 
 from __future__ import annotations
@@ -36,27 +35,19 @@ N_OPTILAND = 50_000
 
 
 def _reference():
+    from lensmount.cad import regenerate
+    from lensmount.cad.mesh import TaggedMesh
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import load_scene
     from lensmount.scene.build import build_scene
 
     design = ROOT / "examples" / "double-gauss-360"
     p = load_lens(design / "lens.toml")
-    try:
-        from lensmount.cad import regenerate
-        from lensmount.cad.mesh import TaggedMesh
-
-        out = Path(tempfile.gettempdir()) / "lensmount-bench-trace"  # regenerate's cache makes reruns fast
-        manifest = regenerate(design, out)
-        mesh = TaggedMesh.load(out / manifest.mesh)
-        origin = "cad.regenerate"
-    except Exception as exc:  # the CAD layer is optional for this benchmark
-        from tests.trace.geometry import double_gauss_mesh
-
-        mesh = double_gauss_mesh(p)
-        origin = f"test solids ({exc.__class__.__name__} from cad.regenerate)"
+    out = Path(tempfile.gettempdir()) / "lensmount-bench-trace"  # regenerate's cache makes reruns fast
+    manifest = regenerate(design, out)
+    mesh = TaggedMesh.load(out / manifest.mesh)
     spec = load_scene(design / "scenes" / "case2-lambertian.toml")
-    return p, mesh, build_scene(p, mesh, spec), origin
+    return p, mesh, build_scene(p, mesh, spec)
 
 
 def _bundle(p, n, rng, field_deg=3.5, fill=0.45):
@@ -156,8 +147,8 @@ def main() -> None:
     from lensmount.trace.tracer import DETECTOR, Tracer
 
     t0 = time.perf_counter()
-    p, mesh, scene, origin = _reference()
-    print(f"mesh: {len(mesh.triangles)} triangles from {origin} ({time.perf_counter() - t0:.1f} s)")
+    p, mesh, scene = _reference()
+    print(f"mesh: {len(mesh.triangles)} triangles from cad.regenerate ({time.perf_counter() - t0:.1f} s)")
     import numba
 
     from lensmount.trace import lens_kernel
