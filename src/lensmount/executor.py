@@ -159,7 +159,7 @@ class LocalProcesses(Executor):
 
     def next_done(self) -> list:
         finished = []
-        for conn in wait([worker.conn for worker in self._busy]):
+        for conn in wait([worker.conn for worker in self._busy]) if self._busy else []:
             worker = next(w for w in self._busy if w.conn is conn)
             job = self._busy.pop(worker)
             try:
@@ -172,6 +172,9 @@ class LocalProcesses(Executor):
                                        f"exit code {worker.process.exitcode}): not a passing failure") from None
                 self._queue.appendleft(job)
                 continue
+            except BaseException:  # a message that does not unpickle: the run ends, and not with this worker alive
+                worker.stop()
+                raise
             self._idle.append(worker)
             if isinstance(message, _Failure):
                 message.error.add_note(f"in worker process {worker.process.pid}:\n{message.trace}")
@@ -236,15 +239,17 @@ def _local_worker(conn: Connection, scene, tracer_path: str, run_pass_path: str)
     die_with_parent()
     lens_kernel.one_core_per_process()  # the workers share the cores already
     run_pass = resolve(run_pass_path)
-    tracer = None
     while True:
         job = conn.recv()
         try:
-            tracer = tracer or resolve(tracer_path)(scene)
-            message = (job.index, run_pass(scene, tracer, job))
+            message = (job.index, run_pass(scene, _tracer_for(scene, tracer_path), job))
         except Exception as error:
             message = _Failure(error, traceback.format_exc())
-        conn.send(message)
+        try:
+            conn.send(message)
+        except Exception as error:  # it does not pickle (nothing was written): say why, not die as if crashed
+            conn.send(_Failure(RuntimeError(f"pass {job.index}'s result cannot be sent back: {error}"),
+                               traceback.format_exc()))
 
 
 class DaskCluster(Executor):

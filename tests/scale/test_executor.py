@@ -155,3 +155,36 @@ def test_a_run_stopped_while_a_worker_sends_its_result_ends(tmp_path, delay_s):
     out = subprocess.run([sys.executable, str(script), str(tmp_path / "marker"), str(delay_s)], capture_output=True,
                          text=True, timeout=60, cwd=HERE.parents[1])
     assert out.returncode == 0 and out.stdout.strip() == "closed", out.stderr[-2000:]
+
+
+_UNSENDABLE = """
+import sys, threading
+from types import SimpleNamespace
+from lensmount.executor import LocalProcesses
+
+def no_tracer(scene):
+    return None
+
+def unsendable_pass(scene, tracer, job):
+    return job.index, threading.Lock()  # does not pickle
+
+if __name__ == "__main__":
+    workers = LocalProcesses(1)
+    workers.start(None, "__main__:no_tracer", "__main__:unsendable_pass")
+    workers.submit(SimpleNamespace(index=0))
+    try:
+        workers.next_done()
+    except RuntimeError as error:
+        print("raised:", error)
+    finally:
+        workers.close()
+"""
+
+
+def test_a_result_that_cannot_be_sent_fails_the_run_with_the_reason(tmp_path):
+    """A pass whose result does not pickle fails the run saying so, once (not three worker deaths)."""
+    script = tmp_path / "unsendable.py"
+    script.write_text(_UNSENDABLE)
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60, cwd=HERE.parents[1])
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "raised: pass 0's result cannot be sent back" in out.stdout and "lock" in out.stdout
