@@ -52,7 +52,7 @@ def steepest_sun_slope(openings) -> float:
     return float(((r[:, None] + r[None, :])[ahead] / dz[ahead]).min()) if ahead.any() else np.inf
 
 
-def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: tuple[float, float],
+def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: tuple[np.ndarray, np.ndarray],
                   exclusion_deg: float, notes: list[str]) -> list[float]:
     """Front-face z of the hood vanes by the classic construction (module docstring).
 
@@ -105,7 +105,7 @@ def line_of_sight(env, vs, wall: float, z_mouth: float, z_end: float, aperture: 
 
 
 def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_front: float,
-                   spacers: list, notes: list[str], aperture: tuple[float, float], exclusion_deg: float):
+                   spacers: list, notes: list[str], aperture: tuple[np.ndarray, np.ndarray], exclusion_deg: float):
     """(hood PartPlan or None, [vane PartPlan]) for a barrel whose front face is at z_front.
 
     Args:
@@ -114,7 +114,8 @@ def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_f
         r_barrel: barrel outside radius, mm. bore_front: barrel bore at its front, mm.
         spacers: the spacer PartPlans (long ones are tubes that hold vanes).
         notes: list the caller reports; vanes left out are noted here.
-        aperture: (radius, z) of the entrance aperture (the first lens's clear aperture).
+        aperture: (ρ, z) samples of the entrance aperture's profile from the axis to its rim (the first
+            lens's surface over its clear aperture), as `line_of_sight` takes them.
         exclusion_deg: the smallest sun angle off the axis (line-of-sight vanes).
     """
     from lensmount.cad.layout import PartPlan

@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from lensmount.cad.lens_groups import lens_element, lens_group, seat_of_group
+from lensmount.cad.lens_groups import lens_group, seat_of_group
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
@@ -677,5 +677,4 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     return Layout(p, ordered, contacts, env, notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius", "lens_element",
-           "lens_group", "seat_of_group"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius"]

@@ -292,8 +292,11 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
 
     first = None
     gap = _faces_curling_toward_the_stop(p)
-    for flats, widen in [(f, w) for f in ((), gap)[:1 + bool(gap)] for w in (True, False)]:
-        mount = _mount(p, name, widen)
+    base: dict[bool, dict] = {}  # the seating's mount.toml, built once (0.5-1 s) for both passes
+    for flats, widen in [(flats, widen) for flats in (((), gap) if gap else ((),)) for widen in (True, False)]:
+        if widen not in base:
+            base[widen] = _mount(p, name, widen)
+        mount = copy.deepcopy(base[widen])
         if flats:
             mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
         tried: dict[str, set[str]] = {}
@@ -417,7 +420,7 @@ def mirror_scene(p: Prescription, case2: dict) -> dict | None:
     (`POLISHED_MIRROR`, `[assign] "surface:N"`): in a Cassegrain the primary's scatter of a sun
     outside the field is a main stray path (with black cells and baffles, often the main one).
     None for a lens without mirrors."""
-    mirrors = [i for i, s in enumerate(p.surfaces) if s.mirror]
+    mirrors = p.mirror_surfaces
     if not mirrors:
         return None
     numbers = ", ".join(str(i + 1) for i in mirrors)

@@ -123,8 +123,13 @@ class Prescription:
         return self.object_heights_mm if self.finite_object else self.field_angles_deg
 
     @property
+    def mirror_surfaces(self) -> tuple[int, ...]:
+        """0-based indices of the mirror surfaces, in sequence order."""
+        return tuple(i for i, s in enumerate(self.surfaces) if s.mirror)
+
+    @property
     def has_mirrors(self) -> bool:
-        return any(s.mirror for s in self.surfaces)
+        return bool(self.mirror_surfaces)
 
     @property
     def travel(self) -> tuple[int, ...]:

@@ -127,7 +127,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     try:
         check_object_names(spec.objects, mesh.parts)
         mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
-        check_rules_match(spec.assign, mesh, mirror_surfaces(prescription))
+        check_rules_match(spec.assign, mesh, set(prescription.mirror_surfaces))
     except InputError as exc:
         raise located(exc, spec.source_file, spec.source_text) from None
     # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
@@ -276,11 +276,6 @@ def check_object_names(objects, parts) -> None:
         taken.add(o.name)
 
 
-def mirror_surfaces(prescription: Prescription) -> set[int]:
-    """0-based indices of the prescription's mirror surfaces."""
-    return {i for i, s in enumerate(prescription.surfaces) if s.mirror}
-
-
 def check_rules_match(assign: dict[str, str], mesh: TaggedMesh, mirrors: set[int] = frozenset()) -> None:
     """InputError for an `[assign]` rule that matches no face: a misspelt selector would
     otherwise leave its faces to the next rule (often an absorber) without a word. `surface:N`
@@ -413,7 +408,7 @@ def object_source(src, opening: FrontOpening, prescription: Prescription, weight
                         float(par.entrance_pupil_z), 0.5 * float(par.epd), tuple(weights))
 
 
-__all__ = ["build_scene", "check_rules_match", "mirror_surfaces", "check_scatterers", "effects_of", "check_object_names",
+__all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
            "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
            "solid_absorption_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source",
            "object_source", "clear_distance"]

@@ -15,7 +15,7 @@ face left bare outside a smaller (stepped) partner, which the light of its inter
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,21 +52,8 @@ class OpticalFace:
 
     def segment(self, r_end: float, reverse: bool = False) -> Segment:
         """The face's profile from the axis to r_end (or back when reverse)."""
-        prof = self.profile
-        if prof.is_plane or (abs(self.curvature) < 1e-9 and not any(self.aspheric)):
-            pts = [(0.0, self.z_vertex), (r_end, float(self.z(r_end)))]
-            kind = "line"
-        elif self.conic == 0.0 and not any(self.aspheric):
-            rm = 0.5 * r_end
-            pts = [(0.0, self.z_vertex), (rm, float(self.z(rm))), (r_end, float(self.z(r_end)))]
-            kind = "arc"
-        else:
-            rs = np.linspace(0.0, r_end, _SPLINE_POINTS)
-            pts = list(zip(rs.tolist(), self.z(rs).tolist()))
-            kind = "spline"
-        if reverse:
-            pts = pts[::-1]
-        return Segment(kind, tuple((float(a), float(b)) for a, b in pts), "optical", self.index)
+        piece = face_piece(self, 0.0, r_end)
+        return replace(piece, points=piece.points[::-1]) if reverse else piece
 
 
 def face_piece(face: OpticalFace, r0: float, r1: float, role: str = "optical") -> Segment:

@@ -87,4 +87,4 @@ class MirrorElement(RevolvedPart):
         return d
 
 
-__all__ = ["MirrorElement", "face_piece"]
+__all__ = ["MirrorElement"]
