@@ -43,7 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from lensmount.integrators.estimate import scattering_tags
-from lensmount.integrators.targets import edge_rim, edge_tags, paraxial_trace, robust_fit
+from lensmount.integrators.targets import N_DPHI as N_PHI
+from lensmount.integrators.targets import (azimuth_bin, azimuth_pmf, cached_pilot, edge_rim, edge_tags, paraxial_trace,
+                                           robust_fit)
 from lensmount.integrators.walk import emit_photons
 from lensmount.trace.rays import RayBatch
 from lensmount.trace.sampler import Streams, stream
@@ -53,8 +55,6 @@ from lensmount.trace.tracer import FACE
 UNIFORM_SHARE = 0.2  # photons emitted uniformly on the disc (every path stays reachable)
 WIDE_SHARE = 0.2  # photons in a band WIDE_FACTOR times as wide, every azimuth alike (near misses of the fit)
 WIDE_FACTOR = 8.0
-N_PHI = 36  # azimuth bins of the hit-rate histogram
-FLOOR = 0.1  # share of the azimuth pmf spread uniformly
 HALF_WIDTH_SIGMAS = 3.0  # band half width in residual standard deviations
 PILOT_PHOTONS = 100_000  # per pilot stage (stage 1: per round)
 PILOT_ROUNDS = 8  # stage 1's rounds at most, while fewer than MIN_HITS met the edge
@@ -90,12 +90,7 @@ class EdgeBand:
 
     def crossing(self, origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ρ, φ) (N,) where rays (origin, direction) cross P, in P's polar coordinates."""
-        c, d0 = np.asarray(self.centre), np.asarray(self.d0)
-        e1, e2 = orthonormal_basis(d0)
-        t = ((c - origin) @ d0) / (direction @ d0)
-        p = origin + t[:, None] * direction - c
-        a, b = p @ e1, p @ e2
-        return np.hypot(a, b), np.arctan2(b, a)
+        return _crossing(self.centre, self.d0, origin, direction)
 
     def _wl(self, wavelength) -> np.ndarray:
         return np.clip(np.asarray(wavelength, np.int64), 0, len(self.coef) - 1)
@@ -111,7 +106,7 @@ class EdgeBand:
     def density(self, rho: np.ndarray, phi: np.ndarray, wavelength) -> np.ndarray:
         """(N,) density per unit area of P at (ρ, φ): p(φ) / (2 h ρ) inside the band, else 0."""
         h = self.half_width[self._wl(wavelength)]
-        b = np.clip(((phi + math.pi) * (N_PHI / (2 * math.pi))).astype(np.int64), 0, N_PHI - 1)
+        b = azimuth_bin(phi)
         inside = (np.abs(rho - self.radius(phi, wavelength)) <= h) & (rho > 0)
         return np.where(inside, self.pmf[b] * (N_PHI / (2 * math.pi)) / (2.0 * h * np.where(rho > 0, rho, 1.0)), 0.0)
 
@@ -143,9 +138,7 @@ def guided_photons(scene, band: EdgeBand | None, seed: int, purpose: str, first:
     for component, rows in ((wide, (u[:, 0] >= UNIFORM_SHARE) & (u[:, 0] < UNIFORM_SHARE + WIDE_SHARE)),
                             (band, u[:, 0] >= UNIFORM_SHARE + WIDE_SHARE)):
         d = rays.direction[rows]
-        p = component.sample(u[rows, 1:], rays.wavelength[rows])
-        # Back along the photon's own direction to the disc's plane (normal d0 through its centre).
-        rays.origin[rows] = p - (((p - centre) @ d0) / (d @ d0))[:, None] * d
+        rays.origin[rows] = _back_to_disc(component.sample(u[rows, 1:], rays.wavelength[rows]), d, centre, d0)
     on_disc = np.linalg.norm(rays.origin - centre - ((rays.origin - centre) @ d0)[:, None] * d0, axis=1) <= disc.radius
     rho, phi = band.crossing(rays.origin, rays.direction)
     q = (UNIFORM_SHARE * on_disc / disc.area + WIDE_SHARE * wide.density(rho, phi, rays.wavelength)
@@ -161,11 +154,7 @@ def edge_band(scene, tracer, broad: np.ndarray, seed: int, n_photons: int = PILO
     light), a source other than the sun or a collimated one, too few pilot hits. Cached per
     process; a pure function of its arguments, so every pass and worker gets the same."""
     key = (id(scene), id(scene.mesh), id(tracer), int(seed), int(n_photons))
-    if key not in _CACHE:
-        if len(_CACHE) > 8:
-            _CACHE.clear()
-        _CACHE[key] = (scene, tracer, _pilot(scene, tracer, broad, int(seed), int(n_photons)))
-    return _CACHE[key][2]
+    return cached_pilot(_CACHE, key, scene, tracer, lambda: _pilot(scene, tracer, broad, int(seed), int(n_photons)))
 
 
 def entrance_pupil(scene, tags: np.ndarray) -> tuple[float, float] | None:
@@ -253,11 +242,10 @@ def _stage_one(scene, tracer, band, tags, seed, n_photons):
 def _pilot_photons(scene, tracer, band, tags, seed, purpose, index, ids):
     """Pilot photons `ids` started so that they cross P in `band` (numbers from `purpose`'s stream
     `index`), and which of them met the edge (a FACE event on one of `tags`)."""
-    d0 = np.asarray(band.d0)
     rays, _ = scene.source.emit(len(ids), Streams(seed, purpose + "/emit", ids))
     p = band.sample(stream(seed, purpose, index).random((len(ids), 2)), rays.wavelength)
-    t = ((p - np.asarray(scene.source.disc.centre)) @ d0) / (rays.direction @ d0)
-    rays = RayBatch.make(p - t[:, None] * rays.direction, rays.direction, wavelength=rays.wavelength, ids=ids)
+    start = _back_to_disc(p, rays.direction, np.asarray(scene.source.disc.centre), np.asarray(band.d0))
+    rays = RayBatch.make(start, rays.direction, wavelength=rays.wavelength, ids=ids)
     step = tracer.next_event(rays, Streams(seed, purpose + "/trace", ids))
     hit = np.zeros(len(ids), bool)
     hit[step.id[(step.kind == FACE) & np.isin(step.tag, tags) & (step.weight > 0)] - ids[0]] = True
@@ -278,14 +266,14 @@ def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per
         if shifts is None:
             step /= 5.0
             shifts = shift + step * np.arange(-10, 11)
-        spread = [_ring(*_plane(centre, d0, z).crossing(rays.origin[some], rays.direction[some]),
+        spread = [_ring(*_crossing(_shifted(centre, d0, z), d0, rays.origin[some], rays.direction[some]),
                         wl[some], n_fit)[1] for z in shifts]
         spread = [np.inf if s is None else float(s.sum()) for s in spread]
         shift = float(shifts[int(np.argmin(spread))])
         if not np.isfinite(min(spread)):
             return None
-    c = _plane(centre, d0, shift).centre
-    coef, sigma = _ring(*_plane(centre, d0, shift).crossing(rays.origin[hit], rays.direction[hit]), wl[hit], n_fit)
+    c = _shifted(centre, d0, shift)
+    coef, sigma = _ring(*_crossing(c, d0, rays.origin[hit], rays.direction[hit]), wl[hit], n_fit)
     if coef is None:
         return None
     coef, sigma = np.broadcast_to(coef, (n_wl, coef.shape[1])).copy(), np.broadcast_to(sigma, (n_wl,)).copy()
@@ -294,20 +282,32 @@ def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per
     # Azimuth histogram: hit rate per bin among the pilot photons that crossed P inside the band.
     rho, phi = band.crossing(rays.origin, rays.direction)
     inside = band.density(rho, phi, wl) > 0
-    b = np.clip(((phi + math.pi) * (N_PHI / (2 * math.pi))).astype(np.int64), 0, N_PHI - 1)
+    b = azimuth_bin(phi)
     tried = np.bincount(b[inside], minlength=N_PHI)
     got = np.bincount(b[inside & hit], minlength=N_PHI)
-    rate = got / np.maximum(tried, 1)
-    rate = 0.5 * rate + 0.25 * (np.roll(rate, 1) + np.roll(rate, -1))
-    shape = rate / rate.sum() if rate.sum() > 0 else np.full(N_PHI, 1.0 / N_PHI)
-    pmf = (1.0 - FLOOR) * shape + FLOOR / N_PHI
-    return EdgeBand(c, tuple(d0), coef, band.half_width, pmf / pmf.sum())
+    return EdgeBand(c, tuple(d0), coef, band.half_width, azimuth_pmf(tried, got))
 
 
-def _plane(centre, d0: np.ndarray, shift: float) -> EdgeBand:
-    """A band-less EdgeBand on the plane P moved by `shift` mm along d₀ (for its `crossing`)."""
-    c = tuple(float(x) for x in np.asarray(centre) + shift * d0)
-    return EdgeBand(c, tuple(float(x) for x in d0), np.zeros((1, 2 * _K + 1)), np.ones(1), np.full(N_PHI, 1.0 / N_PHI))
+def _shifted(centre, d0: np.ndarray, shift: float) -> tuple[float, float, float]:
+    """The plane P's centre moved by `shift` mm along d₀."""
+    return tuple(float(x) for x in np.asarray(centre) + shift * d0)
+
+
+def _crossing(centre, d0, origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ρ, φ) (N,) where rays cross the plane through `centre` normal to d0, in its polar coordinates
+    (axes `orthonormal_basis(d0)`)."""
+    c, d0 = np.asarray(centre), np.asarray(d0)
+    e1, e2 = orthonormal_basis(d0)
+    t = ((c - origin) @ d0) / (direction @ d0)
+    p = origin + t[:, None] * direction - c
+    a, b = p @ e1, p @ e2
+    return np.hypot(a, b), np.arctan2(b, a)
+
+
+def _back_to_disc(p: np.ndarray, d: np.ndarray, centre: np.ndarray, d0: np.ndarray) -> np.ndarray:
+    """Points p (N, 3) moved back along their directions d to the source disc's plane (normal d0
+    through its centre)."""
+    return p - (((p - centre) @ d0) / (d @ d0))[:, None] * d
 
 
 def _ring(rho, phi, wl, n_wl):

@@ -67,6 +67,33 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return np.mod(angle + math.pi, 2.0 * math.pi) - math.pi
 
 
+def azimuth_bin(angle: np.ndarray) -> np.ndarray:
+    """The histogram bin (0 … N_DPHI − 1) of angles in [−π, π)."""
+    return np.clip(((angle + math.pi) * (N_DPHI / (2 * math.pi))).astype(np.int64), 0, N_DPHI - 1)
+
+
+def azimuth_pmf(tried: np.ndarray, got: np.ndarray) -> np.ndarray:
+    """Azimuth probabilities over the last axis from the pilot's samples per bin (`tried`) and those
+    that met the edge (`got`): the hit rate, smoothed over neighbouring bins, with a FLOOR spread
+    uniformly so that every azimuth stays reachable (rows sum to 1)."""
+    rate = got / np.maximum(tried, 1)
+    rate = 0.5 * rate + 0.25 * (np.roll(rate, 1, axis=-1) + np.roll(rate, -1, axis=-1))
+    total = rate.sum(axis=-1, keepdims=True)
+    shape = np.where(total > 0, rate / np.where(total > 0, total, 1.0), 1.0 / N_DPHI)
+    pmf = (1.0 - FLOOR) * shape + FLOOR / N_DPHI
+    return pmf / pmf.sum(axis=-1, keepdims=True)
+
+
+def cached_pilot(cache: dict, key: tuple, scene, tracer, pilot):
+    """`pilot()` once per key in this process. The entry keeps scene and tracer alive, so their ids
+    (in the key) cannot be reused by other objects while it exists; a few entries at most."""
+    if key not in cache:
+        if len(cache) > 8:
+            cache.clear()
+        cache[key] = (scene, tracer, pilot())
+    return cache[key][2]
+
+
 @dataclass(frozen=True)
 class LearnedRim:
     """The band around the edge's window on the plane z (normal to the axis), per wavelength.
@@ -100,7 +127,7 @@ class LearnedRim:
         s, az, zone, wl = self._frame(x, wavelength)
         rho = np.hypot(q[:, 0], q[:, 1])
         dphi = _wrap(np.arctan2(q[:, 1], q[:, 0]) - az)  # in [−π, π)
-        b = np.clip(((dphi + math.pi) * (N_DPHI / (2 * math.pi))).astype(np.int64), 0, N_DPHI - 1)
+        b = azimuth_bin(dphi)
         h = self.half_width[wl]
         inside = (np.abs(rho - self.centre(s, dphi, wl)) <= h) & (rho > 0)
         dens = self.pmf[zone, b] * (N_DPHI / (2 * math.pi)) / (2.0 * h * np.where(rho > 0, rho, 1.0))
@@ -169,14 +196,10 @@ def learned_rim(scene, tracer, det, broad: np.ndarray, seed: int, rim, n_rays: i
     rim : the paraxial ExitDisc annulus (`view_map.stop_rim_target`), the pilot's first proposal.
     Cached per process; a pure function of its arguments, so every pass and worker gets the same.
     """
-    # The value keeps scene and tracer alive, so their ids cannot be reused by other objects
-    # while the entry exists; the mesh's id catches a scene whose geometry was swapped.
+    # The mesh's id catches a scene whose geometry was swapped.
     key = (id(scene), id(scene.mesh), id(tracer), int(seed), int(n_rays), rim)
-    if key not in _CACHE:
-        if len(_CACHE) > 8:
-            _CACHE.clear()
-        _CACHE[key] = (scene, tracer, _pilot(scene, tracer, det, broad, int(seed), rim, int(n_rays)))
-    return _CACHE[key][2]
+    return cached_pilot(_CACHE, key, scene, tracer, lambda: _pilot(scene, tracer, det, broad, int(seed), rim,
+                                                                   int(n_rays)))
 
 
 def _pilot(scene, tracer, det, broad, seed, rim, n_rays):
@@ -232,17 +255,11 @@ def _fit(x, omega, wl, hit, z, facing, r_max, n_wl, stage):
         coef[k], half[k] = c, max(HALF_WIDTH_SIGMAS * sigma, 1e-4)
     # Azimuth histogram per zone: hit rate = hits / samples per (zone, bin), smoothed, with a floor.
     zone = np.minimum((s * N_ZONES).astype(np.int64), N_ZONES - 1)
-    b = np.clip(((dphi + math.pi) * (N_DPHI / (2 * math.pi))).astype(np.int64), 0, N_DPHI - 1)
-    cell = zone * N_DPHI + b
+    cell = zone * N_DPHI + azimuth_bin(dphi)
     tried = np.bincount(cell, minlength=N_ZONES * N_DPHI).reshape(N_ZONES, N_DPHI)
     got = np.bincount(cell[hit], minlength=N_ZONES * N_DPHI).reshape(N_ZONES, N_DPHI)
-    rate = got / np.maximum(tried, 1)
-    rate = 0.5 * rate + 0.25 * (np.roll(rate, 1, axis=1) + np.roll(rate, -1, axis=1))
-    total = rate.sum(axis=1, keepdims=True)
-    shape = np.where(total > 0, rate / np.where(total > 0, total, 1.0), 1.0 / N_DPHI)
-    pmf = (1.0 - FLOOR) * shape + FLOOR / N_DPHI
-    pmf = pmf / pmf.sum(axis=1, keepdims=True)
-    return LearnedRim(float(z), float(facing), coef, half, float(r_max), pmf)
+    return LearnedRim(float(z), float(facing), coef, half, float(r_max), azimuth_pmf(tried, got))
 
 
-__all__ = ["LearnedRim", "learned_rim", "edge_tags", "edge_rim", "paraxial_trace", "robust_fit"]
+__all__ = ["LearnedRim", "learned_rim", "edge_tags", "edge_rim", "paraxial_trace", "robust_fit", "azimuth_bin",
+           "azimuth_pmf", "cached_pilot", "N_DPHI", "FLOOR"]
