@@ -209,8 +209,9 @@ def main() -> None:
     q, seg = tracer.embree_rays / N_RAYS, tracer.segments / N_RAYS
     print(f"stray bundle (7°, 1.4x the pupil, to the first mechanical face or the detector): {N_RAYS / s_wall:,.0f} "
           f"rays/s, {seg:.1f} segments and {q:.1f} Embree queries per ray; per segment {s_wall / seg / raw:.2f}x the "
-          f"raw cost of one query in wall time, {s_cpu / seg / raw_cpu:.2f}x in CPU time; per Embree query "
-          f"{s_cpu / q / raw_cpu:.1f}x in CPU time, the walk's steps included")
+          f"raw cost of one query in wall time, {s_cpu / seg / raw_cpu:.2f}x in CPU time; "
+          + (f"per Embree query {s_cpu / q / raw_cpu:.1f}x in CPU time, the walk's steps included" if q
+             else "no Embree query was needed"))
 
     # One core, as each worker process of `simulate` traces (its neighbours have the other cores).
     lens_kernel.one_core_per_process()

@@ -134,8 +134,9 @@ class Bidirectional:
         cfg = self.settings
         scale = radius_scale_of(pass_index, cfg) if radius_scale is None else float(radius_scale)
         half_widths, boundaries = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
+        scatters = scattering_tags(scene)
         core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
-        core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
+        core[~scatters] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
         core[optical_faces(scene.mesh.tag_table)] = np.inf  # a scattering mirror: the photons count it (docstring)
         broad = np.isfinite(core)
         by_routes = route_reflections(scene, cfg)
@@ -158,7 +159,6 @@ class Bidirectional:
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = time.perf_counter()
-        scatters = scattering_tags(scene)
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
