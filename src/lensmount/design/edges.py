@@ -90,19 +90,20 @@ class EdgeClip:
                 f"the designed pupil by {self.vignetting()}")
 
 
-def _gap(p: Prescription, i: int, r: np.ndarray) -> np.ndarray:
-    """Axial glass thickness between faces i and i + 1 at heights r, along the light (inf where a
-    profile does not reach)."""
+def face_gap(p: Prescription, i: int, r: np.ndarray) -> np.ndarray:
+    """Axial distance between faces i and i + 1 (glass or air) at heights r, along the light (inf
+    where a profile does not reach; negative where they cross)."""
     z, pa, pb = p.vertex_z, Profile.of(p.surfaces[i]), Profile.of(p.surfaces[i + 1])
     gap = ((z[i + 1] + pb.sag(r * r)) - (z[i] + pa.sag(r * r))) * p.travel[i]
     return np.where(np.isfinite(gap), gap, np.inf)
 
 
-def _height_where(p: Prescription, i: int, lo: float, hi: float, thickness: float) -> float:
-    """The height in [lo, hi] where the gap falls to `thickness` (gap(lo) >= thickness > gap(hi))."""
+def height_at_gap(p: Prescription, i: int, lo: float, hi: float, thickness: float) -> float:
+    """The height in [lo, hi] where the gap falls to `thickness` (gap(lo) >= thickness > gap(hi)),
+    by bisection to the last bit: the largest height found with gap >= thickness."""
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _gap(p, i, np.array([mid]))[0] >= thickness else (lo, mid)
+        lo, hi = (mid, hi) if face_gap(p, i, np.array([mid]))[0] >= thickness else (lo, mid)
     return lo
 
 
@@ -126,14 +127,14 @@ def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
         h = max(needed) if not p.surfaces[i].is_air_after else min(needed)
         reach = min(Profile.of(p.surfaces[j]).max_radius() for j in (i, i + 1))
         r = np.linspace(0.0, min(h, reach), _SAMPLES)
-        along = _gap(p, i, r)
+        along = face_gap(p, i, r)
         if along.min() >= -1e-9 or along[0] < gap:   # no crossing, or too thin on the axis: nothing to edge
             continue
         k, m = int(np.argmax(along < gap)), int(np.argmax(along < -1e-9))
-        height = _height_where(p, i, r[k - 1], r[k], gap)
+        height = height_at_gap(p, i, r[k - 1], r[k], gap)
         if not p.surfaces[i].is_air_after and any(not clippable[j] and needed[j - i] > height for j in (i, i + 1)):
             continue   # the element's edge is a size the file gives (or the stop's): design.lens refuses it
-        return i, needed, _height_where(p, i, r[m - 1], r[m], 0.0), height
+        return i, needed, height_at_gap(p, i, r[m - 1], r[m], 0.0), height
     return None
 
 
@@ -208,9 +209,10 @@ def clip_warnings(clips) -> list[str]:
 def _least_gap(p: Prescription, i: int, h: float) -> float:
     """The least glass thickness between faces i and i + 1 out to height h (negative: crossed)."""
     reach = min(Profile.of(p.surfaces[j]).max_radius() for j in (i, i + 1))
-    return float(_gap(p, i, np.linspace(0.0, min(h, reach), _SAMPLES)).min())
+    return float(face_gap(p, i, np.linspace(0.0, min(h, reach), _SAMPLES)).min())
 
 
 
 
-__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "clip_gap", "clip_warnings", "lost_together"]
+__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "clip_gap", "clip_warnings", "lost_together",
+           "face_gap", "height_at_gap"]

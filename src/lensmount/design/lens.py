@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lensmount.design.edges import EdgeClip, clip_crossing_elements
+from lensmount.design.edges import EdgeClip, clip_crossing_elements, face_gap, height_at_gap
 from lensmount.errors import InputError
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
@@ -158,33 +158,25 @@ def _check_crossings(p: Prescription, file: str, given=None) -> None:
     smaller one), since what lies beyond is the mount's business. `given[i]`: surface i's
     semi-diameter is the file's (else the beam's own, which then needs the crossed zone).
     """
-    z = p.vertex_z
-    travel = p.travel
     for i in range(len(p.surfaces) - 1):
         a, b = p.surfaces[i], p.surfaces[i + 1]
         ha, hb = _outer_semi_diameter(a), _outer_semi_diameter(b)
         if ha is None or hb is None:
             continue
-        pa, pb = Profile.of(a), Profile.of(b)
         h = max(ha, hb) if not a.is_air_after else min(ha, hb)
-        h = min(h, pa.max_radius(), pb.max_radius())
+        h = min(h, Profile.of(a).max_radius(), Profile.of(b).max_radius())
         r = np.linspace(0.0, h, _CROSS_SAMPLES)
-        gap = ((z[i + 1] + pb.sag(r * r)) - (z[i] + pa.sag(r * r))) * travel[i]  # along the light
-        gap = np.where(np.isfinite(gap), gap, np.inf)
+        gap = face_gap(p, i, r)
         k = int(np.argmin(gap))
         if gap[k] < -_CROSS_TOL:
             medium = "glass" if not a.is_air_after else "air"
             m = int(np.argmax(gap < -_CROSS_TOL))   # first sample past the meeting radius
-            lo, hi = r[max(m - 1, 0)], r[m]
-            for _ in range(40):
-                mid = 0.5 * (lo + hi)
-                ahead = ((z[i + 1] + pb.sag(mid * mid)) - (z[i] + pa.sag(mid * mid))) * travel[i] < -_CROSS_TOL
-                lo, hi = (lo, mid) if ahead else (mid, hi)
+            meet = height_at_gap(p, i, r[max(m - 1, 0)], r[m], -_CROSS_TOL)
             whose = [f"{h:.4g} mm on surface {j + 1} ("
                      + ("the file's" if given is None or given[j] else "reached by the beam of the full field "
                         "and aperture") + ")" for j, h in ((i, ha), (i + 1, hb))]
             raise InputError(
-                f"surfaces {i + 1} and {i + 2} cross each other: the faces meet {hi:.4g} mm from the axis, and at {r[k]:.4g} mm surface {i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} "
+                f"surfaces {i + 1} and {i + 2} cross each other: the faces meet {meet:.4g} mm from the axis, and at {r[k]:.4g} mm surface {i + 2} lies {-gap[k]:.3g} mm in front of surface {i + 1} "
                 f"({medium} gap of {a.thickness:g} mm on the axis), inside the semi-diameters {' and '.join(whose)}",
                 file=file, field=f"surface[{i + 1}].thickness",
                 valid=f"a thickness of at least {a.thickness - gap[k]:.4g} mm, or flatter curvatures")
