@@ -170,8 +170,8 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
     unit = "mm" if raw.finite_object else "°"
     numbers = _element_numbers(raw)
     clips = []
-    for i, needed, meet, height in found:
-        lost = pupil_lost_at(complete, (i, i + 1), fields)
+    losses = pupil_lost_at(complete, [(i, i + 1) for i, *_ in found], fields)  # one trace of the beam for all
+    for (i, needed, meet, height), lost in zip(found, losses):
         elements = (numbers[i],) if numbers[i] else (numbers[i - 1], numbers[i + 1])
         clips.append(EdgeClip(elements, (i, i + 1), meet, needed, height, gap,
                               tuple(float(f) for f in fields), tuple(float(v) for v in lost), unit))

@@ -120,11 +120,12 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
 LOSS_PUPIL_STEP = 0.02  # pupil grid pitch (normalised): ~7 850 points, a loss resolved to ~0.02 %
 
 
-def pupil_lost_at(prescription: Prescription, surfaces, fields) -> np.ndarray:
-    """(F,) fraction of each field's designed pupil (the file's vignetting factors applied, equal
-    areas of the unit disc) whose rays stop at one of `surfaces` (0-based), the worst wavelength.
+def pupil_lost_at(prescription: Prescription, surface_sets, fields) -> np.ndarray:
+    """(S, F) per set of surfaces (0-based) in `surface_sets`, the fraction of each field's designed
+    pupil (the file's vignetting factors applied, equal areas of the unit disc) whose rays stop at
+    one of them, the worst wavelength. One trace of the beam serves every set.
 
-    The stop passes its rim as for the automatic semi-diameters, so only what `surfaces` clip counts.
+    The stop passes its rim as for the automatic semi-diameters, so only what the sets clip counts.
     """
     g = np.arange(-1.0 + 0.5 * LOSS_PUPIL_STEP, 1.0, LOSS_PUPIL_STEP)
     x, y = np.meshgrid(g, g)
@@ -132,11 +133,12 @@ def pupil_lost_at(prescription: Prescription, surfaces, fields) -> np.ndarray:
     disc = disc[np.einsum("ij,ij->i", disc, disc) <= 1.0]
     fields = np.atleast_1d(np.asarray(fields, dtype=np.float64))
     pupil = vignetted_pupils(prescription, fields, disc)
-    idx = np.asarray(list(surfaces), dtype=np.int64)
-    lost = np.zeros(len(fields))
+    sets = [np.asarray(list(surfaces), dtype=np.int64) for surfaces in surface_sets]
+    lost = np.zeros((len(sets), len(fields)))
     for rays in _beam(_stop_passing_the_rim(prescription), fields, pupil, clip=True):
-        stopped = np.isin(rays.vignetted_at, idx).reshape(len(fields), -1)
-        lost = np.maximum(lost, stopped.mean(axis=1))
+        for k, idx in enumerate(sets):
+            stopped = np.isin(rays.vignetted_at, idx).reshape(len(fields), -1)
+            lost[k] = np.maximum(lost[k], stopped.mean(axis=1))
     return lost
 
 
