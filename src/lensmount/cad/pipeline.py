@@ -162,7 +162,7 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     if progress:
         progress("export", len(parts) + 2, len(parts) + 2)
     manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(),
-                        notes=list(design.lens_warnings) + list(layout.notes))
+                        notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes))
     write_text(out / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume), bp.plan.template)
                                    for bp in parts], layout.prescription, spec))
     write_text(out / MANIFEST, manifest.to_json())

@@ -42,7 +42,7 @@ class Design:
         template_paths: part kind → user template file.
         input_hash: content hash of the CAD inputs (hex).
         lens_warnings: what the import changed that a result depends on (design.edges: elements
-            edged inside the beam, and what that vignettes), each "lens: …"; regenerate and simulate report them.
+            edged inside the beam, and what that vignettes); regenerate and simulate report them.
     """
 
     root: Path
@@ -103,7 +103,7 @@ def load_design(directory: str | Path) -> Design:
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
-                  content_hash(lens_path, mount_path, templates), tuple(f"lens: {w}" for w in clip_warnings(clips)))
+                  content_hash(lens_path, mount_path, templates), tuple(clip_warnings(clips)))
 
 
 __all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

@@ -238,7 +238,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
-    warnings: list[str] = list(sc.warnings) + list(design.lens_warnings)
+    warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
 
     photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
     if not any(v is not None for v in (photons, time_s, target, passes)):
