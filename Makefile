@@ -64,9 +64,11 @@ PYTEST_WORKERS ?= -n 2 --dist loadfile
 
 # CI subset: everything but the tests marked slow.
 test: install-test browser
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -m "not slow" -q $(PYTEST_WORKERS)
 
 test-all: install-test browser
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q $(PYTEST_WORKERS)
 
 bench: install-test

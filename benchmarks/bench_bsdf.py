@@ -10,8 +10,8 @@ import time
 
 import numpy as np
 
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.sampler import stream
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.sampler import stream
 
 MODELS = [
     ("lambertian", {"reflectance": 0.1}),

@@ -40,7 +40,7 @@ EDGE = "diaphragm-edge"
 
 def split_edge(scene):
     """The scene with the diaphragm edge's faces as a part (channel) of their own."""
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
 
     m = scene.mesh
     table = [replace(t, part=EDGE) if t.role == "diaphragm-edge" else t for t in m.tag_table]

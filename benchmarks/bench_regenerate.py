@@ -16,7 +16,7 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "double-gauss-360"
 
 
 def main() -> None:
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
 
     with tempfile.TemporaryDirectory() as tmp:
         design = Path(tmp) / "design"

@@ -34,7 +34,7 @@ def _timed(scene, executor, passes: int):
     """Seconds for `passes` passes after one warm-up pass (tracer built, pool up), and the flux series."""
     from lensmount.analysis.passes import Accumulator
     from lensmount.integrators.bidirectional import part_names
-    from lensmount.runner import PassJob, Runner, Stopping
+    from lensmount.run.runner import PassJob, Runner, Stopping
 
     def job(i):
         return PassJob("bidirectional", PHOTONS, 1, i)
@@ -48,7 +48,7 @@ def _timed(scene, executor, passes: int):
 
 
 def main() -> None:
-    from lensmount.executor import executor_for
+    from lensmount.run.executor import executor_for
 
     passes = int(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].isdigit() else 16
     scene = _scene()

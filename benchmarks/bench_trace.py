@@ -35,8 +35,8 @@ N_OPTILAND = 50_000
 
 
 def _reference():
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pipeline import regenerate
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import load_scene
     from lensmount.scene.build import build_scene
@@ -143,7 +143,7 @@ def _optiland_peer(p, n):
 
 
 def main() -> None:
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import DETECTOR, Tracer
 
     t0 = time.perf_counter()

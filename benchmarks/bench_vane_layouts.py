@@ -69,9 +69,9 @@ def run(design: Path, passes: int, off_axis_deg: float, black: tuple[str, ...] =
     """(hood vanes, stray fraction, std error, bias bound, hood + hood vanes share, per-pass stray
     fractions) of case 2 (`scene`, else `scene_of(design, off_axis_deg, black)`)."""
     from lensmount.analysis.passes import Accumulator
-    from lensmount.executor import executor_for
+    from lensmount.run.executor import executor_for
     from lensmount.integrators.bidirectional import part_names
-    from lensmount.runner import PassJob, Runner, Stopping
+    from lensmount.run.runner import PassJob, Runner, Stopping
 
     scene = scene if scene is not None else scene_of(design, off_axis_deg, black)[1]
     names = part_names(scene)
@@ -113,7 +113,7 @@ def lit_bore_seen(design, scene, angle: float):
     """(lit hood bore mm², every lit face but vane edges mm², smallest sun angle lighting that bore
     or None) the entrance aperture sees with the sun at `angle` or beyond (`lensmount check --from
     aperture`)."""
-    from lensmount.analysis.sightlines import lit_walls_seen
+    from lensmount.loop.sightlines import lit_walls_seen
 
     hs = design.mount.housing
     report = lit_walls_seen(design.prescription, scene.mesh, (hs.detector_width_mm, hs.detector_height_mm),

@@ -8,15 +8,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lensmount.analysis.ghosts import ghost_report
+from lensmount.loop.ghosts import ghost_report
 from lensmount.integrators.estimate import film_channels
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene.build import optical_surfaces
 from lensmount.scene.scene import Effects
-from lensmount.trace.detector import Detector
-from lensmount.trace.interfaces import parse_coating
-from lensmount.trace.sources import CollimatedSource, EmissionDisc
+from lensmount.physics.detector import Detector
+from lensmount.physics.interfaces import parse_coating
+from lensmount.physics.sources import CollimatedSource, EmissionDisc
 
 WL = 0.5875618
 R1, T, H = 51.68, 6.0, 1.5  # a plano-convex N-BK7 singlet (f ≈ 100 mm) stopped down to f/33: paraxial
@@ -83,7 +83,7 @@ def test_order_3_adds_the_four_reflection_ghost_with_its_fresnel_product():
 
 
 def test_perfect_ar_means_no_ghost_and_no_rays_traced(monkeypatch):
-    import lensmount.analysis.ghosts as ghosts
+    import lensmount.loop.ghosts as ghosts
 
     def fail(*args, **kwargs):
         raise AssertionError("a pair with no reflectance was traced")
@@ -117,7 +117,7 @@ def test_ghost_report_agrees_with_the_forward_estimators_ghost_channel():
     from lens_scenes import singlet_barrel
 
     from lensmount.integrators.forward import forward_pass
-    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.physics.bsdf import make_bsdf
     from lensmount.trace.tracer import Tracer
 
     scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=2.0, pixels=(40, 40), detector_mm=60.0,

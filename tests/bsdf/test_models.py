@@ -12,8 +12,8 @@ from scipy import integrate
 
 from bsdf_support import incidence, mirror_of
 from lensmount.errors import InputError
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.sampler import stream
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.sampler import stream
 
 
 # -- closed forms ---------------------------------------------------------------------------
@@ -175,7 +175,7 @@ def test_tis_just_below_one_is_accepted():
 
 
 def test_model_names_are_case_insensitive_and_public_alias_exports_them():
-    import lensmount.bsdf as public
+    import lensmount.physics.bsdf as public
     assert isinstance(public.make_bsdf("Lambertian", reflectance=0.1), public.Lambertian)
     assert set(public.MODELS) == {"absorber", "lambertian", "gaussian", "abg", "harvey", "mirror", "tabulated"}
     assert public.MODELS["tabulated"] is public.Tabulated

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from bsdf_support import chi2_test, incidence, independent_albedo
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.sampler import stream
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.sampler import stream
 
 CASES = {
     "lambertian": ("lambertian", {"reflectance": 0.3}),

@@ -9,8 +9,8 @@ import pytest
 
 from lensmount.design.brdf_data import read_brdf
 from lensmount.errors import InputError
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.bsdf.tabulated import fit_abg, measured_profile
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.bsdf.tabulated import fit_abg, measured_profile
 
 A, B, G = 2e-3, 1e-3, 2.0  # black-paint-like ABg: a 1.8° shoulder, most of the TIS in the wings
 

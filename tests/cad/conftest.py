@@ -32,7 +32,7 @@ def design_copier():
 @pytest.fixture(scope="session")
 def reference(tmp_path_factory):
     """(design dir, out dir, Manifest) of examples/double-gauss-360, built once."""
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
 
     base = tmp_path_factory.mktemp("dg360")
     design = copy_design("double-gauss-360", base / "design")
@@ -55,7 +55,7 @@ def reference_layout():
 
 @pytest.fixture(scope="session")
 def reference_mesh(reference):
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
 
     _, out, _ = reference
     return TaggedMesh.load(out / "mesh.npz")

@@ -111,11 +111,11 @@ def _spiders(mesh, bore: float) -> set[str]:
 @pytest.mark.slow
 @pytest.mark.parametrize("lens", MIRRORS, ids=[p.stem for p in MIRRORS])
 def test_mirror_lens_gets_a_mount_that_builds_clears_the_beam_traces_like_the_file_and_simulates(lens, tmp_path):
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.folder import load_design
     from lensmount.design.scene import scene_from_dict
     from lensmount.scene.build import build_scene
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import DETECTOR, Tracer
 
     design = tmp_path / "design"
@@ -176,7 +176,7 @@ def test_cassegrain_plan_holds_the_secondary_on_a_spider_and_opens_the_primary_f
     from lensmount.cad.checks import check_layout
     from lensmount.cad.layout import plan
     from lensmount.design.lens import load_lens
-    from lensmount.design.starter import starter_mount
+    from lensmount.cad.starter import starter_mount
     from lensmount.design.mount import parse_mount
     from lensmount.optics.realrays import aim, trace
     from lensmount.templates.cell import SpiderCell

@@ -38,7 +38,7 @@ def test_init_refuses_a_non_empty_folder(tmp_path):
 def test_tessellation_options_change_the_mesh_not_the_steps(tmp_path, cooke):
     import shutil
 
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
 
     runner = CliRunner()
     d, out = tmp_path / "cooke", tmp_path / "out"

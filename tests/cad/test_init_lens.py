@@ -134,7 +134,7 @@ def test_refractive_corpus_lens_gets_a_mount_that_builds_clears_the_beam_and_sim
     reg = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
     assert reg.exit_code == 0, reg.output
 
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.cad.pupil import realised_entrance_pupil
 
     build = design / "build"

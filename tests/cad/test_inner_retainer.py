@@ -43,8 +43,8 @@ def test_no_room_for_shoulder_and_ring_is_reported(examples_dir):
 
 @pytest.mark.slow
 def test_inner_retainer_regenerates(tmp_path, design_copier):
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pipeline import regenerate
+    from lensmount.mesh import TaggedMesh
     from lensmount.cad.pupil import realised_entrance_pupil
 
     d = design_copier("double-gauss-360", tmp_path / "d")

@@ -16,7 +16,7 @@ from lensmount.cad.checks import check_layout
 from lensmount.cad.layout import plan
 from lensmount.design.lens import load_lens
 from lensmount.design.mount import parse_mount
-from lensmount.design.starter import starter_mount
+from lensmount.cad.starter import starter_mount
 
 CORPUS = Path(__file__).resolve().parents[1] / "optics" / "corpus"
 

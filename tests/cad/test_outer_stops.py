@@ -66,8 +66,8 @@ def test_outer_stop_is_clamped_by_a_lip_and_a_spacer(tmp_path, stop):
 @pytest.mark.slow
 @pytest.mark.parametrize("stop", ["front", "rear"])
 def test_outer_stop_regenerates_and_realises_the_pupil(tmp_path, stop):
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pipeline import regenerate
+    from lensmount.mesh import TaggedMesh
     from lensmount.cad.pupil import realised_entrance_pupil
     from lensmount.optics.paraxial import paraxial
 

@@ -5,7 +5,7 @@ diaphragm, on a stop plane in air (reference) and behind a curved stop face (Coo
 import numpy as np
 import pytest
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.cad.pupil import realised_entrance_pupil
 from lensmount.design.lens import load_lens
 from lensmount.optics.paraxial import paraxial

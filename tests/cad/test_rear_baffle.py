@@ -67,7 +67,7 @@ def test_rear_baffle_regenerates_into_valid_step_and_check_sees_it(tmp_path, des
     from build123d import import_step
     from typer.testing import CliRunner
 
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.cli import app
 
     d = design_copier("double-gauss-360", tmp_path / "d")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from lensmount.cad.mesh import KINDS, ROLES
+from lensmount.mesh import KINDS, ROLES
 
 REQUIRED = ["barrel", "diaphragm", "hood", "housing", "retainer-1", "spacer-1", "spacer-2", "spacer-3",
             "spacer-4", "vane-1", "vane-2", "vane-3"] + [f"lens-{i}" for i in range(1, 7)]
@@ -136,7 +136,7 @@ def test_second_run_comes_from_the_cache(reference, monkeypatch):
 
 
 def test_changing_vane_count_rewrites_only_vane_steps(reference, tmp_path):
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
 
     design, out, manifest = reference
     d2, o2 = tmp_path / "design", tmp_path / "out"

@@ -36,7 +36,7 @@ def test_a_thin_edged_crown_is_stepped_and_the_group_seated_on_its_flint():
     from lensmount.cad.layout import plan
     from lensmount.design.lens import load_lens
     from lensmount.design.mount import parse_mount
-    from lensmount.design.starter import starter_mount
+    from lensmount.cad.starter import starter_mount
 
     p = load_lens(CORPUS / "US00583336-2-scaled.zmx")
     assert _sag(R_CROWN, CLEAR) - _sag(R_CEMENT, CLEAR) == pytest.approx(T_CROWN - 0.266, abs=5e-4)

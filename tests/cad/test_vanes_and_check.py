@@ -71,10 +71,10 @@ def test_vane_layout_changes_what_the_aperture_sees_not_what_the_detector_sees(t
     Seen from the entrance aperture: both even layouts leave some of the hood's bore lit and in
     sight (the 3 vanes tens of cm², the 12 the first bays, lit by suns steeper than ~70°), the
     line-of-sight vanes none of it."""
-    from lensmount.analysis.sightlines import lit_walls_seen
-    from lensmount.cad import regenerate
+    from lensmount.loop.sightlines import lit_walls_seen
+    from lensmount.cad.pipeline import regenerate
     from lensmount.cad.layout import plan
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.folder import load_design
 
     def placed(name, placement, count=None):

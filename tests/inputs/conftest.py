@@ -49,7 +49,7 @@ OUTPUTS = ("summary.json", "irradiance.exr", "preview.png", "checkpoint.npz")
 def cooke_built(tmp_path_factory):
     """(design folder, its geometry folder DESIGN/build) of `lensmount init -e cooke-triplet`,
     regenerated once."""
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
 
     base = tmp_path_factory.mktemp("cooke")
     design = base / "design"

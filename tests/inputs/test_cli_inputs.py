@@ -51,7 +51,7 @@ def test_mount_finish_for_a_part_that_does_not_exist(cooke_built):
     would cost a rebuild)."""
     import pytest
 
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.mount import check_finish_parts, parse_mount
     from lensmount.errors import InputError
     from lensmount.validation import parse_toml
@@ -137,10 +137,10 @@ def test_housing_bore_is_the_one_built_for_the_detector(cooke_built):
     so a detector of the size the housing was built for gives no warning and a larger one does."""
     import math
 
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.folder import load_design
     from lensmount.scene.build import detector_warnings, housing_bore_at
-    from lensmount.trace.detector import Detector
+    from lensmount.physics.detector import Detector
 
     design, geometry = cooke_built
     mesh = TaggedMesh.load(geometry / "mesh.npz")

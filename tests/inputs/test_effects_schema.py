@@ -54,7 +54,7 @@ def test_malformed_effects_are_input_errors(table, words):
 
 
 def test_selectors_pick_the_faces_they_name(cooke_built):
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.scene.scene import Effects, scatterer_mask
 
     _, geometry = cooke_built

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import pytest
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.design.scene import load_scene, scene_from_dict
 from lensmount.errors import InputError
 from lensmount.scene import primitives
@@ -122,7 +122,7 @@ def test_mount_element_number_the_lens_does_not_have(tmp_path):
 
 
 def test_mount_errors_found_while_planning_the_cad_carry_the_line(tmp_path):
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
 
     d = tmp_path / "d"
     d.mkdir()

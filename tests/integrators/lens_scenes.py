@@ -13,15 +13,15 @@ import math
 
 import numpy as np
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
 from lensmount.scene.build import imaged_field_deg, optical_surfaces, solid_absorption_of_tag, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.detector import Detector
-from lensmount.trace.interfaces import parse_coating
-from lensmount.trace.sources import EmissionDisc, SunSource, source_direction
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.detector import Detector
+from lensmount.physics.interfaces import parse_coating
+from lensmount.physics.sources import EmissionDisc, SunSource, source_direction
 
 ROWS = [  # radius, thickness, material, stop
     (202.328568, 31.5, "SCHOTT:N-SSK2", False), (548.22888, 1.8, "AIR", False),

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.scene.scene import Effects
-from lensmount.trace.detector import Detector  # noqa: F401  (re-exported for the tests)
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.detector import Detector  # noqa: F401  (re-exported for the tests)
+from lensmount.physics.rays import RayBatch
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
 
 
@@ -129,7 +129,7 @@ class PlanarTracer:
 
 
 class Lambert:
-    """Minimal Lambertian BSDF for the planar world (independent of trace/bsdf)."""
+    """Minimal Lambertian BSDF for the planar world (independent of physics/bsdf)."""
 
     is_black = False
     is_delta = False

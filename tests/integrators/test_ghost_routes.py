@@ -10,14 +10,14 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import singlet_barrel  # noqa: E402
 
-from lensmount.analysis.ghosts import ghost_report  # noqa: E402
+from lensmount.loop.ghosts import ghost_report  # noqa: E402
 from lensmount.integrators.estimate import Film, film_channels  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections  # noqa: E402
 from lensmount.analysis.paths import PathSums, ghost_pairs  # noqa: E402
 from lensmount.integrators.paths import ghost_code, ghost_of  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 
@@ -131,7 +131,7 @@ def test_the_lattice_spans_the_beam_at_any_angle_and_nothing_enters_from_behind(
     from dataclasses import replace
 
     from lensmount.trace.ghosts import launch
-    from lensmount.trace.sources import CollimatedSource
+    from lensmount.physics.sources import CollimatedSource
 
     base = singlet_barrel(make_bsdf("absorber"), off_axis_deg=0.0, ghosts=True, coating="uncoated")
     sizes = {}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.integrators.media import air_radiance_factor
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Aperture, Prescription, Surface

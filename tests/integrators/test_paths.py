@@ -17,7 +17,7 @@ from lens_scenes import singlet_barrel  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator, t_factor  # noqa: E402
 from lensmount.analysis.paths import PathSums, signature_from_hex, top_paths  # noqa: E402
-from lensmount.cad.mesh import FaceTag  # noqa: E402
+from lensmount.mesh import FaceTag  # noqa: E402
 from lensmount.integrators.estimate import PassEstimate  # noqa: E402
 from lensmount.integrators.paths import EMPTY, FaceTally, PathTally, ghost_code, ghost_of, signature_of  # noqa: E402
 
@@ -115,7 +115,7 @@ def test_sums_over_passes_give_the_mean_and_the_spread_of_each_path(tmp_path):
     listed = sum(r["fraction"] for r in report["paths"]) + report["other"]["fraction"]
     assert listed == pytest.approx(acc.flux / 10) == pytest.approx(report["total_fraction"])
     # the run's report.html shows them
-    from lensmount.report import run_report
+    from lensmount.run.report import run_report
 
     html = run_report({"top_paths": report}, {})
     assert "part-0 face 0 (mount) → part-1 face 1 (mount)" in html and "1 other paths" in html
@@ -161,7 +161,7 @@ def test_a_singlet_ghost_is_named_by_its_surface_pair_and_fills_the_ghosts_chann
     """Uncoated singlet, black barrel, sun on axis: the only two-reflection ghost reaching the
     detector reflects at surface 2 (back toward the sun), then at surface 1 (1-based)."""
     from lensmount.integrators.forward import forward_pass
-    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.physics.bsdf import make_bsdf
     from lensmount.trace.tracer import Tracer
 
     scene = singlet_barrel(make_bsdf("absorber"), off_axis_deg=0.0, ghosts=True, coating="uncoated", detector_mm=40.0)

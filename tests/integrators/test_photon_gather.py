@@ -104,7 +104,7 @@ def test_glossy_rule_routes_by_the_share_of_the_lobe_a_gather_can_catch():
 
     from lensmount.integrators.bidirectional import gather_cores
     from lensmount.integrators.photon_gather import gatherable_share
-    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.physics.bsdf import make_bsdf
 
     abg = make_bsdf("abg", A=2e-3, B=1e-3, g=2)
     finishes = [make_bsdf("lambertian", reflectance=0.05), make_bsdf("gaussian", reflectance=0.05, half_width_deg=5.0),

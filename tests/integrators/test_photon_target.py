@@ -19,7 +19,7 @@ from lens_scenes import double_gauss_case  # noqa: E402
 
 from lensmount.integrators import photon_target as PT  # noqa: E402
 from lensmount.integrators.bidirectional import classify  # noqa: E402
-from lensmount.trace.sources import SunSource, emission_disc, orthonormal_basis, source_direction  # noqa: E402
+from lensmount.physics.sources import SunSource, emission_disc, orthonormal_basis, source_direction  # noqa: E402
 from lensmount.trace.tracer import FACE, Tracer  # noqa: E402
 
 THETA = 7.0

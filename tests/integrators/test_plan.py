@@ -22,8 +22,8 @@ from lensmount.integrators.estimate import AIMED_PASSES  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.plan import DIRECT_MARGIN_DEG, dispersion_free, plan  # noqa: E402
 from lensmount.scene.scene import Effects  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
-from lensmount.trace.interfaces import parse_coating  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.interfaces import parse_coating  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 ALL_ON = Effects(scatter=True, ghosts=True, direct=True)

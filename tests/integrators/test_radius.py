@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.radius import FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_caps, radius_scale
+from lensmount.integrators.radius import (
+    FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_caps, radius_scale)
 
 
 def test_schedule_matches_recurrence_for_10000_passes():

@@ -7,7 +7,7 @@ import pytest
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.results import read_exr, write_run, write_summary
+from lensmount.run.results import read_exr, write_run, write_summary
 
 
 def _acc():
@@ -53,7 +53,7 @@ def test_preview_of_an_all_zero_image(tmp_path):
 
 
 def test_display_binning_keeps_a_converged_image_and_coarsens_a_speckled_one():
-    from lensmount.results import display_binning
+    from lensmount.run.results import display_binning
 
     rng = np.random.default_rng(3)
     smooth = np.full((60, 60), 2.0)
@@ -68,7 +68,7 @@ def test_display_binning_keeps_a_converged_image_and_coarsens_a_speckled_one():
 
 
 def test_display_binning_of_a_dark_image_is_the_image():
-    from lensmount.results import display_binning
+    from lensmount.run.results import display_binning
 
     dark = np.zeros((6, 4))
     assert display_binning(dark, dark)[0] == 1

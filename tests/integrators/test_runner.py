@@ -12,7 +12,7 @@ from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E40
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.integrators.bidirectional import part_names  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
-from lensmount.runner import PassJob, Runner, Stopping  # noqa: E402
+from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
 
 TRACER = "planar:PlanarTracer"
 

@@ -20,7 +20,7 @@ from lensmount.integrators import targets as T  # noqa: E402
 from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, classify  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc, mixture_pdf, sample_toward_exit  # noqa: E402
 from lensmount.integrators.view_map import build_view_map, stop_rim_target  # noqa: E402
-from lensmount.trace.sampler import stream  # noqa: E402
+from lensmount.physics.sampler import stream  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 Z_T, D = 0.0, 100.0  # target plane, detector 100 mm behind it (detector at z = 100)

@@ -20,8 +20,8 @@ from lensmount.integrators.estimate import ledger_residual  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.integrators.walk import NonFiniteError  # noqa: E402
-from lensmount.runner import INTEGRATORS  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.run.runner import INTEGRATORS  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lensmount.results import write_exr, write_summary
+from lensmount.run.results import write_exr, write_summary
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"
 

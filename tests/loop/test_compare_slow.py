@@ -54,11 +54,11 @@ def test_runs_with_different_seeds_are_not_a_regression(tmp_path):
     # Tolerance 0 (any significant increase is a regression) is the hardest case for noise: with
     # the default 5 % the 4-pass intervals would rarely even reach it.
     from lensmount.analysis.passes import Accumulator
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.folder import load_design
     from lensmount.design.scene import load_scene
-    from lensmount.loop import RegenerateOptions, regenerate
-    from lensmount.runner import PassJob, run_pass
+    from lensmount.loop.regenerate import RegenerateOptions, regenerate
+    from lensmount.run.runner import PassJob, run_pass
     from lensmount.scene.build import build_scene
     from lensmount.trace.tracer import Tracer
 

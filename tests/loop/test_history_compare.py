@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 from lensmount.cli import app
 from lensmount.design.folder import load_design
 from lensmount.loop.provenance import collect, resolve_revision
-from lensmount.results import read_exr
-from lensmount.store import Store
+from lensmount.run.results import read_exr
+from lensmount.run.store import Store
 from tests.loop.runs import EXAMPLE, git, paths, write_run
 
 SCENE = "case1-diaphragm-edge"

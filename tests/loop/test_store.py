@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from lensmount.store import Store, default_path
+from lensmount.run.store import Store, default_path
 from tests.loop.runs import paths, write_run
 
 
@@ -32,7 +32,7 @@ def test_store_location(tmp_path, monkeypatch):
 
 
 def _die_during_insert(db_path, folder):
-    from lensmount.store import Store
+    from lensmount.run.store import Store
     from tests.loop.runs import paths, write_run
 
     store = Store(db_path)
@@ -55,7 +55,7 @@ def test_a_writer_killed_mid_insert_leaves_no_row(tmp_path):
 
 
 def _writer(db_path, folder, n, barrier):
-    from lensmount.store import Store
+    from lensmount.run.store import Store
     from tests.loop.runs import paths, write_run
 
     summary = write_run(folder, 1.0, 0.1)

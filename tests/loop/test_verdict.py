@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.analysis.compare import (IMPROVEMENT, NO_REGRESSION, REGRESSION, UNDECIDED, Measurement, judge,
-                                        parse_fraction)
+from lensmount.analysis.compare import (
+    IMPROVEMENT, NO_REGRESSION, REGRESSION, UNDECIDED, Measurement, judge, parse_fraction)
 
 
 def run(rng, true_value, pass_sd, passes, photons_per_pass=100_000, seconds_per_pass=1.0):

@@ -11,8 +11,8 @@ import pytest
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Aperture, Prescription, Surface
-from lensmount.optics.realrays import (aim, chief_ray, field_direction, marginal_ray, refract, spot,
-                                       stop_semi_diameter, trace)
+from lensmount.optics.realrays import (
+    aim, chief_ray, field_direction, marginal_ray, refract, spot, stop_semi_diameter, trace)
 
 
 def test_flat_plate_displaces_rays_by_the_textbook_formula(make_plate):

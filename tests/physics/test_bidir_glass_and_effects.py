@@ -13,7 +13,7 @@ from lens_scenes import glass_rim, singlet_barrel  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.scene.scene import Effects  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 

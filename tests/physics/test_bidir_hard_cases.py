@@ -23,8 +23,8 @@ from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.integrators.radius import radius_scale  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
-from lensmount.results import write_run  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.run.results import write_run  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 
@@ -68,7 +68,7 @@ def test_point_source_exactly_on_axis_gives_exactly_zero():
     summary must say "no signal" with a bound instead of 0 ± 0."""
     import dataclasses
 
-    from lensmount.trace.sources import CollimatedSource
+    from lensmount.physics.sources import CollimatedSource
 
     scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.1), off_axis_deg=0.0)
     scene = dataclasses.replace(scene, source=CollimatedSource(0.0, 90.0, scene.source.disc))

@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from lensmount.analysis.passes import Accumulator
-from lensmount.cad import regenerate
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.cad.pipeline import regenerate
+from lensmount.mesh import TaggedMesh
 from lensmount.design.folder import load_design
 from lensmount.design.scene import scene_from_dict
 from lensmount.integrators.bidirectional import bidirectional_pass

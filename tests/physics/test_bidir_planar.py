@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from planar import Collimated, Detector, Face, PlanarScene, PlanarTracer  # noqa: E402
 
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 
 THETA = math.radians(30.0)
 SUN = (math.sin(THETA), 0.0, -math.cos(THETA))  # travelling down onto plates facing +z

@@ -17,17 +17,17 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.integrators.bidirectional import bidirectional_pass
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
 from lensmount.scene.build import optical_surfaces, solid_absorption_of_tag, solid_index_of_tag
 from lensmount.scene.scene import Effects, Scene
-from lensmount.trace.bsdf import make_bsdf
-from lensmount.trace.detector import Detector
-from lensmount.trace.interfaces import parse_coating
-from lensmount.trace.sources import EmissionDisc, SunSource, source_direction
+from lensmount.physics.bsdf import make_bsdf
+from lensmount.physics.detector import Detector
+from lensmount.physics.interfaces import parse_coating
+from lensmount.physics.sources import EmissionDisc, SunSource, source_direction
 from lensmount.trace.tracer import Tracer
 
 RHO = 0.5

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.trace.geometry import make_scene, mech_scene, window  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.scene import primitives  # noqa: E402
-from lensmount.trace.sources import EmissionDisc  # noqa: E402
+from lensmount.physics.sources import EmissionDisc  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 A, H, RHO, THETA = 5.0, 10.0, 0.5, 120.0  # disc radius, detector height, reflectance, source angle (deg)
@@ -107,7 +107,7 @@ def test_direct_light_through_a_window(theta):
                        coatings={"default": "uncoated"}, effects={"direct": True, "scatter": False})
     est = forward_pass(scene, Tracer(scene), 100_000, seed=1, pass_index=0)
     n = float(scene.optical[0].n_after[0])
-    from lensmount.trace.interfaces import Coating, reflectance
+    from lensmount.physics.interfaces import Coating, reflectance
     c1 = math.cos(math.radians(theta))
     c2 = math.sqrt(1 - (math.sin(math.radians(theta)) / n) ** 2)
     r1 = reflectance(np.array([1.0]), np.array([n]), np.array([c1]), Coating("uncoated"), np.array([0.55]))[0]

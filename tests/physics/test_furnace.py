@@ -18,8 +18,8 @@ from lensmount.integrators.estimate import EnergyLedger, Film, ledger_residual  
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.integrators.walk import photon_walk  # noqa: E402
 from lensmount.scene import primitives  # noqa: E402
-from lensmount.trace.rays import RayBatch  # noqa: E402
-from lensmount.trace.sampler import stream  # noqa: E402
+from lensmount.physics.rays import RayBatch  # noqa: E402
+from lensmount.physics.sampler import stream  # noqa: E402
 from lensmount.trace.tracer import FACE, GONE, Tracer  # noqa: E402
 
 

@@ -19,7 +19,7 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 @pytest.mark.slow
 def test_ghost_routes_agree_with_the_stochastic_branch_on_the_cooke_triplet(tmp_path):
-    from lensmount.analysis.ghosts import ghost_report
+    from lensmount.loop.ghosts import ghost_report
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.loop.prepare import prepare
     from lensmount.trace.tracer import Tracer

@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.physics.ghost_channel import ghosts_channel  # noqa: E402
 from tests.trace.geometry import make_scene  # noqa: E402
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh  # noqa: E402
+from lensmount.mesh import FaceTag, TaggedMesh  # noqa: E402
 from lensmount.errors import InputError  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.estimate import EnergyLedger, Film, ledger_residual  # noqa: E402
@@ -30,8 +30,8 @@ from lensmount.optics.prescription import Aperture, Prescription, Surface  # noq
 from lensmount.optics.profiles import Profile  # noqa: E402
 from lensmount.scene import primitives  # noqa: E402
 from lensmount.scene.primitives import _cap  # noqa: E402
-from lensmount.trace.rays import RayBatch  # noqa: E402
-from lensmount.trace.sampler import Streams  # noqa: E402
+from lensmount.physics.rays import RayBatch  # noqa: E402
+from lensmount.physics.sampler import Streams  # noqa: E402
 from lensmount.trace.tracer import FACE, GONE, MIRROR_SCATTER_MIN_SHARE, Tracer  # noqa: E402
 
 FAR = {"width_mm": 1.0, "height_mm": 1.0, "pixels": [1, 1], "z_mm": 1.0e4}  # behind the mirror: nothing lands
@@ -319,7 +319,7 @@ def _init(design: Path) -> None:
 
 def test_init_writes_a_mirror_lens_a_case2_scene_whose_mirrors_scatter_as_polished_mirrors(tmp_path):
     from lensmount.design.scene import load_scene
-    from lensmount.trace.bsdf import make_bsdf
+    from lensmount.physics.bsdf import make_bsdf
 
     _init(tmp_path / "design")
     case2 = load_scene(tmp_path / "design" / "scenes" / "case2-lambertian.toml")

@@ -18,7 +18,7 @@ from tests.trace.geometry import double_gauss, double_gauss_mesh, make_scene  # 
 from lensmount.optics.glass import internal_transmittance  # noqa: E402
 from lensmount.optics.paraxial import paraxial  # noqa: E402
 from lensmount.optics.realrays import trace  # noqa: E402
-from lensmount.trace.rays import RayBatch  # noqa: E402
+from lensmount.physics.rays import RayBatch  # noqa: E402
 from lensmount.trace.tracer import DETECTOR, Tracer  # noqa: E402
 
 
@@ -84,8 +84,8 @@ def test_dispersion_separates_colours(lens_and_tracer):
 def test_through_the_regenerated_cad_mesh(tmp_path):
     """The same check on the mount engineer's tessellated CAD (lens solids from STEP faces)."""
     pytest.importorskip("build123d")
-    from lensmount.cad import regenerate
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.cad.pipeline import regenerate
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import scene_from_dict
     from lensmount.scene.build import build_scene

@@ -17,10 +17,10 @@ import pytest
 from typer.testing import CliRunner
 
 from lensmount.analysis.paths import read_paths
-from lensmount.cad.mesh import ROLES
+from lensmount.mesh import ROLES
 from lensmount.cli import app
 from lensmount.integrators.paths import EMPTY
-from lensmount.loop import SimulateOptions, simulate
+from lensmount.loop.simulate import SimulateOptions, simulate
 
 pytestmark = pytest.mark.slow
 DESIGN = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"

@@ -13,7 +13,7 @@ from lens_scenes import singlet_barrel  # noqa: E402
 
 from lensmount.integrators import bidirectional  # noqa: E402
 from lensmount.integrators.radius import radius_caps  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 
 
 def _caps(scene):

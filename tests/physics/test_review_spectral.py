@@ -18,9 +18,9 @@ from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.optics.prescription import Aperture, Prescription, Surface  # noqa: E402
 from lensmount.scene.build import optical_surfaces, solid_absorption_of_tag, solid_index_of_tag  # noqa: E402
-from lensmount.trace.bsdf import make_bsdf  # noqa: E402
-from lensmount.trace.detector import Detector  # noqa: E402
-from lensmount.trace.interfaces import parse_coating  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.detector import Detector  # noqa: E402
+from lensmount.physics.interfaces import parse_coating  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 WL = (0.4861327, 0.5875618, 0.6562725)

@@ -22,7 +22,7 @@ from lensmount.optics.paraxial import paraxial  # noqa: E402
 from lensmount.optics.prescription import Aperture, Prescription, Surface  # noqa: E402
 from lensmount.optics.realrays import trace  # noqa: E402
 from lensmount.scene import primitives  # noqa: E402
-from lensmount.trace.rays import RayBatch  # noqa: E402
+from lensmount.physics.rays import RayBatch  # noqa: E402
 from lensmount.trace.tracer import DETECTOR, Tracer  # noqa: E402
 
 CASE2 = {"finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05},

@@ -18,7 +18,7 @@ import pytest
 
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
-from lensmount.trace.bsdf import make_bsdf
+from lensmount.physics.bsdf import make_bsdf
 
 WIDTH = 0.05
 

@@ -5,8 +5,8 @@ import re
 import numpy as np
 import pytest
 
-from lensmount.report import run_report
-from lensmount.results import block_mean, display_binning, preview_scale, shared_scale, write_difference
+from lensmount.run.report import run_report
+from lensmount.run.results import block_mean, display_binning, preview_scale, shared_scale, write_difference
 
 
 def test_block_mean_conserves_the_mean_and_refuses_uneven_blocks():

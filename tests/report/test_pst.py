@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from lensmount.analysis.pst import PstOptions, parse_angles, pst, write_pst
+from lensmount.loop.pst import PstOptions, parse_angles, pst, write_pst
 from lensmount.cli import app
 from lensmount.errors import InputError
 
@@ -47,7 +47,7 @@ def _small_scene(design: Path) -> Path:
 
 @pytest.mark.slow
 def test_pst_of_the_reference_design(tmp_path):
-    from lensmount.loop import SimulateOptions, simulate
+    from lensmount.loop.simulate import SimulateOptions, simulate
     from lensmount.optics.paraxial import paraxial
     from lensmount.design.folder import load_design
 
@@ -84,8 +84,8 @@ def test_pst_of_the_reference_design(tmp_path):
 
 
 def test_no_light_entering_is_pst_zero_not_a_huge_number():
-    from lensmount.analysis.pst import pst_of
-    from lensmount.trace.sources import CollimatedSource, EmissionDisc
+    from lensmount.loop.pst import pst_of
+    from lensmount.physics.sources import CollimatedSource, EmissionDisc
 
     at_90 = CollimatedSource(90.0, 90.0, EmissionDisc((0.0, 0.0, 0.0), 1.0))
     assert at_90.entering_fraction == 0.0

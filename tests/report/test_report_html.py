@@ -4,8 +4,8 @@ import numpy as np
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.report import comparison_report, write_report
-from lensmount.results import shared_scale, write_difference, write_preview, write_run
+from lensmount.run.report import comparison_report, write_report
+from lensmount.run.results import shared_scale, write_difference, write_preview, write_run
 
 from .conftest import images_loaded
 
@@ -74,9 +74,9 @@ def test_the_browser_check_sees_a_broken_image_and_a_network_fetch(tmp_path, ope
 def test_compare_writes_a_report_with_the_verdict_and_shared_scale_images(tmp_path, open_offline):
     """loop.compare on two results folders: report.html carries its verdict; old/new previews
     share one colour scale and binning (results.shared_scale)."""
-    from lensmount.loop import CompareOptions, compare
+    from lensmount.loop.compare import CompareOptions, compare
     from lensmount.loop.compare import verdict_sentence
-    from lensmount.results import write_run as write_results
+    from lensmount.run.results import write_run as write_results
 
     old, new = _run(1e-3, 1), _run(3e-3, 2)
     for name, acc in (("old", old), ("new", new)):

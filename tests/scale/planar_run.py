@@ -23,10 +23,10 @@ sys.path.insert(0, str(HERE))
 from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
-from lensmount.executor import executor_for  # noqa: E402
+from lensmount.run.executor import executor_for  # noqa: E402
 from lensmount.integrators.bidirectional import Bidirectional, part_names  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
-from lensmount.runner import PassJob, Runner, Stopping  # noqa: E402
+from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
 
 TRACER = "planar:PlanarTracer"
 

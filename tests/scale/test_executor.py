@@ -113,7 +113,7 @@ import sys, time
 from pathlib import Path
 from types import SimpleNamespace
 import numpy as np
-from lensmount.executor import LocalProcesses
+from lensmount.run.executor import LocalProcesses
 
 MARKER, DELAY = Path(sys.argv[1]), float(sys.argv[2])
 
@@ -160,7 +160,7 @@ def test_a_run_stopped_while_a_worker_sends_its_result_ends(tmp_path, delay_s):
 _UNSENDABLE = """
 import sys, threading
 from types import SimpleNamespace
-from lensmount.executor import LocalProcesses
+from lensmount.run.executor import LocalProcesses
 
 def no_tracer(scene):
     return None

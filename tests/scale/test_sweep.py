@@ -58,7 +58,7 @@ def test_a_bias_bound_widens_what_counts_as_a_tie():
 
 @pytest.mark.slow
 def test_sweep_of_six_reference_variants_ranks_them(tmp_path):
-    from lensmount.loop import SimulateOptions
+    from lensmount.loop.simulate import SimulateOptions
     from lensmount.loop.sweep import SweepOptions, sweep
 
     design = tmp_path / "design"

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.design.scene import scene_from_dict
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives

@@ -14,7 +14,7 @@ import pytest
 from tests.trace.geometry import make_scene, window
 from lensmount.optics.glass import _find_catalogue_glass
 from lensmount.scene import primitives
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.rays import RayBatch
 from lensmount.trace.tracer import DETECTOR, FACE, Tracer
 
 GLASS, WL_NM, T = "SCHOTT:N-SF6", 380.0, 5.0

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from tests.trace.geometry import make_scene, mech_scene, window
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.rays import RayBatch
 from lensmount.trace.tracer import FACE, Tracer
 
 GAPS_UM = [0.0, 0.01, 0.1, 0.3, 0.5, 0.9, 1.0, 1.2, 1.5, 2.0, 2.4, 3.0, 5.0]
@@ -141,7 +141,7 @@ def test_reference_design_land_from_both_sides_agrees_with_float64(tmp_path_fact
     pytest.importorskip("build123d")
     from pathlib import Path
 
-    from lensmount.cad import regenerate
+    from lensmount.cad.pipeline import regenerate
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import scene_from_dict
     from lensmount.scene.build import build_scene

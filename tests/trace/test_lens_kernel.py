@@ -15,8 +15,8 @@ import pytest
 from tests.trace.geometry import double_gauss, double_gauss_mesh
 from tests.trace.test_exactness import reference_nearest
 from lensmount.trace import lens_kernel
-from lensmount.trace.interfaces import parse_coating, reflectance
-from lensmount.trace.sampler import Streams
+from lensmount.physics.interfaces import parse_coating, reflectance
+from lensmount.physics.sampler import Streams
 
 
 @pytest.mark.parametrize("name", ["perfect-ar", "uncoated", "mgf2-quarter-wave", "R=0.02"])
@@ -114,7 +114,7 @@ def test_a_ray_the_walk_lets_escape_meets_no_metal():
     most of them out of the mount's z range with the clear bore) cross no mechanical triangle
     on their last line, by the independent float64 Möller–Trumbore; the others meet the barrel."""
     from tests.trace.geometry import make_scene
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import FACE, GONE, Tracer
 
     p = double_gauss()
@@ -137,7 +137,7 @@ def _ghost_bundle(n=20_000, seed=4):
     """Rays at up to 6° over 1.2× the double Gauss's aperture: some reach the detector, some meet
     the barrel or the diaphragm, and the uncoated glass reflects some of them (ghosts on)."""
     from tests.trace.geometry import make_scene
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import Tracer
 
     p = double_gauss()
@@ -178,7 +178,7 @@ def test_a_forked_worker_traces_after_its_parent_walked_on_all_cores():
         import sys
         sys.path.insert(0, %r)
         from types import SimpleNamespace
-        from lensmount.executor import LocalProcesses
+        from lensmount.run.executor import LocalProcesses
         from tests.trace.test_lens_kernel import _ghost_bundle
 
         def bundle(scene):

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from tests.trace.geometry import make_scene
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.optics.profiles import Profile
 from lensmount.scene.primitives import _cap
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.rays import RayBatch
 from lensmount.trace.tracer import Tracer
 from lensmount.optics.realrays import trace
 

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from tests.trace.geometry import make_scene
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.errors import InputError
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.trace.sampler import stream
+from lensmount.physics.sampler import stream
 from lensmount.trace.tracer import DETECTOR, Tracer
 
 R1, T, H, D = 51.68, 4.0, 3.0, 400.0  # radius, thickness, stop semi-diameter (f/17), object distance
@@ -104,7 +104,7 @@ def test_point_source_needs_a_plane_in_front_of_the_lens():
 
 
 def test_the_ghost_analysis_asks_for_a_source_at_infinity():
-    from lensmount.analysis.ghosts import ghost_report
+    from lensmount.loop.ghosts import ghost_report
 
     z_img, _ = _by_hand()
     with pytest.raises(InputError, match="source at infinity"):

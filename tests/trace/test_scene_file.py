@@ -7,8 +7,8 @@ import pytest
 
 from lensmount.errors import InputError
 from lensmount.design.scene import load_scene, scene_from_dict
-from lensmount.scene.finishes import finish_of
-from lensmount.cad.mesh import FaceTag
+from lensmount.design.finishes import finish_of
+from lensmount.mesh import FaceTag
 from tests.trace.geometry import double_gauss, double_gauss_mesh, scene_dict
 from lensmount.scene.build import build_scene
 
@@ -98,7 +98,7 @@ def test_stl_object_from_scene_file(tmp_path):
     import tomli_w
     import trimesh
 
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import FACE, Tracer
     from tests.trace.geometry import air_plane
 
@@ -108,7 +108,7 @@ def test_stl_object_from_scene_file(tmp_path):
                       detector={"width_mm": 1, "height_mm": 1, "pixels": [1, 1], "z_mm": 1000.0})
     (tmp_path / "scene.toml").write_text(tomli_w.dumps(data))
     spec = load_scene(tmp_path / "scene.toml")
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
 
     empty = TaggedMesh(np.zeros((0, 3)), np.zeros((0, 3), int), np.zeros(0, np.int32), [])
     scene = build_scene(air_plane(), empty, spec)
@@ -119,7 +119,7 @@ def test_stl_object_from_scene_file(tmp_path):
 
 def test_missing_mesh_file_is_an_input_error(tmp_path):
     from tests.trace.geometry import air_plane
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
 
     spec = scene_from_dict(scene_dict(objects=[{"type": "mesh", "name": "x", "path": "nope.stl"}]),
                            base_dir=str(tmp_path))
@@ -132,7 +132,7 @@ def test_missing_mesh_file_is_an_input_error(tmp_path):
 @pytest.mark.slow
 def test_step_object_from_scene_file(tmp_path):
     cq = pytest.importorskip("cadquery")
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.scene.build import object_meshes
 
     cq.exporters.export(cq.Workplane("XY").box(10, 10, 2), str(tmp_path / "plate.step"))

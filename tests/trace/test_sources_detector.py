@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.trace.detector import Detector
-from lensmount.trace.sampler import stream
-from lensmount.trace.sources import CollimatedSource, SunSource, emission_disc, source_direction
+from lensmount.physics.detector import Detector
+from lensmount.physics.sampler import stream
+from lensmount.physics.sources import CollimatedSource, SunSource, emission_disc, source_direction
 
 
 def _sun(theta, phi=90.0, radius=30.0, limb=False, diameter=0.53):
@@ -115,7 +115,7 @@ def test_directions_are_exact_at_right_angles():
 
 
 def test_entering_fraction_against_closed_forms():
-    from lensmount.trace.sources import entering_fraction
+    from lensmount.physics.sources import entering_fraction
 
     a = 0.5 * math.radians(0.53)
     for theta in (0.0, 30.0, 89.0):  # collimated: cos θ

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from tests.trace.geometry import double_gauss, double_gauss_mesh, make_scene, mech_scene, window
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.scene import primitives
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.rays import RayBatch
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Tracer
 
 

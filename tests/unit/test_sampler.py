@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.trace.sampler import stream
+from lensmount.physics.sampler import stream
 
 
 def test_same_key_same_numbers_and_different_keys_differ():
@@ -25,7 +25,7 @@ def test_negative_seed_is_refused():
 
 
 def test_streams_depend_only_on_their_keys():
-    from lensmount.trace.sampler import Streams
+    from lensmount.physics.sampler import Streams
 
     ids = np.arange(1000, 3000)
     whole = Streams(3, "forward", ids, step=2)
@@ -42,7 +42,7 @@ def test_streams_depend_only_on_their_keys():
 def test_streams_are_uniform_and_uncorrelated():
     """Moments of U(0,1) and no correlation between neighbouring photons, dimensions or steps
     (tolerances at ~5 standard errors for 200 000 draws)."""
-    from lensmount.trace.sampler import Streams
+    from lensmount.physics.sampler import Streams
 
     n = 200_000
     s = Streams(1, "test", np.arange(n), step=0)

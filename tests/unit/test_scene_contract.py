@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.scene.scene import Effects, Scene
-from lensmount.trace.detector import Detector
+from lensmount.physics.detector import Detector
 
 
 def _mesh():

@@ -310,7 +310,7 @@ def write_paths(path: str | os.PathLike, sums: PathSums, tag_table, areas: np.nd
 
 def read_paths(path: str | os.PathLike):
     """(PathSums, tag_table, face areas, aperture flux, extent) from a paths.npz."""
-    from lensmount.cad.mesh import FaceTag
+    from lensmount.mesh import FaceTag
 
     with np.load(path, allow_pickle=False) as z:
         sums = PathSums.from_arrays(z)

@@ -17,7 +17,7 @@ import numpy as np
 import lensmount
 from lensmount.cad.checks import check_layout
 from lensmount.cad.layout import Layout, PartPlan, plan
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.cad.tessellate import tessellate_part
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError

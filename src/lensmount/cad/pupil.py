@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.realrays import trace

@@ -16,7 +16,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 
 MERGE_TOL_MM = 1e-5
 

@@ -1,7 +1,7 @@
 """`lensmount check DESIGN [--exclusion-deg A]`: lit walls the detector sees, and the realised pupil.
 
 Parses, builds (or restores) the geometry through lensmount.loop, calls
-lensmount.analysis.sightlines and lensmount.cad.pupil, prints and writes
+lensmount.loop.sightlines and lensmount.cad.pupil, prints and writes
 check.json + check.png. Exit 1 when a lit wall is seen, 0 when none is, 2 on bad input.
 """
 
@@ -29,10 +29,10 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
 
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
     """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
-    (lensmount.analysis.sightlines.VIEWS); True when it passes."""
-    from lensmount.analysis.sightlines import lit_walls_seen, plot_report
+    (lensmount.loop.sightlines.VIEWS); True when it passes."""
+    from lensmount.loop.sightlines import lit_walls_seen, plot_report
     from lensmount.atomic import write_text
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.cad.pupil import realised_entrance_pupil
     from lensmount.design.folder import load_design
     from lensmount.optics.paraxial import paraxial
@@ -93,8 +93,8 @@ def check(
     mesh) against the design's. With --from aperture, the walls seen from the entrance aperture
     instead (the classic vane criterion; lit vane edges are listed, not counted). Exit 1 when
     a lit wall is seen, 0 when none is."""
-    from lensmount.analysis.sightlines import VIEWS
-    from lensmount.loop import RegenerateOptions, regenerate as build
+    from lensmount.loop.sightlines import VIEWS
+    from lensmount.loop.regenerate import RegenerateOptions, regenerate as build
 
     try:
         if seen_from not in VIEWS:

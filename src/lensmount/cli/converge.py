@@ -1,4 +1,4 @@
-"""`lensmount converge DESIGN --scene S`: parses, calls lensmount.analysis.converge, prints."""
+"""`lensmount converge DESIGN --scene S`: parses, calls lensmount.loop.converge, prints."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def converge(
     at doubling times; writes converge.csv (time, photons, relative standard error, bias bound,
     error against the reference) and converge.png (error against time, log-log, with the
     1/√t slope drawn), and prints how long the next halving of the error takes per method."""
-    from lensmount.analysis.converge import ConvergeOptions, converge as run, read_reference, write_converge
+    from lensmount.loop.converge import ConvergeOptions, converge as run, read_reference, write_converge
 
     out = Path(out) if out else Path("out") / f"converge-{Path(scene).stem}"
     try:

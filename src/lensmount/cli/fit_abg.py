@@ -21,8 +21,8 @@ def fit_abg_command(
     """Fit A/(B + |β − β0|^g) to the measurement (least squares in log BRDF) and check both the fit and the
     measured table for energy (TIS ≤ 1). Prints the finish lines to paste into a scene's [finishes]."""
     from lensmount.design.brdf_data import read_brdf
-    from lensmount.trace.bsdf import make_bsdf
-    from lensmount.trace.bsdf.tabulated import fit_abg, measured_profile
+    from lensmount.physics.bsdf import make_bsdf
+    from lensmount.physics.bsdf.tabulated import fit_abg, measured_profile
 
     try:
         rho, f = read_brdf(data)
@@ -49,7 +49,7 @@ def _plot(path: Path, rho, f, table, abg) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from lensmount.results import save_figure
+    from lensmount.run.results import save_figure
 
     a, b, g = abg
     x = np.geomspace(max(float(rho.min()), 1e-6), 2.0, 300)

@@ -26,7 +26,7 @@ def ghosts(
     """Trace every two-reflection ghost path (with order 3 the four-reflection ones too) deterministically
     (real rays, real Fresnel or coating reflectance per wavelength) and rank them by peak irradiance on the
     detector: the ghost that makes a visible spot first. Writes ghosts.json, ghosts.csv, ghosts.exr (a channel per pair) and one PNG per pair."""
-    from lensmount.analysis.ghosts import ghost_report
+    from lensmount.loop.ghosts import ghost_report
     from lensmount.loop.prepare import prepare
     from lensmount.trace.tracer import Tracer
 
@@ -47,7 +47,7 @@ def _write(out: Path, report, det, top: int) -> list[Path]:
     import numpy as np
 
     from lensmount.atomic import write_text
-    from lensmount.results import write_exr, write_preview
+    from lensmount.run.results import write_exr, write_preview
 
     rows = ["rank,surfaces,first,second,fraction,share,peak_irradiance,focus_from_detector_mm,centroid_x_mm,"
             "centroid_y_mm,radius90_mm"]

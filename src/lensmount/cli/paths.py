@@ -78,7 +78,7 @@ def _write_images(out: Path, exr_name: str, pictures, extent) -> list[Path]:
     """One PNG per (name, image, title) and one EXR holding them all as layers (their sum as RGB)."""
     import numpy as np
 
-    from lensmount.results import write_exr, write_preview
+    from lensmount.run.results import write_exr, write_preview
 
     written = []
     for name, image, title in pictures:

@@ -1,4 +1,4 @@
-"""`lensmount pst DESIGN --scene S --angles 0:30:1`: parses, calls lensmount.analysis.pst, prints."""
+"""`lensmount pst DESIGN --scene S --angles 0:30:1`: parses, calls lensmount.loop.pst, prints."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def pst(
     plane) against off-axis angle: pst.csv, pst.png (log scale, error bars, field edge
     marked) and report.html. Inside the field with `direct` on in the scene the direct image
     dominates; outside it, the stray light. Geometry and tracer are built once for all angles."""
-    from lensmount.analysis.pst import PstOptions, parse_angles, pst as sweep, write_pst
+    from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
     try:
         options = PstOptions(Path(design), Path(scene), tuple(parse_angles(angles)), azimuth, method, passes,

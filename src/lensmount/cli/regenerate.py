@@ -13,7 +13,7 @@ import typer
 
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
 from lensmount.errors import InputError
-from lensmount.loop import RegenerateOptions, regenerate as run
+from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
 
 EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml")
 
@@ -123,7 +123,7 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
 
     from lensmount.atomic import atomic_path, write_text
     from lensmount.design.lens import load_lens
-    from lensmount.design.starter import case2_scene, mirror_scene, object_scene, starter_mount
+    from lensmount.cad.starter import case2_scene, mirror_scene, object_scene, starter_mount
 
     prescription = load_lens(lens)
     name = prescription.name if prescription.name not in ("", "lens") else lens.stem
@@ -134,7 +134,7 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
     target = "lens.zmx" if lens.suffix.lower() == ".zmx" else "lens.toml"
     directory.mkdir(parents=True, exist_ok=True)
     (directory / "scenes").mkdir(exist_ok=True)
-    header = f"# mount.toml derived by `lensmount init --lens {lens.name}` (lensmount.design.starter); " \
+    header = f"# mount.toml derived by `lensmount init --lens {lens.name}` (lensmount.cad.starter); " \
              "keys: docs/mount-toml.md\n"
     write_text(directory / "scenes" / "case2-lambertian.toml", tomli_w.dumps(scene))
     if obj is not None:  # a finite object: the object itself as the source

@@ -15,7 +15,7 @@ import typer
 
 from lensmount.cli import app, fail
 from lensmount.errors import InputError
-from lensmount.loop import Observer, PassStatus, SimulateOptions, simulate as run_simulation
+from lensmount.loop.simulate import Observer, PassStatus, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
 
 

@@ -11,7 +11,7 @@ import typer
 from lensmount.cli import app, fail
 from lensmount.cli.simulate import observed
 from lensmount.errors import InputError
-from lensmount.loop import SimulateOptions
+from lensmount.loop.simulate import SimulateOptions
 from lensmount.loop.sweep import Param, SweepOptions, sweep as run_sweep
 
 

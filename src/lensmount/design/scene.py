@@ -63,8 +63,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
 from lensmount.errors import InputError
-from lensmount.scene.finishes import check_rules, finish_library
-from lensmount.trace.interfaces import parse_coating
+from lensmount.design.finishes import check_rules, finish_library
+from lensmount.physics.interfaces import parse_coating
 
 
 class _Strict(BaseModel):
@@ -294,7 +294,7 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
     spec._file, spec._text = file, text
     library = finish_library(spec.finishes)
     try:
-        from lensmount.trace.bsdf import make_bsdf
+        from lensmount.physics.bsdf import make_bsdf
 
         for name, params in spec.finishes.items():
             params = dict(params)
@@ -321,7 +321,7 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
 def _measured_table(name: str, params: dict, base_dir: str) -> dict:
     """`{ model = "tabulated", file = "paint.bsdf" }` → the model with the measurement's table."""
     from lensmount.design.brdf_data import read_brdf
-    from lensmount.trace.bsdf.tabulated import measured_profile
+    from lensmount.physics.bsdf.tabulated import measured_profile
 
     extra = sorted(set(params) - {"model", "file"})
     if extra:

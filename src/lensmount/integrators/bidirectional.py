@@ -49,8 +49,8 @@ import time
 
 import numpy as np
 
-from lensmount.integrators.estimate import (AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times,
-                                            scattering_tags)
+from lensmount.integrators.estimate import (
+    AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
 from lensmount.integrators.photon_target import aims_at_edge, edge_band, guided_photons

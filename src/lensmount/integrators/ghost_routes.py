@@ -24,8 +24,8 @@ error of the lattice, and it shrinks as passes accumulate. Same seed, same numbe
 from __future__ import annotations
 
 from lensmount.trace.ghosts import Walls, launch, reflecting, reflections_of_order, route_count, trace_routes
-from lensmount.trace.sampler import stream
-from lensmount.trace.sources import ObjectSource
+from lensmount.physics.sampler import stream
+from lensmount.physics.sources import ObjectSource
 
 PURPOSE = "ghost-routes"
 

@@ -44,12 +44,12 @@ import numpy as np
 
 from lensmount.integrators.estimate import scattering_tags
 from lensmount.integrators.targets import N_DPHI as N_PHI
-from lensmount.integrators.targets import (azimuth_bin, azimuth_pmf, cached_pilot, edge_rim, edge_tags, paraxial_trace,
-                                           robust_fit)
+from lensmount.integrators.targets import (
+    azimuth_bin, azimuth_pmf, cached_pilot, edge_rim, edge_tags, paraxial_trace, robust_fit)
 from lensmount.integrators.walk import emit_photons
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import Streams, stream
-from lensmount.trace.sources import CollimatedSource, SunSource, orthonormal_basis
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import Streams, stream
+from lensmount.physics.sources import CollimatedSource, SunSource, orthonormal_basis
 from lensmount.trace.tracer import FACE
 
 UNIFORM_SHARE = 0.2  # photons emitted uniformly on the disc (every path stays reachable)

@@ -57,7 +57,7 @@ from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.ghosts import reflecting, route_count
-from lensmount.trace.sources import ObjectSource
+from lensmount.physics.sources import ObjectSource
 from lensmount.trace.tracer import MIRROR_SCATTER_MIN_SHARE
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)

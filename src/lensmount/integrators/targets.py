@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import stream
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import stream
 from lensmount.trace.tracer import FACE
 
 N_ZONES = 8  # detector radius zones for the azimuth histogram

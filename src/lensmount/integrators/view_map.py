@@ -27,9 +27,9 @@ from lensmount.integrators.photon_gather import HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
 from lensmount.integrators.media import air_radiance_factor
-from lensmount.trace.detector import Detector
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import Streams, ray_streams
+from lensmount.physics.detector import Detector
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import Streams, ray_streams
 from lensmount.trace.tracer import FACE
 
 

@@ -34,8 +34,8 @@ from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scatte
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import Streams
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import Streams
 from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
 
 DIM_BSDF, DIM_ROULETTE = 0, 2  # Streams dimensions of a bounce (the tracer's Fresnel draws lie far above)

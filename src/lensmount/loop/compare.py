@@ -17,7 +17,7 @@ import numpy as np
 from lensmount.analysis.compare import Measurement, Verdict, judge
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
-from lensmount.store import RunRecord, Store, default_path
+from lensmount.run.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
@@ -253,8 +253,8 @@ def _extent(run: Run, shape) -> tuple[float, float, float, float]:
 def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> dict[str, Path]:
     """difference.exr (Y = new − old, channels old and new), old.png and new.png on one colour scale,
     difference.png (signed scale), compare.json and report.html."""
-    from lensmount.report import comparison_report, write_report
-    from lensmount.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
+    from lensmount.run.report import comparison_report, write_report
+    from lensmount.run.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
 
     a = read_exr(old.folder / "irradiance.exr")["Y"].astype(np.float64)
     b = read_exr(new.folder / "irradiance.exr")["Y"].astype(np.float64)

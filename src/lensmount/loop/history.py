@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lensmount.loop.provenance import commit_order
-from lensmount.store import RunRecord, Store, default_path
+from lensmount.run.store import RunRecord, Store, default_path
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None]
 def build(design, spec, geometry: Path | None = None, stage: Callable[[str], None] | None = None,
           build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
     """Regenerate (cached) into `geometry` (default DESIGN/build) and build the Scene."""
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.mount import check_finish_parts
     from lensmount.loop.regenerate import RegenerateOptions, regenerate
     from lensmount.scene.build import build_scene

@@ -37,7 +37,7 @@ class RegenerateResult:
 def regenerate(options: RegenerateOptions, progress: Callable[[str, int, int], None] | None = None
                ) -> RegenerateResult:
     """Build (or restore from the cache) the mount's CAD outputs; progress(step, done, total)."""
-    from lensmount.cad import regenerate as build
+    from lensmount.cad.pipeline import regenerate as build
 
     folder = Path(options.out) if options.out is not None else Path(options.design) / "build"
     manifest = build(options.design, folder, progress=progress, use_cache=options.use_cache,

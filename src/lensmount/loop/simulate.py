@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.executor import local_cluster_size
+from lensmount.run.executor import local_cluster_size
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
@@ -31,9 +31,9 @@ class SimulateOptions:
     design : design folder; scene : scene file
     out : results folder (default out/<scene name>)
     geometry : regenerate's output folder to reuse (default DESIGN/build, as `lensmount regenerate`)
-    store : results store (default: lensmount.store.default_path); record : add the run to it
+    store : results store (default: lensmount.run.store.default_path); record : add the run to it
     argv : the command line recorded in the provenance (default sys.argv)
-    scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.executor
+    scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.run.executor
     """
 
     design: Path
@@ -227,14 +227,14 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.analysis.passes import Accumulator
     from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
     from lensmount.analysis.summary import build_summary
-    from lensmount.executor import executor_for
+    from lensmount.run.executor import executor_for
     from lensmount.integrators.estimate import film_channels
     from lensmount.integrators.plan import plan
     from lensmount.loop.progress import status_of
-    from lensmount.results import write_run
-    from lensmount.runner import PassJob, Runner, Stopping, default_workers
+    from lensmount.run.results import write_run
+    from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
     from lensmount.scene.scene import EFFECT_NAMES
-    from lensmount.trace.sources import ObjectSource
+    from lensmount.physics.sources import ObjectSource
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
@@ -295,7 +295,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     write_paths(paths["paths"], acc.paths, tags, areas, aperture, (-det.width / 2, det.width / 2, -det.height / 2, det.height / 2))
     result = SimulateResult(out, summary, paths, runner.interrupted, runner.terminated, warnings=warnings)
     if o.record and not runner.interrupted:
-        from lensmount.store import Store, default_path
+        from lensmount.run.store import Store, default_path
 
         result.store_path = default_path(design.root, o.store)
         with Store(result.store_path) as store:
@@ -311,7 +311,7 @@ OBJECT_SOURCE_UNITS = {"irradiance": "E/E_ref (E_ref: the source's mean irradian
 
 def _field_radius(prescription) -> float | None:
     """Image height of the full field (the real chief ray's; finite objects included), for the preview outline."""
-    from lensmount.design.starter import image_height
+    from lensmount.cad.starter import image_height
 
     r = image_height(prescription)
     return r if math.isfinite(r) and r > 0 else None

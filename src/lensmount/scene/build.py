@@ -16,24 +16,24 @@ from pathlib import Path
 
 import numpy as np
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.errors import InputError
 from lensmount.validation import did_you_mean, located
 from lensmount.optics.glass import absorption_coefficient, refractive_index
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
-from lensmount.scene.finishes import finish_library, finish_of
+from lensmount.design.finishes import finish_library, finish_of
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
-from lensmount.trace.bsdf.mirror_finish import MirrorFinish
-from lensmount.trace.detector import Detector
-from lensmount.trace.sources import CollimatedSource, ObjectSource, SunSource, emission_disc, source_direction
+from lensmount.physics.bsdf.mirror_finish import MirrorFinish
+from lensmount.physics.detector import Detector
+from lensmount.physics.sources import CollimatedSource, ObjectSource, SunSource, emission_disc, source_direction
 
 
 def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
     """Analytic surfaces of a prescription; coating_of(i, lens_coating) -> Coating (default: lens file
     coating, else perfect-ar)."""
-    from lensmount.trace.interfaces import parse_coating
+    from lensmount.physics.interfaces import parse_coating
 
     coating_of = coating_of or (lambda i, c: parse_coating(c))
     zs = prescription.vertex_z
@@ -116,12 +116,12 @@ def _load_mesh_file(path: Path, o, field: str) -> TaggedMesh:
 def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_factory=None) -> Scene:
     """A Scene from the lens, the mount's tagged mesh and a validated SceneSpec.
 
-    bsdf_factory(model, **params) -> BSDF defaults to `lensmount.trace.bsdf.make_bsdf`.
+    bsdf_factory(model, **params) -> BSDF defaults to `lensmount.physics.bsdf.make_bsdf`.
     Raises InputError (with the scene file's line where it has one) for an `[assign]` rule
     that matches no face; `Scene.warnings` lists what is legal but suspicious.
     """
     if bsdf_factory is None:
-        from lensmount.trace.bsdf import make_bsdf as bsdf_factory
+        from lensmount.physics.bsdf import make_bsdf as bsdf_factory
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
     library = finish_library(spec.finishes)
     try:

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from lensmount.cad.mesh import FaceTag, TaggedMesh
+from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.optics.profiles import Profile
-from lensmount.trace.detector import Detector
-from lensmount.trace.interfaces import Coating
+from lensmount.physics.detector import Detector
+from lensmount.physics.interfaces import Coating
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ class Segment:
     Args:
         kind: `line`, `arc` (3 points: start, any point on the arc, end) or `spline`.
         points: (k, 2) (r, z) points, mm; first and last are the segment's ends.
-        role: face role after revolving (lensmount.cad.mesh.ROLES).
+        role: face role after revolving (lensmount.mesh.ROLES).
         surface: 0-based prescription surface index for optical faces, else -1.
     """
 

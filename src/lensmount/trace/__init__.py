@@ -1,10 +1,12 @@
-"""lensmount.trace — the non-sequential ray tracer, as a scriptable API.
+"""lensmount.trace — the engine: the non-sequential ray tracer that consumes a Scene.
 
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import load_scene
-    from lensmount.cad.mesh import TaggedMesh
-    from lensmount.scene import build_scene
-    from lensmount.trace import Tracer, RayBatch, stream
+    from lensmount.mesh import TaggedMesh
+    from lensmount.scene.build import build_scene
+    from lensmount.trace.tracer import Tracer
+    from lensmount.physics.rays import RayBatch
+    from lensmount.physics.sampler import stream
     from lensmount.integrators.forward import forward_pass
 
     lens = load_lens("examples/double-gauss-360/lens.toml")
@@ -19,28 +21,10 @@
 
     # Photons from the scene's sun, one pass of the forward estimator:
     est = forward_pass(scene, tracer, n_photons=1_000_000, seed=1, pass_index=0)
-    est.image            # (ny, nx) irradiance / E_sun
-    est.part_flux        # (P,) mm² per part, names in est.part_names
 
-Contents:
-    Tracer, Hits, Events, GONE, FACE, DETECTOR     (trace.tracer)   intersection + glass interfaces
-    SunSource, CollimatedSource, EmissionDisc,
-    emission_disc, source_direction                (trace.sources)  sources at infinity
-    Detector                                       (trace.detector) pixels, deposits
-    Coating, parse_coating, refract, reflect,
-    fresnel_rt, reflectance                        (trace.interfaces) Snell, TIR, Fresnel, coatings
-    RayBatch                                       (trace.rays)     structure-of-arrays rays
-    stream, Streams                                (trace.sampler)  the only source of randomness
-BSDF models: `lensmount.bsdf` (trace/bsdf/). Full description: docs/tracer.md.
+Modules: `tracer` (Tracer, Hits, Events: intersection and glass interfaces), `kernels` and
+`lens_kernel` (the compiled steps and walk), `mechanical` (Embree on the metal), `ghosts`
+(sequential ghost routes), `warm` (compiles the kernels once). What a scene is made of
+(sources, detector, coatings, BSDFs, rays, the sampler) is `lensmount.physics`.
+Full description: docs/tracer.md.
 """
-
-from lensmount.trace.detector import Detector
-from lensmount.trace.interfaces import Coating, fresnel_rt, parse_coating, reflect, reflectance, refract
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import Streams, stream
-from lensmount.trace.sources import CollimatedSource, EmissionDisc, SunSource, emission_disc, source_direction
-from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events, Hits, Tracer
-
-__all__ = ["Tracer", "Hits", "Events", "GONE", "FACE", "DETECTOR", "SunSource", "CollimatedSource",
-           "EmissionDisc", "emission_disc", "source_direction", "Detector", "Coating", "parse_coating",
-           "refract", "reflect", "fresnel_rt", "reflectance", "RayBatch", "stream", "Streams"]

@@ -37,8 +37,8 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.trace.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
-from lensmount.trace.sources import disc_radius_fraction, orthonormal_basis
+from lensmount.physics.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
+from lensmount.physics.sources import disc_radius_fraction, orthonormal_basis
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
 CENTRED = (0.0, 0.0, 0.5, 0.5)  # lattice through the axis, R2 sequence from its usual start: the report's

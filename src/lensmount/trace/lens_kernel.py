@@ -340,7 +340,7 @@ _ONE_CORE = [False]
 
 
 def one_core_per_process() -> None:
-    """This process is one of several workers sharing the machine (`lensmount.executor`): walk on
+    """This process is one of several workers sharing the machine (`lensmount.run.executor`): walk on
     one core. Also what keeps a forked worker out of the threading layer its parent may have
     started (GNU OpenMP is not fork-safe)."""
     _ONE_CORE[0] = True

@@ -33,10 +33,10 @@ import numpy as np
 
 from lensmount.trace import kernels, lens_kernel
 from lensmount.trace.ghosts import reflecting
-from lensmount.trace.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
+from lensmount.physics.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
 from lensmount.trace.mechanical import MechanicalFaces
-from lensmount.trace.rays import RayBatch
-from lensmount.trace.sampler import ray_streams
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import ray_streams
 
 GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind: the one set of event codes (the integrators use these)
 FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM + interface count in the call

@@ -18,13 +18,13 @@ import numpy as np
 
 
 def main() -> None:
-    from lensmount.cad.mesh import TaggedMesh
+    from lensmount.mesh import TaggedMesh
     from lensmount.design.scene import scene_from_dict
     from lensmount.optics.prescription import Aperture, Prescription, Surface
     from lensmount.scene import primitives
     from lensmount.scene.build import build_scene
-    from lensmount.trace.rays import RayBatch
-    from lensmount.trace.sampler import Streams
+    from lensmount.physics.rays import RayBatch
+    from lensmount.physics.sampler import Streams
     from lensmount.trace import lens_kernel
     from lensmount.trace.tracer import Tracer
 

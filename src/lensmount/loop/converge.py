@@ -140,7 +140,7 @@ def check(o: ConvergeOptions) -> None:
 
 def converge(o: ConvergeOptions, progress: Callable[[str], None] | None = None) -> list[MethodCurve]:
     """Run each method for budget/len(methods) seconds and read it at the doubling levels."""
-    from lensmount.loop import Observer, SimulateOptions, simulate
+    from lensmount.loop.simulate import Observer, SimulateOptions, simulate
 
     check(o)
     say = progress or (lambda text: None)
@@ -225,7 +225,7 @@ def plot_converge(path: Path, curves: list[MethodCurve], reference: float | None
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
-    from lensmount.results import save_figure
+    from lensmount.run.results import save_figure
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6), dpi=100)
     for c, color in zip(curves, ("tab:blue", "tab:orange", "tab:green")):

@@ -24,7 +24,7 @@ import numpy as np
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.atomic import atomic_path
-from lensmount.report import run_report, write_report
+from lensmount.run.report import run_report, write_report
 
 
 def _atomic(path, write) -> None:

@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.trace.bsdf.base import reject_unknown
-from lensmount.trace.bsdf.radial import DirectionCosineLobe
+from lensmount.physics.bsdf.base import reject_unknown
+from lensmount.physics.bsdf.radial import DirectionCosineLobe
 
 _FLOOR = 1e-30  # log of a zero BRDF value
 

@@ -51,7 +51,7 @@ from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import chief_ray
-from lensmount.scene.finishes import surface_rule
+from lensmount.design.finishes import surface_rule
 
 SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
 MIN_EDGE_FRACTION = 0.25     # edge thickness at least this fraction of the centre thickness

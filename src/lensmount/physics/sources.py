@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.trace.rays import RayBatch
+from lensmount.physics.rays import RayBatch
 
 LIMB_DARKENING_U = 0.6
 SUN_ANGULAR_DIAMETER_DEG = 0.53

@@ -43,8 +43,8 @@ import math
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.trace.bsdf.base import (BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, mirror, normalize, number,
-                                       reject_unknown, tangent_frame)
+from lensmount.physics.bsdf.base import (
+    BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, mirror, normalize, number, reject_unknown, tangent_frame)
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(128)
 _S = 0.5 * (_NODES + 1.0)  # Gauss–Legendre on [0, 1], then t = (1 − cos πs)/2 to cluster at both ends

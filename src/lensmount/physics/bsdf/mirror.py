@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lensmount.trace.bsdf.base import BSDF, COS_EPS, as_rows, dot, mirror, normalize, number, reject_unknown
+from lensmount.physics.bsdf.base import BSDF, COS_EPS, as_rows, dot, mirror, normalize, number, reject_unknown
 
 
 class Mirror(BSDF):

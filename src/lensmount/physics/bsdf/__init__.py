@@ -24,15 +24,15 @@ face is given in it (the lobe of the light that scattered there).
 from __future__ import annotations
 
 from lensmount.errors import InputError
-from lensmount.trace.bsdf.absorber import Absorber
-from lensmount.trace.bsdf.abg import ABg
-from lensmount.trace.bsdf.base import BSDF, reject_unknown
-from lensmount.trace.bsdf.gaussian import Gaussian
-from lensmount.trace.bsdf.harvey import Harvey
-from lensmount.trace.bsdf.lambertian import Lambertian
-from lensmount.trace.bsdf.mirror import Mirror
-from lensmount.trace.bsdf.mirror_finish import MirrorFinish
-from lensmount.trace.bsdf.tabulated import Tabulated
+from lensmount.physics.bsdf.absorber import Absorber
+from lensmount.physics.bsdf.abg import ABg
+from lensmount.physics.bsdf.base import BSDF, reject_unknown
+from lensmount.physics.bsdf.gaussian import Gaussian
+from lensmount.physics.bsdf.harvey import Harvey
+from lensmount.physics.bsdf.lambertian import Lambertian
+from lensmount.physics.bsdf.mirror import Mirror
+from lensmount.physics.bsdf.mirror_finish import MirrorFinish
+from lensmount.physics.bsdf.tabulated import Tabulated
 
 MODELS: dict[str, type[BSDF]] = {
     "absorber": Absorber,

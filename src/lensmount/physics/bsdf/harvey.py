@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from lensmount.trace.bsdf.base import number, reject_unknown
-from lensmount.trace.bsdf.radial import DirectionCosineLobe
+from lensmount.physics.bsdf.base import number, reject_unknown
+from lensmount.physics.bsdf.radial import DirectionCosineLobe
 
 
 class Harvey(DirectionCosineLobe):

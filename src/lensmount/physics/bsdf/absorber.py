@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lensmount.trace.bsdf.base import BSDF, as_rows, reject_unknown
+from lensmount.physics.bsdf.base import BSDF, as_rows, reject_unknown
 
 
 class Absorber(BSDF):

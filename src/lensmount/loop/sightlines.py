@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lensmount.cad.mesh import TaggedMesh
+from lensmount.mesh import TaggedMesh
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 
@@ -91,7 +91,7 @@ def _scene(prescription: Prescription, mesh: TaggedMesh, width: float, height: f
 
 def _first_faces(tracer, origins, directions):
     """(tags, points) of the rays whose first event is a mechanical face."""
-    from lensmount.trace.rays import RayBatch
+    from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import FACE
 
     ev = tracer.next_event(RayBatch.make(origins, directions))
@@ -171,7 +171,7 @@ def _detector_rays(scene, par, w: float, h: float):
 
 def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_rays) -> SightlineReport:
     """Trace the sun at and beyond the exclusion angle; the faces both lit and seen, per (r, z) cell."""
-    from lensmount.trace.sources import orthonormal_basis, source_direction
+    from lensmount.physics.sources import orthonormal_basis, source_direction
 
     # ---- lit: the sun at and beyond the exclusion angle --------------------------------
     opening = scene.front_opening
@@ -229,7 +229,7 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lensmount.results import save_figure
+    from lensmount.run.results import save_figure
 
     fig, ax = plt.subplots(figsize=(11, 4.5), dpi=110)
     v = mesh.vertices

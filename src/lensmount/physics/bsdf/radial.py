@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.trace.bsdf.base import BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, normalize, tangent_frame
+from lensmount.physics.bsdf.base import BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, normalize, tangent_frame
 
 _RINGS_PER_DECADE = 96
 _CHUNK = 2048

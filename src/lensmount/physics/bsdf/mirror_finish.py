@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lensmount.trace.bsdf.base import BSDF, as_rows
+from lensmount.physics.bsdf.base import BSDF, as_rows
 
 
 class MirrorFinish(BSDF):

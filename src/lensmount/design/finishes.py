@@ -22,7 +22,7 @@ otherwise turn every mirror of an existing scene into a 5 % Lambertian one.
 
 from __future__ import annotations
 
-from lensmount.cad.mesh import FaceTag
+from lensmount.mesh import FaceTag
 from lensmount.errors import InputError
 
 BUILTIN_FINISHES: dict[str, dict] = {

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from lensmount.trace.bsdf.base import BSDF, COS_EPS, as_rows, dot, number, reject_unknown, tangent_frame
+from lensmount.physics.bsdf.base import BSDF, COS_EPS, as_rows, dot, number, reject_unknown, tangent_frame
 
 
 class Lambertian(BSDF):

@@ -4,7 +4,7 @@ Passes are independent (pass i uses only (seed, i) and the radius scale s_i), so
 passes may run in any worker in any order; the runner adds them to the Accumulator
 strictly in pass order, which makes the result bit-identical for any `workers`.
 
-Where passes run is the executor's business (`lensmount.executor`: this process, local
+Where passes run is the executor's business (`lensmount.run.executor`: this process, local
 processes, or a Dask cluster); each worker builds its `Tracer` once, because Embree scenes
 do not pickle while the Scene (plain numpy) does. SIGINT and SIGTERM stop a run the same
 way: the passes merged so far are kept and the checkpoint is written.
@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
-from lensmount.executor import Executor, executor_for, resolve
+from lensmount.run.executor import Executor, executor_for, resolve
 from lensmount.integrators.bidirectional import Bidirectional
 from lensmount.integrators.estimate import PassEstimate
 from lensmount.integrators.forward import Forward
@@ -39,7 +39,7 @@ from lensmount.integrators.settings import EstimatorSettings
 # run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None) -> PassEstimate.
 INTEGRATORS = {"bidirectional": Bidirectional, "forward": Forward}
 TRACER = "lensmount.trace.tracer:Tracer"
-RUN_PASS = "lensmount.runner:run_pass"
+RUN_PASS = "lensmount.run.runner:run_pass"
 _resolve = resolve
 
 
@@ -122,7 +122,7 @@ class Runner:
             `elapsed_s` keeps counting, so the run's time is the total over resumed parts).
         workers: local processes; 1 runs in this process (tests, debugging). Ignored when
             `executor` is given.
-        executor: where passes run (`lensmount.executor.executor_for`); default from `workers`.
+        executor: where passes run (`lensmount.run.executor.executor_for`); default from `workers`.
         checkpoint: path for the Accumulator state, written every `checkpoint_every` passes
             and on stop; `checkpoint_meta` goes along (seed, input hash, method).
         progress: called after every merged pass with (accumulator, elapsed seconds).

@@ -109,7 +109,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.loop.prepare import build, read_inputs
     from lensmount.loop.provenance import collect
-    from lensmount.runner import PassJob, run_pass
+    from lensmount.run.runner import PassJob, run_pass
     from lensmount.scene.build import make_source
     from lensmount.scene.scene import EFFECT_NAMES
     from lensmount.trace.tracer import Tracer
@@ -171,7 +171,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
 def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
     """pst.csv, pst.png (log scale, error bars, field edge) and report.html, atomically."""
     from lensmount.atomic import write_text
-    from lensmount.report import image_block, page, provenance_rows, section, table_block, write_report
+    from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
 
     out = Path(out)
     paths = {"csv": out / "pst.csv", "png": out / "pst.png", "html": out / "report.html"}
@@ -202,7 +202,7 @@ def plot_pst(path: Path, result: PstResult) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lensmount.results import save_figure
+    from lensmount.run.results import save_figure
 
     a = np.array([p.angle_deg for p in result.points])
     v = np.array([p.pst for p in result.points])
