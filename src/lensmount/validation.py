@@ -48,7 +48,7 @@ def parse_toml(text: str, file: str, valid: str = "TOML syntax (https://toml.io)
 
 
 def input_error(exc: ValidationError, model: type[BaseModel], *, file: str | None = None,
-                text: str | None = None, valid: str | None = None) -> InputError:
+                text: str | None = None, valid: str | None = None, prefix: tuple = ()) -> InputError:
     """The InputError for a pydantic ValidationError of `model` read from `file` (its `text`).
 
     An unknown key is reported before anything else: a misspelt key also leaves the right
@@ -57,7 +57,7 @@ def input_error(exc: ValidationError, model: type[BaseModel], *, file: str | Non
     errors = exc.errors()
     err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
     loc = tuple(err["loc"])
-    field = ".".join(str(x) for x in loc) or None
+    field = ".".join(str(x) for x in prefix + loc) or None  # prefix: where `model`'s table sits in the file
     allowed = keys_at(model, loc)
     if err["type"] == "extra_forbidden":
         key = str(loc[-1])

@@ -70,16 +70,18 @@ def test_coating_for_a_surface_the_lens_does_not_have(tmp_path):
 
 
 @pytest.mark.parametrize("patch,field,words", [
-    ({"source": {"type": "collimated", "off_axis_deg": 5.0, "angular_diameter_deg": 0.53}}, "source",
-     "angular_diameter_deg applies to type = 'sun' only"),
+    ({"source": {"type": "collimated", "off_axis_deg": 5.0, "angular_diameter_deg": 0.53}},
+     "source.angular_diameter_deg", "angular_diameter_deg applies to type = 'sun' only"),
     ({"objects": [{"type": "rectangle", "name": "r", "width_mm": 5.0, "height_mm": 5.0, "radius_mm": 3.0}]},
      "objects.0", "takes width_mm, height_mm, not radius_mm"),
-    ({"source": {"type": "point", "off_axis_deg": 5.0}}, "source", "off_axis_deg applies to sources at infinity"),
-    ({"source": {"type": "sun", "off_axis_deg": 5.0, "height_mm": 3.0}}, "source",
+    ({"source": {"type": "point", "off_axis_deg": 5.0}}, "source.off_axis_deg",
+     "off_axis_deg applies to type = 'sun' or 'collimated' only"),
+    ({"source": {"type": "sun", "off_axis_deg": 5.0, "height_mm": 3.0}}, "source.height_mm",
      "height_mm applies to type = 'point' or 'disc' only"),
-    ({"source": {"type": "point", "radius_mm": 2.0}}, "source", "radius_mm applies to type = 'disc' only"),
-    ({"source": {"type": "disc"}}, "source", "a disc source needs radius_mm"),
-    ({"source": {"type": "sun"}}, "source", "needs off_axis_deg"),
+    ({"source": {"type": "point", "radius_mm": 2.0}}, "source.radius_mm", "radius_mm applies to type = 'disc' only"),
+    ({"source": {"type": "disc"}}, "source.radius_mm", "missing key 'radius_mm'"),
+    ({"source": {"type": "sun"}}, "source.off_axis_deg", "missing key 'off_axis_deg'"),
+    ({"source": {"type": "laser", "off_axis_deg": 5.0}}, "source.type", "unknown source type 'laser'"),
 ])
 def test_values_that_would_be_ignored(tmp_path, patch, field, words):
     path = _write(tmp_path, scene_dict(**patch))

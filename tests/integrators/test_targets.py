@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
 from lensmount.integrators import targets as T  # noqa: E402
-from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, classify  # noqa: E402
+from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, gather_cores  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc, mixture_pdf, sample_toward_exit  # noqa: E402
 from lensmount.integrators.view_map import build_view_map, stop_rim_target  # noqa: E402
 from lensmount.physics.sampler import stream  # noqa: E402
@@ -105,7 +105,7 @@ def case1():
 def _edge_tau(scene, tracer, pilot_seed, passes, spp=300):
     """Σ τ over the view map's edge hit points per pass (an estimate of ∫∫ cos θ [ray meets edge])."""
     det = scene.detector
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     hw, bnd = _scene_tables(scene)
     out = []
     for k in range(passes):
@@ -119,7 +119,7 @@ def _edge_tau(scene, tracer, pilot_seed, passes, spp=300):
 @pytest.mark.slow  # 5–25 s on 2 cores: runs in make test-all, out of the CI budget
 def test_edge_view_map_is_unbiased_and_far_denser_with_the_learned_band(case1):
     scene, tracer = case1
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     rim = stop_rim_target(scene, scene.detector, broad)
     learned = T.learned_rim(scene, tracer, scene.detector, broad, 11, rim)
     assert learned is not None and np.all(learned.half_width < 0.05 * (rim.radius - rim.r_inner))
@@ -151,11 +151,11 @@ def test_no_edge_no_learned_target(case1):
     target even when the pilot is handed case 1's rim and a real tracer, while the same call on
     case 1 learns one (so the None comes from the edge's finish, not from the arguments)."""
     scene1, tracer1 = case1
-    broad1, _ = classify(scene1.bsdf_of_tag)
+    broad1 = np.isfinite(gather_cores(scene1.bsdf_of_tag))
     rim = stop_rim_target(scene1, scene1.detector, broad1)
     assert rim is not None
     scene2 = double_gauss_case(2, pixels=(4, 4))
-    broad2, _ = classify(scene2.bsdf_of_tag)
+    broad2 = np.isfinite(gather_cores(scene2.bsdf_of_tag))
     assert stop_rim_target(scene2, scene2.detector, broad2) is None
     assert T.learned_rim(scene2, Tracer(scene2), scene2.detector, broad2, 11, rim) is None
     assert T.learned_rim(scene1, tracer1, scene1.detector, broad1, 11, rim) is not None
@@ -168,7 +168,7 @@ def test_view_map_in_chunks_is_the_one_batch_view_map(case1, monkeypatch):
     from lensmount.integrators.estimate import Film
 
     scene, tracer = case1
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     hw, bnd = _scene_tables(scene)
 
     def hits():

@@ -100,14 +100,13 @@ def test_black_paint_abg_is_gathered_outside_its_core_and_agrees_with_forward():
     albedo in the wings. It used to be routed to the photons by its half width alone; now its
     wings are gathered at hit points and only the core (within sin 15° of the mirror direction)
     is left to the photons. The split must not lose or double count: bidirectional = forward."""
-    from lensmount.integrators.bidirectional import classify, gather_cores
+    from lensmount.integrators.bidirectional import gather_cores
 
     abg = make_bsdf("abg", A=2e-3, B=1e-3, g=2)
     scene = singlet_barrel(abg)
     core = gather_cores(scene.bsdf_of_tag)
     barrel = [k for k, t in enumerate(scene.mesh.tag_table) if t.part == "barrel"]
     assert np.all(core[barrel] == pytest.approx(math.sin(math.radians(15.0))))
-    assert np.all(classify(scene.bsdf_of_tag)[0][barrel])
     tracer = Tracer(scene)
     bi = _flux(scene, tracer, "bidirectional", 6, 50_000, samples_per_pixel=16)
     fw = _flux(scene, tracer, "forward", 6, 100_000, seed=2)

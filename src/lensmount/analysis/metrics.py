@@ -12,12 +12,6 @@ from __future__ import annotations
 import math
 
 
-def aperture_flux_normalised(entrance_pupil_diameter_mm: float, off_axis_rad: float) -> float:
-    """Flux entering the entrance pupil per unit E_sun (mm²): π (EPD/2)² cos θ."""
-    c = max(math.cos(off_axis_rad), 0.0)
-    return math.pi * (0.5 * entrance_pupil_diameter_mm) ** 2 * c
-
-
 def stray_fraction(detector_flux_mm2: float, aperture_flux_mm2: float) -> float:
     """Detector stray flux / flux entering the aperture; 0 when no light enters (sun at 90°)."""
     if not aperture_flux_mm2 > 0 or not math.isfinite(detector_flux_mm2):
@@ -31,4 +25,4 @@ def finite_or_none(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
-__all__ = ["aperture_flux_normalised", "stray_fraction", "finite_or_none"]
+__all__ = ["stray_fraction", "finite_or_none"]

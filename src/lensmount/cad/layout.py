@@ -28,7 +28,8 @@ from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.barrel import Barrel
 from lensmount.templates.diaphragm import Diaphragm
-from lensmount.templates.lens_element import LensElement, OpticalFace
+from lensmount.templates.lens_element import GroupOutline, LensElement, OpticalFace
+from lensmount.templates.profile import Template
 from lensmount.templates.retainer import Retainer
 from lensmount.templates.spacer import Spacer
 
@@ -40,12 +41,13 @@ APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance apertur
 
 @dataclass
 class PartPlan:
-    """One part: name, kind, finish and the template that builds it."""
+    """One part: name, kind, finish and the template that builds it (a stepped cemented group's
+    `GroupOutline` stands in for its elements where seats are planned; it is never built)."""
 
     name: str
     kind: str
     finish: str
-    template: object
+    template: Template | GroupOutline
 
 
 @dataclass

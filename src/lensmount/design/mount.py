@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, parse_toml
 from lensmount.errors import InputError
 
-SeatStyle = Literal["spacer", "shoulder", "retainer"]
 ContactStyle = Literal["sharp", "tangent"]
 KNOWN_KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "baffle")
 FINISH_TABLES = ("barrel", "lens_edge", "spacers", "retainer", "diaphragm", "vanes", "hood", "housing")
@@ -248,5 +247,5 @@ def load_mount(path: str | Path) -> MountSpec:
     return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 
-__all__ = ["MountSpec", "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
+__all__ = ["MountSpec", "load_mount", "parse_mount", "ContactStyle", "FINISH_TABLES",
            "check_finish_parts"]

@@ -65,48 +65,11 @@ from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_a
 from lensmount.errors import InputError
 from lensmount.design.finishes import check_rules, finish_library
 from lensmount.physics.interfaces import parse_coating
+from lensmount.physics.sources import SourceParams, source_params
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class SourceSpec(_Strict):
-    type: Literal["sun", "collimated", "point", "disc"] = "sun"
-    off_axis_deg: float | None = Field(default=None, ge=0.0, le=180.0)
-    azimuth_deg: float = 90.0
-    angular_diameter_deg: float = Field(default=0.53, ge=0.0, le=10.0)
-    limb_darkening: bool = False
-    height_mm: float = Field(default=0.0, ge=0.0)
-    radius_mm: float | None = Field(default=None, gt=0.0)
-    z_mm: float | None = None
-
-    @property
-    def at_infinity(self) -> bool:
-        return self.type in ("sun", "collimated")
-
-    @model_validator(mode="after")
-    def _keys_of_the_type(self):
-        sun_only = {"limb_darkening", "angular_diameter_deg"} & self.model_fields_set
-        finite_only = {"height_mm", "radius_mm", "z_mm"} & self.model_fields_set
-        if self.at_infinity:
-            if self.off_axis_deg is None:
-                raise ValueError(f"type = '{self.type}' (a source at infinity) needs off_axis_deg")
-            if self.type == "collimated" and sun_only:  # would be ignored without a word
-                raise ValueError(f"{', '.join(sorted(sun_only))} applies to type = 'sun' only")
-            if finite_only:
-                raise ValueError(f"{', '.join(sorted(finite_only))} applies to type = 'point' or 'disc' only "
-                                 "(a source at a finite distance)")
-            return self
-        wrong = sun_only | ({"off_axis_deg"} & self.model_fields_set)
-        if wrong:
-            raise ValueError(f"{', '.join(sorted(wrong))} applies to sources at infinity (sun, collimated); "
-                             f"a {self.type} source sits at height_mm on its plane z_mm")
-        if self.type == "disc" and self.radius_mm is None:
-            raise ValueError("a disc source needs radius_mm")
-        if self.type == "point" and self.radius_mm is not None:
-            raise ValueError("radius_mm applies to type = 'disc' only (a point has none)")
-        return self
 
 
 DETECTOR_PIXELS_LONG_SIDE = 600
@@ -236,7 +199,7 @@ class SceneSpec(ReadFromFile, _Strict):
     """A validated scene file (see the module docstring for every key)."""
 
     description: str = ""
-    source: SourceSpec
+    source: SourceParams  # one of physics.sources.SOURCE_KINDS' parameter models, by `type`
     detector: DetectorSpec
     effects: EffectsSpec = EffectsSpec()
     coatings: dict[str, str] = Field(default_factory=lambda: {"default": "perfect-ar"})
@@ -247,6 +210,11 @@ class SceneSpec(ReadFromFile, _Strict):
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
+
+    @field_validator("source", mode="before")
+    @classmethod
+    def _source_kind(cls, v):
+        return source_params(v) if isinstance(v, dict) else v
 
     @field_validator("coatings")
     @classmethod
@@ -286,6 +254,8 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
     if "base_dir" in data:
         raise InputError("unknown key 'base_dir'", file=file, field="base_dir", valid=_valid_keys(("base_dir",)))
     try:
+        if isinstance(data.get("source"), dict):  # here, not in the validator: pydantic would rewrap its paragraph
+            data = {**data, "source": source_params(data["source"])}
         spec = SceneSpec(**data, base_dir=base_dir)
     except ValidationError as exc:
         raise input_error(exc, SceneSpec, file=file, text=text) from None
@@ -371,5 +341,5 @@ def _valid_keys(loc) -> str:
     return ", ".join(keys_at(SceneSpec, tuple(loc)))
 
 
-__all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
+__all__ = ["SceneSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
            "scene_from_dict", "check_mount_finishes"]

@@ -88,14 +88,6 @@ def gather_cores(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_th
     return core
 
 
-def classify(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_threshold_deg,
-             min_share: float = EstimatorSettings.gathered_share):
-    """(broad, scatters) bool arrays per tag: broad gets hit points (some of its lobe is gathered,
-    `gather_cores`); scatters continues photons."""
-    scatters = np.array([b is not None and not b.is_black for b in bsdf_of_tag], bool)
-    return np.isfinite(gather_cores(bsdf_of_tag, threshold_deg, min_share)), scatters
-
-
 def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
                   normal_limit_deg: float = EstimatorSettings.normal_limit_deg):
     """Per-scene constants (radius caps, face boundaries), computed once per process."""
@@ -108,11 +100,6 @@ def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
         _CACHE.clear()
         _CACHE[key] = (scene, hw, boundaries)
     return _CACHE[key][1:]
-
-
-def part_names(scene) -> list[str]:
-    """The channels a pass reports (`estimate.film_channels`)."""
-    return film_channels(scene)
 
 
 class Bidirectional:
@@ -208,4 +195,4 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
                                                                  radius_scale=radius_scale)
 
 
-__all__ = ["Bidirectional", "bidirectional_pass", "classify", "gather_cores", "part_names", "radius_scale_of"]
+__all__ = ["Bidirectional", "bidirectional_pass", "gather_cores", "radius_scale_of"]

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from lensmount.trace.ghosts import Walls, launch, reflecting, reflections_of_order, route_count, trace_routes
 from lensmount.physics.sampler import stream
-from lensmount.physics.sources import ObjectSource
 
 PURPOSE = "ghost-routes"
 
@@ -46,7 +45,7 @@ def route_reflections(scene, settings) -> tuple[int, ...]:
     reflects = reflecting(scene)
     if not (scene.effects.ghosts and settings.ghost_routes) or reflects.sum() < 2:
         return ()
-    if isinstance(scene.source, ObjectSource):
+    if not scene.source.at_infinity:
         return ()
     most = reflections_of_order(scene.effects.ghost_order)
     if most >= 4 and route_count(reflects, 4) > MAX_FOUR_REFLECTION_ROUTES:

@@ -49,7 +49,7 @@ from lensmount.integrators.targets import (
 from lensmount.integrators.walk import emit_photons
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams, stream
-from lensmount.physics.sources import CollimatedSource, SunSource, orthonormal_basis
+from lensmount.physics.sources import orthonormal_basis
 from lensmount.trace.tracer import FACE
 
 UNIFORM_SHARE = 0.2  # photons emitted uniformly on the disc (every path stays reachable)
@@ -183,7 +183,7 @@ def aims_at_edge(scene, broad: np.ndarray) -> bool:
     collimated beam. Whether the pilot then finds the edge lit is `edge_band`'s answer."""
     tags = edge_tags(scene, broad)
     others = np.setdiff1d(np.flatnonzero(scattering_tags(scene)), tags)
-    return len(tags) > 0 and not len(others) and isinstance(scene.source, (SunSource, CollimatedSource))
+    return len(tags) > 0 and not len(others) and scene.source.at_infinity
 
 
 def _pilot(scene, tracer, broad, seed, n_photons):

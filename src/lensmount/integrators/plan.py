@@ -57,7 +57,6 @@ from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.ghosts import reflecting, route_count
-from lensmount.physics.sources import ObjectSource
 from lensmount.trace.tracer import MIRROR_SCATTER_MIN_SHARE
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
@@ -204,7 +203,7 @@ def _ghost_routes(scene, settings) -> Decision:
     if not counts:
         why = ("ghost_routes = false" if not settings.ghost_routes else
                "the source is at a finite distance (routes launch a beam from infinity)"
-               if isinstance(scene.source, ObjectSource) else "fewer than two surfaces reflect")
+               if not scene.source.at_infinity else "fewer than two surfaces reflect")
         return Decision(what, False, why + ": photons carry the whole ghosts channel")
     reflects = reflecting(scene)
     routes = " and ".join(f"{route_count(reflects, n)} routes of {n} reflections" for n in counts)

@@ -23,7 +23,6 @@ METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.j
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
     "stray_flux_mm2": ("stray_flux_mm2", "stray_flux_std_error_mm2", "stray_flux_bias_bound_mm2"),
 }
-AGAINST = ("last", "best")
 
 
 @dataclass(frozen=True)

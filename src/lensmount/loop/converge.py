@@ -30,8 +30,8 @@ from typing import Callable
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.integrators.registry import INTEGRATORS
 
-METHODS = ("bidirectional", "forward")
 MIN_PASSES_FOR_SLOPE = 4
 
 
@@ -42,7 +42,7 @@ class ConvergeOptions:
     design: Path
     scene: Path
     out: Path
-    methods: tuple[str, ...] = METHODS
+    methods: tuple[str, ...] = tuple(INTEGRATORS)
     budget_s: float = 600.0
     levels: int = 5
     reference: float | None = None  # stray fraction to measure the error against
@@ -124,10 +124,10 @@ def halving_time(elapsed_s: float, slope: float | None) -> float | None:
 
 
 def check(o: ConvergeOptions) -> None:
-    bad = [m for m in o.methods if m not in METHODS]
+    bad = [m for m in o.methods if m not in INTEGRATORS]
     if bad or not o.methods:
         raise InputError(f"unknown method(s) {', '.join(bad) or '(none)'}", field="--methods",
-                         valid="a comma-separated list of " + ", ".join(METHODS))
+                         valid="a comma-separated list of " + ", ".join(INTEGRATORS))
     if not (o.budget_s > 0 and math.isfinite(o.budget_s)):
         raise InputError(f"--budget must be a positive number of seconds, got {o.budget_s:g}", field="--budget",
                          valid="seconds > 0, e.g. 600")

@@ -93,9 +93,7 @@ def ghost_report(scene, tracer=None, rays_across: int = RAYS_ACROSS, order: int 
     tracer : the scene's `Tracer`, whose mesh blocks ghost light where the mount's walls do;
         None traces the prescription alone (clear apertures only).
     """
-    from lensmount.physics.sources import ObjectSource
-
-    if isinstance(scene.source, ObjectSource):
+    if not scene.source.at_infinity:
         raise InputError("the ghost analysis launches a collimated beam from a source at infinity; this scene's "
                          "source is at a finite distance", field="source.type",
                          valid="a scene whose source is type = 'sun' or 'collimated'")

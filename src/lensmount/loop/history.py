@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lensmount.loop.provenance import commit_order
+from lensmount.run.results import save_figure
 from lensmount.run.store import RunRecord, Store, default_path
 
 
@@ -44,8 +45,6 @@ def write_history_plot(path: Path, runs: list[RunRecord], title: str = "") -> No
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lensmount.atomic import atomic_path
-
     shown = [r for r in runs if r.stray_fraction is not None]
     fig, ax = plt.subplots(figsize=(max(5.0, 0.6 * len(shown) + 2), 4.0), dpi=100)
     x = range(len(shown))
@@ -56,11 +55,7 @@ def write_history_plot(path: Path, runs: list[RunRecord], title: str = "") -> No
     ax.set_title(title or "stray fraction by revision", fontsize=9)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(str(tmp), format="png")
-    finally:
-        plt.close(fig)
+    save_figure(fig, path)
 
 
 def label(r: RunRecord) -> str:

@@ -11,13 +11,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from lensmount.design.folder import Design
+from lensmount.design.scene import SceneSpec
+from lensmount.loop.regenerate import RegenerateResult
+from lensmount.scene.scene import Scene
+
 
 @dataclass
 class Prepared:
-    design: object  # lensmount.design.folder.Design
-    spec: object  # lensmount.design.scene.SceneSpec
-    built: object  # lensmount.loop.regenerate.RegenerateResult
-    scene: object  # lensmount.scene.scene.Scene
+    design: Design
+    spec: SceneSpec
+    built: RegenerateResult
+    scene: Scene
 
 
 def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None] | None = None):

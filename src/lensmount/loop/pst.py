@@ -28,8 +28,8 @@ from typing import Callable
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.loop.simulate import SimulateOptions, check_options
 
-METHODS = ("bidirectional", "forward")
 
 
 def parse_angles(text: str) -> list[float]:
@@ -116,13 +116,9 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
 
     o = options
     say = progress or (lambda text: None)
-    if o.method not in METHODS:
-        raise InputError(f"unknown method '{o.method}'", field="--method", valid=" | ".join(METHODS))
-    for name, value in (("--passes", o.passes), ("--photons-per-pass", o.photons_per_pass)):
-        if value is not None and value < 1:
-            raise InputError(f"{name} must be at least 1, got {value}", field=name, valid="a positive integer")
-    if o.seed is not None and o.seed < 0:
-        raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
+    check_options(SimulateOptions(o.design, o.scene, method=o.method, seed=o.seed, passes=o.passes,
+                                  photons_per_pass=o.photons_per_pass, samples_per_pixel=o.samples_per_pixel,
+                                  alpha=o.alpha, geometry=o.geometry))
     design, spec = read_inputs(o.design, o.scene)
     if not spec.source.at_infinity:
         raise InputError(f"pst sweeps the angle of a source at infinity; this scene's source is a {spec.source.type} "

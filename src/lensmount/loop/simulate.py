@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
+from lensmount.integrators.registry import check_method
 from lensmount.run.executor import local_cluster_size
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
-METHODS = ("bidirectional", "forward")
 CHECKPOINT = "checkpoint.npz"
 PATHS = "paths.npz"  # per-path and per-face sums for `lensmount paths` (analysis.paths.write_paths)
 
@@ -107,8 +107,7 @@ class SimulateResult:
 
 def check_options(o: SimulateOptions) -> None:
     """Refuse bad options before anything is built or written."""
-    if o.method not in METHODS:
-        raise InputError(f"unknown method '{o.method}'", field="--method", valid=" | ".join(METHODS))
+    check_method(o.method)
     if not 0.0 < o.alpha < 1.0:
         raise InputError(f"alpha = {o.alpha:g} is out of range", field="--alpha", valid="0 < alpha < 1")
     for name, value in (("--photons", o.photons), ("--passes", o.passes), ("--photons-per-pass", o.photons_per_pass)):
@@ -234,7 +233,6 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     from lensmount.run.results import write_run
     from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
     from lensmount.scene.scene import EFFECT_NAMES
-    from lensmount.physics.sources import ObjectSource
 
     design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
@@ -284,7 +282,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
-                                   **({"units": OBJECT_SOURCE_UNITS} if isinstance(sc.source, ObjectSource) else {}),
+                                   **({"units": OBJECT_SOURCE_UNITS} if not sc.source.at_infinity else {}),
                                    "geometry": str(built.folder.resolve()),
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
@@ -304,7 +302,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 
 
 # A source at a finite distance is normalised to its own mean irradiance over the entrance pupil
-# (trace.sources.ObjectSource), not to the sun's.
+# (physics.sources.ObjectSource), not to the sun's.
 OBJECT_SOURCE_UNITS = {"irradiance": "E/E_ref (E_ref: the source's mean irradiance over the entrance pupil)",
                        "flux": "mm² (flux / E_ref)"}
 
@@ -318,5 +316,4 @@ def _field_radius(prescription) -> float | None:
 
 
 __all__ = ["SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
-           "planned_input_hash",
-           "METHODS"]
+           "planned_input_hash"]

@@ -30,6 +30,7 @@ import numpy as np
 from lensmount.optics.paraxial import indices, marginal_heights, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
+from lensmount.optics.snell import reflect, refract
 
 CLIP_REL_TOL = 1e-9  # a ray exactly on an automatic clear aperture passes
 _AIM_STEPS = 12
@@ -129,8 +130,9 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
         # refract, or reflect at a mirror
         if surface.mirror:
             new_dir = reflect(cur, profile.normal(q))
+            new_dir = new_dir / _safe_norm(new_dir)[:, None]
         else:
-            new_dir, tir = refract(cur, profile.normal(q), n[i], n[i + 1])
+            new_dir, tir, _, _ = refract(cur, profile.normal(q), np.full(len(cur), n[i] / n[i + 1]))
             ok &= ~tir
         # record (vignetted lanes keep their last valid point and direction)
         newly = alive & ~ok
@@ -151,30 +153,6 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
     points[nsurf] = np.where(alive[:, None], p + t[:, None] * cur, p)
     dirs[nsurf] = cur
     return RealRays(points, dirs, ~alive, stopped_at, o, d, wl)
-
-
-def refract(d: np.ndarray, normal: np.ndarray, n1, n2) -> tuple[np.ndarray, np.ndarray]:
-    """Vector Snell's law.
-
-    d, normal: (N, 3) unit vectors (the normal's sign does not matter). n1, n2:
-    indices before and after (scalars or (N,)). Returns (new directions (N, 3),
-    tir (N,) bool); where tir is True the returned direction is the incoming one.
-    """
-    cos_i = np.einsum("ij,ij->i", d, normal)
-    nn = np.where(cos_i[:, None] < 0.0, -normal, normal)  # orient the normal along the ray
-    cos_i = np.abs(cos_i)
-    mu = np.asarray(n1, dtype=np.float64) / np.asarray(n2, dtype=np.float64)
-    k = 1.0 - mu * mu * (1.0 - cos_i * cos_i)
-    tir = k < 0.0
-    out = mu * d + (np.sqrt(np.maximum(k, 0.0)) - mu * cos_i)[:, None] * nn
-    out = out / _safe_norm(out)[:, None]
-    return np.where(tir[:, None], d, out), tir
-
-
-def reflect(d: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Mirror reflection d - 2 (d·n) n of unit directions d (N, 3) at unit normals (either sign)."""
-    out = d - 2.0 * np.einsum("ij,ij->i", d, normal)[:, None] * normal
-    return out / _safe_norm(out)[:, None]
 
 
 # ----------------------------------------------------------------------------- aiming
@@ -368,5 +346,5 @@ def _safe_norm(v: np.ndarray) -> np.ndarray:
     return np.where(n > 0.0, n, 1.0)
 
 
-__all__ = ["RealRays", "trace", "refract", "reflect", "aim", "field_direction", "stop_semi_diameter",
+__all__ = ["RealRays", "trace", "aim", "field_direction", "stop_semi_diameter",
            "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]

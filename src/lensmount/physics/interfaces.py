@@ -1,4 +1,4 @@
-"""What light does at a glass surface: Snell refraction, total internal reflection, Fresnel, coatings.
+"""What light does at a glass surface: Fresnel, coatings (Snell refraction and TIR: optics.snell).
 
 All functions are vectorised over N rays and NaN-free by construction.
 
@@ -71,30 +71,6 @@ def mirror_reflectance(coating: Coating) -> float:
     """Reflectance of a mirror surface: a constant coating's R, else protected aluminium's
     (about 0.90 over the visible; Fresnel names such as perfect-ar describe glass, not a mirror)."""
     return coating.reflectance if coating.kind == "constant" else PROTECTED_ALUMINIUM_R
-
-
-def refract(d: np.ndarray, n: np.ndarray, eta: np.ndarray):
-    """Vector Snell's law.
-
-    d : (N, 3) unit incident directions; n : (N, 3) unit normals (either orientation);
-    eta : (N,) n1 / n2. Returns (t (N, 3) unit refracted directions, tir (N,) bool,
-    cos_i (N,) >= 0, cos_t (N,) >= 0). Where tir is true, t is the mirror reflection.
-    """
-    cos_dn = np.einsum("ij,ij->i", d, n)
-    m = n * np.where(cos_dn >= 0.0, 1.0, -1.0)[:, None]  # normal along the travel direction
-    cos_i = np.abs(cos_dn)
-    sin2_t = eta * eta * np.maximum(0.0, 1.0 - cos_i * cos_i)
-    tir = sin2_t > 1.0
-    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
-    t = eta[:, None] * d + (cos_t - eta * cos_i)[:, None] * m
-    t = np.where(tir[:, None], reflect(d, n), t)
-    t = t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
-    return t, tir, cos_i, np.where(tir, 0.0, cos_t)
-
-
-def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Mirror reflection of directions d (N, 3) about normals n (N, 3)."""
-    return d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
 
 
 def facing(n: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -173,5 +149,5 @@ def reflectance(n1, n2, cos_i, coating: Coating, wavelength_um) -> np.ndarray:
     return 0.5 * (rs + rp)
 
 
-__all__ = ["Coating", "parse_coating", "mirror_reflectance", "PROTECTED_ALUMINIUM_R", "refract", "reflect", "facing",
+__all__ = ["Coating", "parse_coating", "mirror_reflectance", "PROTECTED_ALUMINIUM_R", "facing",
            "fresnel_rt", "reflectance", "COATING_NAMES"]

@@ -24,13 +24,44 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Callable, ClassVar, Literal, Protocol
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from lensmount.errors import InputError
 from lensmount.physics.rays import RayBatch
+from lensmount.validation import did_you_mean, input_error
 
 LIMB_DARKENING_U = 0.6
 SUN_ANGULAR_DIAMETER_DEG = 0.53
+
+
+class Source(Protocol):
+    """What every light source offers the scene, the integrators and the run summary.
+
+    at_infinity : a parallel beam from a direction (sun, collimated: images in E/E_sun; photon
+        aiming at an edge and the deterministic ghost routes apply), or an object at a finite
+        distance (images in E/E_ref, its own irradiance over the entrance pupil).
+    emit(n, rng) -> (RayBatch whose weights are flux per photon, mean flux per photon).
+    """
+
+    at_infinity: ClassVar[bool]
+    wavelength_weights: tuple[float, ...]
+
+    @property
+    def off_axis_deg(self) -> float: ...
+
+    @property
+    def half_angle_rad(self) -> float: ...
+
+    @property
+    def entering_fraction(self) -> float: ...
+
+    @property
+    def no_light_enters(self) -> str | None: ...
+
+    def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]: ...
 
 
 def _cos_deg(x: float) -> float:
@@ -129,6 +160,7 @@ class SunSource:
     wavelengths (photon wavelengths are drawn in proportion).
     """
 
+    at_infinity: ClassVar[bool] = True
     off_axis_deg: float
     azimuth_deg: float
     disc: EmissionDisc
@@ -163,6 +195,8 @@ class SunSource:
 class CollimatedSource:
     """A point source at infinity (a perfectly collimated beam), for PST sweeps."""
 
+    at_infinity: ClassVar[bool] = True
+    limb_darkening: ClassVar[bool] = False  # a point has no disc
     off_axis_deg: float
     azimuth_deg: float
     disc: EmissionDisc
@@ -228,6 +262,7 @@ class ObjectSource:
     the front opening.
     """
 
+    at_infinity: ClassVar[bool] = False
     centre: tuple[float, float, float]
     radius: float
     aim_z: float
@@ -338,5 +373,137 @@ def disc_radius_fraction(u: np.ndarray, limb: bool) -> np.ndarray:
     return np.interp(u, cdf / cdf[-1], s)
 
 
-__all__ = ["SunSource", "CollimatedSource", "ObjectSource", "EmissionDisc", "emission_disc", "source_direction",
+# ---- Source kinds: what a scene file's [source] table may say, and how each kind is placed ----
+
+@dataclass(frozen=True)
+class Placement:
+    """What the scene knows when it places a source (mm, assembly frame).
+
+    opening_z, opening_radius : the front opening light enters by; clear_distance : from the
+    opening's centre, beyond which nothing of the assembly lies; object_z : the lens's object
+    plane (None: the object is at infinity); pupil() -> (z, radius) of the paraxial entrance pupil
+    (asked for only by sources that need it: a lens without a stop has none and says so).
+    """
+
+    opening_z: float
+    opening_radius: float
+    clear_distance: float
+    object_z: float | None
+    pupil: Callable[[], tuple[float, float]]
+    wavelength_weights: tuple[float, ...] = (1.0,)
+
+
+class SourceParams(BaseModel):
+    """The [source] table of a scene file: `type` names the kind, the other keys are the kind's own
+    (unknown keys are errors). Each kind subclasses this with `type: Literal[name]`."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    at_infinity: ClassVar[bool]
+    type: str
+
+
+class _AtInfinity(SourceParams):
+    at_infinity: ClassVar[bool] = True
+    off_axis_deg: float = Field(ge=0.0, le=180.0)
+    azimuth_deg: float = 90.0
+
+
+class SunParams(_AtInfinity):
+    type: Literal["sun"] = "sun"
+    angular_diameter_deg: float = Field(default=SUN_ANGULAR_DIAMETER_DEG, ge=0.0, le=10.0)
+    limb_darkening: bool = False
+
+
+class CollimatedParams(_AtInfinity):
+    type: Literal["collimated"]
+
+
+class PointParams(SourceParams):
+    at_infinity: ClassVar[bool] = False
+    type: Literal["point"]
+    height_mm: float = Field(default=0.0, ge=0.0)
+    azimuth_deg: float = 90.0
+    z_mm: float | None = None
+
+
+class DiscParams(PointParams):
+    type: Literal["disc"]  # type: ignore[assignment]
+    radius_mm: float = Field(gt=0.0)
+
+
+@dataclass(frozen=True)
+class SourceKind:
+    """A kind of source: its scene-file keys and how it is built at a placement."""
+
+    params: type[SourceParams]
+    build: Callable[[SourceParams, Placement], Source]
+
+
+SOURCE_KINDS: dict[str, SourceKind] = {}
+
+
+def register_source(name: str, params: type[SourceParams], build: Callable[[SourceParams, Placement], Source]) -> None:
+    """Make `type = name` a source kind of scene files (docs/architecture.md, "Where to add a source")."""
+    SOURCE_KINDS[name] = SourceKind(params, build)
+
+
+def source_params(table: dict) -> SourceParams:
+    """The validated [source] table; an InputError (field `source.KEY`) names what is wrong."""
+    name = table.get("type", "sun")
+    if name not in SOURCE_KINDS:
+        raise InputError(f"unknown source type '{name}'", field="source.type", valid=" | ".join(SOURCE_KINDS))
+    model = SOURCE_KINDS[name].params
+    for key in table:  # a key of another kind would otherwise read as a plain typo
+        if key not in model.model_fields:
+            others = [f"'{n}'" for n, k in SOURCE_KINDS.items() if key in k.params.model_fields]
+            guess = did_you_mean(key, model.model_fields)
+            said = (f"{key} applies to type = {' or '.join(others)} only" if others else
+                    f"unknown key '{key}'" + (f" (did you mean '{guess}'?)" if guess else ""))
+            raise InputError(f"{said}, not to a {name} source", field=f"source.{key}",
+                             valid=f"the keys of a {name} source: " + ", ".join(model.model_fields))
+    try:
+        return model.model_validate(table)
+    except ValidationError as exc:
+        raise input_error(exc, model, prefix=("source",)) from None
+
+
+def _sun(p: SunParams, at: Placement) -> SunSource:
+    half = 0.5 * math.radians(p.angular_diameter_deg)
+    disc = emission_disc(source_direction(p.off_axis_deg, p.azimuth_deg), at.opening_z, at.opening_radius,
+                         at.clear_distance, half)
+    return SunSource(p.off_axis_deg, p.azimuth_deg, disc, p.angular_diameter_deg, p.limb_darkening,
+                     at.wavelength_weights)
+
+
+def _collimated(p: CollimatedParams, at: Placement) -> CollimatedSource:
+    disc = emission_disc(source_direction(p.off_axis_deg, p.azimuth_deg), at.opening_z, at.opening_radius,
+                         at.clear_distance)
+    return CollimatedSource(p.off_axis_deg, p.azimuth_deg, disc, at.wavelength_weights)
+
+
+def _object(p: PointParams, at: Placement, radius: float) -> ObjectSource:
+    """Centred at height_mm toward azimuth_deg on the plane z_mm (default: the lens's object plane)."""
+    z = p.z_mm if p.z_mm is not None else at.object_z
+    if z is None:
+        raise InputError(f"a {p.type} source needs a plane: the lens has its object at infinity", field="source.z_mm",
+                         valid="z_mm (mm, surface 1's vertex at 0, the object side negative), or a lens with a "
+                               "finite object distance")
+    if z >= 0.0:
+        raise InputError(f"the {p.type} source at z = {z:g} mm is not in front of surface 1", field="source.z_mm",
+                         valid="a plane in front of the lens, z_mm < 0")
+    pupil_z, pupil_radius = at.pupil()
+    a = math.radians(p.azimuth_deg)
+    centre = (p.height_mm * math.cos(a), p.height_mm * math.sin(a), float(z))
+    return ObjectSource(centre, radius, float(at.opening_z), float(at.opening_radius) * 1.02 + 1e-3,
+                        float(pupil_z), float(pupil_radius), at.wavelength_weights)
+
+
+register_source("sun", SunParams, _sun)
+register_source("collimated", CollimatedParams, _collimated)
+register_source("point", PointParams, lambda p, at: _object(p, at, 0.0))
+register_source("disc", DiscParams, lambda p, at: _object(p, at, float(p.radius_mm)))
+
+
+__all__ = ["Source", "Placement", "SourceParams", "SunParams", "CollimatedParams", "PointParams",
+           "DiscParams", "SourceKind", "SOURCE_KINDS", "register_source", "source_params", "SunSource", "CollimatedSource", "ObjectSource", "EmissionDisc", "emission_disc", "source_direction",
            "orthonormal_basis", "entering_fraction", "no_light_enters_reason", "disc_radius_fraction"]

@@ -29,18 +29,13 @@ from pathlib import Path
 from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
-from lensmount.run.executor import Executor, executor_for, resolve
-from lensmount.integrators.bidirectional import Bidirectional
+from lensmount.run.executor import Executor, executor_for
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.integrators.forward import Forward
+from lensmount.integrators.registry import INTEGRATORS
 from lensmount.integrators.settings import EstimatorSettings
 
-# Every integrator: Integrator(settings) with channels(scene) and
-# run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None) -> PassEstimate.
-INTEGRATORS = {"bidirectional": Bidirectional, "forward": Forward}
 TRACER = "lensmount.trace.tracer:Tracer"
 RUN_PASS = "lensmount.run.runner:run_pass"
-_resolve = resolve
 
 
 @dataclass
@@ -81,8 +76,7 @@ class PassJob:
 
 def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     """One pass of the chosen method, in this process."""
-    integrator = INTEGRATORS[job.method] if job.method in INTEGRATORS else resolve(job.method)  # or "module:Class"
-    return integrator(job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
+    return INTEGRATORS[job.method](job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
 
 
 class Terminated(KeyboardInterrupt):
@@ -200,4 +194,4 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers", "INTEGRATORS"]
+__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers"]

@@ -27,7 +27,7 @@ from lensmount.design.finishes import finish_library, finish_of
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
 from lensmount.physics.bsdf.mirror_finish import MirrorFinish
 from lensmount.physics.detector import Detector
-from lensmount.physics.sources import CollimatedSource, ObjectSource, SunSource, emission_disc, source_direction
+from lensmount.physics.sources import SOURCE_KINDS, Placement, Source, SourceParams
 
 
 def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
@@ -371,44 +371,21 @@ def clear_distance(mesh: TaggedMesh, detector: Detector, opening: FrontOpening) 
                  + 0.5 * math.hypot(detector.width, detector.height) + 1.0)
 
 
-def make_source(src, opening: FrontOpening, mesh: TaggedMesh, detector: Detector, prescription: Prescription):
-    """SunSource or CollimatedSource from a SourceSpec, with its emission disc placed outside the
-    assembly; ObjectSource (point, disc) at the lens's object plane unless the spec gives z_mm."""
-    weights = tuple(prescription.wavelength_weights)
-    if not src.at_infinity:
-        return object_source(src, opening, prescription, weights)
-    d = source_direction(src.off_axis_deg, src.azimuth_deg)
-    half = 0.5 * math.radians(src.angular_diameter_deg) if src.type == "sun" else 0.0
-    disc = emission_disc(d, opening.z, opening.radius, clear_distance(mesh, detector, opening), half)
-    if src.type == "sun":
-        return SunSource(src.off_axis_deg, src.azimuth_deg, disc, src.angular_diameter_deg, src.limb_darkening,
-                         tuple(weights))
-    return CollimatedSource(src.off_axis_deg, src.azimuth_deg, disc, tuple(weights))
+def make_source(src: SourceParams, opening: FrontOpening, mesh: TaggedMesh, detector: Detector,
+                prescription: Prescription) -> Source:
+    """The source of a scene file's [source] table, placed for this assembly: emission discs outside
+    it, object planes at the lens's object distance unless the table gives z_mm (physics.sources)."""
+    object_z = -float(prescription.object_distance) if prescription.finite_object else None
 
+    def pupil() -> tuple[float, float]:
+        par = _pupil(prescription)
+        return float(par.entrance_pupil_z), 0.5 * float(par.epd)
 
-def object_source(src, opening: FrontOpening, prescription: Prescription, weights) -> ObjectSource:
-    """The point or disc source of a SourceSpec, centred at height_mm toward azimuth_deg on the plane
-    z_mm (default: the lens's object plane, z = -object_distance); normalised to the paraxial
-    entrance pupil (trace.sources.ObjectSource)."""
-    if src.z_mm is not None:
-        z = float(src.z_mm)
-    elif prescription.finite_object:
-        z = -float(prescription.object_distance)
-    else:
-        raise InputError(f"a {src.type} source needs a plane: the lens has its object at infinity", field="source.z_mm",
-                         valid="z_mm (mm, surface 1's vertex at 0, the object side negative), or a lens with a "
-                               "finite object distance")
-    if z >= 0.0:
-        raise InputError(f"the {src.type} source at z = {z:g} mm is not in front of surface 1", field="source.z_mm",
-                         valid="a plane in front of the lens, z_mm < 0")
-    par = _pupil(prescription)
-    a = math.radians(src.azimuth_deg)
-    centre = (src.height_mm * math.cos(a), src.height_mm * math.sin(a), z)
-    return ObjectSource(centre, float(src.radius_mm or 0.0), float(opening.z), float(opening.radius) * 1.02 + 1e-3,
-                        float(par.entrance_pupil_z), 0.5 * float(par.epd), tuple(weights))
-
+    at = Placement(float(opening.z), float(opening.radius), clear_distance(mesh, detector, opening), object_z, pupil,
+                   tuple(prescription.wavelength_weights))
+    return SOURCE_KINDS[src.type].build(src, at)
 
 __all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
            "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
            "solid_absorption_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source",
-           "object_source", "clear_distance"]
+           "clear_distance"]

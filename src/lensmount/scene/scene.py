@@ -19,6 +19,7 @@ from lensmount.mesh import TaggedMesh
 from lensmount.optics.profiles import Profile
 from lensmount.physics.detector import Detector
 from lensmount.physics.interfaces import Coating
+from lensmount.physics.sources import Source
 
 
 @dataclass(frozen=True)
@@ -186,7 +187,7 @@ class Scene:
     mesh: TaggedMesh
     optical: list[OpticalSurface]
     bsdf_of_tag: list
-    source: object
+    source: Source
     detector: Detector
     wavelengths_um: np.ndarray
     effects: Effects

@@ -11,6 +11,7 @@ of user-template parts that follow the built-in profile, and `mount` otherwise.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -156,6 +157,19 @@ def _distance_to_polyline(p, pl):
     return float(np.sqrt(((q - p) ** 2).sum(1)).min())
 
 
+class Template(Protocol):
+    """What every part template offers the CAD layer: its tagged (r, z) profile, its solid (a
+    build123d Solid, placed in the assembly frame) and its parameters (hashing, user templates).
+    A new kind of part: a dataclass in its own module of this folder deriving from `RevolvedPart`
+    (docs/architecture.md, "Where to add a template")."""
+
+    def segments(self) -> list[Segment]: ...
+
+    def build(self): ...
+
+    def params(self) -> dict: ...
+
+
 @dataclass
 class RevolvedPart:
     """Base of the built-in templates: subclasses give `segments()`; placement is in the profile."""
@@ -173,4 +187,4 @@ class RevolvedPart:
         return asdict(self)
 
 
-__all__ = ["Segment", "polygon", "revolve", "face_roles", "RevolvedPart"]
+__all__ = ["Segment", "polygon", "revolve", "face_roles", "Template", "RevolvedPart"]

@@ -37,7 +37,8 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.physics.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
+from lensmount.optics.snell import reflect, refract
+from lensmount.physics.interfaces import facing, mirror_reflectance, reflectance
 from lensmount.physics.sources import disc_radius_fraction, orthonormal_basis
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)

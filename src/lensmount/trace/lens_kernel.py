@@ -33,6 +33,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from lensmount.physics.interfaces import MGF2_DESIGN_WAVELENGTH_UM, MGF2_INDEX
 from lensmount.trace.kernels import step_one
 
 # step_one (with `kernels.face_table`'s column numbers) is compiled into this file's cached walk, and numba
@@ -45,8 +46,7 @@ COATING_CODES = {"perfect-ar": 0, "uncoated": 1, "mgf2-quarter-wave": 2, "consta
 # Constants copied from interfaces and sampler on purpose: numba freezes globals into its on-disk cache,
 # which it invalidates only when this file changes, so an imported value edited there would leave a
 # stale kernel. tests/trace/test_lens_kernel.py holds the copies to their originals.
-_MGF2_INDEX = 1.38
-_MGF2_THICKNESS_UM = 0.55 / (4.0 * 1.38)  # interfaces.MGF2_DESIGN_WAVELENGTH_UM / (4 MGF2_INDEX)
+_MGF2_THICKNESS_UM = MGF2_DESIGN_WAVELENGTH_UM / (4.0 * MGF2_INDEX)  # a quarter wave; numba reads it as a constant
 _COS_FLOOR = 1e-12
 _DETECTOR = 2  # tracer.DETECTOR (tracer imports this module)
 THREADED_FROM = 4096  # rays: below, starting the threads costs more than they save
@@ -201,9 +201,9 @@ def reflectance(n1, n2, cos_i, code, r_const, wavelength_um):
         rs = _layer_r(one, zero, zero, one, e0s, e2s)
         rp = _layer_r(one, zero, zero, one, e0p, e2p)
     else:
-        cosf = _complex_cos(n1, sin_i, _MGF2_INDEX)
-        delta = 2.0 * np.pi * _MGF2_INDEX * _MGF2_THICKNESS_UM * cosf / wavelength_um
-        efs, efp = _admittances(_MGF2_INDEX, cosf)
+        cosf = _complex_cos(n1, sin_i, MGF2_INDEX)
+        delta = 2.0 * np.pi * MGF2_INDEX * _MGF2_THICKNESS_UM * cosf / wavelength_um
+        efs, efp = _admittances(MGF2_INDEX, cosf)
         cd, sd = cmath.cos(delta), cmath.sin(delta)
         rs = _layer_r(cd, 1j * sd / efs, 1j * efs * sd, cd, e0s, e2s)
         rp = _layer_r(cd, 1j * sd / efp, 1j * efp * sd, cd, e0p, e2p)
@@ -274,7 +274,7 @@ def _walk_rays(j0, j1, over, work, o, d, w, wl, left_s, leaving, left_n, count, 
             n1 = nbef[k, lam] if forward else naft[k, lam]
             n2 = naft[k, lam] if forward else nbef[k, lam]
             eta = n1 / n2
-            # Snell (interfaces.refract)
+            # Snell (optics.snell.refract)
             sgn = 1.0 if forward else -1.0
             mx, my, mz = nx * sgn, ny * sgn, nz * sgn
             cos_i = abs(cos_dn)

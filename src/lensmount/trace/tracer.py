@@ -33,7 +33,8 @@ import numpy as np
 
 from lensmount.trace import kernels, lens_kernel
 from lensmount.trace.ghosts import reflecting
-from lensmount.physics.interfaces import facing, mirror_reflectance, reflect, reflectance, refract
+from lensmount.optics.snell import reflect, refract
+from lensmount.physics.interfaces import facing, mirror_reflectance, reflectance
 from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import ray_streams

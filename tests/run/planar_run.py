@@ -24,7 +24,8 @@ from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E40
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.run.executor import executor_for  # noqa: E402
-from lensmount.integrators.bidirectional import Bidirectional, part_names  # noqa: E402
+from lensmount.integrators.bidirectional import Bidirectional  # noqa: E402
+from lensmount.integrators.estimate import film_channels  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
 
@@ -65,7 +66,7 @@ def main(argv):
         return PassJob("planar_run:CrashingBidirectional" if crash else "bidirectional", 2000, 5, i,
                        EstimatorSettings(samples_per_pixel=16))
 
-    acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), part_names(sc), 0.25)
+    acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), film_channels(sc), 0.25)
 
     def progress(a, elapsed):
         print(f"merged {a.n}", flush=True)
