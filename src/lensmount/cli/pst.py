@@ -25,16 +25,17 @@ def pst(
                                                    help="Photons per pass (default: the scene's run table)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's run table seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/pst-<scene name>)."),
+    workers: int = typer.Option(0, "--workers", help="Worker processes for each angle's passes (0 = one per core)."),
 ) -> None:
     """Point source transmittance (detector irradiance over the irradiance on the entrance
     plane) against off-axis angle: pst.csv, pst.png (log scale, error bars, field edge
     marked) and report.html. Inside the field with `direct` on in the scene the direct image
-    dominates; outside it, the stray light. Geometry and tracer are built once for all angles."""
+    dominates; outside it, the stray light. The geometry is built once for all angles."""
     from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
     try:
         options = PstOptions(Path(design), Path(scene), tuple(parse_angles(angles)), azimuth, method, passes,
-                             photons_per_pass, seed)
+                             photons_per_pass, seed, workers=workers)
         result = sweep(options, progress=lambda text: typer.echo(text, err=True))
         paths = write_pst(Path(out) if out else Path("out") / f"pst-{Path(scene).stem}", result)
     except InputError as error:

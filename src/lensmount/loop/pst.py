@@ -8,9 +8,9 @@ dominates (PST of order the relative aperture area); past the field edge only st
 is left and the curve drops by orders of magnitude.
 
 What does not change with the source direction is built once: the mount geometry (the
-regenerate cache), the Scene's mesh, optics, finishes and detector, and the tracer with
-its Embree BVH. Each angle only swaps the source (`make_source`) and runs its passes
-through that one tracer. The bidirectional view map is built per pass, inside
+regenerate cache) and the Scene's mesh, optics, finishes and detector. Each angle only swaps
+the source (`make_source`) and runs its passes on the `Runner`, on every core as `simulate`
+does (each worker builds the angle's tracer, an Embree BVH, once). The bidirectional view map is built per pass, inside
 `bidirectional_pass`, with the pass's own radius; it does not depend on the source, but
 sharing it across angles would need the estimator split into its view and photon phases,
 which `integrators.bidirectional` does not offer, so each angle still pays for it.
@@ -68,6 +68,7 @@ class PstOptions:
     samples_per_pixel: int = 1
     alpha: float = 0.7
     geometry: Path | None = None
+    workers: int = 0  # processes running an angle's passes (0: one per core)
 
 
 @dataclass(frozen=True)
@@ -106,19 +107,19 @@ def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: f
 def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> PstResult:
     """Run the sweep; progress(text) after each angle."""
     from lensmount.analysis.passes import Accumulator
+    from lensmount.integrators.registry import INTEGRATORS
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.loop.prepare import build, read_inputs
     from lensmount.loop.provenance import collect
-    from lensmount.run.runner import PassJob, run_pass
+    from lensmount.run.runner import PassJob, Runner, Stopping, Terminated, default_workers
     from lensmount.scene.build import make_source
     from lensmount.scene.scene import EFFECT_NAMES
-    from lensmount.trace.tracer import Tracer
 
     o = options
     say = progress or (lambda text: None)
     check_options(SimulateOptions(o.design, o.scene, method=o.method, seed=o.seed, passes=o.passes,
                                   photons_per_pass=o.photons_per_pass, samples_per_pixel=o.samples_per_pixel,
-                                  alpha=o.alpha, geometry=o.geometry))
+                                  alpha=o.alpha, geometry=o.geometry, workers=o.workers))
     design, spec = read_inputs(o.design, o.scene)
     if not spec.source.at_infinity:
         raise InputError(f"pst sweeps the angle of a source at infinity; this scene's source is a {spec.source.type} "
@@ -132,27 +133,24 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
                          list(design.template_paths.values())).to_dict()
 
     base = build(design, spec, o.geometry, stage=say).scene
-    say("building the tracer (once for every angle)")
-    tracer = Tracer(base)
     det = base.detector
     area = det.width * det.height
     field_edge = float(design.prescription.max_field_deg)
     settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
 
     points = []
-    names = None
     for angle in o.angles_deg:
         source_spec = spec.source.model_copy(update={"off_axis_deg": float(angle), "azimuth_deg": azimuth})
         scene = dataclasses.replace(base, source=make_source(source_spec, base.front_opening, base.mesh, det,
                                                                   design.prescription))
         start = time.perf_counter()
-        acc = None
-        for i in range(passes):
-            estimate = run_pass(scene, tracer, PassJob(o.method, per_pass, seed, i, settings))
-            if acc is None:
-                names = list(estimate.part_names) if names is None else names
-                acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
-            acc.add(estimate, pass_index=i)
+        names = INTEGRATORS[o.method](settings).channels(scene)
+        acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
+        runner = Runner(scene, lambda i: PassJob(o.method, per_pass, seed, i, settings), acc,
+                        workers=o.workers or default_workers())
+        runner.run(Stopping(max_passes=passes))
+        if runner.interrupted:  # the sweep stops with the signal, as the passes did
+            raise Terminated() if runner.terminated else KeyboardInterrupt()
         value, se = pst_of(acc.flux, acc.flux_std_error, area, scene.source.entering_fraction)
         point = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons,
                          time.perf_counter() - start)

@@ -152,29 +152,15 @@ def emission_disc(direction: np.ndarray, opening_z: float, opening_radius: float
     return EmissionDisc(tuple(float(x) for x in centre), float(radius))
 
 
-@dataclass(frozen=True)
-class SunSource:
-    """The sun: angular disc of `angular_diameter_deg`, at (off_axis_deg, azimuth_deg).
-
-    wavelength_weights (W,) are the source's relative spectral weights over the scene's
-    wavelengths (photon wavelengths are drawn in proportion).
-    """
+class _ParallelBeam:
+    """What the sun and a collimated source share: a beam from (off_axis_deg, azimuth_deg) whose
+    photons start on `disc`, inside a cone of half-angle `half_angle_rad`."""
 
     at_infinity: ClassVar[bool] = True
-    off_axis_deg: float
-    azimuth_deg: float
-    disc: EmissionDisc
-    angular_diameter_deg: float = SUN_ANGULAR_DIAMETER_DEG
-    limb_darkening: bool = False
-    wavelength_weights: tuple[float, ...] = (1.0,)
 
     @property
     def direction(self) -> np.ndarray:
         return source_direction(self.off_axis_deg, self.azimuth_deg)
-
-    @property
-    def half_angle_rad(self) -> float:
-        return 0.5 * math.radians(self.angular_diameter_deg)
 
     @property
     def entering_fraction(self) -> float:
@@ -192,34 +178,35 @@ class SunSource:
 
 
 @dataclass(frozen=True)
-class CollimatedSource:
+class SunSource(_ParallelBeam):
+    """The sun: angular disc of `angular_diameter_deg`, at (off_axis_deg, azimuth_deg).
+
+    wavelength_weights (W,) are the source's relative spectral weights over the scene's
+    wavelengths (photon wavelengths are drawn in proportion).
+    """
+
+    off_axis_deg: float
+    azimuth_deg: float
+    disc: EmissionDisc
+    angular_diameter_deg: float = SUN_ANGULAR_DIAMETER_DEG
+    limb_darkening: bool = False
+    wavelength_weights: tuple[float, ...] = (1.0,)
+
+    @property
+    def half_angle_rad(self) -> float:
+        return 0.5 * math.radians(self.angular_diameter_deg)
+
+
+@dataclass(frozen=True)
+class CollimatedSource(_ParallelBeam):
     """A point source at infinity (a perfectly collimated beam), for PST sweeps."""
 
-    at_infinity: ClassVar[bool] = True
     limb_darkening: ClassVar[bool] = False  # a point has no disc
+    half_angle_rad: ClassVar[float] = 0.0
     off_axis_deg: float
     azimuth_deg: float
     disc: EmissionDisc
     wavelength_weights: tuple[float, ...] = (1.0,)
-
-    @property
-    def direction(self) -> np.ndarray:
-        return source_direction(self.off_axis_deg, self.azimuth_deg)
-
-    @property
-    def half_angle_rad(self) -> float:
-        return 0.0
-
-    @property
-    def entering_fraction(self) -> float:
-        return entering_fraction(self.off_axis_deg)
-
-    @property
-    def no_light_enters(self) -> str | None:
-        return no_light_enters_reason(self.off_axis_deg)
-
-    def emit(self, n: int, rng: np.random.Generator) -> tuple[RayBatch, float]:
-        return _emit(self, n, rng, 0.0, False)
 
 
 # Midpoint quadrature of the entrance pupil (rings × azimuths) and of a disc source, for the
