@@ -35,7 +35,7 @@ def fail(error: InputError) -> None:
 
 
 # Modules that define commands; each does `@app.command()` at import.
-COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "history", "pst", "converge", "sweep",
+COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "watch", "history", "pst", "converge", "sweep",
                    "ghosts", "fit_abg", "paths")
 
 for _name in COMMAND_MODULES:

@@ -68,9 +68,11 @@ def section(title: str, *blocks: str) -> str:
     return f"<h2>{esc(title)}</h2>" + "".join(blocks)
 
 
-def page(title: str, blocks: list[str]) -> str:
-    """The whole document. No external resource of any kind (checked by the browser test)."""
-    return ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
+def page(title: str, blocks: list[str], refresh_s: float | None = None) -> str:
+    """The whole document. No external resource of any kind (checked by the browser test);
+    refresh_s: the browser reloads the page that often (`lensmount watch`'s live page)."""
+    refresh = f"<meta http-equiv=\"refresh\" content=\"{refresh_s:g}\">" if refresh_s else ""
+    return ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + refresh +
             "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; img-src data:; "
             "style-src 'unsafe-inline'\">"
             f"<title>{esc(title)}</title><style>{_CSS}</style></head><body><h1>{esc(title)}</h1>"

@@ -1,0 +1,64 @@
+"""`lensmount watch DESIGN --scene S`: judge every saved edit against a baseline; parses, calls, prints."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from lensmount.cli import app, fail
+from lensmount.cli.compare import _fraction
+from lensmount.cli.simulate import TerminalObserver, duration
+from lensmount.errors import InputError
+
+
+@app.command()
+def watch(
+    design: Path = typer.Argument(..., help="Design folder to watch."),
+    scene: str = typer.Option(..., "--scene", help="Scene name or file: the test condition of every revision."),
+    against: Optional[str] = typer.Option(None, "--against",
+                                          help="Baseline from the store: last | best | a git revision "
+                                               "(default: the design as it is when watching starts)."),
+    tolerance: str = typer.Option("5%", "--tolerance", help="Allowed increase, relative to the baseline."),
+    confidence: str = typer.Option("0.99", "--confidence", help="Confidence of the interval on the change."),
+    time_s: Optional[float] = typer.Option(None, "--time", help="Seconds of tracing per revision "
+                                                               "(default: the scene's run table)."),
+    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per revision (default: the scene's)."),
+    photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass", help="Photons per pass."),
+    workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
+    store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/"
+                                                               "runs.sqlite or $LENSMOUNT_STORE)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder of watch.html and the comparisons "
+                                                           "(default DESIGN/.lensmount/watch)."),
+) -> None:
+    """Keep the loop warm: on every save of a design file, regenerate what changed, simulate the
+    scene and print the verdict against the baseline (also in OUT/watch.html, which reloads
+    itself). A revision that does not build is explained and watching goes on. Ctrl-C stops."""
+    from lensmount.loop.compare import verdict_sentence
+    from lensmount.loop.watch import WatchOptions, watch as watch_design
+
+    observer = TerminalObserver(live=sys.stderr.isatty())
+    try:
+        options = WatchOptions(design, scene, against, _fraction(tolerance, "--tolerance"),
+                               _fraction(confidence, "--confidence"), time_s, passes, photons_per_pass, workers,
+                               store, out)
+        for revision in watch_design(options, observer):
+            observer.close()  # the revision's progress bars end; its verdict follows
+            if revision.number == 0:
+                typer.echo(f"baseline ready ({duration(revision.seconds)}); watching {design} — save a file "
+                           "to judge it, Ctrl-C to stop", err=True)
+            elif revision.error is not None:
+                typer.echo(f"revision {revision.number} ({', '.join(revision.changed)}) does not build: "
+                           f"{revision.error}", err=True)
+            else:
+                typer.echo(f"revision {revision.number} ({', '.join(revision.changed)}, "
+                           f"{duration(revision.seconds)}): {verdict_sentence(revision.result.verdict)}")
+    except InputError as error:
+        observer.close()
+        fail(error)
+    except KeyboardInterrupt:
+        observer.close()
+        typer.echo("watch stopped", err=True)
+        raise typer.Exit(code=130)
