@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
 from lensmount.integrators import photon_target as PT  # noqa: E402
-from lensmount.integrators.bidirectional import classify  # noqa: E402
+from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.physics.sources import SunSource, emission_disc, orthonormal_basis, source_direction  # noqa: E402
 from lensmount.trace.tracer import FACE, Tracer  # noqa: E402
 
@@ -114,7 +114,7 @@ def case1():
 @pytest.mark.slow  # two pilots of 2 × 10⁵ photons through the synthetic double Gauss: ~20 s
 def test_pilot_finds_the_edge_and_is_deterministic(case1):
     scene, tracer = case1
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     band = PT.edge_band(scene, tracer, broad, 5)
     assert band is not None
     again = PT._pilot(scene, tracer, broad, 5, PT.PILOT_PHOTONS)
@@ -131,7 +131,7 @@ def test_pilot_finds_the_edge_and_is_deterministic(case1):
 
 def test_no_band_when_other_faces_scatter():
     scene = double_gauss_case(2, pixels=(4, 4))
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     assert PT.edge_band(scene, Tracer(scene), broad, 5, n_photons=1000) is None
 
 
@@ -140,7 +140,7 @@ def test_a_dimly_lit_edge_is_found_with_more_pilot_rounds(case1):
     fit the ring; more rounds of the same size find it, and the band it gives aims photons at the
     edge (a single round gave no band: uniform emission, ~100× fewer photons on the edge)."""
     scene, tracer = case1
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))
     n = PT.PILOT_PHOTONS // 4
     tags = PT.edge_tags(scene, broad)
     first = PT.first_band(scene, tags)

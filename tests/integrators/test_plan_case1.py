@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from bench_planner import case1_scenes, measure  # noqa: E402
 
 from lensmount.analysis.passes import t_factor  # noqa: E402
-from lensmount.integrators.bidirectional import classify  # noqa: E402
+from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.integrators.plan import plan  # noqa: E402
 from lensmount.integrators.view_map import build_view_map, view_map_streams  # noqa: E402
 from lensmount.integrators.radius import radius_caps  # noqa: E402
@@ -26,9 +26,9 @@ def test_case1_hit_points_only_on_the_edge_and_the_edge_reads_as_with_everything
     case1, everything = case1_scenes(pixels=100)
     edge = np.array([t.role == "diaphragm-edge" for t in case1.mesh.tag_table])
     p = plan(case1)
-    broad, _ = classify(case1.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(case1.bsdf_of_tag))
     assert np.array_equal(p.scatters, edge) and np.array_equal(broad & p.scatters, edge)
-    broad_on, _ = classify(everything.bsdf_of_tag)
+    broad_on = np.isfinite(gather_cores(everything.bsdf_of_tag))
     assert (broad_on & plan(everything).scatters & ~edge).sum() > 10  # everything on: hit points all over
 
     # The view map itself: every hit point of a pass lies on an edge face.

@@ -10,7 +10,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
-from lensmount.integrators.bidirectional import part_names  # noqa: E402
+from lensmount.integrators.estimate import film_channels  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
 
@@ -28,7 +28,7 @@ def _runner(scene, workers=1, checkpoint=None, acc=None):
     def job(i):
         return PassJob("bidirectional", 2000, 5, i, EstimatorSettings(samples_per_pixel=16))
 
-    acc = acc or Accumulator.empty((4, 4), part_names(scene), 0.25)
+    acc = acc or Accumulator.empty((4, 4), film_channels(scene), 0.25)
     return Runner(scene, job, acc, workers=workers, checkpoint=checkpoint, checkpoint_every=2,
                   checkpoint_meta={"seed": 5}, tracer_path=TRACER)
 

@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lensmount.errors import InputError
+from lensmount.optics.snell import refract
 from lensmount.physics.interfaces import (
-    MGF2_DESIGN_WAVELENGTH_UM, MGF2_INDEX, Coating, fresnel_rt, parse_coating, reflectance, refract)
+    MGF2_DESIGN_WAVELENGTH_UM, MGF2_INDEX, Coating, fresnel_rt, parse_coating, reflectance)
 
 UNCOATED = Coating("uncoated")
 MGF2 = Coating("mgf2-quarter-wave")
