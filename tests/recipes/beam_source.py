@@ -65,11 +65,14 @@ class BeamSource:
         return RayBatch.make(origin, direction, weight=np.full(n, flux), wavelength=np.zeros(n, np.int32)), flux
 
 
-def _beam(p: BeamParams, at: Placement) -> BeamSource:
+def build_beam(p: BeamParams, at: Placement) -> BeamSource:
     d = source_direction(p.off_axis_deg, p.azimuth_deg)
     around_opening = emission_disc(d, at.opening_z, at.opening_radius, at.clear_distance)
     return BeamSource(p.off_axis_deg, p.azimuth_deg, EmissionDisc(around_opening.centre, p.beam_radius_mm),
                       at.wavelength_weights)
 
 
-register_source("beam", BeamParams, _beam)
+def register() -> None:
+    """The registration: a plugin module would run this line at import; the test runs it in a
+    fixture so that the other tests of its process see the built-in kinds only."""
+    register_source("beam", BeamParams, build_beam)

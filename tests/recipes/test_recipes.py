@@ -13,7 +13,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "trace"))
 
-import beam_source  # noqa: E402  (registers the "beam" kind)
+import beam_source  # noqa: E402
 from geometry import air_plane, mech_scene, scene_dict  # noqa: E402
 from knife_ring import KnifeRing  # noqa: E402
 
@@ -23,7 +23,15 @@ from lensmount.integrators.forward import forward_pass  # noqa: E402
 from lensmount.mesh import TaggedMesh  # noqa: E402
 from lensmount.scene import primitives  # noqa: E402
 from lensmount.scene.build import build_scene  # noqa: E402
+from lensmount.physics.sources import SOURCE_KINDS  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="module")
+def beam_kind():
+    beam_source.register()
+    yield
+    del SOURCE_KINDS["beam"]
 
 
 def test_a_registered_source_kind_is_read_from_a_scene_file_with_its_own_keys():

@@ -26,6 +26,7 @@ from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.run.executor import executor_for  # noqa: E402
 from lensmount.integrators.bidirectional import Bidirectional  # noqa: E402
 from lensmount.integrators.estimate import film_channels  # noqa: E402
+from lensmount.integrators.registry import INTEGRATORS  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
 
@@ -59,11 +60,12 @@ def main(argv):
     delay = float(os.environ.get("PLANAR_PASS_DELAY", "0"))
     sc = scene()
 
-    if crash:
-        os.environ["PLANAR_CRASH_MARKER"] = str(crash)  # before the workers start: they inherit it
+    if crash:  # before the workers fork: they inherit the variable and the registered integrator
+        os.environ["PLANAR_CRASH_MARKER"] = str(crash)
+        INTEGRATORS["crashing"] = CrashingBidirectional
 
     def job(i):
-        return PassJob("planar_run:CrashingBidirectional" if crash else "bidirectional", 2000, 5, i,
+        return PassJob("crashing" if crash else "bidirectional", 2000, 5, i,
                        EstimatorSettings(samples_per_pixel=16))
 
     acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), film_channels(sc), 0.25)
