@@ -135,10 +135,10 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
                 return m
 
     try:
-        layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress)
+        layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress, design.step_paths)
+        mesh, triangles = tessellate(parts, spec, layout, progress)  # a STEP part's beam check stops it here
     except InputError as exc:
         raise located(exc, str(design.mount_path), design.mount.source_text) from None  # with the field's line
-    mesh, triangles = tessellate(parts, spec, layout, progress)
 
     prev = _previous(out)
     prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
@@ -187,7 +187,7 @@ def _drawings(out: Path, bp, layout, spec, previous_hash: str | None) -> tuple[s
         dims = [] if bp.user_template is not None else dimensions(bp.plan, spec.drawing)
         title = title_block(bp.name, bp.plan.kind, material, bp.plan.finish, spec.drawing)
         if bp.user_template is not None:
-            title.append(f"user template {bp.user_template.name}: section only, dimension from the STEP file")
+            title.append(f"from {bp.user_template.name}: section only, dimension from the user's file")
         write_drawing(bp.solid, dims, title, out / svg, out / dxf)
     return svg, dxf, d_hash
 
