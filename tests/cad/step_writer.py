@@ -28,6 +28,8 @@ def write_step(path: Path, solids, unit: str = "MM") -> Path:
     colours = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
     layers = XCAFDoc_DocumentTool.LayerTool_s(doc.Main())
     for name, solid, names, cols, lays in solids:
+        if (names or cols or lays) and not solid.wrapped.Location().IsIdentity():
+            solid = _baked(solid)  # XDE names sub-shapes of an unplaced shape only
         label = shapes.AddShape(solid.wrapped, False)
         TDataStd_Name.Set_s(label, TCollection_ExtendedString(name))
         faces = solid.faces()
@@ -51,3 +53,13 @@ def write_step(path: Path, solids, unit: str = "MM") -> Path:
     assert writer.Write(str(path)) == IFSelect_ReturnStatus.IFSelect_RetDone
     Interface_Static.SetCVal_s("write.step.unit", "MM")  # a process-wide setting: leave it as found
     return path
+
+
+def _baked(shape):
+    """The shape with its location applied to the geometry (same face order)."""
+    from build123d import Shape
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+    from OCP.TopLoc import TopLoc_Location
+
+    w = shape.wrapped
+    return Shape.cast(BRepBuilderAPI_Transform(w.Located(TopLoc_Location()), w.Location().Transformation(), True).Shape())

@@ -432,6 +432,40 @@ def raise_sliver(name: str, found, clearance: float) -> None:
                               "(seats.clearance_mm)")
 
 
-__all__ = ["read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids", "free_edges",
+def face_picture(mesh, title: str, path: Path) -> None:
+    """parts/NAME.faces.png: the part from the side (z across) and from the front (x across), each
+    face shaded and numbered with its STEP face index (the numbers a `faces = [...]` rule takes)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from lensmount.atomic import atomic_path
+
+    v, tri, tags = mesh.vertices, mesh.triangles, mesh.tags
+    fig, axes = plt.subplots(1, 2, figsize=(14, 7))
+    cmap = plt.get_cmap("tab20")
+    for ax, (i, j, xlabel) in zip(axes, ((2, 1, "z (mm)"), (0, 1, "x (mm)"))):
+        faces = sorted(set(int(t) for t in tags))
+        for t in faces:
+            sel = tri[tags == t]
+            ax.add_collection(PolyCollection(v[sel][:, :, [i, j]], facecolors=cmap(t % 20), edgecolors="none",
+                                             alpha=0.35))
+            pts = v[sel].reshape(-1, 3)
+            top = pts[np.argmax(pts[:, j])]  # label at the face's highest point in this view
+            ax.annotate(str(mesh.tag_table[t].face), (top[i], top[j]), fontsize=7, ha="center",
+                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0.3})
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("y (mm)")
+    fig.suptitle(title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+
+
+__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids", "free_edges",
            "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
            "sliver_to_glass", "raise_sliver", "FaceFinishes"]
