@@ -220,9 +220,9 @@ def step_built_parts(layout: Layout, spec: MountSpec, step_paths: dict[str, Path
         used: dict[str, set] = {}
         for part, solid in zip(part_names(name, step, taken | set(step_paths)), step.solids):
             placed = solid.solid.moved(where)
-            finishes = face_finishes(entry, part, solid, placed, used)
-            source = StepSource(path, digest, entry, solid.name)
-            pp = PartPlan(part, kind, spec.finish_of(part, entry.finish), source)
+            default = spec.finish_of(part, entry.finish)
+            finishes = face_finishes(entry, part, solid, placed, used, default)
+            pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name))
             faces = len(finishes.finishes)
             out.append(BuiltPart(pp, placed, [("mount", -1)] * faces, path, part_hash(pp, None),
                                  f"parts.{name}.step", finishes.finishes, list(solid.face_names)))
@@ -243,8 +243,7 @@ def _finish_summary(finishes) -> str:
 def check_step_beam(layout: Layout, spec: MountSpec, part: BuiltPart, mesh: TaggedMesh) -> None:
     """A STEP part clears the beam envelope by its margin and vignettes no field, or regenerate stops
     (GeometryError, exit 2) unless its entry allows it; either way the figures go into the notes."""
-    name = part.field.split(".")[1]
-    entry = spec.parts[name]
+    name, entry = part.plan.template.entry_name, part.plan.template.entry
     margin = entry.beam_margin_mm if entry.beam_margin_mm is not None else spec.vanes.aperture_margin_mm
     report = beam_report(layout, mesh)
     unit = " mm" if layout.prescription.finite_object else "°"

@@ -53,11 +53,12 @@ class StepSource:
 
     path: Path
     sha256: str
+    entry_name: str  # NAME of its `[parts.NAME]` entry
     entry: StepPart
     solid_name: str
 
     def params(self) -> dict:
-        return {"step": self.path.name, "sha256": self.sha256, "solid": self.solid_name,
+        return {"step": self.path.name, "sha256": self.sha256, "entry": self.entry_name, "solid": self.solid_name,
                 **self.entry.model_dump(mode="json")}
 
 
@@ -293,10 +294,12 @@ def placement(entry: StepPart, z0: float):
     return Location(TopLoc_Location(t.Multiplied(total)))
 
 
-def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: dict[str, set]) -> FaceFinishes:
+def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: dict[str, set],
+                  default: str) -> FaceFinishes:
     """Each face's finish: its STEP name (or the solid's) by `names`, its colour by `colours`, its
-    layers by `layers`, then the first `rules` entry that matches, then `finish`. `used` collects
-    the table keys that matched a face (a key matching none is an error: `check_used`)."""
+    layers by `layers`, then the first `rules` entry that matches, then `default` (the entry's
+    `finish`, or `[finishes] PART`). `used` collects the table keys that matched a face (a key
+    matching none is an error: `check_used`)."""
     colours = {k.lower(): v for k, v in entry.colours.items()}
     out = FaceFinishes([])
     for k, face in enumerate(placed.faces()):
@@ -321,7 +324,7 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
                     hit = (rule.finish, f"rule {j + 1}", ("rules", str(j)))
                     break
         if hit is None:
-            hit = (entry.finish, "default", None)
+            hit = (default, "default", None)
         out.finishes.append(hit[0])
         out.sources.append(hit[1])
         if hit[2]:

@@ -172,7 +172,6 @@ class Tessellation(_Strict):
 
 
 Datum = str  # "surface-1" … "surface-N", "image-plane", "barrel-front", "barrel-back" (cad.step_parts.datum_z)
-STEP_UNITS = ("mm", "inch")
 
 
 class FaceRule(_Strict):
@@ -327,5 +326,5 @@ def load_mount(path: str | Path) -> MountSpec:
     return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 
-__all__ = ["MountSpec", "StepPart", "FaceRule", "STEP_UNITS", "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
+__all__ = ["MountSpec", "StepPart", "FaceRule", "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
            "check_finish_parts"]
