@@ -258,8 +258,8 @@ def test_an_assembly_comes_in_as_parts_keeping_their_names(tmp_path, reference_l
         n = f.normal_at(0.5, 0.5)
         expected = "ground-glass" if k == 2 else ("mirror" if n.Z < -0.99 else "black-anodised")
         assert parts["cap"].face_finishes[k] == expected
-    unknown = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": {**entry,
-                                                                                      "colours": {"#00ff00": "absorber"}}}})
+    green = {**entry, "colours": {"#00ff00": "absorber"}}
+    unknown = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": green}})
     with pytest.raises(InputError, match=r"parts\.camera\.colours\.#00ff00.*#1a1a1a"):
         step_built_parts(layout, unknown, {"camera": path}, {}, set())
 
@@ -367,7 +367,8 @@ def test_a_public_step_file_as_the_cooke_triplets_hood(tmp_path):
     assert runner.invoke(app, ["init", str(design), "--example", "cooke-triplet"]).exit_code == 0
     shutil.copy2(UC2, design / UC2.name)
     mount = design / "mount.toml"
-    mount.write_text(mount.read_text().replace("count = 2\n", "count = 0\n") + UC2_HOOD)  # no vanes: no hood to hold them
+    # no vanes: there is no generated hood to hold them
+    mount.write_text(mount.read_text().replace("count = 2\n", "count = 0\n") + UC2_HOOD)
     res = runner.invoke(app, ["regenerate", str(design)])
     assert res.exit_code == 0, res.output
     manifest = json.loads((design / "build" / "manifest.json").read_text())
@@ -383,8 +384,9 @@ def test_a_public_step_file_as_the_cooke_triplets_hood(tmp_path):
     doc["detector"]["pixels"] = [40, 40]
     (design / "scenes" / "case2-tiny.toml").write_text(tomli_dumps(doc))
     out = tmp_path / "run"
-    res = runner.invoke(app, ["simulate", str(design), "--scene", "scenes/case2-tiny.toml", "--photons-per-pass",
-                              "5000", "--passes", "2", "--workers", "1", "--out", str(out), "--no-record"])
+    res = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-tiny.toml"),
+                              "--photons-per-pass", "5000", "--passes", "2", "--workers", "1", "--out", str(out),
+                              "--no-record"])
     assert res.exit_code == 0, res.output
     summary = json.loads((out / "summary.json").read_text())
     assert math.isfinite(summary["stray_fraction"]) and summary["stray_fraction"] > 0
@@ -404,7 +406,7 @@ def test_the_step_housing_agrees_with_the_generated_one(step_housing, tmp_path):
         doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
         doc["detector"]["pixels"] = [150, 150]
         (design / "scenes" / "case2-check.toml").write_text(tomli_dumps(doc))
-        res = CliRunner().invoke(app, ["simulate", str(design), "--scene", "scenes/case2-check.toml",
+        res = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-check.toml"),
                                        "--photons-per-pass", "20000", "--passes", "8", "--workers", "1",
                                        "--out", str(tmp_path / name), "--no-record"])
         assert res.exit_code == 0, res.output
@@ -431,8 +433,9 @@ def test_compare_between_revisions_that_differ_only_in_the_step_file(step_housin
     runner = CliRunner()
 
     def run(out):
-        res = runner.invoke(app, ["simulate", str(design), "--scene", "scenes/case2-rev.toml", "--photons-per-pass",
-                                  "5000", "--passes", "4", "--workers", "1", "--out", str(out), "--no-record"])
+        res = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-rev.toml"),
+                                  "--photons-per-pass", "5000", "--passes", "4", "--workers", "1", "--out", str(out),
+                                  "--no-record"])
         assert res.exit_code == 0, res.output
 
     run(tmp_path / "rev-a")

@@ -153,9 +153,10 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
             write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, out / rel)
         svg, dxf, d_hash = _drawings(out, bp, layout, spec, prev_drawing.get(bp.name))
         if isinstance(bp.plan.template, StepSource):  # the face numbers a rule names
+            picture = f"parts/{bp.name}.faces.png"
             face_picture(mesh.select(np.array([t.part == bp.name for t in mesh.tag_table])[mesh.tags]),
-                         f"{bp.name} from {bp.user_template.name}: STEP face indices", out / f"parts/{bp.name}.faces.png")
-            pictures.append(f"parts/{bp.name}.faces.png")
+                         f"{bp.name} from {bp.user_template.name}: STEP face indices", out / picture)
+            pictures.append(picture)
         entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
                                  triangles[bp.name], bp.hash, svg, dxf, d_hash))
         if progress:

@@ -469,6 +469,6 @@ def face_picture(mesh, title: str, path: Path) -> None:
     plt.close(fig)
 
 
-__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids", "free_edges",
-           "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
+__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
+           "free_edges", "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
            "sliver_to_glass", "raise_sliver", "FaceFinishes"]

@@ -326,5 +326,6 @@ def load_mount(path: str | Path) -> MountSpec:
     return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 
-__all__ = ["MountSpec", "StepPart", "FaceRule", "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
+__all__ = ["MountSpec", "StepPart", "FaceRule",
+           "load_mount", "parse_mount", "SeatStyle", "ContactStyle", "FINISH_TABLES",
            "check_finish_parts"]
