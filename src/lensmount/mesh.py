@@ -28,7 +28,8 @@ class FaceTag:
         role: face role, one of ROLES; `optical` faces are refined analytically.
         finish: finish name from mount.toml (a scene may override it).
         surface: 0-based prescription surface index for optical faces, else -1.
-        face: CAD face index within the part.
+        face: CAD face index within the part (a STEP part's: the face's index in the file's solid).
+        label: the face's name in a user's STEP file ("" for generated faces).
     """
 
     part: str
@@ -37,6 +38,7 @@ class FaceTag:
     finish: str
     surface: int = -1
     face: int = 0
+    label: str = ""
 
 
 @dataclass

@@ -175,6 +175,11 @@ class PathSums:
 
 # -- reports ------------------------------------------------------------------------------------
 
+def face_name(tag) -> str:
+    """A CAD face in the user's words: part and face index, and the face's name in a user's STEP file."""
+    return f"{tag.part} face {int(tag.face)}" + (f" '{tag.label}'" if tag.label else "")
+
+
 def describe_event(code: int, tag_table) -> dict:
     """One event in the CAD's words."""
     if code < 0:
@@ -184,9 +189,9 @@ def describe_event(code: int, tag_table) -> dict:
                 "name": f"ghost {'–'.join(f'S{s}' for s in pair)}" + (f" ({n} reflections)" if n != 2 else "")}
     t = tag_table[code]
     out = {"part": t.part, "face": int(t.face), "role": t.role, "kind": t.kind, "finish": t.finish, "tag": int(code),
-           "name": f"{t.part} face {int(t.face)} ({t.role})"}
+           "label": t.label, "name": f"{face_name(t)} ({t.role})"}
     if t.role == "optical":  # a mirror's coated face, scattering: named by its surface as the lens file numbers it
-        out |= {"surface": int(t.surface) + 1, "name": f"{t.part} face {int(t.face)} (mirror surface {t.surface + 1})"}
+        out |= {"surface": int(t.surface) + 1, "name": f"{face_name(t)} (mirror surface {t.surface + 1})"}
     return out
 
 
@@ -279,8 +284,8 @@ def face_report(sums: PathSums, tag_table, areas: np.ndarray, aperture_flux_mm2:
 
     def row(t: int) -> dict:
         tag = tag_table[t]
-        return {"part": tag.part, "face": int(tag.face), "role": tag.role, "kind": tag.kind, "finish": tag.finish,
-                "tag": int(t), "area_mm2": finite_or_none(areas[t]),
+        return {"part": tag.part, "face": int(tag.face), "label": tag.label, "name": face_name(tag), "role": tag.role,
+                "kind": tag.kind, "finish": tag.finish, "tag": int(t), "area_mm2": finite_or_none(areas[t]),
                 "irradiance": finite_or_none(m["irradiance"][t]), "lit_flux_mm2": finite_or_none(m["lit"][t]),
                 "etendue_mm2_sr": finite_or_none(m["seen"][t]), "product_mm2": finite_or_none(m["product"][t]),
                 "product_fraction": finite_or_none(stray_fraction(float(m["product"][t]), aperture_flux_mm2))}
@@ -318,5 +323,5 @@ def read_paths(path: str | os.PathLike):
         return sums, table, z["face_areas"].copy(), float(z["aperture_flux_mm2"]), tuple(float(v) for v in z["extent_mm"])
 
 
-__all__ = ["PathSums", "scene_tags", "signature_from_hex", "KEPT_IMAGES", "top_paths", "ghost_pairs", "face_report", "face_measures", "face_areas", "describe_event",
+__all__ = ["PathSums", "scene_tags", "face_name", "signature_from_hex", "KEPT_IMAGES", "top_paths", "ghost_pairs", "face_report", "face_measures", "face_areas", "describe_event",
            "write_paths", "read_paths"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,10 @@ from lensmount.cad.layout import Layout, PartPlan, plan
 from lensmount.mesh import TaggedMesh
 from lensmount.cad.tessellate import tessellate_part
 from lensmount.design.mount import MountSpec
-from lensmount.errors import GeometryError
+from lensmount.cad.step_beam import beam_report
+from lensmount.cad.step_parts import (StepSource, check_used, datum_z, face_finishes, file_sha256, part_names,
+                                      placement, raise_sliver, read_entry, sliver_to_glass, step_part_kind)
+from lensmount.errors import GeometryError, InputError
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.profile import face_roles
 from lensmount.templates.user import declared_roles, load_template, to_solid
@@ -35,8 +39,11 @@ class BuiltPart:
     plan: PartPlan
     solid: object
     roles: list[tuple[str, int]]
-    user_template: Path | None
+    user_template: Path | None  # the user's file: a template, or a STEP part's file
     hash: str
+    field: str = ""  # the mount.toml field that names the user's file
+    face_finishes: list[str] | None = None  # a STEP part's finish per face (else plan.finish)
+    face_labels: list[str] | None = None  # a STEP part's face names
 
     @property
     def name(self) -> str:
@@ -91,7 +98,7 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
         roles = face_roles(solid, segs)
         if face_role is not None:
             roles = declared_roles(solid, face_role, pp.name, pp.template.params(), roles, path, pp.kind)
-        out.append(BuiltPart(pp, solid, roles, path, part_hash(pp, raw)))
+        out.append(BuiltPart(pp, solid, roles, path, part_hash(pp, raw), f"templates.{pp.kind}" if path else ""))
         if progress:
             progress("solids", k + 1, len(layout.parts))
     return out
@@ -126,7 +133,7 @@ def check_user_parts(parts: list[BuiltPart]) -> None:
                 box = common.bounding_box()
                 depth = min(box.size.X, box.size.Y, box.size.Z)
                 raise GeometryError(f"{a.name} and {b.name} overlap by {depth:.3f} mm ({vol:.3f} mm³)",
-                                    file=str(a.user_template), field=f"templates.{a.plan.kind}",
+                                    file=str(a.user_template), field=a.field,
                                     valid="a part that stays clear of its neighbours")
 
 
@@ -146,7 +153,7 @@ def check_user_beam(layout: Layout, part: BuiltPart, mesh: TaggedMesh) -> None:
     if into[k] > 1e-3:
         raise GeometryError(f"{part.name} enters the beam footprint of the full field by {into[k]:.3f} mm "
                             f"at z = {z[near][k]:.2f} mm", file=str(part.user_template),
-                            field=f"templates.{part.plan.kind}", valid="a part outside the beam envelope")
+                            field=part.field, valid="a part outside the beam envelope")
 
 
 def tessellate(parts: list[BuiltPart], spec: MountSpec, layout: Layout, progress=None) -> tuple[TaggedMesh, dict]:
@@ -155,8 +162,11 @@ def tessellate(parts: list[BuiltPart], spec: MountSpec, layout: Layout, progress
     meshes, counts = [], {}
     for k, bp in enumerate(parts):
         m = tessellate_part(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, bp.roles,
-                            tol.linear_tolerance_mm, tol.angular_tolerance_deg)
-        if bp.user_template is not None:
+                            tol.linear_tolerance_mm, tol.angular_tolerance_deg, finishes=bp.face_finishes,
+                            labels=bp.face_labels)
+        if isinstance(bp.plan.template, StepSource):
+            check_step_beam(layout, spec, bp, m)
+        elif bp.user_template is not None:
             check_user_beam(layout, bp, m)
         meshes.append(m)
         counts[bp.name] = int(len(m.triangles))
@@ -165,11 +175,16 @@ def tessellate(parts: list[BuiltPart], spec: MountSpec, layout: Layout, progress
     return TaggedMesh.concatenate(meshes), counts
 
 
-def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=None, progress=None):
-    """Layout, checks, solids: (Layout, [BuiltPart]). Raises GeometryError on a violation."""
+def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=None, progress=None,
+                   step_paths: dict[str, Path] | None = None):
+    """Layout, checks, solids: (Layout, [BuiltPart]). Raises GeometryError on a violation.
+
+    `step_paths` (`[parts.NAME]` → its STEP file) replace the generated part NAME or add parts."""
     if progress:
         progress("layout", 0, 1)
     layout = plan(prescription, spec)
+    replaced = {pp.name: pp.kind for pp in layout.parts if pp.name in (step_paths or {})}
+    layout.parts = [pp for pp in layout.parts if pp.name not in replaced]
     if progress:
         progress("layout", 1, 1)
     check_layout(layout, spec, {p.name: p.template.segments() for p in layout.parts
@@ -177,8 +192,70 @@ def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=N
     if progress:
         progress("checks", 1, 1)
     parts = build_parts(layout, spec, template_paths, progress)
+    parts += step_built_parts(layout, spec, step_paths or {}, replaced, {p.name for p in parts})
     check_user_parts(parts)
+    lenses = [(p.name, p.solid) for p in parts if p.plan.kind == "lens"]
+    for bp in parts:
+        if isinstance(bp.plan.template, StepSource):
+            found = sliver_to_glass(bp.solid, lenses, spec.seats.clearance_mm)
+            if found:
+                raise_sliver(bp.name, found, spec.seats.clearance_mm)
     return layout, parts
+
+
+def step_built_parts(layout: Layout, spec: MountSpec, step_paths: dict[str, Path], replaced: dict[str, str],
+                     taken: set[str]) -> list[BuiltPart]:
+    """The `[parts.NAME]` entries read, placed and finished face by face (cad.step_parts)."""
+    out = []
+    for name, path in step_paths.items():
+        entry = spec.parts[name]
+        step = read_entry(spec, name, path)
+        try:
+            z0 = datum_z(entry.datum, layout)
+        except InputError as exc:
+            raise InputError(exc.detail, field=f"parts.{name}.datum", valid=exc.valid) from None
+        where = placement(entry, z0)
+        digest = file_sha256(path)
+        kind = step_part_kind(entry, replaced.get(name))
+        used: dict[str, set] = {}
+        for part, solid in zip(part_names(name, step, taken | set(step_paths)), step.solids):
+            placed = solid.solid.moved(where)
+            default = spec.finish_of(part, entry.finish)
+            finishes = face_finishes(entry, part, solid, placed, used, default)
+            pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name))
+            faces = len(finishes.finishes)
+            out.append(BuiltPart(pp, placed, [("mount", -1)] * faces, path, part_hash(pp, None),
+                                 f"parts.{name}.step", finishes.finishes, list(solid.face_names)))
+            layout.notes.append(f"{part}: from {path.name} ({step.unit}), {faces} faces: "
+                                + _finish_summary(finishes))
+        check_used(entry, name, used, step)
+    return out
+
+
+def _finish_summary(finishes) -> str:
+    count: dict[tuple[str, str], int] = {}
+    for f, why in zip(finishes.finishes, finishes.sources):
+        key = (f, why.split(" ")[0] if why != "default" else why)
+        count[key] = count.get(key, 0) + 1
+    return ", ".join(f"{n} {f} (by {why})" for (f, why), n in sorted(count.items()))
+
+
+def check_step_beam(layout: Layout, spec: MountSpec, part: BuiltPart, mesh: TaggedMesh) -> None:
+    """A STEP part clears the beam envelope by its margin and vignettes no field, or regenerate stops
+    (GeometryError, exit 2) unless its entry allows it; either way the figures go into the notes."""
+    name, entry = part.plan.template.entry_name, part.plan.template.entry
+    margin = entry.beam_margin_mm if entry.beam_margin_mm is not None else spec.vanes.aperture_margin_mm
+    report = beam_report(layout, mesh)
+    unit = " mm" if layout.prescription.finite_object else "°"
+    r, z = report.at
+    clear = (f"clears the beam envelope by {report.clearance:.3f} mm at r = {r:.2f} mm, z = {z:.2f} mm"
+             if math.isfinite(report.clearance) else "lies outside the beam's z range")
+    text = f"{part.name}: {clear} (margin {margin} mm); vignetting {report.lines(unit)}"
+    layout.notes.append(text)
+    if (report.clearance < margin or report.worst.max() > 0) and not entry.allow_vignetting:
+        raise GeometryError(text, field=f"parts.{name}",
+                            valid=f"a part at least {margin} mm outside the beam envelope, or "
+                                  "allow_vignetting = true in its entry")
 
 
 __all__ = ["BuiltPart", "build_parts", "build_assembly", "tessellate", "part_hash", "check_user_parts"]

@@ -24,9 +24,12 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 import lensmount
 from lensmount.atomic import write_text
 from lensmount.cad import cache
+from lensmount.cad.step_parts import StepSource, face_picture
 from lensmount.errors import InputError
 from lensmount.validation import located
 
@@ -135,20 +138,25 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
                 return m
 
     try:
-        layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress)
+        layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress, design.step_paths)
+        mesh, triangles = tessellate(parts, spec, layout, progress)  # a STEP part's beam check stops it here
     except InputError as exc:
         raise located(exc, str(design.mount_path), design.mount.source_text) from None  # with the field's line
-    mesh, triangles = tessellate(parts, spec, layout, progress)
 
     prev = _previous(out)
     prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
     prev_drawing = {p.name: p.drawing_hash for p in prev.parts} if prev else {}
-    entries = []
+    entries, pictures = [], []
     for k, bp in enumerate(parts):
         rel = f"parts/{bp.name}.step"
         if prev_hash.get(bp.name) != bp.hash or not (out / rel).is_file():
             write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, out / rel)
         svg, dxf, d_hash = _drawings(out, bp, layout, spec, prev_drawing.get(bp.name))
+        if isinstance(bp.plan.template, StepSource):  # the face numbers a rule names
+            picture = f"parts/{bp.name}.faces.png"
+            face_picture(mesh.select(np.array([t.part == bp.name for t in mesh.tag_table])[mesh.tags]),
+                         f"{bp.name} from {bp.user_template.name}: STEP face indices", out / picture)
+            pictures.append(picture)
         entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
                                  triangles[bp.name], bp.hash, svg, dxf, d_hash))
         if progress:
@@ -166,7 +174,8 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     write_text(out / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume), bp.plan.template)
                                    for bp in parts], layout.prescription, spec))
     write_text(out / MANIFEST, manifest.to_json())
-    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [f for e in entries for f in (e.step, e.svg, e.dxf)])
+    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [f for e in entries for f in (e.step, e.svg, e.dxf)]
+                + pictures)
     return manifest
 
 
@@ -187,7 +196,7 @@ def _drawings(out: Path, bp, layout, spec, previous_hash: str | None) -> tuple[s
         dims = [] if bp.user_template is not None else dimensions(bp.plan, spec.drawing)
         title = title_block(bp.name, bp.plan.kind, material, bp.plan.finish, spec.drawing)
         if bp.user_template is not None:
-            title.append(f"user template {bp.user_template.name}: section only, dimension from the STEP file")
+            title.append(f"from {bp.user_template.name}: section only, dimension from the user's file")
         write_drawing(bp.solid, dims, title, out / svg, out / dxf)
     return svg, dxf, d_hash
 

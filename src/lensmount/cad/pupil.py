@@ -41,7 +41,7 @@ class RealisedPupil:
         return self.diameter / self.design_diameter - 1.0
 
 
-class _MountHits:
+class MountHits:
     """Embree scene of every non-optical triangle; `blocked(a, b)`: does segment a→b meet one?"""
 
     def __init__(self, mesh: TaggedMesh):
@@ -69,7 +69,7 @@ class _MountHits:
         return np.where((prim >= 0) & (t < _EMBREE_MISS) & (t <= length) & (length > 0), prim, -1)
 
 
-def _first_block(hits: _MountHits, p: Prescription, rho: np.ndarray, phi: np.ndarray, wl: float, z0: float):
+def _first_block(hits: MountHits, p: Prescription, rho: np.ndarray, phi: np.ndarray, wl: float, z0: float):
     """Per ray: index of the first mount triangle on its path (-1: reaches the image)."""
     o = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), np.full(len(rho), z0)])
     d = np.tile([0.0, 0.0, 1.0], (len(rho), 1))
@@ -89,7 +89,7 @@ def realised_entrance_pupil(prescription: Prescription, mesh: TaggedMesh, azimut
     p = prescription
     design = float(paraxial(p).epd)
     wl = p.primary_wavelength_um
-    hits = _MountHits(mesh)
+    hits = MountHits(mesh)
     z0 = float(mesh.vertices[:, 2].min()) - 1.0  # in front of the hood's mouth
     phi = (np.arange(azimuths) + 0.5) * 2 * np.pi / azimuths
     lo, hi = np.zeros(azimuths), np.full(azimuths, 0.75 * design)
@@ -102,4 +102,4 @@ def realised_entrance_pupil(prescription: Prescription, mesh: TaggedMesh, azimut
     return RealisedPupil(float(2.0 * np.sqrt(np.mean(lo ** 2))), lo, limited, design)
 
 
-__all__ = ["realised_entrance_pupil", "RealisedPupil"]
+__all__ = ["realised_entrance_pupil", "RealisedPupil", "MountHits"]

@@ -56,7 +56,8 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     else:
         echo(f"{len(report.walls)} lit face(s) {who} sees with the sun at {angle:g}° or beyond:")
         for w in report.walls:
-            echo(f"  {w.part} face {w.face} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
+            name = f"{w.part} face {w.face}" + (f" '{w.label}'" if w.label else "")  # a STEP face's name
+            echo(f"  {name} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
                  f"…{w.z_range[1]:.1f} mm, r {w.r_range[0]:.1f}…{w.r_range[1]:.1f} mm, lit from "
                  f"{w.smallest_angle_deg:g}°")
     if report.edges:

@@ -113,7 +113,7 @@ def _faces(out: Path, data, top: int) -> list[Path]:
         for column in ("rank", "CAD face", "role", "finish", "area mm²", "E/E_sun", "G mm²·sr", "G·E/π mm²"):
             table.add_column(column, justify="right")
         for k, row in enumerate(report[key], 1):
-            table.add_row(str(k), f"{row['part']} face {row['face']}", row["role"], row["finish"], _num(row["area_mm2"]),
+            table.add_row(str(k), row["name"], row["role"], row["finish"], _num(row["area_mm2"]),
                           _num(row["irradiance"]), _num(row["etendue_mm2_sr"]), _num(row["product_mm2"]))
         console.print(table)
     m = face_measures(sums, areas)
@@ -123,7 +123,7 @@ def _faces(out: Path, data, top: int) -> list[Path]:
         t = row["tag"]
         image = sums.seen_images[t] / max(sums.seen_passes, 1) / per_block * m["irradiance"][t] / math.pi
         pictures.append((f"face-{k:02d}", image,
-                         f"face #{k}: {row['part']} face {row['face']} ({row['role']}), as a white Lambertian"))
+                         f"face #{k}: {row['name']} ({row['role']}), as a white Lambertian"))
     return _write_images(out, "faces.exr", pictures, extent)
 
 

@@ -5,16 +5,18 @@
       mount.toml               the mount (docs/mount-toml.md)
       scenes/*.toml            stray-light scenes (names = file stems)
       templates/*.py           optional user templates named in mount.toml
+      *.step                   optional parts from STEP files named in mount.toml ([parts.NAME])
 
 `input_hash` is the SHA-256 of what the CAD depends on: the lens file's bytes, the
-mount file's bytes, every user template's bytes and the lensmount version. It keys
+mount file's bytes, every user template's and STEP part file's bytes and the lensmount version
+(so a new export from the mechanical CAD is a new revision). It keys
 the regenerate cache (lensmount.cad.cache).
 """
 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import lensmount
@@ -40,6 +42,7 @@ class Design:
         mount: the validated mount.
         scenes: scene name → path.
         template_paths: part kind → user template file.
+        step_paths: part name → STEP file of a `[parts.NAME]` entry.
         input_hash: content hash of the CAD inputs (hex).
         lens_warnings: what the import changed that a result depends on (design.edges: elements
             edged inside the beam, and what that vignettes); regenerate and simulate report them.
@@ -54,13 +57,16 @@ class Design:
     template_paths: dict[str, Path]
     input_hash: str
     lens_warnings: tuple[str, ...] = ()
+    step_paths: dict[str, Path] = field(default_factory=dict)  # [parts.NAME] → its STEP file
 
 
-def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path]) -> str:
+def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path],
+                 steps: dict[str, Path] | None = None) -> str:
     h = hashlib.sha256()
     h.update(f"lensmount {lensmount.__version__}\n".encode())
     for label, path in [("lens", lens_path), ("mount", mount_path)] + sorted(
-            (f"template:{k}", v) for k, v in templates.items()):
+            (f"template:{k}", v) for k, v in templates.items()) + sorted(
+            (f"step:{k}", v) for k, v in (steps or {}).items()):
         data = path.read_bytes()
         h.update(f"{label} {len(data)}\n".encode())
         h.update(data)
@@ -98,12 +104,21 @@ def load_design(directory: str | Path) -> Design:
             raise InputError(f"user template file {rel!r} not found", file=str(mount_path),
                              field=f"templates.{kind}", valid="a .py file path relative to the design folder")
         templates[kind] = path
+    steps = {}
+    for name, entry in mount.parts.items():
+        path = root / entry.step
+        if not path.is_file():
+            field_ = f"parts.{name}.step"
+            raise InputError(f"STEP file {entry.step!r} not found", file=str(mount_path), field=field_,
+                             line=line_of_key(mount.source_text, field_),
+                             valid="a .step/.stp file path relative to the design folder")
+        steps[name] = path
     prescription, clips = load_lens_and_clips(lens_path)
     _check_element_numbers(mount, prescription)
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
-                  content_hash(lens_path, mount_path, templates), tuple(clip_warnings(clips)))
+                  content_hash(lens_path, mount_path, templates, steps), tuple(clip_warnings(clips)), steps)
 
 
 __all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

@@ -170,6 +170,81 @@ class Tessellation(_Strict):
     angular_tolerance_deg: float = Field(6.0, gt=0, le=45)
 
 
+Datum = str  # "surface-1" … "surface-N", "image-plane", "barrel-front", "barrel-back" (cad.step_parts.datum_z)
+
+
+class FaceRule(_Strict):
+    """One rule for the faces a user's STEP part leaves without a finish (the first that matches wins).
+    Every criterion given must hold; a rule with none matches every face left."""
+
+    finish: str
+    part: str | None = Field(None, description="the solid's part name (an assembly's solids are parts)")
+    faces: list[int] | None = Field(None, description="STEP face indices (parts/NAME-faces.svg numbers them)")
+    normal: tuple[float, float, float] | None = Field(None, description="outward normal direction (any length), "
+                                                      "assembly frame, at the face's middle")
+    within_deg: float = Field(10.0, gt=0, le=180, description="largest angle between the face normal and `normal`")
+    r_min_mm: float | None = Field(None, ge=0, description="the whole face (its edges) at least this far "
+                                   "from the axis")
+    r_max_mm: float | None = Field(None, gt=0, description="the whole face (its edges) at most this far "
+                                   "from the axis")
+
+
+class StepPart(_Strict):
+    """A part (or an assembly's parts) read from a STEP file: `[parts.NAME]` (docs/mount-toml.md).
+
+    NAME replaces the generated part of that name (`hood`, `housing`, `barrel`, …) or adds a new one.
+    The file's frame is placed by `rotate_deg` (about x, then y, then z) and then `offset_mm` from
+    `datum` on the optical axis. Finishes per face: `names` (glob on the STEP face name, then the
+    solid's name) > `colours` (face colour, else the solid's) > `layers` > `rules` > `finish`.
+    """
+
+    step: str = Field(description="the STEP file, relative to the design folder")
+    kind: Literal["barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "baffle"] | None = Field(
+        None, description="part kind (default: the replaced part's, else housing)")
+    unit: Literal["mm", "inch"] | None = Field(None, description="the length unit the file must declare "
+                                               "(the file's own unit is always used; this guards against "
+                                               "an export in the wrong unit)")
+    datum: Datum = "surface-1"
+    offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotate_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    finish: str = "black-anodised"
+    names: dict[str, str] = Field(default_factory=dict, description="glob on a STEP face or solid name → finish")
+    colours: dict[str, str] = Field(default_factory=dict, description='"#rrggbb" (sRGB) → finish')
+    layers: dict[str, str] = Field(default_factory=dict, description="STEP layer name → finish")
+    rules: list[FaceRule] = Field(default_factory=list)
+    allow_vignetting: bool = Field(False, description="build even when the part does not clear the "
+                                   "beam envelope by the margin (the vignetting per field is noted)")
+    beam_margin_mm: float | None = Field(None, ge=0, description="clearance to the beam envelope "
+                                         "(default: [vanes] aperture_margin_mm)")
+
+    @field_validator("datum")
+    @classmethod
+    def _datum(cls, v):
+        import re
+
+        if v in ("image-plane", "barrel-front", "barrel-back") or re.fullmatch(r"surface-[1-9][0-9]*", v):
+            return v
+        raise ValueError(f"unknown datum {v!r}; valid: surface-N (N a surface number), image-plane, "
+                         "barrel-front, barrel-back")
+
+    @field_validator("colours")
+    @classmethod
+    def _colours(cls, v):
+        import re
+
+        for key in v:
+            if not re.fullmatch(r"#[0-9a-fA-F]{6}", key):
+                raise ValueError(f"colour {key!r} is not #rrggbb")
+        return v
+
+    def finish_fields(self, name: str) -> dict[str, str]:
+        prefix = f"parts.{name}"
+        out = {f"{prefix}.finish": self.finish}
+        for table in ("names", "colours", "layers"):
+            out |= {f"{prefix}.{table}.{k}": f for k, f in getattr(self, table).items()}
+        return out | {f"{prefix}.rules.{k}.finish": r.finish for k, r in enumerate(self.rules)}
+
+
 class MountSpec(ReadFromFile, _Strict):
     """The whole mount.toml."""
 
@@ -189,6 +264,7 @@ class MountSpec(ReadFromFile, _Strict):
     drawing: Drawing = Drawing()
     finishes: dict[str, str] = Field(default_factory=dict, description="part name → finish override")
     templates: dict[str, str] = Field(default_factory=dict, description="part kind → user template .py")
+    parts: dict[str, StepPart] = Field(default_factory=dict, description="part name → a part from a STEP file")
 
     @field_validator("templates")
     @classmethod
@@ -209,6 +285,8 @@ class MountSpec(ReadFromFile, _Strict):
     def finish_fields(self) -> dict[str, str]:
         """Every finish the file names: field path ('barrel.finish', 'finishes.vane-2') → finish."""
         out = {f"{table}.finish": getattr(self, table).finish for table in FINISH_TABLES}
+        for name, entry in self.parts.items():
+            out |= entry.finish_fields(name)
         return out | {f"finishes.{part}": name for part, name in self.finishes.items()}
 
 
@@ -247,5 +325,5 @@ def load_mount(path: str | Path) -> MountSpec:
     return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 
-__all__ = ["MountSpec", "load_mount", "parse_mount", "ContactStyle", "FINISH_TABLES",
+__all__ = ["MountSpec", "StepPart", "FaceRule", "load_mount", "parse_mount", "ContactStyle", "FINISH_TABLES",
            "check_finish_parts"]

@@ -165,6 +165,25 @@ def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None,
     return Run.load(Path(pick.summary_path).parent, "--against")
 
 
+def input_changes(po: dict, pn: dict) -> list[str]:
+    """What changed in the design between two runs' provenance: "lens.toml changed", "mount.toml
+    changed", "housing.step changed" (a STEP part's file: a new export from the mechanical CAD)."""
+    out = []
+    if po.get("lens_sha256") and pn.get("lens_sha256") and po["lens_sha256"] != pn["lens_sha256"]:
+        out.append(f"{pn.get('lens_file', 'the lens file')} changed")
+    if po.get("mount_sha256") and pn.get("mount_sha256") and po["mount_sha256"] != pn["mount_sha256"]:
+        out.append("mount.toml changed")
+    so, sn = po.get("step_sha256", {}), pn.get("step_sha256", {})
+    for f in sorted(set(so) | set(sn)):
+        if f not in so:
+            out.append(f"{f} added")
+        elif f not in sn:
+            out.append(f"{f} removed")
+        elif so[f] != sn[f]:
+            out.append(f"{f} changed")
+    return out
+
+
 def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
     """InputError when the two runs do not measure the same thing; notes for harmless differences."""
     if metric not in METRICS:
@@ -174,7 +193,7 @@ def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
         raise InputError(f"the runs simulate different scenes ({po.get('scene_path')} vs {pn.get('scene_path')}; "
                          "the scene files differ)", file=str(new.folder), field="scene",
                          valid="two runs of the same scene file (source, detector, finishes, effects)")
-    notes = []
+    notes = input_changes(po, pn)
     if old.summary.get("method") != new.summary.get("method"):
         notes.append(f"methods differ: {old.summary.get('method')} (old) vs {new.summary.get('method')} (new)")
     if sorted(old.summary.get("effects", [])) != sorted(new.summary.get("effects", [])):

@@ -7,10 +7,11 @@ every summary.json and every row of the results store carries this record.
 from __future__ import annotations
 
 import hashlib
+import os
 import shlex
 import subprocess
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import lensmount
@@ -83,25 +84,27 @@ class Provenance:
     git_commit_time: int | None
     lensmount_version: str
     command_line: str
+    step_sha256: dict[str, str] = field(default_factory=dict)  # STEP part file (design-relative) → SHA-256
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
 def collect(root: str | Path, lens_path: Path, mount_path: Path, scene_path: str | Path,
-            template_paths: list[Path] = (), argv: list[str] | None = None) -> Provenance:
-    """The provenance of a run of `scene_path` on the design folder `root` (its lens, mount and
-    user template files, as `lensmount.design.folder.Design` names them)."""
+            template_paths: list[Path] = (), argv: list[str] | None = None, step_paths: list[Path] = ()) -> Provenance:
+    """The provenance of a run of `scene_path` on the design folder `root` (its lens, mount,
+    user template and STEP part files, as `lensmount.design.folder.Design` names them)."""
     root = Path(root).resolve()
     scene_path = Path(scene_path).resolve()
-    git = git_state(root, [lens_path, mount_path, scene_path, *template_paths])
+    git = git_state(root, [lens_path, mount_path, scene_path, *template_paths, *step_paths])
     argv = sys.argv if argv is None else argv
     return Provenance(
         design_path=str(root), design_name=root.name, scene_path=str(scene_path), scene_name=scene_path.stem,
         lens_file=Path(lens_path).name, lens_sha256=file_sha256(lens_path), mount_sha256=file_sha256(mount_path),
         scene_sha256=file_sha256(scene_path), git_commit=git.commit if git else None,
         git_dirty=git.dirty if git else None, git_commit_time=git.commit_time if git else None,
-        lensmount_version=lensmount.__version__, command_line=shlex.join(argv))
+        lensmount_version=lensmount.__version__, command_line=shlex.join(argv),
+        step_sha256={os.path.relpath(Path(p).resolve(), root): file_sha256(p) for p in step_paths})
 
 
 __all__ = ["Provenance", "GitState", "collect", "git_state", "commit_order", "resolve_revision", "file_sha256"]

@@ -130,7 +130,8 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     per_pass = o.photons_per_pass or spec.run.photons
     azimuth = spec.source.azimuth_deg if o.azimuth_deg is None else float(o.azimuth_deg)
     provenance = collect(design.root, design.lens_path, design.mount_path, o.scene,
-                         list(design.template_paths.values())).to_dict()
+                         list(design.template_paths.values()),
+                         step_paths=list(design.step_paths.values())).to_dict()
 
     base = build(design, spec, o.geometry, stage=say).scene
     det = base.detector

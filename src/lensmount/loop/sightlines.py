@@ -61,6 +61,7 @@ class LitWall:
     z_range: tuple[float, float]
     r_range: tuple[float, float]
     smallest_angle_deg: float  # the smallest sun angle that lights the seen cells
+    label: str = ""  # the face's name in a user's STEP file
 
 
 @dataclass
@@ -214,7 +215,7 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
         walls.append(LitWall(t.part, t.kind, t.role, int(t.face), float((2 * math.pi * r * CELL_MM).sum()),
                              (float(z.min() - 0.5 * CELL_MM), float(z.max() + 0.5 * CELL_MM)),
                              (float(r.min() - 0.5 * CELL_MM), float(r.max() + 0.5 * CELL_MM)),
-                             float(arr[:, 2].min())))
+                             float(arr[:, 2].min()), t.label))
     walls.sort(key=lambda wl: -wl.area_mm2)
     both_pts = np.array([((ir + 0.5) * CELL_MM, (iz + 0.5) * CELL_MM) for (_, ir, iz) in both]).reshape(-1, 2)
     return SightlineReport(exclusion_deg, view, walls, np.column_stack([np.hypot(v_pts[:, 0], v_pts[:, 1]), v_pts[:, 2]]),

@@ -216,7 +216,8 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
                              valid="a checkpoint this lensmount version wrote; run again without --resume") from None
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
-                         list(design.template_paths.values()), o.argv)
+                         list(design.template_paths.values()), o.argv,
+                         list(design.step_paths.values()))
 
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
     return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance)

@@ -1,0 +1,474 @@
+"""Parts from the user's STEP files (`[parts.NAME]` in mount.toml): read, checked, placed, finished by face.
+
+Reading goes through OCC's XDE (STEPCAFControl_Reader): the file's length unit (OCC converts to
+mm and we report what the file declared), the assembly tree with each component's location, the
+solids' names (TDataStd_Name), face names (STEP ADVANCED_FACE names, read with
+`read.stepcaf.subshapes.name`), colours (XCAFDoc_ColorTool, face colour else the solid's) and
+layers (XCAFDoc_LayerTool). An assembly's solids become several parts, keeping their names.
+
+Face indices are the order of `solid.faces()` of the solid as read (the file's face order), the
+index `FaceTag.face` keeps, the numbers `parts/NAME-faces.png` draws and a `faces = [...]` rule
+names. The solid must be valid (BRepCheck) and closed: an open shell is refused with the free
+edges' positions and the faces they bound.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lensmount.design.mount import MountSpec, StepPart
+from lensmount.errors import GeometryError, InputError
+
+UNIT_NAMES = {"millimetre": "mm", "mm": "mm", "millimeter": "mm", "inch": "inch", "in": "inch"}
+COLOUR_TOL = 2.5 / 255  # sRGB: a CAD program's 8-bit colour written as a real and read back
+
+
+@dataclass
+class StepSolid:
+    """One solid of a STEP file, in the file's frame (mm), with what the file says about each face."""
+
+    name: str
+    solid: object  # build123d Solid
+    face_names: list[str]
+    face_colours: list[str | None]  # "#rrggbb" sRGB, the face's own else the solid's
+    face_layers: list[list[str]]
+
+
+@dataclass
+class StepFile:
+    path: Path
+    unit: str  # as declared in the file (mm, inch, or the file's own word)
+    solids: list[StepSolid]
+
+
+@dataclass(frozen=True)
+class StepSource:
+    """What a STEP part's solid comes from: hashed into the part (a new export is a new part)."""
+
+    path: Path
+    sha256: str
+    entry_name: str  # NAME of its `[parts.NAME]` entry
+    entry: StepPart
+    solid_name: str
+
+    def params(self) -> dict:
+        return {"step": self.path.name, "sha256": self.sha256, "entry": self.entry_name, "solid": self.solid_name,
+                **self.entry.model_dump(mode="json")}
+
+
+@dataclass
+class FaceFinishes:
+    finishes: list[str]
+    sources: list[str] = field(default_factory=list)  # why each face has its finish
+
+
+def _field(name: str, key: str = "step") -> str:
+    return f"parts.{name}.{key}"
+
+
+def _label_name(label) -> str:
+    from OCP.TCollection import TCollection_AsciiString
+    from OCP.TDataStd import TDataStd_Name
+
+    std_name = TDataStd_Name()  # a fresh attribute per call: reusing one crashes OCP
+    if label.IsAttribute(TDataStd_Name.GetID_s()) and label.FindAttribute(TDataStd_Name.GetID_s(), std_name):
+        return TCollection_AsciiString(std_name.Get()).ToCString()
+    return ""
+
+
+def _hex(colour) -> str:
+    from OCP.Quantity import Quantity_TOC_sRGB
+
+    r, g, b = colour.Values(Quantity_TOC_sRGB)
+    return "#" + "".join(f"{int(round(min(max(c, 0.0), 1.0) * 255)):02x}" for c in (r, g, b))
+
+
+def file_unit(reader) -> str:
+    from OCP.TColStd import TColStd_SequenceOfAsciiString
+
+    lengths, angles, solid_angles = (TColStd_SequenceOfAsciiString() for _ in range(3))
+    reader.FileUnits(lengths, angles, solid_angles)
+    names = {lengths.Value(i).ToCString().strip().lower() for i in range(1, lengths.Length() + 1)}
+    units = sorted({UNIT_NAMES.get(n, n) for n in names}) or ["mm"]
+    return units[0] if len(units) == 1 else "+".join(units)
+
+
+def read_step(path: Path, name: str) -> StepFile:
+    """Every solid of the file (assembly locations applied), mm, with face names, colours, layers."""
+    from build123d import Location, Shape
+    from OCP.IFSelect import IFSelect_ReturnStatus
+    from OCP.Interface import Interface_Static
+    from OCP.Quantity import Quantity_Color
+    from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDF import TDF_Label, TDF_LabelSequence
+    from OCP.TDocStd import TDocStd_Document
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.XCAFDoc import XCAFDoc_ColorTool, XCAFDoc_ColorType, XCAFDoc_DocumentTool
+
+    STEPCAFControl_Controller.Init_s()
+    Interface_Static.SetIVal_s("read.stepcaf.subshapes.name", 1)  # STEP face names
+    reader = STEPCAFControl_Reader()
+    reader.SetNameMode(True)
+    reader.SetColorMode(True)
+    reader.SetLayerMode(True)
+    if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
+        raise InputError("not a readable STEP file", file=str(path), field=_field(name),
+                         valid="an ISO 10303-21 (AP203/AP214/AP242) file")
+    unit = file_unit(reader.Reader())
+    doc = TDocStd_Document(TCollection_ExtendedString("XCAF"))
+    if not reader.Transfer(doc):
+        raise InputError("the STEP file holds no shape OCC can transfer", file=str(path), field=_field(name),
+                         valid="a STEP file with solids (or closed shells)")
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    colours = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
+    layer_tool = XCAFDoc_DocumentTool.LayerTool_s(doc.Main())
+
+    layer_of = []  # (layer name, shape)
+    labels = TDF_LabelSequence()
+    layer_tool.GetLayerLabels(labels)
+    for i in range(1, labels.Length() + 1):
+        shapes = TDF_LabelSequence()
+        layer_tool.GetShapesOfLayer_s(labels.Value(i), shapes)
+        layer_of += [(_label_name(labels.Value(i)), tool.GetShape_s(shapes.Value(j)))
+                     for j in range(1, shapes.Length() + 1)]
+
+    def colour_of(shape) -> str | None:
+        c = Quantity_Color()
+        for kind in (XCAFDoc_ColorType.XCAFDoc_ColorSurf, XCAFDoc_ColorType.XCAFDoc_ColorGen):
+            if colours.GetColor(shape, kind, c):
+                return _hex(c)
+        return None
+
+    def label_colour(label) -> str | None:
+        c = Quantity_Color()
+        for kind in (XCAFDoc_ColorType.XCAFDoc_ColorSurf, XCAFDoc_ColorType.XCAFDoc_ColorGen):
+            if XCAFDoc_ColorTool.GetColor_s(label, kind, c):
+                return _hex(c)
+        return None
+
+    out: list[StepSolid] = []
+
+    def leaf(label, ref, loc) -> None:
+        shape = tool.GetShape_s(ref)
+        sub = TDF_LabelSequence()
+        tool.GetSubShapes_s(ref, sub)
+        sub_names = [(tool.GetShape_s(sub.Value(j)), _label_name(sub.Value(j))) for j in range(1, sub.Length() + 1)]
+        own = _label_name(ref) or _label_name(label)
+        base_colour = label_colour(label) or label_colour(ref) or colour_of(shape)
+        solids = closed_solids(Shape.cast(shape), path, name, own)
+        for k, s in enumerate(solids):
+            faces = [f.wrapped for f in s.faces()]
+            out.append(StepSolid(
+                own if len(solids) == 1 else f"{own or 'solid'}-{k + 1}",
+                s.moved(Location(loc)) if not loc.IsIdentity() else s,
+                [next((n for sh, n in sub_names if sh.IsSame(f) and n), "") for f in faces],
+                [colour_of(f) or colour_of(s.wrapped) or base_colour for f in faces],
+                [[ln for ln, sh in layer_of if sh.IsSame(f) or sh.IsSame(s.wrapped)] for f in faces]))
+
+    def walk(label, loc) -> None:
+        ref = TDF_Label()
+        if not (tool.IsReference_s(label) and tool.GetReferredShape_s(label, ref)):
+            ref = label
+        here = loc.Multiplied(tool.GetLocation_s(label)) if tool.IsReference_s(label) else loc
+        if tool.IsAssembly_s(ref):
+            comps = TDF_LabelSequence()
+            tool.GetComponents_s(ref, comps)
+            for i in range(1, comps.Length() + 1):
+                walk(comps.Value(i), here)
+        else:
+            leaf(label, ref, here)
+
+    free = TDF_LabelSequence()
+    tool.GetFreeShapes(free)
+    for i in range(1, free.Length() + 1):
+        walk(free.Value(i), TopLoc_Location())
+    if not out:
+        raise InputError("the STEP file holds no solid", file=str(path), field=_field(name),
+                         valid="a STEP file with at least one solid (or closed shell)")
+    return StepFile(path, unit, out)
+
+
+def free_edges(shape) -> list[tuple[np.ndarray, list[int]]]:
+    """(midpoint, indices of the faces it bounds) of every edge that bounds one face only."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
+    from OCP.TopExp import TopExp
+    from OCP.TopoDS import TopoDS
+    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
+
+    faces = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, faces)
+    ancestors = TopTools_IndexedDataMapOfShapeListOfShape()
+    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, ancestors)
+    out = []
+    for i in range(1, ancestors.Extent() + 1):
+        edge = TopoDS.Edge_s(ancestors.FindKey(i))
+        if BRep_Tool.Degenerated_s(edge):
+            continue
+        owners = {faces.FindIndex(f) - 1 for f in ancestors.FindFromIndex(i)}
+        uses = ancestors.FindFromIndex(i).Size()
+        if len(owners) == 1 and uses == 1:  # a seam is used twice by its one face
+            c = BRepAdaptor_Curve(edge)
+            p = c.Value(0.5 * (c.FirstParameter() + c.LastParameter()))
+            out.append((np.array([p.X(), p.Y(), p.Z()]), sorted(owners)))
+    return out
+
+
+def closed_solids(shape, path: Path, name: str, solid_name: str) -> list:
+    """The solids of `shape`, and its free shells made solid when closed; InputError where one is open
+    (naming the free edges' positions and faces) or invalid."""
+    from build123d import Solid
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.TopAbs import TopAbs_SHELL, TopAbs_SOLID
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    solids = list(shape.solids())
+    shells = []
+    exp = TopExp_Explorer(shape.wrapped, TopAbs_SHELL, TopAbs_SOLID)  # shells outside any solid
+    while exp.More():
+        shells.append(TopoDS.Shell_s(exp.Current()))
+        exp.Next()
+    who = f"solid '{solid_name}'" if solid_name else "the solid"
+    for item in [s.wrapped for s in solids] + shells:
+        free = free_edges(item)
+        if free:
+            where = "; ".join(f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) mm beside face {', '.join(map(str, f))}"
+                              for p, f in free[:4])
+            raise InputError(f"{who} is open: {len(free)} edge(s) bound only one face, at {where}"
+                             + (" …" if len(free) > 4 else "") + " (file frame, face indices as read)",
+                             file=str(path), field=_field(name),
+                             valid="closed solids: export the part as a solid body, or close the shell")
+    for sh in shells:
+        solids.append(Solid(BRepBuilderAPI_MakeSolid(sh).Solid()))
+    for s in solids:
+        if not BRepCheck_Analyzer(s.wrapped).IsValid():
+            bad = [k for k, f in enumerate(s.faces()) if not BRepCheck_Analyzer(f.wrapped).IsValid()]
+            raise InputError(f"{who} is not a valid solid (BRepCheck)"
+                             + (f"; invalid faces {', '.join(map(str, bad[:10]))}" if bad else ""),
+                             file=str(path), field=_field(name),
+                             valid="a valid solid (repair it in the CAD program, or re-export with healing)")
+    return solids
+
+
+def datum_z(datum: str, layout) -> float:
+    """z of a named datum on the optical axis: a surface's vertex, the image plane, the barrel's ends."""
+    from lensmount.cad.checks import outline
+
+    p = layout.prescription
+    if datum == "image-plane":
+        return float(p.image_z)
+    if datum.startswith("surface-"):
+        n = int(datum.split("-")[1])
+        if n > len(p.surfaces):
+            raise InputError(f"the lens has no surface {n}", field="datum",
+                             valid=f"surface-1 … surface-{len(p.surfaces)}, image-plane, barrel-front, barrel-back")
+        return float(p.vertex_z[n - 1])
+    z = outline(layout.part("barrel").template.segments())[:, 1]
+    return float(z.min() if datum == "barrel-front" else z.max())
+
+
+def placement(entry: StepPart, z0: float):
+    """The file frame → assembly frame: rotate about x, then y, then z, then move to the datum + offset."""
+    from build123d import Location
+    from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
+    from OCP.TopLoc import TopLoc_Location
+
+    total = gp_Trsf()
+    for axis, deg in zip(((1, 0, 0), (0, 1, 0), (0, 0, 1)), entry.rotate_deg):
+        r = gp_Trsf()
+        r.SetRotation(gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(*axis)), math.radians(deg))
+        total = r.Multiplied(total)
+    t = gp_Trsf()
+    dx, dy, dz = entry.offset_mm
+    t.SetTranslation(gp_Vec(dx, dy, dz + z0))
+    return Location(TopLoc_Location(t.Multiplied(total)))
+
+
+def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: dict[str, set],
+                  default: str) -> FaceFinishes:
+    """Each face's finish: its STEP name (or the solid's) by `names`, its colour by `colours`, its
+    layers by `layers`, then the first `rules` entry that matches, then `default` (the entry's
+    `finish`, or `[finishes] PART`). `used` collects the table keys that matched a face (a key
+    matching none is an error: `check_used`)."""
+    colours = {k.lower(): v for k, v in entry.colours.items()}
+    out = FaceFinishes([])
+    for k, face in enumerate(placed.faces()):
+        fname, colour, layers = solid.face_names[k], solid.face_colours[k], solid.face_layers[k]
+        hit = None
+        for label, what in ((fname, "face name"), (solid.name, "solid name")):
+            key = next((g for g in entry.names if label and fnmatch.fnmatchcase(label, g)), None)
+            if key is not None:
+                hit = (entry.names[key], f"{what} '{label}'", ("names", key))
+                break
+        if hit is None and colour is not None:
+            key = next((c for c in colours if _near(c, colour)), None)
+            if key is not None:
+                hit = (colours[key], f"colour {colour}", ("colours", key))
+        if hit is None:
+            key = next((ln for ln in layers if ln in entry.layers), None)
+            if key is not None:
+                hit = (entry.layers[key], f"layer '{key}'", ("layers", key))
+        if hit is None:
+            for j, rule in enumerate(entry.rules):
+                if _rule_matches(rule, part, k, face):
+                    hit = (rule.finish, f"rule {j + 1}", ("rules", str(j)))
+                    break
+        if hit is None:
+            hit = (default, "default", None)
+        out.finishes.append(hit[0])
+        out.sources.append(hit[1])
+        if hit[2]:
+            used.setdefault(hit[2][0], set()).add(hit[2][1])
+    return out
+
+
+def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile) -> None:
+    """InputError for a names/colours/layers key no face matched (a misspelt colour would leave the
+    faces the default finish without a word), listing what the file carries."""
+    carried = {"names": sorted({n for s in step.solids for n in s.face_names + [s.name] if n}),
+               "colours": sorted({c for s in step.solids for c in s.face_colours if c}),
+               "layers": sorted({ln for s in step.solids for fl in s.face_layers for ln in fl})}
+    for table in ("names", "colours", "layers"):
+        for key in getattr(entry, table):
+            if key not in used.get(table, set()) and key.lower() not in used.get(table, set()):
+                raise InputError(f"no face of {step.path.name} has the {table[:-1]} {key!r}",
+                                 field=_field(name, f"{table}.{key}"),
+                                 valid=f"a {table[:-1]} the file carries: " + (", ".join(carried[table]) or "(none)"))
+
+
+def _near(a: str, b: str) -> bool:
+    ca = np.array([int(a[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
+    cb = np.array([int(b[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
+    return bool(np.all(np.abs(ca - cb) <= COLOUR_TOL))
+
+
+def _rule_matches(rule, part: str, index: int, face) -> bool:
+    if rule.part is not None and rule.part != part:
+        return False
+    if rule.faces is not None and index not in rule.faces:
+        return False
+    if rule.r_min_mm is not None or rule.r_max_mm is not None:
+        # the face's radial extent from its edges (the middle of an annulus is on the axis)
+        r = [math.hypot(v.X, v.Y) for e in face.edges() for v in e.positions(np.linspace(0.0, 1.0, 17))]
+        if rule.r_min_mm is not None and min(r) < rule.r_min_mm - 1e-9:
+            return False
+        if rule.r_max_mm is not None and max(r) > rule.r_max_mm + 1e-9:
+            return False
+    if rule.normal is not None:
+        n = face.normal_at(0.5, 0.5)
+        want = np.asarray(rule.normal, dtype=np.float64)
+        cos = float(np.dot([n.X, n.Y, n.Z], want) / max(np.linalg.norm(want), 1e-300))
+        if cos < math.cos(math.radians(rule.within_deg)):
+            return False
+    return True
+
+
+def part_names(name: str, step: StepFile, taken: set[str]) -> list[str]:
+    """NAME for a one-solid file; an assembly's solids keep their own names (NAME-k where a name is
+    missing, repeated or taken by a generated part)."""
+    if len(step.solids) == 1:
+        return [name]
+    out = []
+    for k, s in enumerate(step.solids):
+        n = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in s.name).strip("-")
+        out.append(n if n and n not in taken and n not in out else f"{name}-{k + 1}")
+    return out
+
+
+def file_sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def step_part_kind(entry: StepPart, replaced_kind: str | None) -> str:
+    return entry.kind or replaced_kind or "housing"
+
+
+def read_entry(spec: MountSpec, name: str, path: Path) -> StepFile:
+    """Read one `[parts.NAME]` file and check its declared unit against `unit`."""
+    entry = spec.parts[name]
+    step = read_step(path, name)
+    if entry.unit is not None and step.unit != entry.unit:
+        raise InputError(f"{path.name} declares its lengths in {step.unit}, not {entry.unit}",
+                         file=str(path), field=_field(name, "unit"),
+                         valid=f"unit = \"{step.unit}\" (the file's own unit is always used), or re-export the file")
+    return step
+
+
+def sliver_to_glass(solid, lenses, clearance: float) -> tuple[str, float, tuple] | None:
+    """(lens, gap, point) where the part runs closer to a lens's glass than half the clearance without
+    touching it (the generated parts' rule, cad.checks.slivers), else None."""
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+
+    box = solid.bounding_box()
+    for lens_name, lens in lenses:
+        lb = lens.bounding_box()
+        if (box.min.X > lb.max.X + clearance or lb.min.X > box.max.X + clearance or box.min.Y > lb.max.Y + clearance
+                or lb.min.Y > box.max.Y + clearance or box.min.Z > lb.max.Z + clearance
+                or lb.min.Z > box.max.Z + clearance):
+            continue
+        d = BRepExtrema_DistShapeShape(solid.wrapped, lens.wrapped)
+        if not d.IsDone():
+            continue
+        gap = float(d.Value())
+        if 1e-6 < gap < 0.5 * clearance:
+            p = d.PointOnShape1(1)
+            return lens_name, gap, (p.X(), p.Y(), p.Z())
+    return None
+
+
+def raise_sliver(name: str, found, clearance: float) -> None:
+    lens, gap, (x, y, z) = found
+    raise GeometryError(f"{name} runs {gap * 1e3:.2f} µm from the glass of {lens} at ({x:.3f}, {y:.3f}, {z:.3f}) mm "
+                        "without touching it: a sliver a ray leaving the glass can slip through",
+                        field=_field(name, "offset_mm"),
+                        valid=f"a placement that touches the glass or stays at least {clearance} mm from it "
+                              "(seats.clearance_mm)")
+
+
+def face_picture(mesh, title: str, path: Path) -> None:
+    """parts/NAME.faces.png: the part from the side (z across) and from the front (x across), each
+    face shaded and numbered with its STEP face index (the numbers a `faces = [...]` rule takes)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from lensmount.atomic import atomic_path
+
+    v, tri, tags = mesh.vertices, mesh.triangles, mesh.tags
+    fig, axes = plt.subplots(1, 2, figsize=(14, 7))
+    cmap = plt.get_cmap("tab20")
+    for ax, (i, j, xlabel) in zip(axes, ((2, 1, "z (mm)"), (0, 1, "x (mm)"))):
+        faces = sorted(set(int(t) for t in tags))
+        for t in faces:
+            sel = tri[tags == t]
+            ax.add_collection(PolyCollection(v[sel][:, :, [i, j]], facecolors=cmap(t % 20), edgecolors="none",
+                                             alpha=0.35))
+            pts = v[sel].reshape(-1, 3)
+            top = pts[np.argmax(pts[:, j])]  # label at the face's highest point in this view
+            ax.annotate(str(mesh.tag_table[t].face), (top[i], top[j]), fontsize=7, ha="center",
+                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0.3})
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("y (mm)")
+    fig.suptitle(title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+
+
+__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
+           "free_edges", "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
+           "sliver_to_glass", "raise_sliver", "FaceFinishes"]

@@ -1,0 +1,465 @@
+"""Parts from the user's STEP files ([parts.NAME] in mount.toml), checked like generated parts.
+
+The housing the tests bring is the reference design's own generated housing (the same solid),
+written as a mechanical CAD program writes STEP: a product name, named faces and two colours
+(`step_writer`). So what the pipeline makes of it can be checked against what the test wrote,
+and against the generated housing it replaces."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from lensmount.cli import app
+from lensmount.errors import GeometryError, InputError
+
+from tests.cad.step_writer import write_step
+
+DARK, LIGHT = "#1a1a1a", "#c8c8c8"
+COLOUR_FINISH = {DARK: "absorber", LIGHT: "black-anodised"}
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def face_plan(solid, image_z: float):
+    """(names, colours) the test gives the housing's faces: the bore and the back wall's inside
+    (the faces the light sees) dark, the rest light; each named by what it is."""
+    names, colours = {}, {}
+    for k, f in enumerate(solid.faces()):
+        p, n = f.position_at(0.5, 0.5), f.normal_at(0.5, 0.5)
+        radial = (p.X * n.X + p.Y * n.Y) / max(math.hypot(p.X, p.Y), 1e-12)
+        if f.geom_type.name == "CYLINDER":
+            names[k] = "bore" if radial < 0 else "outside"
+        else:
+            names[k] = ("back-wall" if p.Z > image_z else "front") if n.Z < 0 else "back"
+        colours[k] = DARK if names[k] in ("bore", "back-wall") else LIGHT
+    return names, colours
+
+
+def make_design(base: Path, entry: str, solids=None, unit="MM", scenes=True) -> Path:
+    """The reference design with the STEP housing (`solids` for write_step, default the generated
+    housing named and coloured by face_plan) and `entry` appended to mount.toml."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import load_mount
+
+    ex = ROOT / "examples" / "double-gauss-360"
+    base.mkdir(parents=True, exist_ok=True)
+    for f in ("lens.toml", "mount.toml"):
+        shutil.copy2(ex / f, base / f)
+    if scenes:
+        shutil.copytree(ex / "scenes", base / "scenes")
+    if solids is None:
+        layout = plan(load_lens(ex / "lens.toml"), load_mount(ex / "mount.toml"))
+        housing = layout.part("housing").template.build()
+        names, colours = face_plan(housing, layout.prescription.image_z)
+        solids = [("mechanical-housing", housing, names, colours, {})]
+    write_step(base / "housing.step", solids, unit)
+    with open(base / "mount.toml", "a") as f:
+        f.write("\n" + entry)
+    return base
+
+
+ENTRY = f'''[parts.housing]
+step = "housing.step"
+unit = "mm"
+colours = {{ "{DARK}" = "absorber", "{LIGHT}" = "black-anodised" }}
+names = {{ "back" = "ground-glass" }}
+'''
+
+
+@pytest.fixture(scope="module")
+def step_housing(tmp_path_factory):
+    """(design, out, manifest) of the reference with the STEP housing, regenerated once."""
+    from lensmount.cad.pipeline import regenerate
+
+    design = make_design(tmp_path_factory.mktemp("step-housing") / "design", ENTRY)
+    return design, design / "build", regenerate(design)
+
+
+def test_the_step_housing_replaces_the_generated_one_face_by_face(step_housing, reference_layout):
+    from build123d import import_step
+
+    from lensmount.mesh import TaggedMesh
+
+    design, out, manifest = step_housing
+    layout, _ = reference_layout
+    generated = layout.part("housing").template.build()
+    names, colours = face_plan(generated, layout.prescription.image_z)
+    housing = [p for p in manifest.parts if p.name == "housing"]
+    assert len(housing) == 1 and housing[0].kind == "housing"
+    assert housing[0].volume_mm3 == pytest.approx(generated.volume, rel=1e-9)
+    mesh = TaggedMesh.load(out / "mesh.npz")
+    tags = [t for t in mesh.tag_table if t.part == "housing"]
+    assert sorted(t.face for t in tags) == list(range(len(names)))
+    for t in tags:  # the STEP face index, its name, and the finish its colour (or its name) maps to
+        assert t.label == names[t.face]
+        assert t.finish == ("ground-glass" if names[t.face] == "back" else COLOUR_FINISH[colours[t.face]])
+    assert {t.finish for t in tags} == {"absorber", "black-anodised", "ground-glass"}
+    # round trip: the assembly holds the user's housing in place, and its drawing and face picture exist
+    assembly = import_step(out / "assembly.step")
+    placed = [c for c in assembly.children if c.label == "housing"]
+    assert len(placed) == 1 and placed[0].volume == pytest.approx(generated.volume, rel=1e-6)
+    assert placed[0].bounding_box().min.Z == pytest.approx(generated.bounding_box().min.Z, abs=1e-6)
+    for f in (housing[0].svg, housing[0].dxf, "parts/housing.faces.png"):
+        assert (out / f).stat().st_size > 0
+    notes = " ".join(manifest.notes)
+    assert "housing: from housing.step (mm)" in notes
+    clearance = float(re.search(r"housing: clears the beam envelope by ([0-9.]+) mm", notes).group(1))
+    assert clearance > 0.5  # the generated housing's bore clears the detector corners by 2 mm
+    assert "field 5°: 0.00 %" in notes
+
+
+def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path):
+    import tomllib
+
+    import tomli_w
+
+    design, _, _ = step_housing
+    scene = design / "scenes" / "case2-lambertian.toml"
+    doc = tomllib.loads(scene.read_text())
+    doc["detector"]["pixels"] = [60, 60]
+    tiny = design / "scenes" / "case2-tiny.toml"
+    tiny.write_text(tomli_w.dumps(doc))
+    out = tmp_path / "run"
+    runner = CliRunner()
+    res = runner.invoke(app, ["simulate", str(design), "--scene", str(tiny), "--photons-per-pass", "3000",
+                              "--passes", "1", "--workers", "1", "--out", str(out), "--no-record"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert math.isfinite(summary["stray_fraction"]) if "stray_fraction" in summary else True
+    assert list(summary["provenance"]["step_sha256"]) == ["housing.step"]
+    res = runner.invoke(app, ["paths", str(out), "--faces", "--top", "200"])
+    assert res.exit_code == 0, res.output
+    assert "housing face" in res.output and "'bore'" in res.output, res.output
+
+
+def test_a_hood_in_the_beam_reports_vignetting_per_field_and_stops_regenerate(tmp_path):
+    """A tube in front of the lens whose bore is 0.8 of the entrance pupil's radius: on axis it
+    stops the pupil's outer annulus, 1 − 0.8² = 36 % of it (the grid's sampling error ~2 %)."""
+    from build123d import Cylinder, Pos
+
+    from lensmount.design.lens import load_lens
+    from lensmount.optics.paraxial import paraxial
+
+    epd = float(paraxial(load_lens(ROOT / "examples" / "double-gauss-360" / "lens.toml")).epd)
+    bore = 0.8 * epd / 2
+    tube = Pos(0, 0, -50.0) * (Cylinder(bore + 5.0, 40.0) - Cylinder(bore, 40.0))  # z -70 … -30
+    entry = '[parts.hood]\nstep = "housing.step"\n'
+    design = make_design(tmp_path / "d", entry, [("tube", tube, {}, {}, {})], scenes=False)
+    mount = design / "mount.toml"
+    mount.write_text(mount.read_text().replace("count = 3 ", "count = 0 "))  # no vanes where the tube stands
+    res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert res.exit_code == 2, res.output
+    text = " ".join(res.output.split())
+    assert "field 'parts.hood'" in text and "clears the beam envelope by -" in text
+    lost = {float(f): float(v) for f, v in re.findall(r"field ([0-9.]+)°: ([0-9.]+) %", text)}
+    assert set(lost) == {0.0, 3.5, 5.0}, text
+    assert lost[0.0] / 100 == pytest.approx(1 - 0.8 ** 2, abs=0.03), text
+    assert lost[3.5] > 5 and lost[5.0] > 5, text  # less: the lens itself trims the off-axis beams
+
+    mount.write_text(mount.read_text().replace(entry, entry + "allow_vignetting = true\n"))
+    res = CliRunner().invoke(app, ["regenerate", str(design)])
+    assert res.exit_code == 0, res.output
+    manifest = json.loads((design / "build" / "manifest.json").read_text())
+    assert any("hood: clears the beam envelope by -" in n and "vignetting field 0°:" in n for n in manifest["notes"])
+
+
+def test_vignetting_follows_the_part_not_the_envelope(reference_layout):
+    """A screen across half the beam at the image side cuts about half of every field's rays."""
+    from build123d import Box, Pos
+
+    from lensmount.cad.step_beam import vignetting
+    from lensmount.cad.tessellate import tessellate_part
+
+    layout, _ = reference_layout
+    zi = layout.prescription.image_z
+    half = Pos(100.0, 0, zi - 20.0) * Box(200.0, 400.0, 1.0)  # x > 0 blocked, 20 mm before the image
+    mesh = tessellate_part(half, "screen", "baffle", "absorber", [("mount", -1)] * 6, 0.05, 6.0)
+    fields, mean, worst = vignetting(layout, mesh)
+    assert list(fields) == [0.0, 3.5, 5.0]
+    assert np.allclose(mean, 0.5, atol=0.03)  # averaged over opposite azimuths: half the pupil, any field
+    assert worst[0] == pytest.approx(mean[0], abs=0.03)  # on axis every azimuth loses half
+    assert np.all(worst[1:] > mean[1:] + 0.1)  # off axis the beam stands beside the axis: more at one azimuth
+
+
+def test_an_open_shell_is_refused_naming_where(tmp_path):
+    from build123d import Cylinder, Shell
+
+    from lensmount.cad.step_parts import read_step
+
+    tube = Cylinder(30.0, 50.0) - Cylinder(25.0, 50.0)
+    walls = Shell([f for f in tube.faces() if f.center().Z < 24.0])  # the top face left out
+    path = write_step(tmp_path / "open.step", [("open-tube", walls, {}, {}, {})])
+    with pytest.raises(InputError) as err:
+        read_step(path, "housing")
+    text = str(err.value)
+    assert str(path) in text and "parts.housing.step" in text and "open" in text
+    # the free edges are the top's circles: at z = 25 on a radius of 25 or 30 mm
+    points = [tuple(map(float, m)) for m in re.findall(r"\((-?[0-9.]+), (-?[0-9.]+), (-?[0-9.]+)\) mm", text)]
+    assert points and all(abs(z - 25.0) < 1e-6 and min(abs(math.hypot(x, y) - 25), abs(math.hypot(x, y) - 30))
+                          < 1e-6 for x, y, z in points)
+
+
+def test_a_file_in_inches_is_placed_at_its_size_in_mm(tmp_path, reference_layout):
+    from build123d import Cylinder
+
+    from lensmount.cad.assembly import step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    tube = Cylinder(60.0, 40.0) - Cylinder(55.0, 40.0)  # mm in memory; written in inches
+    path = write_step(tmp_path / "tube-inch.step", [("tube", tube, {}, {}, {})], unit="INCH")
+    text = path.read_text()
+    assert "'INCH'" in text
+    num = r"\s*([-0-9.E+]+)\s*"
+    points = re.findall(rf"CARTESIAN_POINT\('[^']*',\({num},{num},{num}\)", text)  # 3-D points only
+    assert max(math.hypot(float(x), float(y)) for x, y, _ in points) == pytest.approx(60.0 / 25.4, rel=1e-9)
+    layout, spec = reference_layout
+    zi = layout.prescription.image_z
+    entry = {"step": "tube-inch.step", "unit": "inch", "datum": "image-plane", "offset_mm": [0, 0, 30.0],
+             "kind": "baffle", "allow_vignetting": True}
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    [part] = step_built_parts(layout, spec, {"camera": path}, {}, set())
+    box = part.solid.bounding_box()
+    assert box.max.X == pytest.approx(60.0, rel=1e-6) and box.size.Z == pytest.approx(40.0, rel=1e-6)
+    assert box.min.Z == pytest.approx(zi + 30.0 - 20.0, abs=1e-6)
+    assert part.solid.volume == pytest.approx(math.pi * (60**2 - 55**2) * 40, rel=1e-6)
+    wrong = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": {**entry, "unit": "mm"}}})
+    with pytest.raises(InputError) as err:
+        step_built_parts(layout, wrong, {"camera": path}, {}, set())
+    assert "parts.camera.unit" in str(err.value) and "inch" in str(err.value) and str(path) in str(err.value)
+
+
+def test_an_assembly_comes_in_as_parts_keeping_their_names(tmp_path, reference_layout):
+    from build123d import Cylinder, Pos
+
+    from lensmount.cad.assembly import step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    body = Cylinder(80.0, 20.0) - Cylinder(70.0, 20.0)
+    cap = Pos(0, 0, 30.0) * Cylinder(80.0, 4.0)
+    path = write_step(tmp_path / "camera.step", [("body", body, {}, {0: DARK}, {}), ("cap", cap, {}, {}, {2: "OUTER"})])
+    entry = {"step": "camera.step", "datum": "image-plane", "offset_mm": [0, 0, 40.0], "allow_vignetting": True,
+             "colours": {DARK: "absorber"}, "layers": {"OUTER": "ground-glass"},
+             "rules": [{"finish": "mirror", "part": "cap", "normal": [0, 0, -1]}]}
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    parts = {p.name: p for p in step_built_parts(layout, spec, {"camera": path}, {}, set())}
+    assert set(parts) == {"body", "cap"}
+    assert parts["body"].face_finishes[0] == "absorber" and set(parts["body"].face_finishes[1:]) == {"black-anodised"}
+    cap_faces = parts["cap"].solid.faces()
+    for k, f in enumerate(cap_faces):
+        n = f.normal_at(0.5, 0.5)
+        expected = "ground-glass" if k == 2 else ("mirror" if n.Z < -0.99 else "black-anodised")
+        assert parts["cap"].face_finishes[k] == expected
+    green = {**entry, "colours": {"#00ff00": "absorber"}}
+    unknown = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": green}})
+    with pytest.raises(InputError, match=r"parts\.camera\.colours\.#00ff00.*#1a1a1a"):
+        step_built_parts(layout, unknown, {"camera": path}, {}, set())
+
+
+def test_a_step_part_that_cuts_a_generated_part_is_refused(tmp_path, reference_layout):
+    from build123d import Cylinder, Pos
+
+    from lensmount.cad.assembly import build_parts, check_user_parts, step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    barrel = layout.part("barrel").template
+    z_back = max(z for _, z in barrel.bore)
+    ring = Pos(0, 0, z_back) * (Cylinder(barrel.outer_radius + 5, 6.0) - Cylinder(barrel.outer_radius - 1.0, 6.0))
+    path = write_step(tmp_path / "ring.step", [("ring", ring, {}, {}, {})])
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}),
+                        "parts": {"collar": {"step": "ring.step", "kind": "housing"}}})
+    generated = [p for p in build_parts(layout, spec) if p.name in ("barrel", "lens-6")]
+    with pytest.raises(GeometryError, match=r"collar and barrel overlap by"):
+        check_user_parts(step_built_parts(layout, spec, {"collar": path}, {}, set()) + generated)
+
+
+def test_a_sliver_to_the_glass_is_found():
+    from build123d import Box, Pos
+
+    from lensmount.cad.step_parts import sliver_to_glass
+
+    glass = Box(10, 10, 10)
+    assert sliver_to_glass(Pos(10.003, 0, 0) * Box(10, 10, 10), [("lens-1", glass)], 0.01)[1] == pytest.approx(0.003)
+    assert sliver_to_glass(Pos(10.0, 0, 0) * Box(10, 10, 10), [("lens-1", glass)], 0.01) is None  # touching
+    assert sliver_to_glass(Pos(10.02, 0, 0) * Box(10, 10, 10), [("lens-1", glass)], 0.01) is None  # clear
+
+
+def test_mount_entry_errors_name_file_and_field(tmp_path):
+    from lensmount.design.folder import load_design
+
+    design = make_design(tmp_path / "d", '[parts.housing]\nstep = "missing.step"\n', [("x", _box(), {}, {}, {})],
+                         scenes=False)
+    with pytest.raises(InputError, match=r"mount\.toml.*field 'parts\.housing\.step'.*missing\.step"):
+        load_design(design)
+    (design / "mount.toml").write_text((design / "mount.toml").read_text().replace(
+        'step = "missing.step"', 'step = "housing.step"\ncolour = "#000000"'))
+    with pytest.raises(InputError, match=r"parts\.housing\.colour"):
+        load_design(design)
+
+
+def test_the_step_file_is_part_of_the_design(tmp_path):
+    from lensmount.design.folder import load_design
+    from lensmount.loop.compare import input_changes
+    from lensmount.loop.provenance import collect
+
+    design = make_design(tmp_path / "d", '[parts.housing]\nstep = "housing.step"\n', [("x", _box(), {}, {}, {})])
+    before = load_design(design)
+    p0 = collect(design, before.lens_path, before.mount_path, design / "scenes" / "case2-lambertian.toml",
+                 step_paths=list(before.step_paths.values()), argv=[]).to_dict()
+    write_step(design / "housing.step", [("x", _box(11.0), {}, {}, {})])  # a new export
+    after = load_design(design)
+    p1 = collect(design, after.lens_path, after.mount_path, design / "scenes" / "case2-lambertian.toml",
+                 step_paths=list(after.step_paths.values()), argv=[]).to_dict()
+    assert before.input_hash != after.input_hash
+    assert input_changes(p0, p1) == ["housing.step changed"]
+    assert input_changes(p0, p0) == []
+
+
+def _box(size: float = 10.0):
+    from build123d import Box
+
+    return Box(size, size, size)
+
+
+UC2 = ROOT / "tests" / "cad" / "data" / "uc2" / "20_Cube_Insert_Thorlabs.stp"
+UC2_HOOD = '''
+[parts.hood]
+step = "20_Cube_Insert_Thorlabs.stp"
+unit = "mm"
+datum = "surface-1"
+rotate_deg = [180.0, 0.0, 0.0]
+offset_mm = [20.9299280222158, 20.9299280222158, 8.0]
+colours = { "#bfbfbf" = "black-anodised" }
+'''
+
+
+def test_the_public_step_file_reads_as_one_valid_closed_solid():
+    import cadquery as cq
+
+    from lensmount.cad.step_parts import free_edges, read_step
+
+    step = read_step(UC2, "hood")
+    assert step.unit == "mm" and [s.name for s in step.solids] == ["20_Cube_Insert_Thorlabs"]
+    solid = step.solids[0]
+    assert len(solid.face_names) == 34 and set(solid.face_colours) == {"#bfbfbf"}
+    assert solid.solid.is_valid and not free_edges(solid.solid.wrapped)
+    other = cq.importers.importStep(str(UC2)).val()  # CadQuery's reader, for the volume
+    assert solid.solid.volume == pytest.approx(other.Volume(), rel=1e-9)
+    box = solid.solid.bounding_box()  # the 3 mm plate at z 10…13 and its pins to z 22.24 (the file's frame)
+    assert (box.min.Z, box.max.Z) == (pytest.approx(10.0, abs=1e-9), pytest.approx(22.2358797913631, abs=1e-9))
+
+
+@pytest.mark.slow
+def test_a_public_step_file_as_the_cooke_triplets_hood(tmp_path):
+    """The UC2 Thorlabs insert (tests/cad/data/uc2/SOURCES.md) as the Cooke triplet's hood:
+    valid, its clearance to the beam reported, `check` and case 2 run."""
+    runner = CliRunner()
+    design = tmp_path / "cooke"
+    assert runner.invoke(app, ["init", str(design), "--example", "cooke-triplet"]).exit_code == 0
+    shutil.copy2(UC2, design / UC2.name)
+    mount = design / "mount.toml"
+    # no vanes: there is no generated hood to hold them
+    mount.write_text(mount.read_text().replace("count = 2\n", "count = 0\n") + UC2_HOOD)
+    res = runner.invoke(app, ["regenerate", str(design)])
+    assert res.exit_code == 0, res.output
+    manifest = json.loads((design / "build" / "manifest.json").read_text())
+    notes = " ".join(manifest["notes"])
+    assert "hood: from 20_Cube_Insert_Thorlabs.stp (mm), 34 faces: 34 black-anodised (by colour)" in notes
+    clearance = float(re.search(r"hood: clears the beam envelope by ([0-9.]+) mm", notes).group(1))
+    assert clearance > 0.1  # the vane margin of this mount
+    assert re.findall(r"field [0-9.]+°: ([0-9.]+) %", notes) == ["0.00"] * 3
+    res = runner.invoke(app, ["check", str(design)])
+    assert res.exit_code in (0, 1), res.output  # 1: lit walls seen (the barrel's, as without the part)
+    assert (design / "build" / "check" / "check.json").is_file()
+    doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
+    doc["detector"]["pixels"] = [40, 40]
+    (design / "scenes" / "case2-tiny.toml").write_text(tomli_dumps(doc))
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-tiny.toml"),
+                              "--photons-per-pass", "5000", "--passes", "2", "--workers", "1", "--out", str(out),
+                              "--no-record"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert math.isfinite(summary["stray_fraction"]) and summary["stray_fraction"] > 0
+
+
+@pytest.mark.slow
+def test_the_step_housing_agrees_with_the_generated_one(step_housing, tmp_path):
+    """Case 2 (sun 7°) on the reference with its generated housing and with the same housing read
+    from STEP: the stray fractions agree within the combined error."""
+    from lensmount.cad.pipeline import regenerate
+
+    step_design, _, _ = step_housing
+    generated = make_design(tmp_path / "generated", "")
+    regenerate(generated)
+    results = {}
+    for name, design in (("generated", generated), ("step", step_design)):
+        doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
+        doc["detector"]["pixels"] = [150, 150]
+        (design / "scenes" / "case2-check.toml").write_text(tomli_dumps(doc))
+        res = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-check.toml"),
+                                       "--photons-per-pass", "20000", "--passes", "8", "--workers", "1",
+                                       "--out", str(tmp_path / name), "--no-record"])
+        assert res.exit_code == 0, res.output
+        results[name] = json.loads((tmp_path / name / "summary.json").read_text())
+    a, b = results["generated"], results["step"]
+    assert a["stray_fraction"] > 0 and b["stray_fraction"] > 0
+    combined = math.hypot(a["stray_fraction_std_error"], b["stray_fraction_std_error"])
+    assert abs(a["stray_fraction"] - b["stray_fraction"]) <= 3 * combined
+
+
+@pytest.mark.slow
+def test_compare_between_revisions_that_differ_only_in_the_step_file(step_housing, tmp_path):
+    """A new export of the housing (its back painted another colour, the same shape): compare
+    names the file that changed and gives its verdict."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import load_mount
+
+    design = tmp_path / "design"
+    shutil.copytree(step_housing[0], design)  # the module's design stays as it is
+    doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
+    doc["detector"]["pixels"] = [60, 60]
+    (design / "scenes" / "case2-rev.toml").write_text(tomli_dumps(doc))
+    runner = CliRunner()
+
+    def run(out):
+        res = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-rev.toml"),
+                                  "--photons-per-pass", "5000", "--passes", "4", "--workers", "1", "--out", str(out),
+                                  "--no-record"])
+        assert res.exit_code == 0, res.output
+
+    run(tmp_path / "rev-a")
+    ex = ROOT / "examples" / "double-gauss-360"
+    layout = plan(load_lens(ex / "lens.toml"), load_mount(ex / "mount.toml"))
+    housing = layout.part("housing").template.build()
+    names, colours = face_plan(housing, layout.prescription.image_z)
+    colours = {k: (DARK if names[k] == "back" else c) for k, c in colours.items()}  # the new export
+    write_step(design / "housing.step", [("mechanical-housing", housing, names, colours, {})])
+    run(tmp_path / "rev-b")
+    res = runner.invoke(app, ["compare", str(tmp_path / "rev-a"), str(tmp_path / "rev-b")])
+    assert res.exit_code in (0, 1), res.output
+    assert "housing.step changed" in res.output
+    verdict = json.loads((tmp_path / "rev-b" / "compare" / "compare.json").read_text())
+    assert "housing.step changed" in verdict["notes"] and "verdict" in verdict
+
+
+def tomllib_loads(text: str) -> dict:
+    import tomllib
+
+    return tomllib.loads(text)
+
+
+def tomli_dumps(doc: dict) -> str:
+    import tomli_w
+
+    return tomli_w.dumps(doc)
