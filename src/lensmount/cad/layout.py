@@ -23,6 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from lensmount.cad.lens_groups import lens_group, seat_of_group
+from lensmount.cad.step_parts import StepSource
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
@@ -41,13 +42,14 @@ APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance apertur
 
 @dataclass
 class PartPlan:
-    """One part: name, kind, finish and the template that builds it (a stepped cemented group's
-    `GroupOutline` stands in for its elements where seats are planned; it is never built)."""
+    """One part: name, kind, finish and what it is made from: the template that builds it, a stepped
+    cemented group's `GroupOutline` (it stands in for its elements where seats are planned; never
+    built), or the user's STEP file (`cad.step_parts.StepSource`: the solid comes from the file)."""
 
     name: str
     kind: str
     finish: str
-    template: Template | GroupOutline
+    template: Template | GroupOutline | StepSource
 
 
 @dataclass
