@@ -28,6 +28,7 @@ from lensmount.errors import GeometryError
 ROOT = Path(__file__).resolve().parents[2]
 CORPUS = ROOT / "tests" / "optics" / "corpus"
 FAST = ["thorlabs-LA1131-A.zmx", "thorlabs-AC254-100-A.zmx"]
+COOKE = ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx"
 
 # Zemax's "Double Gauss 28 degree field" sample: R, thickness, glass, semi-diameter (surface 6 the stop)
 DOUBLE_GAUSS_28 = [(54.153246, 8.746658, "SK2", 29.225), (152.52192, 0.5, None, 28.141),
@@ -162,6 +163,47 @@ def test_a_refused_first_plan_is_mended_by_the_planners_alternatives():
     mount, tried = find_mount(p, [tight])
     assert mount is not None and refusal(p, mount) is None
     assert tried[0][1] == first and tried[-1][1] is None      # refused, then an alternative that builds
+
+
+def test_alternatives_follow_what_the_refusal_names():
+    """A spacer refused between two elements: that gap's seat is tried first (a shoulder, as the
+    refusal suggests), then the rims and faces of those two elements, never another gap's seat."""
+    from lensmount.cad.mount_search import Refusal, alternatives
+    from lensmount.cad.starter import starter_mount
+    from lensmount.design.lens import load_lens
+
+    p = load_lens(COOKE)     # three singlets, the stop on element 2's rear face
+    mount, why = starter_mount(p, "cooke")
+    assert why is None
+    said = Refusal("lens_edge.contact_margin_mm", "spacer-1 between lens-1 and lens-2 would be 0.152 mm long "
+                   "(minimum 0.3 mm): the contacts leave no room", "")
+    moves = [what for what, _ in alternatives(p, mount, said)]
+    assert moves[0].startswith("lens_edge.contact_margin_mm")          # the field itself
+    assert moves[1] == "element 2 seated on a shoulder"
+    assert not any(m.startswith("element 3 seated") for m in moves)   # the diaphragm's gap keeps its spacers
+    assert any(m.startswith("element 1's rim") for m in moves) and any(m.startswith("element 2's rim") for m in moves)
+    assert not any(m.startswith("element 3's rim") for m in moves)
+
+
+def test_a_spacer_too_short_beside_the_diaphragm_is_mended(tmp_path):
+    """The Cooke triplet with its air gaps a quarter as long: the first plan's spacer behind the
+    diaphragm is too short; init finds a mount regenerate accepts."""
+    import re
+
+    from lensmount.cad.mount_search import refusal
+    from lensmount.cad.starter import _mount
+    from lensmount.design.lens import load_lens
+
+    blocks = re.split(r"(?m)^(?=SURF )", COOKE.read_text())
+    for k in range(2, len(blocks) - 1):   # air gaps: the lens surfaces with no GLAS line
+        if "GLAS" not in blocks[k]:
+            blocks[k] = re.sub(r"DISZ (\S+)", lambda m: f"DISZ {float(m.group(1)) / 4:.6g}", blocks[k])
+    lens = tmp_path / "cooke-quarter-air.zmx"
+    lens.write_text("".join(blocks))
+    p = load_lens(lens)
+    first = refusal(p, _mount(p, "cooke", True))
+    assert first is not None and "spacer" in first.message
+    assert assert_init_hands_over_a_mount_that_builds_or_refuses(lens, tmp_path) == 0
 
 
 def test_init_refuses_in_one_paragraph_when_nothing_builds(tmp_path):

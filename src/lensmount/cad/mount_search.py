@@ -13,13 +13,15 @@ planner's options for those lens groups, most specific first:
 - the group's rim (`lens_edge.semi_diameter_mm`): wider by half the edge allowance or by all of
   it, or narrower by a quarter of it, never inside the clear aperture plus contact margin and chamfer;
 - its outer faces ground flat from their clear semi-diameter (`lens_edge.flat_faces`);
-- and, where the field is a margin, that margin halved (contacts, or the bores above the beam).
+- and, where the field is a margin, that margin halved (contacts, or the bores above the beam), and
+  where the diaphragm is involved, its plate thinner (not below `checks.min_thickness_mm`).
 
-The search goes depth first: an alternative that is refused for another reason (another part,
-another element, another kind of fault: the sentence with its measurements left out) fixed what
-was refused before, so the next refusal is worked on from there; one refused for the same reason
-did not, and the next alternative is tried. Every mount is tried once, at most `MAX_TRIES` in
-all, so `init` ends in bounded time and either hands over a mount that builds or says why not.
+The search goes depth first: an alternative refused for a reason not met before (another part,
+element or kind of fault: the sentence with its measurements left out) mended what was refused,
+and its own refusal is worked on at once, with a share of the plans left, before the next
+alternatives (a lens with several tight gaps is mended one gap after the other); one refused for a
+reason already met is not worked on. Every mount is tried once, at most `MAX_TRIES` in all, so
+`init` ends in bounded time and either hands over a mount that builds or says why not.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription
 
 MAX_TRIES = 40   # plans tried after the first ones (each a layout and its profile checks, 0.1-3 s)
-MAX_DEPTH = 6    # refusals worked through one after the other on one path
+MAX_DEPTH = 6    # refusals mended one after the other on one path
 SEATS = ("shoulder", "spacer", "retainer", "glass")
 
 
@@ -71,43 +73,50 @@ def find_mount(p: Prescription, starts: list[dict]) -> tuple[dict | None, list[t
     """The first of `starts` that builds, else the first mount that builds among the alternatives
     to their refusals (None when none does); and what was tried on the way ((what, refusal), in
     order; the refusal None for the alternative that built)."""
-    tried: list[tuple[str, Refusal]] = []
-    seen: set[str] = set()
+    tried: list[tuple[str, Refusal | None]] = []
     refused = []
     for k, mount in enumerate(starts):
-        seen.add(_key(mount))
         why = refusal(p, mount)
         if why is None:
             return mount, tried
         tried.append(("the first plan" if k == 0 else f"starting seating {k + 1}", why))
         refused.append((mount, why))
-    budget = [MAX_TRIES]
-    for mount, why in refused:
-        found = _explore(p, mount, why, 1, seen, tried, budget)
-        if found is not None:
+    seen = {_key(m) for m in starts}
+    kinds = {why.kind for _, why in refused}
+    left = MAX_TRIES
+    for k, (mount, why) in enumerate(refused):   # each starting seating its share of the plans
+        found, used = _explore(p, mount, why, [], left // (len(refused) - k), seen, kinds, tried)
+        left -= used
+        if found is not None or left <= 0:
             return found, tried
     return None, tried
 
 
-def _explore(p, mount, why, depth, seen, tried, budget) -> dict | None:
+def _explore(p, mount, why, path, budget, seen, kinds, tried) -> tuple[dict | None, int]:
+    """Depth first from a refused mount, at most `budget` plans: (the mount that builds or None, plans
+    used). An alternative refused for a reason not met before is worked on at once, with a third of
+    what is left (at least 4 plans), then the next alternatives are tried."""
+    used = 0
     for what, alt in alternatives(p, mount, why):
         key = _key(alt)
         if key in seen:
             continue
-        if budget[0] <= 0:
-            return None
+        if used >= budget:
+            break
         seen.add(key)
-        budget[0] -= 1
+        used += 1
         again = refusal(p, alt)
+        tried.append((", ".join(path + [what]), again))
         if again is None:
-            tried.append((what, None))
-            return alt
-        tried.append((what, again))
-        if again.kind != why.kind and depth < MAX_DEPTH:   # it mended what was refused: on from there
-            found = _explore(p, alt, again, depth + 1, seen, tried, budget)
+            return alt, used
+        if again.kind not in kinds and len(path) + 1 < MAX_DEPTH:   # it mended what was refused
+            kinds.add(again.kind)
+            share = min(budget - used, max(4, (budget - used) // 3))
+            found, n = _explore(p, alt, again, path + [what], share, seen, kinds, tried)
+            used += n
             if found is not None:
-                return found
-    return None
+                return found, used
+    return None, used
 
 
 def _key(mount: dict) -> str:
@@ -169,58 +178,62 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
                 changed(f"surface {i + 1} ground flat from its clear semi-diameter",
                         lambda m, i=i: m["lens_edge"].update(flat_faces=sorted(flats | {i + 1})))
 
-    involved = _groups_involved(p, why, first)
+    def margin_move(table: str, key: str, least: float) -> None:
+        value = mount[table].get(key)
+        if value is not None and value / 2 >= least:
+            changed(f"{table}.{key} {value / 2:g} mm (was {value:g} mm)",
+                    lambda m, v=round(value / 2, 3): m[table].update({key: v}))
+
+    min_t = mount["checks"]["min_thickness_mm"]
+    named, by_stop = _named(p, why, first)
+    involved = sorted(named | by_stop or set(range(len(groups))), reverse=True)
+    # the gaps whose seat may be what was refused: between two named groups first, then beside one
+    gaps = sorted((k for k in range(1, len(groups)) if {k - 1, k} & named or not named | by_stop),
+                  key=lambda k: (not {k - 1, k} <= named, -k))
     m = re.fullmatch(r"seats\.element\.(\d+)", why.field)
     if m is not None and int(m.group(1)) in first:
         seat_moves(first.index(int(m.group(1))))
+    # what the refusal's field asks for first, then the rest of the planner's options for those groups
+    if why.field == "lens_edge.contact_margin_mm":
+        margin_move("lens_edge", "contact_margin_mm", 0.05)
+    if why.field == "spacers.aperture_margin_mm":
+        margin_move("spacers", "aperture_margin_mm", 0.05)
+    if "diaphragm" in why.message:
+        margin_move("diaphragm", "thickness_mm", min_t)
     narrow_first = why.field.startswith("lens_edge.semi_diameter_mm")   # a rim too wide for its faces
-    for k in involved:
+    for k in gaps:
         seat_moves(k)
+    for k in involved:
         end_moves(k)
+    for k in involved:
         rim_moves(k, wider=not narrow_first)
         flat_moves(k)
         rim_moves(k, wider=narrow_first)
-    margins = {"lens_edge.contact_margin_mm": ("lens_edge", "contact_margin_mm"),
-               "spacers.aperture_margin_mm": ("spacers", "aperture_margin_mm")}
-    if why.field in margins:
-        table, key = margins[why.field]
-        value = mount[table].get(key)
-        if value is not None and value > 0.05:
-            changed(f"{why.field} {value / 2:g} mm (was {value:g} mm)",
-                    lambda m, table=table, key=key, v=round(value / 2, 3): m[table].update({key: v}))
     return out
 
 
-def _groups_involved(p: Prescription, why: Refusal, first: list[int]) -> list[int]:
-    """Indices of the lens groups a refusal names (its elements, surfaces, the diaphragm's neighbours),
-    the later first (a seat belongs to the group behind its gap); every group when it names none."""
+def _named(p: Prescription, why: Refusal, first: list[int]) -> tuple[set[int], set[int]]:
+    """The lens groups a refusal names by their elements or surfaces, and those beside the stop
+    when it names the diaphragm or the stop (indices into p.lens_groups())."""
     groups = p.lens_groups()
-
-    def of_element(n: int) -> int | None:
-        return next((k for k in range(len(groups) - 1, -1, -1) if first[k] <= n), None) \
-            if 1 <= n < first[-1] + len(groups[-1]) - 1 else None
-
+    last = first[-1] + len(groups[-1]) - 2   # the last element's number
     text = why.message + " " + why.field
-    found: set[int] = set()
+    named: set[int] = set()
     for n in re.findall(r"(?:lens-|element |semi_diameter_mm\.|seats\.element\.)(\d+)", text):
-        k = of_element(int(n))
-        if k is not None:
-            found.add(k)
-    for n in re.findall(r"surface (\d+)|surface\[(\d+)\]", text):
-        i = int(n[0] or n[1]) - 1
-        found |= {k for k, g in enumerate(groups) if g[0] <= i <= g[-1]}
-        found |= {k for k in range(len(groups) - 1) if groups[k][-1] < i < groups[k + 1][0]} | \
-                 {k + 1 for k in range(len(groups) - 1) if groups[k][-1] < i < groups[k + 1][0]}
-    if "diaphragm" in text or "stop" in text:
-        stop = p.stop_index
-        found |= {k for k, g in enumerate(groups) if g[0] - 1 <= stop <= g[-1] + 1}
-        if stop < groups[0][0]:
-            found.add(0)
-        if stop > groups[-1][-1]:
-            found.add(len(groups) - 1)
-        found |= {k for k in range(len(groups) - 1) if groups[k][-1] <= stop <= groups[k + 1][0]} | \
-                 {k + 1 for k in range(len(groups) - 1) if groups[k][-1] <= stop <= groups[k + 1][0]}
-    return sorted(found or range(len(groups)), reverse=True)
+        if 1 <= int(n) <= last:
+            named.add(max(k for k in range(len(groups)) if first[k] <= int(n)))
+    for a, b in re.findall(r"surface (\d+)|surface\[(\d+)\]", text):
+        named |= _beside(groups, int(a or b) - 1)
+    return named, (_beside(groups, p.stop_index) if "diaphragm" in text or "stop" in text else set())
+
+
+def _beside(groups, i: int) -> set[int]:
+    """The group whose face surface i is, or the groups on either side of the air it lies in."""
+    inside = {k for k, g in enumerate(groups) if g[0] <= i <= g[-1]}
+    if inside:
+        return inside
+    return {k for k, g in enumerate(groups) if g[-1] < i and (k + 1 == len(groups) or i < groups[k + 1][0])} | \
+           {k for k, g in enumerate(groups) if i < g[0] and (k == 0 or groups[k - 1][-1] < i)}
 
 
 __all__ = ["find_mount", "refusal", "alternatives", "Refusal", "MAX_TRIES"]
