@@ -7,8 +7,9 @@ nothing. The judge is the planner and the checks themselves, not the starter tha
 Fast: Zemax's sample double Gauss (28° field) written here with automatic semi-diameters and no MEMA
 lines (its cemented flint's back face, R 22.27 mm, ends inside the crown's rim: it was evaluated beyond
 its sphere and init died in cad.checks), the search's answer to a refused first plan, a lens nothing
-builds for, and two small corpus files. Slow: every .zmx in tests/optics/corpus that inspect accepts
-(globbed: the corpus grows).
+builds for, and two small corpus files. Slow: the Cooke triplet with its air gaps a quarter as long
+(its first plan's spacer behind the diaphragm too short), and every .zmx in tests/optics/corpus that
+inspect accepts (globbed: the corpus grows). Full STEP export: tests/cad/test_init_lens.py (slow).
 """
 
 from __future__ import annotations
@@ -185,6 +186,7 @@ def test_alternatives_follow_what_the_refusal_names():
     assert not any(m.startswith("element 3's rim") for m in moves)
 
 
+@pytest.mark.slow   # the starter's four seatings refused, then the search: ~10-20 s on the shared machine
 def test_a_spacer_too_short_beside_the_diaphragm_is_mended(tmp_path):
     """The Cooke triplet with its air gaps a quarter as long: the first plan's spacer behind the
     diaphragm is too short; init finds a mount regenerate accepts."""

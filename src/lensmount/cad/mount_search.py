@@ -125,9 +125,13 @@ def _key(mount: dict) -> str:
 
 def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, dict]]:
     """The planner's options for the lens groups the refusal involves, most specific first:
-    (what was changed, the changed mount.toml)."""
+    (what was changed, the changed mount.toml). None for a lens with mirrors: its cells in a straight
+    barrel (cad.catadioptric) have no seats or rims to choose."""
     from lensmount.cad.layout import group_rim
     from lensmount.design.mount import parse_mount
+
+    if p.has_mirrors:
+        return []
 
     groups = p.lens_groups()
     first = [1]
@@ -190,9 +194,9 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     # the gaps whose seat may be what was refused: between two named groups first, then beside one
     gaps = sorted((k for k in range(1, len(groups)) if {k - 1, k} & named or not named | by_stop),
                   key=lambda k: (not {k - 1, k} <= named, -k))
-    m = re.fullmatch(r"seats\.element\.(\d+)", why.field)
-    if m is not None and int(m.group(1)) in first:
-        seat_moves(first.index(int(m.group(1))))
+    asked = re.fullmatch(r"seats\.element\.(\d+)", why.field)
+    if asked is not None and int(asked.group(1)) in first:
+        seat_moves(first.index(int(asked.group(1))))
     # what the refusal's field asks for first, then the rest of the planner's options for those groups
     if why.field == "lens_edge.contact_margin_mm":
         margin_move("lens_edge", "contact_margin_mm", 0.05)

@@ -25,7 +25,9 @@ dimension follows from the lens itself, in the mount layer's own keys
   between them) and both faces of an air gap the import clipped where they cross
   (design.edges); an element whose faces cross inside its rim keeps its rim (its flat
   bevels carry the edge), and one held by a ring is wide enough for the ring's wall above
-  the beam; where the planner refuses a seat, the others are tried for it;
+  the beam; where the planner refuses the mount, its alternatives are tried where the refusal
+  points (cad.mount_search: seats, rims, flat faces, margins) and `init` refuses the lens when
+  none builds;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -185,7 +187,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             seats[int(numbers[k + 1])] = "retainer"
 
     def above_the_ring(i: int) -> float:   # a retainer's wall in front of face i stands above the beam there
-        zc = float(face(i).z(clear[i] + contact))
+        zc = float(face(i).z(min(clear[i] + contact, face(i).profile.max_radius())))   # a hemisphere ends there
         beam = Envelope(p, zc - retainer - 1.0, zc, step=0.1).max_over(zc - retainer - 1.0, zc)
         return beam + margin + min_thickness + 0.02
 
