@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from lensmount.cad.lens_groups import face_beyond_reach, lens_group, seat_of_group
+from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
@@ -377,8 +377,11 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             if flats and {a, b} & flat_faces:
                 notes.append(f"{name}: flat bevel ({', '.join(flats)}; lens_edge.flat_faces)")
             elif flats:
-                notes.append(f"{name}: flat bevel ({', '.join(flats)}): its faces close in toward the rim, "
-                             f"the flat keeps the edge {el.edge_thickness():.3f} mm thick at {R:.3f} mm")
+                ends = [fc for fc in (el.front, el.back) if not ends_inside(fc, R)]
+                notes.append(f"{name}: flat bevel ({', '.join(flats)}): " + (
+                    f"surface {ends[0].index + 1}'s sphere ends at {ends[0].profile.max_radius():.3f} mm, inside "
+                    f"the {R:.3f} mm rim" if ends else "its faces close in toward the rim, the flat keeps the edge "
+                    f"{el.edge_thickness():.3f} mm thick at {R:.3f} mm"))
             if el.center_thickness() < min_t or el.edge_thickness() < min_t:
                 # rims from the smallest a seat outside the light allows to 2 mm beyond: a thin meniscus
                 # is too thin at all of them, which no allowance can mend

@@ -29,6 +29,7 @@ from __future__ import annotations
 import copy
 import json
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from lensmount.errors import InputError
@@ -69,19 +70,22 @@ def refusal(p: Prescription, mount: dict) -> Refusal | None:
     return None
 
 
-def find_mount(p: Prescription, starts: list[dict]) -> tuple[dict | None, list[tuple[str, Refusal | None]]]:
-    """The first of `starts` that builds, else the first mount that builds among the alternatives
-    to their refusals (None when none does); and what was tried on the way ((what, refusal), in
-    order; the refusal None for the alternative that built)."""
+def find_mount(p: Prescription, starts: Iterable[dict]) -> tuple[dict | None, list[tuple[str, Refusal | None]]]:
+    """The first of `starts` that builds (made only as far as needed), else the first mount that
+    builds among the alternatives to their refusals (None when none does); and what was tried on the
+    way ((what, refusal), in order; the refusal None for the alternative that built)."""
     tried: list[tuple[str, Refusal | None]] = []
     refused = []
+    seen: set[str] = set()
     for k, mount in enumerate(starts):
+        if _key(mount) in seen:
+            continue
+        seen.add(_key(mount))
         why = refusal(p, mount)
         if why is None:
             return mount, tried
         tried.append(("the first plan" if k == 0 else f"starting seating {k + 1}", why))
         refused.append((mount, why))
-    seen = {_key(m) for m in starts}
     kinds = {why.kind for _, why in refused}
     left = MAX_TRIES
     for k, (mount, why) in enumerate(refused):   # each starting seating its share of the plans

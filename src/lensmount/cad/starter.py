@@ -292,17 +292,20 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     from lensmount.cad.mount_search import find_mount
 
     gap = _faces_curling_toward_the_stop(p)
-    base = {widen: _mount(p, name, widen) for widen in (True, False)}   # each 0.5-1 s
-    starts = []
-    for flats in ((), gap) if gap else ((),):
-        for widen in (True, False):
-            mount = copy.deepcopy(base[widen])
-            if flats:
-                mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
-            if mount not in starts:
-                starts.append(mount)
-    mount, refused = find_mount(p, starts)
-    return (mount, None) if mount is not None else (starts[0], _why_not(refused))
+    base: dict[bool, dict] = {}   # each seating's mount.toml made once (0.5-1 s), when it is needed
+
+    def starts():
+        for flats in ((), gap) if gap else ((),):
+            for widen in (True, False):
+                if widen not in base:
+                    base[widen] = _mount(p, name, widen)
+                mount = copy.deepcopy(base[widen])
+                if flats:
+                    mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
+                yield mount
+
+    mount, refused = find_mount(p, starts())
+    return (mount, None) if mount is not None else (base[True], _why_not(refused))
 
 
 def _why_not(refused: list) -> str:
