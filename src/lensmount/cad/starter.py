@@ -300,8 +300,9 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
                 if widen not in base:
                     base[widen] = _mount(p, name, widen)
                 mount = copy.deepcopy(base[widen])
+                edge = mount["lens_edge"]
                 if flats:
-                    mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
+                    edge["flat_faces"] = sorted(set(flats) | set(edge.get("flat_faces", ())))
                 yield mount
 
     mount, refused = find_mount(p, starts())
