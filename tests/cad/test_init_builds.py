@@ -177,9 +177,10 @@ def test_alternatives_follow_what_the_refusal_names():
     mount, why = starter_mount(p, "cooke")
     assert why is None
     said = Refusal("lens_edge.contact_margin_mm", "spacer-1 between lens-1 and lens-2 would be 0.152 mm long "
-                   "(minimum 0.3 mm): the contacts leave no room", "")
+                   "(minimum 0.3 mm): the contacts leave no room", "",
+                   "a smaller contact margin, a shoulder seat, or a larger air gap")   # the planner's words
     moves = [what for what, _ in alternatives(p, mount, said)]
-    assert moves[0].startswith("lens_edge.contact_margin_mm")          # the field itself
+    assert moves[0].startswith("lens_edge.contact_margin_mm")          # the field itself, smaller
     assert moves[1] == "element 2 seated on a shoulder"
     assert not any(m.startswith("element 3 seated") for m in moves)   # the diaphragm's gap keeps its spacers
     assert any(m.startswith("element 1's rim") for m in moves) and any(m.startswith("element 2's rim") for m in moves)

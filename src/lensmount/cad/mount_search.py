@@ -11,10 +11,12 @@ planner's options for those lens groups, most specific first:
 - the seat of each group involved: shoulder, spacer, ring (retainer) or resting on its neighbour
   (glass), and the front and rear seats of the first and last groups;
 - the group's rim (`lens_edge.semi_diameter_mm`): wider by half the edge allowance or by all of
-  it, or narrower by a quarter of it, never inside the clear aperture plus contact margin and chamfer;
+  it, or narrower by a quarter of it, never inside the clear aperture plus contact margin and chamfer
+  (and all the groups named wider together: a spacer's bore follows the narrower neighbour);
 - its outer faces ground flat from their clear semi-diameter (`lens_edge.flat_faces`);
-- and, where the field is a margin, that margin halved (contacts, or the bores above the beam), and
-  where the diaphragm is involved, its plate thinner (not below `checks.min_thickness_mm`).
+- the field's own number halved where the planner asks for a smaller or thinner one (a margin, a
+  ring), and where the diaphragm is involved, its plate thinner (never below `checks.min_thickness_mm`)
+  and its knife edge bevelled on the other side.
 
 The search goes depth first: an alternative refused for a reason not met before (another part,
 element or kind of fault: the sentence with its measurements left out) mended what was refused,
@@ -47,6 +49,7 @@ class Refusal:
     field: str
     message: str
     paragraph: str
+    valid: str = ""
 
     @property
     def kind(self) -> str:
@@ -66,7 +69,7 @@ def refusal(p: Prescription, mount: dict) -> Refusal | None:
         layout = plan(p, spec)
         check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
     except InputError as error:
-        return Refusal(error.field or "", error.detail, error.paragraph())
+        return Refusal(error.field or "", error.detail, error.paragraph(), error.valid or "")
     return None
 
 
@@ -86,10 +89,9 @@ def find_mount(p: Prescription, starts: Iterable[dict]) -> tuple[dict | None, li
             return mount, tried
         tried.append(("the first plan" if k == 0 else f"starting seating {k + 1}", why))
         refused.append((mount, why))
-    kinds = {why.kind for _, why in refused}
     left = MAX_TRIES
     for k, (mount, why) in enumerate(refused):   # each starting seating its share of the plans
-        found, used = _explore(p, mount, why, [], left // (len(refused) - k), seen, kinds, tried)
+        found, used = _explore(p, mount, why, [], left // (len(refused) - k), seen, {why.kind}, tried)
         left -= used
         if found is not None or left <= 0:
             return found, tried
@@ -98,8 +100,8 @@ def find_mount(p: Prescription, starts: Iterable[dict]) -> tuple[dict | None, li
 
 def _explore(p, mount, why, path, budget, seen, kinds, tried) -> tuple[dict | None, int]:
     """Depth first from a refused mount, at most `budget` plans: (the mount that builds or None, plans
-    used). An alternative refused for a reason not met before is worked on at once, with a third of
-    what is left (at least 4 plans), then the next alternatives are tried."""
+    used). An alternative refused for a reason not met on its path (`kinds`) is worked on at once, with
+    a third of what is left (at least 4 plans), then the next alternatives are tried."""
     used = 0
     for what, alt in alternatives(p, mount, why):
         key = _key(alt)
@@ -114,9 +116,8 @@ def _explore(p, mount, why, path, budget, seen, kinds, tried) -> tuple[dict | No
         if again is None:
             return alt, used
         if again.kind not in kinds and len(path) + 1 < MAX_DEPTH:   # it mended what was refused
-            kinds.add(again.kind)
             share = min(budget - used, max(4, (budget - used) // 3))
-            found, n = _explore(p, alt, again, path + [what], share, seen, kinds, tried)
+            found, n = _explore(p, alt, again, path + [what], share, seen, kinds | {again.kind}, tried)
             used += n
             if found is not None:
                 return found, used
@@ -186,11 +187,11 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
                 changed(f"surface {i + 1} ground flat from its clear semi-diameter",
                         lambda m, i=i: m["lens_edge"].update(flat_faces=sorted(flats | {i + 1})))
 
-    def margin_move(table: str, key: str, least: float) -> None:
+    def margin_move(table: str, key: str, least: float) -> None:   # halved, not below `least`
         value = mount[table].get(key)
-        if value is not None and value / 2 >= least:
-            changed(f"{table}.{key} {value / 2:g} mm (was {value:g} mm)",
-                    lambda m, v=round(value / 2, 3): m[table].update({key: v}))
+        if value is not None and max(value / 2, least) < value - 1e-9:
+            less = round(max(value / 2, least), 3)
+            changed(f"{table}.{key} {less:g} mm (was {value:g} mm)", lambda m: m[table].update({key: less}))
 
     min_t = mount["checks"]["min_thickness_mm"]
     named, by_stop = _named(p, why, first)
@@ -202,17 +203,23 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     if asked is not None and int(asked.group(1)) in first:
         seat_moves(first.index(int(asked.group(1))))
     # what the refusal's field asks for first, then the rest of the planner's options for those groups
-    if why.field == "lens_edge.contact_margin_mm":
-        margin_move("lens_edge", "contact_margin_mm", 0.05)
-    if why.field == "spacers.aperture_margin_mm":
-        margin_move("spacers", "aperture_margin_mm", 0.05)
-    if "diaphragm" in why.message:
+    table, _, key = why.field.partition(".")
+    if re.search(r"\b(smaller|thinner)\b", why.valid) and isinstance(mount.get(table, {}).get(key), float):
+        margin_move(table, key, min_t if "thickness" in key else 0.05)   # the planner asks for less of it
+    if "diaphragm" in why.message:   # its plate thinner, its knife edge's bevel on the other side
         margin_move("diaphragm", "thickness_mm", min_t)
+        side = "front" if mount["diaphragm"].get("bevel_side", "rear") == "rear" else "rear"
+        changed(f"the diaphragm's bevel on its {side} side", lambda m: m["diaphragm"].update(bevel_side=side))
     narrow_first = why.field.startswith("lens_edge.semi_diameter_mm")   # a rim too wide for its faces
     for k in gaps:
         seat_moves(k)
     for k in involved:
         end_moves(k)
+    if len(involved) > 1 and not narrow_first:   # a spacer's or ring's bore follows the narrower neighbour
+        rims = {str(first[k] + j): round(group_rim(p, groups[k], first[k], spec_edge) + 0.5 * allowance, 3)
+                for k in involved for j in range(len(groups[k]) - 1)}
+        changed(f"elements {', '.join(sorted(rims, key=int))} rims wider by {0.5 * allowance:.3f} mm",
+                lambda m: m["lens_edge"].setdefault("semi_diameter_mm", {}).update(rims))
     for k in involved:
         rim_moves(k, wider=not narrow_first)
         flat_moves(k)
