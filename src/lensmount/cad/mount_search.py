@@ -18,11 +18,11 @@ planner's options for those lens groups, most specific first:
   ring), and where the diaphragm is involved, its plate thinner (never below `checks.min_thickness_mm`)
   and its knife edge bevelled on the other side.
 
-The search goes depth first: an alternative refused for a reason not met before (another part,
-element or kind of fault: the sentence with its measurements left out) mended what was refused,
-and its own refusal is worked on at once, with a share of the plans left, before the next
+The search goes depth first: an alternative refused for a reason not met on its way there (another
+part, element or kind of fault: the sentence with its measurements left out) mended what was
+refused, and its own refusal is worked on at once, with a share of the plans left, before the next
 alternatives (a lens with several tight gaps is mended one gap after the other); one refused for a
-reason already met is not worked on. Every mount is tried once, at most `MAX_TRIES` in all, so
+reason already met on its way is not worked on. Every mount is tried once, at most `MAX_TRIES` in all, so
 `init` ends in bounded time and either hands over a mount that builds or says why not.
 """
 
