@@ -42,6 +42,9 @@ def outline(segments) -> np.ndarray:
 
 
 def _densify(poly: np.ndarray, step: float = _SAMPLE_STEP_MM) -> np.ndarray:
+    if not np.isfinite(poly).all():   # check_outlines names the part; this guards the other callers
+        raise GeometryError("a part's profile has points at infinity", field="mount",
+                            valid="parts whose every face exists where the profile follows it")
     out = []
     closed = np.vstack([poly, poly[:1]])
     for a, b in zip(closed[:-1], closed[1:]):
@@ -251,9 +254,22 @@ def check_glass_clearance(layout: Layout, spec: MountSpec, segments: dict[str, l
             f"or stay at least {spec.seats.clearance_mm} mm away")
 
 
+def check_outlines(layout: Layout, outlines: dict[str, np.ndarray]) -> None:
+    """Every profile point finite: a face followed beyond where it exists (a sphere past its radius)
+    gives points at infinity, and no check below can measure them."""
+    for plan in layout.parts:
+        poly = outlines.get(plan.name)
+        if poly is not None and not np.isfinite(poly).all():
+            r = poly[~np.isfinite(poly).all(axis=1)][0]
+            raise GeometryError(f"{plan.name}: its profile leaves the plane at ({r[0]:g}, {r[1]:g}) mm (r, z): "
+                                "a face followed beyond where it exists", field=plan.kind,
+                                valid="dimensions that keep each face within its radius of curvature")
+
+
 def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> None:
     """All checks, on the built-in profiles (`segments` per part name)."""
     outlines = {name: outline(segs) for name, segs in segments.items()}
+    check_outlines(layout, outlines)
     check_contacts(layout)
     check_clearance(layout, spec)
     check_thickness(layout, spec)

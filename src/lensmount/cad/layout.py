@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from lensmount.cad.lens_groups import lens_group, seat_of_group
+from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group
 from lensmount.cad.step_parts import StepSource
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
@@ -288,6 +288,19 @@ def _glass_seat(A, B, RA, RB, bore_a, bore_b, c_glass, element_no) -> list[tuple
     return [(bore_a, z), (bore_b, z)]
 
 
+def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:
+    """Mechanical semi-diameter (mm) of a lens group whose first element is number `first`: the largest
+    `lens_edge.semi_diameter_mm` of its elements, else the largest of the file's mechanical
+    semi-diameters (clear + `allowance_mm` where the file gives none). `p` has its clear semi-diameters."""
+    given = edge.semi_diameter_mm
+    overrides = [given[first + k] for k in range(len(group) - 1) if first + k in given]
+    if overrides:
+        return float(max(overrides))
+    surf = p.surfaces
+    return float(max(surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
+                     else float(surf[i].clear_semi_diameter) + edge.allowance_mm for i in group))
+
+
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     """Place every part. Raises GeometryError for a mount that cannot be built."""
     from lensmount.optics.apertures import with_clear_semi_diameters
@@ -331,11 +344,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     radii, bores = [], []
     n_el = 0
     for g in groups:
-        mech = [surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
-                else clear[i] + edge.allowance_mm for i in g]
-        overrides = [edge.semi_diameter_mm[n_el + k + 1] for k in range(len(g) - 1)
-                     if n_el + k + 1 in edge.semi_diameter_mm]
-        R = float(max(overrides)) if overrides else float(max(mech))
+        R = group_rim(p, g, n_el + 1, edge)
         radii.append(R)
         bores.append(R + c_bore)
         elements = []
@@ -346,6 +355,17 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             n_el += 1
             el = built[k]
             name = f"lens-{n_el}"
+            short = face_beyond_reach(el)
+            if short is not None:
+                reach = short.profile.max_radius()
+                outer_face = short.index in (g[0], g[-1])
+                raise GeometryError(
+                    f"{name} reaches {el.outer_radius:.3f} mm from the axis, beyond the edge of surface "
+                    f"{short.index + 1} (radius {1.0 / short.curvature:g} mm, conic {short.conic:g}), whose "
+                    f"profile ends at {reach:.3f} mm", field=f"lens_edge.semi_diameter_mm.{n_el}",
+                    valid=f"a semi-diameter of at most {reach:.3f} mm"
+                          + (f", or the face ground flat from its clear semi-diameter (lens_edge.flat_faces = "
+                             f"[{short.index + 1}])" if outer_face else ""))
             if k in stepped:
                 partner = f"lens-{n_el + (1 if k == 0 else -1)}"
                 notes.append(f"{name}: stepped, edged to {el.outer_radius:.3f} mm (clear {max(clear[a], clear[b]):.3f} "
@@ -361,8 +381,11 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             if flats and {a, b} & flat_faces:
                 notes.append(f"{name}: flat bevel ({', '.join(flats)}; lens_edge.flat_faces)")
             elif flats:
-                notes.append(f"{name}: flat bevel ({', '.join(flats)}): its faces close in toward the rim, "
-                             f"the flat keeps the edge {el.edge_thickness():.3f} mm thick at {R:.3f} mm")
+                ends = [fc for fc in (el.front, el.back) if not ends_inside(fc, R)]
+                notes.append(f"{name}: flat bevel ({', '.join(flats)}): " + (
+                    f"surface {ends[0].index + 1}'s sphere ends at {ends[0].profile.max_radius():.3f} mm, inside "
+                    f"the {R:.3f} mm rim" if ends else "its faces close in toward the rim, the flat keeps the edge "
+                    f"{el.edge_thickness():.3f} mm thick at {R:.3f} mm"))
             if el.center_thickness() < min_t or el.edge_thickness() < min_t:
                 # rims from the smallest a seat outside the light allows to 2 mm beyond: a thin meniscus
                 # is too thin at all of them, which no allowance can mend
@@ -681,4 +704,4 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     return Layout(p, ordered, contacts, env, notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "contact_slope", "pupil_edge_radius"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "group_rim", "contact_slope", "pupil_edge_radius"]

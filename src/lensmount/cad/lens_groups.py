@@ -2,7 +2,8 @@
 the group's seats touch it (shared by the layout planner and `lensmount init`'s starter mount).
 
 * An element whose edge would be thinner than the minimum gets a flat bevel on an outer face that
-  closes in toward the rim (a thin meniscus); `lens_edge.flat_faces` grinds listed faces flat anyway.
+  closes in toward the rim (a thin meniscus); so does a deep outer face whose sphere ends inside the
+  rim (as OpticStudio draws it); `lens_edge.flat_faces` grinds listed faces flat anyway.
 * An outer element of a cemented group too thin at the group's rim even so (a thin-edged crown) is
   stepped: edged to its clear semi-diameter plus a bevel, inside its partner's rim; the seat then
   touches the partner's cemented face outside it (`templates.lens_element.GroupOutline`), which is
@@ -23,12 +24,30 @@ def lens_element(fa: OpticalFace, fb: OpticalFace, R: float, bf: float, bb: floa
     semi-diameter out, when that makes the edge thick enough (a thin meniscus: the optics end at the
     clear aperture, the ground flat carries the seat)."""
     el = LensElement(fa, fb, R, bf, bb)
-    if el.edge_thickness() >= min_t:
+    short = [not ends_inside(f, R) for f in (fa, fb)]   # a deep face whose sphere ends inside the rim
+    if el.edge_thickness() >= min_t and not any(short):
         return el
-    front = clear_a if clear_a is not None and clear_a < R - bf and float(fa.z(R)) > float(fa.z(clear_a)) else None
-    back = clear_b if clear_b is not None and clear_b < R - bb and float(fb.z(R)) < float(fb.z(clear_b)) else None
+    front = clear_a if clear_a is not None and clear_a < R - bf and (
+        short[0] or float(fa.z(R)) > float(fa.z(clear_a))) else None
+    back = clear_b if clear_b is not None and clear_b < R - bb and (
+        short[1] or float(fb.z(R)) < float(fb.z(clear_b))) else None
     flat = LensElement(fa, fb, R, bf, bb, front, back)
     return flat if (front is not None or back is not None) and flat.edge_thickness() >= min_t else el
+
+
+def ends_inside(face: OpticalFace, r: float) -> bool:
+    """The face's profile exists out to radius r (a sphere or ellipsoid ends at its reach, where it
+    turns parallel to the axis: no glass follows it beyond)."""
+    return r <= face.profile.max_radius()
+
+
+def face_beyond_reach(el: LensElement) -> OpticalFace | None:
+    """An optical face of el that its outline follows beyond where the face exists (None: all exist
+    where they are followed). The outline follows a face to the rim or to its flat bevel."""
+    for face, flat in ((el.front, el.front_flat_from), (el.back, el.back_flat_from)):
+        if not ends_inside(face, el.outer_radius if flat is None else min(flat, el.outer_radius)):
+            return face
+    return None
 
 
 def lens_group(faces: list[OpticalFace], R: float, chamfer: float, clear: list[float], min_t: float,
@@ -98,4 +117,4 @@ def seat_of_group(elements: list, stepped: tuple[int, ...], group: tuple[int, ..
     return front, back
 
 
-__all__ = ["lens_element", "lens_group", "seat_of_group"]
+__all__ = ["lens_element", "lens_group", "seat_of_group", "ends_inside", "face_beyond_reach"]

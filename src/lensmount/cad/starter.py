@@ -25,7 +25,9 @@ dimension follows from the lens itself, in the mount layer's own keys
   between them) and both faces of an air gap the import clipped where they cross
   (design.edges); an element whose faces cross inside its rim keeps its rim (its flat
   bevels carry the edge), and one held by a ring is wide enough for the ring's wall above
-  the beam; where the planner refuses a seat, the others are tried for it;
+  the beam; where the planner refuses the mount, its alternatives are tried where the refusal
+  points (cad.mount_search: seats, rims, flat faces, margins) and `init` refuses the lens when
+  none builds;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -42,7 +44,6 @@ from __future__ import annotations
 
 import copy
 import math
-import re
 
 import numpy as np
 
@@ -100,7 +101,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     below the front retainer's wall above the beam: a lens that is too thin even there
     is left to `regenerate` to report (the lens file's own edge is).
     """
-    from lensmount.cad.layout import Envelope
+    from lensmount.cad.layout import Envelope, group_rim
     from lensmount.cad.lens_groups import lens_group, seat_of_group
     from lensmount.design.mount import LensEdge
     from lensmount.templates.lens_element import LensElement, OpticalFace
@@ -186,7 +187,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             seats[int(numbers[k + 1])] = "retainer"
 
     def above_the_ring(i: int) -> float:   # a retainer's wall in front of face i stands above the beam there
-        zc = float(face(i).z(clear[i] + contact))
+        zc = float(face(i).z(min(clear[i] + contact, face(i).profile.max_radius())))   # a hemisphere ends there
         beam = Envelope(p, zc - retainer - 1.0, zc, step=0.1).max_over(zc - retainer - 1.0, zc)
         return beam + margin + min_thickness + 0.02
 
@@ -210,16 +211,18 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             continue
         for _ in range(40):
             r = min(radii[k], radii[k + 1])
-            if float(face(ib).z(r) - face(ia).z(r)) > min_thickness + 2 * chamfer and (
-                    ia + 1 in flat or not _step_blocked(group(k, radii[k])[0][-1], group(k + 1, radii[k + 1])[0][0])):
+            a, b = group(k, radii[k])[0][-1], group(k + 1, radii[k + 1])[0][0]   # as built: flat bevels too
+            if float(b.face_z(True, r) - a.face_z(False, r)) > min_thickness + 2 * chamfer and not _step_blocked(a, b):
                 break
             big = k if radii[k] >= radii[k + 1] else k + 1
             if radii[big] - step < floor[big]:
                 break
             radii[big] -= step
     out = {}
-    for g, first, r, n in zip(groups, numbers, radii, natural):
-        if abs(r - n) > 1e-9:
+    for g, first, r in zip(groups, numbers, radii):
+        # written wherever the layout would take another rim: the file's own mechanical semi-diameter
+        # may be the clear one (OpticStudio writes its automatic one), leaving no room for a seat
+        if abs(r - group_rim(p, g, int(first), LensEdge(allowance_mm=allowance))) > 1e-9:
             for k in range(len(g) - 1):
                 out[int(first) + k] = _round(r, 3)
     return out, seats, tuple(sorted(flat))
@@ -237,8 +240,9 @@ def _step_blocked(a, b) -> bool:
 
 def _faces_meet(a, b, r_lo: float, r_hi: float) -> float | None:
     """Radius in [r_lo, r_hi] where face b (behind) comes to face a (in front), mm; None if they
-    stay apart there. Below r_lo (the light and the contact margin) they must not meet."""
-    rs = np.linspace(0.0, r_hi, 2001)
+    stay apart there. Below r_lo (the light and the contact margin) they must not meet. Only where
+    both faces exist (a deep face ends at its reach: it is ground flat beyond, cad.lens_groups)."""
+    rs = np.linspace(0.0, min(r_hi, a.profile.max_radius(), b.profile.max_radius()), 2001)
     gap = b.z(rs) - a.z(rs)
     closed = np.flatnonzero(gap <= 0.0)
     if not len(closed) or rs[closed[0]] < r_lo:
@@ -275,58 +279,46 @@ def _faces_curling_toward_the_stop(p: Prescription) -> tuple[int, ...]:
 
 def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     """mount.toml as a dict of tables, every dimension derived from the lens (module docstring),
-    and why the mount cannot be built (None when it can).
+    and why no mount was found that builds (None when it builds).
 
-    Two seatings are tried, checked with the layout planner and the profile checks that
-    `regenerate` runs (no CAD): spacers with widened edges, then shoulders and rings where
-    a spacer cannot reach; the first that passes wins. If neither does and faces beside the
-    stop curl toward it, both are tried again with those faces ground flat from their clear
-    semi-diameter (lens_edge.flat_faces: room for the diaphragm between deep inner faces).
-    Where the planner refuses an element's seat, the others are tried for it (`_reseat`).
-    When none passes, the first is returned with the planner's error for the user.
+    The starting seatings are spacers with widened edges, then shoulders and rings where a spacer
+    cannot reach; if faces beside the stop curl toward it, both again with those faces ground flat
+    from their clear semi-diameter (lens_edge.flat_faces: room for the diaphragm between deep inner
+    faces). Each is checked with the layout planner and the profile checks that `regenerate` runs
+    (no CAD); the first that passes wins. When none does, the planner's alternatives are tried where
+    its refusal points (cad.mount_search: seats, rims, flat faces, margins). When nothing builds,
+    the first seating is returned with the refusals met on the way.
     """
-    from lensmount.cad.checks import check_layout
-    from lensmount.cad.layout import plan
-    from lensmount.design.mount import parse_mount
-    from lensmount.errors import InputError
+    from lensmount.cad.mount_search import find_mount
 
-    first = None
     gap = _faces_curling_toward_the_stop(p)
-    base: dict[bool, dict] = {}  # the seating's mount.toml, built once (0.5-1 s) for both passes
-    for flats, widen in [(flats, widen) for flats in (((), gap) if gap else ((),)) for widen in (True, False)]:
-        if widen not in base:
-            base[widen] = _mount(p, name, widen)
-        mount = copy.deepcopy(base[widen])
-        if flats:
-            mount["lens_edge"]["flat_faces"] = sorted(set(flats) | set(mount["lens_edge"].get("flat_faces", ())))
-        tried: dict[str, set[str]] = {}
-        for _ in range(1 + 3 * len(p.lens_groups())):   # each seat tried at most three ways
-            try:
-                spec = parse_mount(mount)
-                layout = plan(p, spec)
-                check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
-                return mount, None
-            except InputError as error:
-                first = first or (copy.deepcopy(mount), error.paragraph())
-                if not _reseat(mount, error.field or "", tried):
-                    break
-    return first
+    base: dict[bool, dict] = {}   # each seating's mount.toml made once (0.5-1 s), when it is needed
+
+    def starts():
+        for flats in ((), gap) if gap else ((),):
+            for widen in (True, False):
+                if widen not in base:
+                    base[widen] = _mount(p, name, widen)
+                mount = copy.deepcopy(base[widen])
+                edge = mount["lens_edge"]
+                if flats:
+                    edge["flat_faces"] = sorted(set(flats) | set(edge.get("flat_faces", ())))
+                yield mount
+
+    mount, refused = find_mount(p, starts())
+    return (mount, None) if mount is not None else (base[True], _why_not(refused))
 
 
-def _reseat(mount: dict, field: str, tried: dict[str, set[str]]) -> bool:
-    """After the planner refused the seat of element N (field `seats.element.N`), seat it another way
-    (a shoulder, then a spacer, then a ring) that has not been tried; False when none is left."""
-    m = re.fullmatch(r"seats\.element\.(\d+)", field)
-    if m is None:
-        return False
-    seats = mount["seats"].setdefault("element", {})
-    done = tried.setdefault(m.group(1), {seats.get(m.group(1), mount["seats"]["default"])})
-    left = [s for s in ("shoulder", "spacer", "retainer") if s not in done]
-    if not left:
-        return False
-    seats[m.group(1)] = left[0]
-    done.add(left[0])
-    return True
+def _why_not(refused: list) -> str:
+    """One paragraph: the first plan's refusal, then what the alternatives ran into, each reason once."""
+    first = refused[0][1]
+    reasons: dict[str, str] = {}
+    for what, why in refused[1:]:
+        if why.kind != first.kind:
+            reasons.setdefault(why.kind, f"with {what}: {why.message.rstrip('.')}")
+    tail = "; ".join(list(reasons.values())[:3]) if reasons else "each was refused for the same reason"
+    return f"{first.paragraph.rstrip('.')}. {len(refused) - 1} alternatives the planner knows were tried " \
+           f"(seats, rims, flat faces, margins), none builds: {tail}"
 
 
 def _mount(p: Prescription, name: str, widen: bool) -> dict:

@@ -82,7 +82,8 @@ def init(
     example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),
     lens: Optional[Path] = typer.Option(
         None, "--lens", "-l", help="start from this lens (.zmx or lens.toml) instead of an example: mount.toml "
-        "and a case-2 scene are derived from it (mirrors included: cells in a straight barrel)"),
+        "and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), checked as "
+        "regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
 ) -> None:
     """Scaffold a design folder (lens file, mount.toml, scenes/) from an example or from a lens file."""
@@ -92,9 +93,7 @@ def init(
             raise InputError("the folder exists and is not empty", file=str(directory),
                              valid="a new or empty folder, or --force")
         if lens is not None:
-            problem = _init_from_lens(directory, Path(lens))
-            if problem:
-                typer.echo(f"note: the derived mount does not build yet ({problem}); edit mount.toml", err=True)
+            _init_from_lens(directory, Path(lens))
             typer.echo(f"{directory}: design folder from {lens} (mount.toml and scenes/case2-lambertian.toml "
                        f"derived from the lens); next: lensmount regenerate {directory}")
             return
@@ -115,10 +114,10 @@ def init(
     typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")
 
 
-def _init_from_lens(directory: Path, lens: Path) -> str | None:
+def _init_from_lens(directory: Path, lens: Path) -> None:
     """Copy the lens, write the derived mount.toml and case-2 scene, for a finite object the
     object-lambertian scene and for a lens with mirrors the mirrors-scatter one (everything checked
-    before writing)."""
+    before writing). InputError, with nothing written, when no mount that builds was found."""
     import tomli_w
 
     from lensmount.atomic import atomic_path, write_text
@@ -128,6 +127,10 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
     prescription = load_lens(lens)
     name = prescription.name if prescription.name not in ("", "lens") else lens.stem
     mount, problem = starter_mount(prescription, name)
+    if problem:
+        raise InputError(f"no mount that builds was found for this lens: {problem}", file=str(lens),
+                         valid="a lens whose elements leave room for seats, spacers and the diaphragm; or "
+                               "start from an example (`lensmount init DIR --example NAME`) and edit mount.toml")
     scene = case2_scene(prescription, mount, name)
     obj = object_scene(prescription, scene, name)
     mirrors = mirror_scene(prescription, scene)
@@ -141,9 +144,6 @@ def _init_from_lens(directory: Path, lens: Path) -> str | None:
         write_text(directory / "scenes" / "object-lambertian.toml", tomli_w.dumps(obj))
     if mirrors is not None:  # mirrors: case 2 with their scatter
         write_text(directory / "scenes" / "mirrors-scatter.toml", tomli_w.dumps(mirrors))
-    if problem:  # the user starts from it and edits; say what to edit
-        header += f"# This mount does not build yet: {problem}\n"
     write_text(directory / "mount.toml", header + tomli_w.dumps(mount))
     with atomic_path(directory / target) as tmp:  # byte for byte: a .zmx keeps its encoding
         tmp.write_bytes(lens.read_bytes())
-    return problem

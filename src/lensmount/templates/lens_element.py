@@ -93,7 +93,7 @@ class LensElement(RevolvedPart):
     front_ground_from: float | None = None   # the face ground (not polished) on its own curve from here
     back_ground_from: float | None = None    # out: a cemented face left bare outside a stepped partner
 
-    def _face(self, front: bool, r) -> np.ndarray:
+    def face_z(self, front: bool, r) -> np.ndarray:
         """The optical face's z, held at its value at the flat bevel's radius beyond it."""
         face, flat = (self.front, self.front_flat_from) if front else (self.back, self.back_flat_from)
         r = np.asarray(r, dtype=np.float64)
@@ -102,15 +102,15 @@ class LensElement(RevolvedPart):
     def edge_z(self) -> tuple[float, float]:
         """z range of the ground cylindrical edge (front end, back end)."""
         R = self.outer_radius
-        return (float(self._face(True, R)) + self.front_chamfer, float(self._face(False, R)) - self.back_chamfer)
+        return (float(self.face_z(True, R)) + self.front_chamfer, float(self.face_z(False, R)) - self.back_chamfer)
 
     def front_z(self, r) -> np.ndarray:
         """z of the glass's object-side boundary at radius r <= outer_radius (chamfer included)."""
         r = np.asarray(r, dtype=np.float64)
         R, b = self.outer_radius, self.front_chamfer
-        z = self._face(True, np.minimum(r, R - b))
+        z = self.face_z(True, np.minimum(r, R - b))
         if b > 0:  # the chamfer: straight from (R - b, surface) to (R, edge start)
-            z0, z1 = float(self._face(True, R - b)), self.edge_z()[0]
+            z0, z1 = float(self.face_z(True, R - b)), self.edge_z()[0]
             z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
@@ -118,9 +118,9 @@ class LensElement(RevolvedPart):
         """z of the glass's image-side boundary at radius r <= outer_radius."""
         r = np.asarray(r, dtype=np.float64)
         R, b = self.outer_radius, self.back_chamfer
-        z = self._face(False, np.minimum(r, R - b))
+        z = self.face_z(False, np.minimum(r, R - b))
         if b > 0:
-            z0, z1 = float(self._face(False, R - b)), self.edge_z()[1]
+            z0, z1 = float(self.face_z(False, R - b)), self.edge_z()[1]
             z = np.where(r > R - b, z0 + (z1 - z0) * (r - (R - b)) / b, z)
         return z
 
@@ -148,7 +148,7 @@ class LensElement(RevolvedPart):
         gb = self.back_ground_from
         ground = gb is not None and gb < fb
         back = self.back.segment(gb if ground else fb, reverse=True)
-        z_fb = float(self._face(False, fb))
+        z_fb = float(self.face_z(False, fb))
         flat_b = (R - bb, z_fb)
         if bb > 0:
             segs.append(Segment("line", ((R, zb_edge), flat_b), "bevel"))
