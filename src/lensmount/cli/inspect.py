@@ -144,19 +144,22 @@ def inspect_command(
     save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
                                              "(e.g. to convert a .zmx); automatic semi-diameters stay automatic "
                                              "(a lens with vignetting factors: written out)."),
+    glass_catalog: list[Path] = typer.Option([], "--glass-catalog", help="A Zemax .agf glass catalogue searched "
+                                             "for the lens's glass names before the built-in catalogues "
+                                             "(repeatable; after a lens.toml's own glass_catalogs)."),
 ) -> None:
     """Show a lens: what the import of a .zmx did (imported, substituted, ignored), the surfaces
     with their clear semi-diameters, and the paraxial data."""
     from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 
     try:
-        prescription, clips = load_lens_and_clips(lens, margin_mm=margin)
+        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, glass_catalogs=glass_catalog)
         if save_toml is not None:
-            raw = load_lens(lens, auto_clear_apertures=False)
+            raw = load_lens(lens, auto_clear_apertures=False, glass_catalogs=glass_catalog)
             # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give
             save_lens_toml(prescription if raw.vignetting else raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
-        doc = inspect_document(prescription, import_notes(lens), clips)
+        doc = inspect_document(prescription, import_notes(lens, glass_catalog), clips)
     except InputError as error:
         from lensmount.cli import fail  # defined after the command modules are imported
 

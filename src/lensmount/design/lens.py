@@ -24,23 +24,25 @@ import numpy as np
 
 from lensmount.design.edges import EdgeClip, clip_crossing_elements, face_gap, height_at_gap
 from lensmount.errors import InputError
-from lensmount.optics.glass import refractive_index
+from lensmount.optics.glass import MODEL_GLASS, refractive_index, resolve_glass
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
-from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
-from lensmount.optics.prescription import Prescription
+from lensmount.optics.io.zemax import ImportNote, read_zmx, read_zmx_with_notes
+from lensmount.optics.prescription import AIR, Prescription
 from lensmount.optics.profiles import Profile
 
 _CROSS_SAMPLES = 64
 _CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is not
 
 
-def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None) -> Prescription:
+def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
+              glass_catalogs=()) -> Prescription:
     """Read `lens.toml` or `.zmx` into a validated Prescription (`load_lens_and_clips`, without the clips)."""
-    return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm)[0]
+    return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm,
+                               glass_catalogs=glass_catalogs)[0]
 
 
-def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
-                        margin_mm: float | None = None) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
+                        glass_catalogs=()) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
@@ -51,13 +53,15 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
             Defaults to True.
         margin_mm: margin added to automatic semi-diameters; defaults to the file's
             `clear_aperture_margin_mm` (0 for .zmx).
+        glass_catalogs: the user's Zemax .agf glass catalogues, searched for a glass name
+            before the built-in ones (after a lens.toml's own `glass_catalogs`).
     """
     path = _resolve(Path(path))
     file = str(path)
     if path.suffix.lower() == ".zmx":
-        prescription, file_margin = read_zmx(path), 0.0
+        prescription, file_margin = read_zmx(path, glass_catalogs), 0.0
     else:
-        prescription, file_margin = read_lens_toml(path)
+        prescription, file_margin = read_lens_toml(path, glass_catalogs)
     margin = file_margin if margin_mm is None else margin_mm
     try:
         validate(prescription, file)
@@ -69,12 +73,24 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
     return (complete, clips) if auto_clear_apertures else (prescription, ())
 
 
-def import_notes(path) -> list:
-    """What reading a .zmx imported, substituted and ignored (ImportNote rows); [] for lens.toml."""
+def import_notes(path, glass_catalogs=()) -> list:
+    """What reading a .zmx imported, substituted and ignored (ImportNote rows); for lens.toml, the
+    glasses found elsewhere than under their name in a built-in catalogue."""
     path = _resolve(Path(path))
     if path.suffix.lower() != ".zmx":
-        return []
-    return read_zmx_with_notes(path)[1]
+        return _glass_notes(read_lens_toml(path, glass_catalogs)[0])
+    return read_zmx_with_notes(path, glass_catalogs)[1]
+
+
+def _glass_notes(p: Prescription) -> list:
+    notes = []
+    for i, s in enumerate(p.surfaces):
+        found = resolve_glass(s.material) if s.material.upper() != AIR and not MODEL_GLASS.match(s.material) else None
+        if found is not None and (found.substituted or found.step.startswith("user")):
+            notes.append(ImportNote("substituted" if found.substituted else "imported", f"surface {i + 1}",
+                                    f"glass {s.material}" + (f" -> {found.material}" if found.substituted else "")
+                                    + f" ({found.step})"))
+    return notes
 
 
 def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, header: str | None = None) -> Path:

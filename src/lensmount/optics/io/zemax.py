@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.optics.glass import CATALOGUES, refractive_index, successor
+from lensmount.optics.glass import (CATALOGUES, nearest_glass_names, refractive_index, register_catalogue,
+                                    resolve_glass, searched_catalogues)
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
@@ -65,6 +66,9 @@ class ZmxSurface:
     diam_from: int | None = None  # DIAM ... 2 k: picked up from surface k
     clap: float | None = None
     mema: float | None = None
+    mema_flag: int | None = None  # None: a file older than OpticStudio's flags (the value is a given one)
+    mema_from: int | None = None  # MEMA ... 2 k: picked up from surface k
+    chip_zone: float = 0.0  # OEMA: the annulus OpticStudio's automatic MEMA adds to the clear semi-diameter
     stop: bool = False
     coating: str | None = None
     comment: str | None = None
@@ -199,7 +203,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         elif cmd == "GCAT":
             lens.catalogues = list(args)
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
-                     "PZUP"):
+                     "PZUP", "OEMA"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
             _surface_line(cur, cmd, args, rest, ln, err, num, arg)
@@ -245,6 +249,12 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.clap = arg(args, 1, ln, "circular aperture radius")
     elif cmd == "MEMA":
         cur.mema = arg(args, 0, ln, "mechanical semi-diameter")
+        if len(args) > 1:
+            cur.mema_flag = int(arg(args, 1, ln, "mechanical semi-diameter type"))
+            if cur.mema_flag == 2:
+                cur.mema_from = int(arg(args, 2, ln, "mechanical semi-diameter pickup surface"))
+    elif cmd == "OEMA":
+        cur.chip_zone = arg(args, 0, ln, "chip zone")
     elif cmd == "STOP":
         cur.stop = True
     elif cmd == "COAT":
@@ -258,8 +268,9 @@ def to_prescription(lens: ZmxLens, file: str = "lens.zmx") -> Prescription:
     return convert(lens, file)[0]
 
 
-def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[ImportNote]]:
-    """The Prescription and the notes on what was imported, substituted and ignored."""
+def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
+    """The Prescription and the notes on what was imported, substituted and ignored.
+    glass_catalogs: the user's .agf files, searched first for a GLAS name."""
     from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
 
     if len(lens.surfaces) < 3:
@@ -282,6 +293,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
                             else f"at {object_distance:g} mm in front of surface 1"))
 
     automatic = _automatic(lens)
+    user = tuple(register_catalogue(p) for p in glass_catalogs)
     surfaces: list[Surface] = []
     numbers: list[int] = []
     medium = AIR
@@ -312,7 +324,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
                             "has a thickness along the decentred or tilted axis")
             notes.append(ImportNote("ignored", f"SURF {zs.number}", "dummy surface between coordinate breaks"))
             continue
-        material, note = _material(zs, medium, lens.catalogues, file)
+        material, note = _material(zs, medium, lens.catalogues, user, file)
         if note:
             notes.append(note)
         if zs.mirror:
@@ -323,7 +335,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
-        clear, mech = _semi_diameters(zs, s, notes, automatic, len(surfaces))
+        clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -339,6 +351,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
+    surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s)
     waves, weights = _wavelengths(lens)
     if not waves:
         waves, weights = [_D_LINE], [1.0]
@@ -348,7 +361,8 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         notes.append(ImportNote("imported", "fields", "telecentric object space: chief rays parallel to the axis"))
     base = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0), wavelengths_um=tuple(waves),
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
-                        name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric)
+                        name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric,
+                        glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs))
     return apply_aperture_and_fields(base, lens, numbers, notes, file), notes
 
 
@@ -391,8 +405,11 @@ def _asymmetric(file, zs: ZmxSurface, tilt, why: str):
         valid="coordinate breaks that are zero, or that later breaks undo before the next optical surface")
 
 
-def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, ImportNote | None]:
-    """The lensmount material for a GLAS line, and a note when it is a substitution."""
+def _material(zs: ZmxSurface, medium: str, catalogues, user, file) -> tuple[str, ImportNote | None]:
+    """The lensmount material for a GLAS line, and the note saying which step found it: the
+    file's own model glass; a glass code; the name in the user's catalogues, the built-in ones,
+    the table of legacy glasses or as a legacy name's successor (lensmount.optics.glass.
+    resolve_glass); the GLAS line's n_d and V_d when the name is in none of them."""
     where = f"SURF {zs.number}"
     if zs.mirror:
         return medium, None
@@ -404,46 +421,62 @@ def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, Impor
     nd_vd = _file_nd_vd(args, model=name.upper() == "___BLANK")
     if name.upper() == "___BLANK":
         if nd_vd is None:
-            raise InputError("model glass without n_d and V_d", file=file, line=zs.glass_line,
-                             valid="GLAS ___BLANK 1 0 n_d V_d ...")
-        return _model(*nd_vd), ImportNote("imported", where, f"model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g}{pickup}")
+            raise InputError(f"surface {zs.number} has a model glass without n_d and V_d", file=file,
+                             line=zs.glass_line, valid="GLAS ___BLANK 1 0 n_d V_d ... with n_d > 1 and V_d >= 0")
+        constant = " (V_d = 0: Zemax's constant index, no dispersion)" if nd_vd[1] == 0 else ""
+        return _model(*nd_vd), ImportNote("imported", where, f"the file's model glass n_d {nd_vd[0]:g}, "
+                                          f"V_d {nd_vd[1]:g}{constant}{pickup}")
     six = _SIX_DIGIT.match(name)
     if six:
         nd, vd = 1.0 + int(six.group(1)) / 1000.0, int(six.group(2)) / 10.0
         return _model(nd, vd), ImportNote("substituted", where, f"glass code {name} -> model glass {nd:g}/{vd:g}")
-    try:
-        refractive_index(name, _D_LINE)
-    except InputError:
-        pass
-    else:
-        return (_prefer_catalogue(name, catalogues) if catalogues else name), (
-            ImportNote("imported", where, f"glass {name}{pickup}") if pickup else None)
-    new = successor(name)
-    if new is not None:
-        return new, ImportNote("substituted", where,
-                               f"glass {name} (a legacy or moulding name) -> {new}, its catalogue successor")
+    found = resolve_glass(name, user)
+    if found is not None and not found.substituted:
+        material = _prefer_catalogue(found.material, catalogues) if catalogues and ":" not in found.material \
+            else found.material
+        return material, ImportNote("imported", where, f"glass {name}: {found.step}{pickup}")
+    if found is not None:
+        return found.material, ImportNote("substituted", where, f"glass {name} -> {found.material} ({found.step})"
+                                          f"{pickup}")
     if nd_vd is not None:
-        return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in no catalogue lensmount has "
+        return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in none of {searched_catalogues(user)} "
                                           f"-> model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g} from the GLAS line")
-    raise InputError(f"unknown glass '{name}' and the GLAS line gives no n_d and V_d", file=file, line=zs.glass_line,
-                     valid=f"a glass in the {', '.join(CATALOGUES)} catalogues, or n_d and V_d on the GLAS line")
+    placeholder = _is_placeholder(args)
+    near = nearest_glass_names(name, user)
+    raise InputError(
+        f"surface {zs.number}: unknown glass '{name}', searched {searched_catalogues(user)}; "
+        + ("the GLAS line carries only Zemax's 1.5/40 placeholders (written when OpticStudio had no data for "
+           "the glass), not the glass's n_d and V_d" if placeholder else "the GLAS line gives no n_d and V_d"),
+        file=file, line=zs.glass_line,
+        valid=(f"a near name ({', '.join(near)}), " if near else "")
+        + "a Zemax .agf catalogue holding it (lens.toml glass_catalogs, or --glass-catalog), or real n_d and "
+          "V_d on the GLAS line")
 
 
 def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
-    """n_d, V_d from a GLAS line. For a catalogue name, 1.5/40 is what Zemax writes when it has
-    no data for the glass (its defaults), so it is no information."""
+    """n_d, V_d from a GLAS line, None where it carries none or (for a named glass) Zemax's
+    placeholders; a model glass's 1.5/40 is the designer's."""
     try:
         nd, vd = float(args[2]), float(args[3])
     except (IndexError, ValueError):
         return None
-    if not model and (nd, vd) == (1.5, 40.0):
+    if not model and _is_placeholder(args):
         return None
     return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
 
 
+def _is_placeholder(args) -> bool:
+    """1.5/40 is what Zemax writes on a GLAS line when it has no data for the glass (its defaults):
+    no information."""
+    try:
+        return (float(args[2]), float(args[3])) == (1.5, 40.0)
+    except (IndexError, ValueError):
+        return False
+
+
 def _model(nd: float, vd: float) -> str:
-    # Zemax treats V_d = 0 as a constant index; a huge V_d is that to 1e-9.
-    return f"{nd:.6g}/{vd if vd > 0 else 1e9:.6g}"
+    # V_d = 0 is Zemax's constant index, which lensmount's model glass "n_d/0" means too
+    return f"{nd:.6g}/{vd:.6g}"
 
 
 def _automatic(lens: ZmxLens) -> set[int]:
@@ -454,17 +487,27 @@ def _automatic(lens: ZmxLens) -> set[int]:
     apertures). The stop's is the exception: it is the size Zemax gives the diaphragm for the system
     aperture with its own ray aiming (US 583,336: 4.215 mm, the real on-axis ray at EPD/2, where the
     paraxial rule says 4.251 mm), and with FLOA it is the aperture: it stays."""
-    by_number = {zs.number: zs for zs in lens.surfaces}
-
-    def automatic(zs: ZmxSurface, seen: frozenset) -> bool:
-        if zs.diam_flag == 2 and zs.diam_from in by_number and zs.diam_from not in seen:
-            return automatic(by_number[zs.diam_from], seen | {zs.number})
-        return zs.diam_flag == 0 and not zs.stop
-
-    return {zs.number for zs in lens.surfaces if zs.diam and automatic(zs, frozenset())}
+    return {zs.number for zs in lens.surfaces if zs.diam and _is_automatic(lens, zs, "diam") and not zs.stop}
 
 
-def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int], index: int):
+def _is_automatic(lens: ZmxLens, zs: ZmxSurface, which: str) -> bool:
+    """The DIAM ("diam") or MEMA ("mema") of `zs` is OpticStudio's automatic value: flag 0, or a
+    pickup (flag 2 k) of an automatic one. A MEMA without a flag (files older than OpticStudio's
+    flags on it) is a given value."""
+    by_number = {z.number: z for z in lens.surfaces}
+    seen = set()
+    while True:
+        flag, source = getattr(zs, f"{which}_flag"), getattr(zs, f"{which}_from")
+        if flag == 2 and source in by_number and source not in seen:
+            seen.add(zs.number)
+            zs = by_number[source]
+            continue
+        return flag == 0
+
+
+def _semi_diameters(lens: ZmxLens, zs: ZmxSurface, s: float, notes, automatic: set[int], index: int):
+    """(clear, mechanical) semi-diameters in mm; a mechanical one the import recomputes is
+    `_AUTOMATIC_MECHANICAL` (filled in by `_automatic_mechanical` once the elements are known)."""
     where = f"SURF {zs.number}"
     clear = zs.diam * s if zs.diam else None
     if zs.number in automatic:
@@ -480,12 +523,54 @@ def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int], index:
         r = zs.clap * s
         clear = r if clear is None else min(clear, r)
         notes.append(ImportNote("imported", where, f"circular aperture {r:.4g} mm"))
-    mech = zs.mema * s if zs.mema else None
-    if mech is not None and clear is not None and mech < clear:
-        notes.append(ImportNote("ignored", where,
-                                f"mechanical semi-diameter {mech:.4g} mm (smaller than the clear one)"))
-        mech = None
+    if not zs.mema:
+        return clear, None
+    mech = zs.mema * s
+    if _is_automatic(lens, zs, "mema"):
+        return clear, _AUTOMATIC_MECHANICAL
+    kind = {1: "fixed", 2: f"picked up from surface {zs.mema_from}", None: "given"}.get(
+        zs.mema_flag, "solve (value as written)")
+    if clear is not None and mech < clear:
+        notes.append(ImportNote("ignored", where, f"mechanical semi-diameter {mech:.4g} mm, {kind} "
+                                "(smaller than the clear one)"))
+        return clear, None
+    notes.append(ImportNote("imported", where, f"mechanical semi-diameter {mech:.4g} mm, {kind}"))
     return clear, mech
+
+
+_AUTOMATIC_MECHANICAL = -1.0
+
+
+def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes, s: float) -> list[Surface]:
+    """Automatic MEMAs recomputed as OpticStudio computes them: the largest clear semi-diameter plus
+    chip zone (OEMA) over the element's faces. With no chip zone that is the clear semi-diameter
+    itself, which leaves no edge to hold the glass by; and where a face's clear semi-diameter is
+    left to real rays the sum is not known here: both are left to the mount's edge allowance."""
+    from dataclasses import replace
+
+    zmx = {i: zs for i, zs in enumerate(body)}
+    out = list(surfaces)
+    p = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0))
+    groups = {i: g for g in p.lens_groups() for i in g}
+    for i, surf in enumerate(surfaces):
+        if surf.mechanical_semi_diameter != _AUTOMATIC_MECHANICAL:
+            continue
+        faces = groups.get(i, (i,))
+        chips = [zmx[j].chip_zone * s for j in faces]
+        clears = [surfaces[j].clear_semi_diameter for j in faces]
+        where, was = f"SURF {zmx[i].number}", zmx[i].mema * s
+        if any(chips) and all(c is not None for c in clears):
+            mech = max(c + z for c, z in zip(clears, chips))
+            what = f"{mech:.4g} mm, the element's largest clear semi-diameter plus its chip zone (OEMA)"
+        else:
+            mech = None
+            what = ("left to the mount's edge allowance (no chip zone: OpticStudio's rule gives the clear "
+                    "semi-diameter, no edge to hold the glass by)" if not any(chips) else
+                    "left to the mount's edge allowance (a face's clear semi-diameter is recomputed from real rays)")
+        out[i] = replace(surf, mechanical_semi_diameter=mech)
+        notes.append(ImportNote("substituted", where, f"mechanical semi-diameter {was:.4g} mm, automatic in the "
+                                f"file (what OpticStudio last computed) -> {what}"))
+    return out
 
 
 def _aspheric(zs: ZmxSurface, s: float, file) -> tuple[float, ...]:
@@ -542,15 +627,16 @@ def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
     return name
 
 
-def read_zmx_with_notes(path) -> tuple[Prescription, list[ImportNote]]:
-    """Read a .zmx file: the Prescription and what was imported, substituted and ignored."""
+def read_zmx_with_notes(path, glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
+    """Read a .zmx file: the Prescription and what was imported, substituted and ignored.
+    glass_catalogs: the user's .agf files, searched first for a GLAS name."""
     text = read_text(path)
-    return convert(parse_zmx(text, str(path)), str(path))
+    return convert(parse_zmx(text, str(path)), str(path), glass_catalogs)
 
 
-def read_zmx(path) -> Prescription:
+def read_zmx(path, glass_catalogs=()) -> Prescription:
     """Read a .zmx file into a Prescription."""
-    return read_zmx_with_notes(path)[0]
+    return read_zmx_with_notes(path, glass_catalogs)[0]
 
 
 __all__ = ["ZmxLens", "ZmxSurface", "ImportNote", "read_text", "parse_zmx", "to_prescription", "convert",
