@@ -27,6 +27,7 @@ from lensmount.errors import InputError
 from lensmount.optics.glass import MODEL_GLASS, refractive_index, resolve_glass
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
 from lensmount.optics.io.zemax import ImportNote, read_zmx, read_zmx_with_notes
+from lensmount.optics.paraxial import AFOCAL_POWER_RATIO, paraxial
 from lensmount.optics.prescription import AIR, Prescription
 from lensmount.optics.profiles import Profile
 
@@ -35,14 +36,14 @@ _CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is 
 
 
 def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
-              glass_catalogs=()) -> Prescription:
+              glass_catalogs=(), afocal_ok: bool = False) -> Prescription:
     """Read `lens.toml` or `.zmx` into a validated Prescription (`load_lens_and_clips`, without the clips)."""
     return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm,
-                               glass_catalogs=glass_catalogs)[0]
+                               glass_catalogs=glass_catalogs, afocal_ok=afocal_ok)[0]
 
 
 def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
-                        glass_catalogs=()) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+                        glass_catalogs=(), afocal_ok: bool = False) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
@@ -55,6 +56,7 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
             `clear_aperture_margin_mm` (0 for .zmx).
         glass_catalogs: the user's Zemax .agf glass catalogues, searched for a glass name
             before the built-in ones (after a lens.toml's own `glass_catalogs`).
+        afocal_ok: accept an afocal system (for `inspect`); otherwise it is an InputError.
     """
     path = _resolve(Path(path))
     file = str(path)
@@ -64,7 +66,7 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
         prescription, file_margin = read_lens_toml(path, glass_catalogs)
     margin = file_margin if margin_mm is None else margin_mm
     try:
-        validate(prescription, file)
+        validate(prescription, file, afocal_ok)
         complete, clips = clip_crossing_elements(prescription, margin, file)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
@@ -98,8 +100,9 @@ def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, hea
     return write_lens_toml(prescription, path, margin_mm, header)
 
 
-def validate(prescription: Prescription, file: str = "lens") -> None:
-    """Checks that need no ray trace. Raises InputError."""
+def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = False) -> None:
+    """Checks that need no ray trace. Raises InputError. afocal_ok: accept an afocal system
+    (`inspect` shows one; the mount and the tracer need an image)."""
     p = prescription
     if not all(0.1 <= w <= 20.0 for w in p.wavelengths_um):
         raise InputError(f"wavelengths {list(p.wavelengths_um)} µm include one outside 0.1-20 µm", file=file,
@@ -140,10 +143,37 @@ def validate(prescription: Prescription, file: str = "lens") -> None:
     if not p.surfaces[-1].is_air_after:
         raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
                          field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
+    _check_image(p, file, afocal_ok)
     if p.image_z <= 0 and not p.has_mirrors:
         raise InputError("the image plane lies in front of surface 1", file=file,
                          field=f"surface[{len(p.surfaces)}].thickness", valid="a total track > 0 mm")
     _check_radii(p, file, given_only=True)
+
+
+def _check_image(p: Prescription, file: str, afocal_ok: bool) -> None:
+    """lensmount traces to a detector at a real image: an afocal system (optics.paraxial) has no image
+    at a finite distance, and a lens whose paraxial image lies before its last surface (a diverging
+    lens, or an object inside the focal length) forms only a virtual one."""
+    par = paraxial(p)
+    last = f"surface[{len(p.surfaces)}].thickness"
+    if par.afocal:
+        if afocal_ok:
+            return
+        raise InputError(
+            f"the lens is afocal (angular magnification {par.angular_magnification:.4g}x: its power is below "
+            f"{AFOCAL_POWER_RATIO:g} of its surfaces' powers), so it forms no image at a finite distance for a "
+            "detector to sit in; lensmount's mount, scene and tracer are built around a focused image",
+            file=file, field=last,
+            valid="a focusing lens; for an afocal system, add the camera lens (or an ideal lens of a stated "
+                  "focal length) behind it in the file")
+    if par.bfl * p.travel[-1] <= 0:
+        which = "object" if p.finite_object else "object at infinity"
+        raise InputError(
+            f"the lens forms no real image: the paraxial image of the {which} lies {abs(par.bfl):.4g} mm before "
+            f"the last surface (a virtual image; effective focal length {par.efl:.4g} mm), so there is no image "
+            "for a detector to sit in", file=file, field=last,
+            valid="a lens that forms a real image (positive power for an object at infinity, or an object "
+                  "beyond the front focal point)")
 
 
 def _outer_semi_diameter(s) -> float | None:
