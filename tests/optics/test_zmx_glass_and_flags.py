@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from lensmount.cli import app
 from lensmount.design.lens import load_lens
 from lensmount.errors import InputError
+from lensmount.optics.glass import refractive_index
 from lensmount.optics.io.agf import parse_agf
 from lensmount.optics.io.zemax import convert, parse_zmx
 from lensmount.optics.paraxial import paraxial
@@ -175,3 +176,20 @@ def test_agf_dispersion_formulas_against_their_formulas():
         parse_agf("NM X 13 0 1.5 60 0 0 0\nCD 1 2 3\n", "x.agf")
     assert err.value.line == 1 and "formula 13" in err.value.paragraph()
     assert np.isfinite(glasses["S1"].index(np.array([0.4, 0.7]))).all()
+
+
+def test_a_material_offset_adds_to_the_catalogue_glass_n_d_and_v_d():
+    """OpticStudio's offset mode: GLAS name 4 ... dn dv (prescription minus catalogue)."""
+    lens, notes = _convert(_zmx(glass1="N-BK7 4 0 1.5168 64.17 0 0 0 0 0.001 -0.5"))
+    nd, nf, nc = (float(refractive_index("N-BK7", wl)) for wl in (D_LINE, 0.4861327, 0.6562725))
+    assert lens.surfaces[0].material == f"{nd + 0.001:.6g}/{(nd - 1) / (nf - nc) - 0.5:.6g}"
+    assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(float(f"{nd + 0.001:.6g}")), rel=1e-12)
+    assert any("offsets" in n.what for n in notes)
+
+
+def test_the_active_configuration_is_said_and_an_ideal_lens_is_refused_for_what_it_is():
+    _, notes = _convert("MNUM 3 2\n" + _zmx())
+    assert any(n.where == "configurations" and "configuration 2 of 3" in n.what for n in notes)
+    with pytest.raises(InputError) as err:
+        _convert(_zmx().replace("SURF 1\n  STOP", "SURF 1\n  STOP\n  TYPE PARAXIAL"))
+    assert "ideal thin lens" in err.value.paragraph() and err.value.line == 10

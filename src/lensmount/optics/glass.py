@@ -16,7 +16,7 @@ database, CC0, written by tools/legacy_glasses.py, each row naming its source; u
 glass); a legacy or moulding name's catalogue successor (`successor`: BK7 -> N-BK7).
 
 Besides the vendor catalogues, fused silica (Zemax's MISC catalogue name `SILICA`, also
-`F_SILICA`, `FUSED_SILICA`) uses Malitson's Sellmeier fit (J. Opt. Soc. Am. 55, 1205,
+`F_SILICA`, `FUSED_SILICA`, and Corning's 7980, `C79-80`) uses Malitson's Sellmeier fit (J. Opt. Soc. Am. 55, 1205,
 1965; 0.21-3.71 µm), the formula every optics package uses for it.
 """
 
@@ -37,7 +37,9 @@ from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR
 
 CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita", "Hikari")
-_FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA")
+# Zemax's MISC and CORNING names for fused silica (C79-80: Corning HPFS 7980)
+_FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA", "C79-80", "CORNING:C79-80",
+                       "C7980")
 _MALITSON_B = (0.6961663, 0.4079426, 0.8974794)
 _MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
 MODEL_GLASS = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")

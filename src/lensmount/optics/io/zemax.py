@@ -7,14 +7,25 @@ What a lens file holds and how it is read:
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
-    GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup
+    GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup;
+                                 GLAS name 4 ... dn dv: the catalogue glass with offsets (a model glass);
+                                 the name is resolved by lensmount.optics.glass.resolve_glass
+    MNUM n k                     n configurations, k active: the surface data are k's, the rest ignored
     DISZ (INFINITY for an object at infinity, a number for a finite object)
-    DIAM v flag / CLAP rmin rmax / MEMA v: a fixed semi-diameter (flag 1), a pickup of one
+    DIAM v flag / CLAP rmin rmax: a fixed semi-diameter (flag 1), a pickup of one
                                  (flag 2 k), another solve (value as written) and a CLAP are
                                  honoured and vignette; an automatic one (flag 0, or a pickup of
                                  one) is only Zemax's last computed value and is recomputed from
                                  lensmount's real rays, as for surfaces without a DIAM (the
                                  stop's stays: Zemax's size of the diaphragm)
+    MEMA v flag / OEMA chip      the mechanical semi-diameter, flags as DIAM's (OpticStudio 2019+
+                                 writes one on every surface): fixed, pickups of fixed ones and
+                                 solves are kept; an automatic one is recomputed as OpticStudio
+                                 does (the element's largest clear semi-diameter plus its chip
+                                 zone), or left to the mount's edge allowance where there is no
+                                 chip zone (OpticStudio's value is then the clear one, no edge to
+                                 hold the glass by) or a face's clear one comes from real rays.
+                                 A MEMA without a flag (older files) is a given value
     VDXN/VDYN/VCXN/VCYN/VANN     vignetting factors per field: the automatic semi-diameters come
                                  from the beam they leave (Prescription.vignetting)
     ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
@@ -42,8 +53,17 @@ from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
 _SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "COORDBRK")
+# surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
+_NOT_BUILDABLE = {
+    "PARAXIAL": "an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no "
+                "element to mount or to scatter light",
+    "PARAX_XY": "an ideal thin lens (Zemax's paraxial XY surface), which focuses without glass: there is no "
+                "element to mount or to scatter light",
+    "DGRATING": "a diffraction grating, which sends each order in its own direction: lensmount's tracer "
+                "follows refraction and reflection only",
+}
 _SIX_DIGIT = re.compile(r"^(\d{3})(\d{3})$")
-_D_LINE = 0.5875618
+_D_LINE, _F_LINE, _C_LINE = 0.5875618, 0.4861327, 0.6562725
 
 
 @dataclass
@@ -94,6 +114,7 @@ class ZmxLens:
     yfields: list[float] = field(default_factory=list)
     vignetting: dict = field(default_factory=dict)  # "VDX", "VDY", "VCX", "VCY", "VAN" -> per-field values
     catalogues: list[str] = field(default_factory=list)
+    configurations: tuple[int, int] = (1, 1)  # MNUM: how many, and the active one
 
 
 @dataclass(frozen=True)
@@ -202,6 +223,9 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             lens.vignetting[cmd[:3]] = [num(a, ln, "vignetting factor") for a in args]
         elif cmd == "GCAT":
             lens.catalogues = list(args)
+        elif cmd == "MNUM":  # configurations: the surface data hold the active one's values
+            lens.configurations = (int(arg(args, 0, ln, "number of configurations")),
+                                   int(arg(args, 1, ln, "active configuration", 1.0)))
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
                      "PZUP", "OEMA"):
             if cur is None:
@@ -214,6 +238,9 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
 def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
     if cmd == "TYPE":
         cur.type, cur.type_line = (args[0].upper() if args else ""), ln
+        if cur.type in _NOT_BUILDABLE:
+            raise err(f"surface {cur.number} has type {cur.type}: {_NOT_BUILDABLE[cur.type]}", ln,
+                      "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (replace the ideal lens by a real one)")
         if cur.type not in _SUPPORTED_TYPES:
             raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
                       "symmetric or not supported by lensmount", ln,
@@ -288,6 +315,10 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     if obj.stop or image.stop:
         raise InputError("the stop is on the object or image surface", file=file,
                          line=(obj if obj.stop else image).line, valid="STOP on one of SURF 1..N-1")
+    if lens.configurations[0] > 1:
+        notes.append(ImportNote("imported", "configurations", f"configuration {lens.configurations[1]} of "
+                                f"{lens.configurations[0]} (the one the file's surface data hold); the others "
+                                "(MNUM, THIC, APER ... operands) are ignored"))
     object_distance = obj.thickness * s if math.isfinite(obj.thickness) else math.inf
     notes.append(ImportNote("imported", "object", "at infinity" if math.isinf(object_distance)
                             else f"at {object_distance:g} mm in front of surface 1"))
@@ -431,6 +462,15 @@ def _material(zs: ZmxSurface, medium: str, catalogues, user, file) -> tuple[str,
         nd, vd = 1.0 + int(six.group(1)) / 1000.0, int(six.group(2)) / 10.0
         return _model(nd, vd), ImportNote("substituted", where, f"glass code {name} -> model glass {nd:g}/{vd:g}")
     found = resolve_glass(name, user)
+    offset = _offset(args)
+    if found is not None and offset is not None:
+        # OpticStudio's material offset (GLAS name 4 ... dn dv): the prescription's n_d and V_d are the
+        # catalogue's plus the offsets, which a model glass carries
+        nd, vd = _nd_vd(found.material)
+        nd, vd = nd + offset[0], vd + offset[1]
+        return _model(nd, vd), ImportNote("substituted", where, f"glass {name} ({found.step}) with the file's offsets "
+                                          f"n_d {offset[0]:+g}, V_d {offset[1]:+g} -> model glass n_d {nd:.6g}, "
+                                          f"V_d {vd:.6g}{pickup}")
     if found is not None and not found.substituted:
         material = _prefer_catalogue(found.material, catalogues) if catalogues and ":" not in found.material \
             else found.material
@@ -463,6 +503,22 @@ def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
     if not model and _is_placeholder(args):
         return None
     return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
+
+
+def _offset(args) -> tuple[float, float] | None:
+    """(delta n_d, delta V_d) of a GLAS line in OpticStudio's offset mode (4), None without offsets."""
+    if not args or args[0] != "4":
+        return None
+    try:
+        dn, dv = float(args[8]), float(args[9])
+    except (IndexError, ValueError):
+        return None
+    return (dn, dv) if (dn, dv) != (0.0, 0.0) else None
+
+
+def _nd_vd(material: str) -> tuple[float, float]:
+    nd, nf, nc = (float(refractive_index(material, wl)) for wl in (_D_LINE, _F_LINE, _C_LINE))
+    return nd, (nd - 1.0) / (nf - nc)
 
 
 def _is_placeholder(args) -> bool:
