@@ -54,13 +54,15 @@ from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
 _SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "COORDBRK")
 # surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
+_IDEAL = ("an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no element to "
+          "mount or to scatter light", "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (a real lens in place of "
+          "the ideal one)")
 _NOT_BUILDABLE = {
-    "PARAXIAL": "an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no "
-                "element to mount or to scatter light",
-    "PARAX_XY": "an ideal thin lens (Zemax's paraxial XY surface), which focuses without glass: there is no "
-                "element to mount or to scatter light",
-    "DGRATING": "a diffraction grating, which sends each order in its own direction: lensmount's tracer "
-                "follows refraction and reflection only",
+    "PARAXIAL": _IDEAL,
+    "PARAX_XY": _IDEAL,
+    "DGRATING": ("a diffraction grating, which sends each order in its own direction: lensmount's tracer follows "
+                 "refraction and reflection only", "refracting and reflecting surfaces (TYPE STANDARD, EVENASPH, "
+                 "ODDASPH)"),
 }
 _SIX_DIGIT = re.compile(r"^(\d{3})(\d{3})$")
 _D_LINE, _F_LINE, _C_LINE = 0.5875618, 0.4861327, 0.6562725
@@ -239,8 +241,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
     if cmd == "TYPE":
         cur.type, cur.type_line = (args[0].upper() if args else ""), ln
         if cur.type in _NOT_BUILDABLE:
-            raise err(f"surface {cur.number} has type {cur.type}: {_NOT_BUILDABLE[cur.type]}", ln,
-                      "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (replace the ideal lens by a real one)")
+            why, valid = _NOT_BUILDABLE[cur.type]
+            raise err(f"surface {cur.number} has type {cur.type}: {why}", ln, valid)
         if cur.type not in _SUPPORTED_TYPES:
             raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
                       "symmetric or not supported by lensmount", ln,
