@@ -207,3 +207,25 @@ def test_out_of_scope_file_gives_one_paragraph_naming_the_surface(path):
     result = CliRunner().invoke(app, ["inspect", str(path)])
     assert result.exit_code == 2 and "Traceback" not in result.output
     assert re.search(r"surface \d+", result.output) and "rotationally symmetric" in result.output
+
+
+MUTATIONS = {   # each pushes surfaces out of their domain: the beam beyond a sphere, a hyperbola's reach
+    "semi-diameters x3": (r"(DIAM )([-\d.Ee+]+)", 3.0),
+    "pupil x5": (r"(ENPD )([-\d.Ee+]+)", 5.0),
+    "curvatures x3": (r"(CURV )([-\d.Ee+]+)", 3.0),
+    "conics x-30": (r"(CONI )([-\d.Ee+]+)", -30.0),
+}
+
+
+@pytest.mark.slow   # 128 imports
+@pytest.mark.parametrize("mutation", MUTATIONS)
+def test_no_corpus_file_pushed_out_of_its_domain_gives_a_traceback(mutation, tmp_path):
+    pattern, factor = MUTATIONS[mutation]
+    for path in FILES:
+        text = re.sub(pattern, lambda m: m.group(1) + repr(float(m.group(2)) * factor), read_text(path))
+        mutated = tmp_path / path.name
+        mutated.write_text(text, encoding="utf-8")
+        result = CliRunner().invoke(app, ["inspect", str(mutated)])
+        assert result.exit_code in (0, 2) and not isinstance(result.exception, Exception), (path.name, result.output)
+        if result.exit_code == 2:
+            assert "Traceback" not in result.output and mutated.name in result.output
