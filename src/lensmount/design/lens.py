@@ -70,6 +70,7 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
         complete, clips = clip_crossing_elements(prescription, margin, file)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
+        _check_image(complete, file, afocal_ok)
     except InputError as exc:
         raise _located(exc, path) from None
     return (complete, clips) if auto_clear_apertures else (prescription, ())
@@ -102,7 +103,9 @@ def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, hea
 
 def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = False) -> None:
     """Checks that need no ray trace. Raises InputError. afocal_ok: accept an afocal system
-    (`inspect` shows one; the mount and the tracer need an image)."""
+    (`inspect` shows one; the mount and the tracer need an image). Whether the lens forms a real
+    image at all is checked after the real rays (load_lens_and_clips), which name a surface the beam
+    misses first; here only where the image plane lies in front of surface 1."""
     p = prescription
     if not all(0.1 <= w <= 20.0 for w in p.wavelengths_um):
         raise InputError(f"wavelengths {list(p.wavelengths_um)} µm include one outside 0.1-20 µm", file=file,
@@ -143,8 +146,8 @@ def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = F
     if not p.surfaces[-1].is_air_after:
         raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
                          field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
-    _check_image(p, file, afocal_ok)
     if p.image_z <= 0 and not p.has_mirrors:
+        _check_image(p, file, afocal_ok)   # the reason, when it is one: no real image (a negative lens), afocal
         raise InputError("the image plane lies in front of surface 1", file=file,
                          field=f"surface[{len(p.surfaces)}].thickness", valid="a total track > 0 mm")
     _check_radii(p, file, given_only=True)
