@@ -193,3 +193,19 @@ def test_the_active_configuration_is_said_and_an_ideal_lens_is_refused_for_what_
     with pytest.raises(InputError) as err:
         _convert(_zmx().replace("SURF 1\n  STOP", "SURF 1\n  STOP\n  TYPE PARAXIAL"))
     assert "ideal thin lens" in err.value.paragraph() and err.value.line == 10
+
+
+def test_an_extended_asphere_is_the_even_asphere_of_its_terms_over_the_normalisation_radius():
+    """XASPHERE: term k multiplies (r / r0)^(2k); OpticStudio 2023 writes XDAT 1 N, XDAT 2 r0, XDAT k+2."""
+    from lensmount.optics.profiles import Profile
+
+    r0, a4, a6 = 5.0, 2e-2, -3e-3            # on rho^4 and rho^6
+    extended = _zmx().replace("  CURV 0.02\n", "  TYPE XASPHERE\n  CURV 0.02\n  XDAT 1 3 0 0 1 0 0 \"\"\n"
+                              f"  XDAT 2 {r0} 0 0 1 0 0 \"\"\n  XDAT 3 0\n  XDAT 4 {a4}\n  XDAT 5 {a6}\n")
+    lens, _ = _convert(extended)
+    r = 4.0
+    by_hand = 0.02 * r**2 / (1 + math.sqrt(1 - 0.02**2 * r**2)) + a4 * (r / r0) ** 4 + a6 * (r / r0) ** 6
+    assert float(Profile.of(lens.surfaces[0]).sag(np.array([r * r]))[0]) == pytest.approx(by_hand, rel=1e-14)
+    with pytest.raises(InputError) as err:
+        _convert(extended.replace("  XDAT 3 0\n", "  XDAT 3 1e-3\n"))
+    assert "r^2" in err.value.paragraph() and err.value.line == 14

@@ -4,6 +4,8 @@ What a lens file holds and how it is read:
     UNIT MM|CM|IN|METER          lengths are converted to mm
     TYPE STANDARD|EVENASPH|ODDASPH  CURV / CONI / PARM k v (EVENASPH: r^(2k); ODDASPH: r^k, whose
                                  even terms r^4..r^8 are imported and whose odd terms are an error)
+    TYPE XASPHERE|XOSPHERE       the extended aspheres: XDAT 1 N, XDAT 2 r0, XDAT k+2 the term on
+                                 (r/r0)^(2k) (even) or (r/r0)^k (odd; even powers only, as ODDASPH)
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
@@ -52,7 +54,7 @@ from lensmount.optics.glass import (CATALOGUES, nearest_glass_names, refractive_
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
-_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "COORDBRK")
+_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "COORDBRK")
 # surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
 _IDEAL = ("an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no element to "
           "mount or to scatter light", "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (a real lens in place of "
@@ -77,6 +79,7 @@ class ZmxSurface:
     curvature: float = 0.0
     conic: float = 0.0
     parm: dict = field(default_factory=dict)  # k -> (value, line)
+    xdat: dict = field(default_factory=dict)  # k -> (value, line): extended data (XASPHERE, XOSPHERE)
     thickness: float = 0.0
     thickness_line: int = 0
     glass: str = AIR
@@ -229,7 +232,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             lens.configurations = (int(arg(args, 0, ln, "number of configurations")),
                                    int(arg(args, 1, ln, "active configuration", 1.0)))
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
-                     "PZUP", "OEMA"):
+                     "PZUP", "OEMA", "XDAT"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
             _surface_line(cur, cmd, args, rest, ln, err, num, arg)
@@ -257,6 +260,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.conic = arg(args, 0, ln, "conic")
     elif cmd == "PARM":
         cur.parm[int(arg(args, 0, ln, "parameter index"))] = (arg(args, 1, ln, "parameter"), ln)
+    elif cmd == "XDAT":
+        cur.xdat[int(arg(args, 0, ln, "extra data index"))] = (arg(args, 1, ln, "extra data"), ln)
     elif cmd == "DISZ":
         tok = args[0] if args else ""
         cur.thickness = math.inf if tok.upper() in ("INFINITY", "INF") else num(tok, ln, "thickness")
@@ -350,7 +355,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                                     + ("(zero)" if not any(zs.parm.get(k, (0.0, 0))[0] for k in range(1, 5))
                                        else "undone by a later break" if tilt is None else "(see the next break)")))
             continue
-        optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or _glass_name(zs) != medium.upper()
+        optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or zs.xdat or _glass_name(zs) != medium.upper()
         if tilt is not None:
             if optical or zs.thickness != 0.0:
                 _asymmetric(file, zs, tilt, "is a mirror, lens surface or stop" if optical else
@@ -631,25 +636,45 @@ def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes
     return out
 
 
+def _polynomial(zs: ZmxSurface, file) -> tuple[bool, dict]:
+    """(even, {k: (coefficient, line)}): the surface's polynomial terms in lens units, on r^(2k) for an
+    even asphere and on r^k for an odd one. The extended aspheres (XASPHERE, XOSPHERE) write their
+    terms on rho = r / r0 (XDAT 1: the number of terms, XDAT 2: r0, XDAT k + 2: the k-th term), so a
+    term alpha rho^p is alpha / r0^p on r^p."""
+    if zs.type in ("EVENASPH", "ODDASPH"):
+        return zs.type == "EVENASPH", zs.parm
+    if zs.type not in ("XASPHERE", "XOSPHERE") or not zs.xdat:
+        return True, {}
+    count = int(zs.xdat.get(1, (0.0, 0))[0])
+    r0, line = zs.xdat.get(2, (0.0, zs.type_line))
+    if not r0 > 0.0:
+        raise InputError(f"surface {zs.number} ({zs.type}) has normalisation radius {r0:g}", file=file, line=line,
+                         valid="XDAT 2 > 0: the extended asphere's normalisation radius")
+    even = zs.type == "XASPHERE"
+    return even, {k: (value / r0 ** (2 * k if even else k), ln)
+                  for k, (value, ln) in ((k, zs.xdat.get(k + 2, (0.0, line))) for k in range(1, count + 1))}
+
+
 def _aspheric(zs: ZmxSurface, s: float, file) -> tuple[float, ...]:
-    """Polynomial sag terms in mm as Surface wants them: (A4, A6, ...) or, for ODDASPH, (A1, A2, A3, ...)."""
-    if not zs.parm or zs.type not in ("EVENASPH", "ODDASPH"):
+    """Polynomial sag terms in mm as Surface wants them: (A4, A6, ...)."""
+    even, parm = _polynomial(zs, file)
+    if not parm:
         return ()
-    if zs.type == "EVENASPH":
-        if zs.parm.get(1, (0.0, 0))[0] != 0.0:
-            raise InputError(f"surface {zs.number} has an r^2 asphere term (PARM 1)", file=file,
-                             line=zs.parm[1][1], valid="PARM 1 = 0; put the base curvature in CURV")
-        # PARM k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
-        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(zs.parm) + 1))
+    if even:
+        if parm.get(1, (0.0, 0))[0] != 0.0:
+            raise InputError(f"surface {zs.number} has an r^2 asphere term", file=file,
+                             line=parm[1][1], valid="no r^2 term (PARM 1 / XDAT 3 = 0); put the base curvature in CURV")
+        # term k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
+        terms = tuple(parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(parm) + 1))
     else:
-        # ODDASPH: PARM k multiplies r^k. Its even terms r^4, r^6, r^8 are an even asphere; an odd
+        # odd: term k multiplies r^k. Its even terms r^4, r^6, r^8 are an even asphere; an odd
         # term (or r^2) has no counterpart in the rotationally symmetric profile the mount and tracer use.
-        for k, (value, line) in sorted(zs.parm.items()):
+        for k, (value, line) in sorted(parm.items()):
             if value != 0.0 and (k % 2 == 1 or k == 2):
-                raise InputError(f"surface {zs.number} is an odd asphere with an r^{k} term (PARM {k} = {value:g})",
+                raise InputError(f"surface {zs.number} is an odd asphere with an r^{k} term ({value:g})",
                                  file=file, line=line,
-                                 valid="ODDASPH terms on r^4, r^6, r^8 only (PARM 4, 6, 8), or TYPE EVENASPH")
-        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - k) for k in range(4, max(zs.parm) + 1, 2))
+                                 valid="odd-asphere terms on even powers from r^4 only, or TYPE EVENASPH")
+        terms = tuple(parm.get(k, (0.0, 0))[0] * s ** (1 - k) for k in range(4, max(parm) + 1, 2))
     while terms and terms[-1] == 0.0:
         terms = terms[:-1]
     return terms
