@@ -141,7 +141,7 @@ def test_an_agf_catalogue_supplies_a_glass_the_built_in_catalogues_lack(tmp_path
     with pytest.raises(InputError):
         _convert(text)                                        # no catalogue has it
     lens, notes = _convert(text, [agf])
-    assert lens.surfaces[0].material == "MYVENDOR:MYCROWN"
+    assert lens.surfaces[0].material.startswith("MYVENDOR") and lens.surfaces[0].material.endswith(":MYCROWN")
     n = _sellmeier_by_hand(D_LINE)
     assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(n), rel=1e-12)
     assert any("user catalogue" in n.what and str(agf.resolve()) in n.what for n in notes)
@@ -209,3 +209,15 @@ def test_an_extended_asphere_is_the_even_asphere_of_its_terms_over_the_normalisa
     with pytest.raises(InputError) as err:
         _convert(extended.replace("  XDAT 3 0\n", "  XDAT 3 1e-3\n"))
     assert "r^2" in err.value.paragraph() and err.value.line == 14
+
+
+def test_a_catalogue_the_gcat_line_names_is_read_from_beside_the_file(tmp_path):
+    """As Zemax finds GCAT's catalogues in its glass folder: MYVENDOR.agf next to the .zmx."""
+    from lensmount.optics.io.zemax import read_zmx_with_notes
+
+    (tmp_path / "myvendor.agf").write_text(AGF)
+    path = tmp_path / "lens.zmx"
+    path.write_text("GCAT SCHOTT MYVENDOR\n" + _zmx(glass1="MYCROWN 0 0 1.5 40 0 0 0 0 0 0"))
+    lens, notes = read_zmx_with_notes(path)
+    assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(_sellmeier_by_hand(D_LINE)), rel=1e-12)
+    assert any(n.where == "glass catalogues" and "myvendor.agf" in n.what for n in notes)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import difflib
+import hashlib
 import functools
 import logging
 import re
@@ -45,7 +46,9 @@ _MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
 MODEL_GLASS = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
 _LAMBDA_D, _LAMBDA_F, _LAMBDA_C = 0.5875618, 0.4861327, 0.6562725
 _LEGACY_TABLE = Path(__file__).with_name("legacy_glasses.csv")
-_USER_CATALOGUES: dict[str, tuple[str, dict]] = {}  # NAME -> (path, {GLASS: AgfGlass}); see register_catalogue
+# NAME -> (path, {GLASS: AgfGlass}); see register_catalogue. Process-wide, so that a material
+# `NAME:GLASS` means the same glass wherever the lens goes (the tracer's forked workers too).
+_USER_CATALOGUES: dict[str, tuple[str, dict]] = {}
 
 
 @dataclass(frozen=True)
@@ -59,19 +62,21 @@ class Resolved:
 
 def register_catalogue(path) -> str:
     """Read a user glass catalogue (.agf) and make its glasses known by name; returns the
-    catalogue's name (the file's stem, upper case), by which `NAME:GLASS` selects one of them.
-    The same file again is a no-op; another file with the same stem is an error."""
+    catalogue's name, by which `NAME:GLASS` selects one of them: the file's stem, upper case (with
+    a digest of the path added when another file of that stem is already known in this process,
+    so that each name means one file). The same file again is a no-op."""
     from lensmount.optics.io.agf import read_agf
 
     path = Path(path).resolve()
+    glasses = read_agf(path)
     name = path.stem.upper()
+    if name in (c.upper() for c in CATALOGUES):
+        raise InputError(f"the glass catalogue {path.name} has the name of a built-in one ({name})", file=str(path),
+                         valid="another file name for the user's catalogue (its glasses are named NAME:GLASS)")
     known = _USER_CATALOGUES.get(name)
-    if known is not None and known[0] == str(path):
-        return name
-    if known is not None or name in (c.upper() for c in CATALOGUES):
-        raise InputError(f"a glass catalogue named {name} is already in use ({known[0] if known else 'built in'})",
-                         file=str(path), valid="glass catalogue files with distinct names")
-    _USER_CATALOGUES[name] = (str(path), read_agf(path))
+    if known is not None and known[0] != str(path):
+        name = f"{name}-{hashlib.sha256(str(path).encode()).hexdigest()[:8].upper()}"
+    _USER_CATALOGUES[name] = (str(path), glasses)   # read again: the file may have changed
     return name
 
 

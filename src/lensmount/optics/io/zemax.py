@@ -28,6 +28,8 @@ What a lens file holds and how it is read:
                                  chip zone (OpticStudio's value is then the clear one, no edge to
                                  hold the glass by) or a face's clear one comes from real rays.
                                  A MEMA without a flag (older files) is a given value
+    GCAT NAME ...                the glass catalogues; one that is not built in is read from
+                                 NAME.agf beside the file when it is there (see read_zmx_with_notes)
     VDXN/VDYN/VCXN/VCYN/VANN     vignetting factors per field: the automatic semi-diameters come
                                  from the beam they leave (Prescription.vignetting)
     ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
@@ -332,6 +334,9 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
 
     automatic = _automatic(lens)
     user = tuple(register_catalogue(p) for p in glass_catalogs)
+    for p in glass_catalogs:
+        notes.append(ImportNote("imported", "glass catalogues", f"{Path(p).resolve()} (searched before the "
+                                "built-in catalogues)"))
     surfaces: list[Surface] = []
     numbers: list[int] = []
     medium = AIR
@@ -712,9 +717,14 @@ def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
 
 def read_zmx_with_notes(path, glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
     """Read a .zmx file: the Prescription and what was imported, substituted and ignored.
-    glass_catalogs: the user's .agf files, searched first for a GLAS name."""
-    text = read_text(path)
-    return convert(parse_zmx(text, str(path)), str(path), glass_catalogs)
+    glass_catalogs: the user's .agf files, searched first for a GLAS name; after them, the
+    catalogues the file's GCAT line names that sit beside it as NAME.agf (as Zemax finds them
+    in its glass folder), other than the built-in ones."""
+    path = Path(path)
+    lens = parse_zmx(read_text(path), str(path))
+    named = {c.upper() for c in lens.catalogues} - {c.upper() for c in CATALOGUES}
+    beside = sorted(p for p in path.parent.iterdir() if p.suffix.lower() == ".agf" and p.stem.upper() in named)
+    return convert(lens, str(path), [*glass_catalogs, *beside])
 
 
 def read_zmx(path, glass_catalogs=()) -> Prescription:
