@@ -10,8 +10,7 @@ What a lens file holds and how it is read:
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
     GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup;
-                                 GLAS name 4 ... dn dv: the catalogue glass with offsets (a model glass);
-                                 the name is resolved by lensmount.optics.glass.resolve_glass
+                                 GLAS name 4 ... dn dv: offsets (lensmount.optics.io.zemax_glass)
     MNUM n k                     n configurations, k active: the surface data are k's, the rest ignored
     DISZ (INFINITY for an object at infinity, a number for a finite object)
     DIAM v flag / CLAP rmin rmax: a fixed semi-diameter (flag 1), a pickup of one
@@ -46,13 +45,12 @@ with a BOM), UTF-8 or Latin-1.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.optics.glass import (CATALOGUES, nearest_glass_names, refractive_index, register_catalogue,
-                                    resolve_glass, searched_catalogues)
+from lensmount.optics.glass import CATALOGUES, register_catalogue
+from lensmount.optics.io import zemax_glass
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
@@ -68,8 +66,7 @@ _NOT_BUILDABLE = {
                  "refraction and reflection only", "refracting and reflecting surfaces (TYPE STANDARD, EVENASPH, "
                  "ODDASPH)"),
 }
-_SIX_DIGIT = re.compile(r"^(\d{3})(\d{3})$")
-_D_LINE, _F_LINE, _C_LINE = 0.5875618, 0.4861327, 0.6562725
+_D_LINE = 0.5875618
 
 
 @dataclass
@@ -367,9 +364,9 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                             "has a thickness along the decentred or tilted axis")
             notes.append(ImportNote("ignored", f"SURF {zs.number}", "dummy surface between coordinate breaks"))
             continue
-        material, note = _material(zs, medium, lens.catalogues, user, file)
+        material, note = zemax_glass.material(zs, medium, lens.catalogues, user, file)
         if note:
-            notes.append(note)
+            notes.append(ImportNote(note[0], f"SURF {zs.number}", note[1]))
         if zs.mirror:
             notes.append(ImportNote("imported", f"SURF {zs.number}", "mirror (GLAS MIRROR)"))
         if zs.pickups:
@@ -446,105 +443,6 @@ def _asymmetric(file, zs: ZmxSurface, tilt, why: str):
         "folded design), which lensmount's mount and tracer need",
         file=file, line=zs.type_line or zs.line,
         valid="coordinate breaks that are zero, or that later breaks undo before the next optical surface")
-
-
-def _material(zs: ZmxSurface, medium: str, catalogues, user, file) -> tuple[str, ImportNote | None]:
-    """The lensmount material for a GLAS line, and the note saying which step found it: the
-    file's own model glass; a glass code; the name in the user's catalogues, the built-in ones,
-    the table of legacy glasses or as a legacy name's successor (lensmount.optics.glass.
-    resolve_glass); the GLAS line's n_d and V_d when the name is in none of them."""
-    where = f"SURF {zs.number}"
-    if zs.mirror:
-        return medium, None
-    name = zs.glass
-    if name.upper() == AIR:
-        return AIR, None
-    args = zs.glass_args
-    pickup = f" (picked up from surface {args[1]})" if len(args) > 1 and args[0] == "2" else ""
-    nd_vd = _file_nd_vd(args, model=name.upper() == "___BLANK")
-    if name.upper() == "___BLANK":
-        if nd_vd is None:
-            raise InputError(f"surface {zs.number} has a model glass without n_d and V_d", file=file,
-                             line=zs.glass_line, valid="GLAS ___BLANK 1 0 n_d V_d ... with n_d > 1 and V_d >= 0")
-        constant = " (V_d = 0: Zemax's constant index, no dispersion)" if nd_vd[1] == 0 else ""
-        return _model(*nd_vd), ImportNote("imported", where, f"the file's model glass n_d {nd_vd[0]:g}, "
-                                          f"V_d {nd_vd[1]:g}{constant}{pickup}")
-    six = _SIX_DIGIT.match(name)
-    if six:
-        nd, vd = 1.0 + int(six.group(1)) / 1000.0, int(six.group(2)) / 10.0
-        return _model(nd, vd), ImportNote("substituted", where, f"glass code {name} -> model glass {nd:g}/{vd:g}")
-    found = resolve_glass(name, user)
-    offset = _offset(args)
-    if found is not None and offset is not None:
-        # OpticStudio's material offset (GLAS name 4 ... dn dv): the prescription's n_d and V_d are the
-        # catalogue's plus the offsets, which a model glass carries
-        nd, vd = _nd_vd(found.material)
-        nd, vd = nd + offset[0], vd + offset[1]
-        return _model(nd, vd), ImportNote("substituted", where, f"glass {name} ({found.step}) with the file's offsets "
-                                          f"n_d {offset[0]:+g}, V_d {offset[1]:+g} -> model glass n_d {nd:.6g}, "
-                                          f"V_d {vd:.6g}{pickup}")
-    if found is not None and not found.substituted:
-        material = _prefer_catalogue(found.material, catalogues) if catalogues and ":" not in found.material \
-            else found.material
-        return material, ImportNote("imported", where, f"glass {name}: {found.step}{pickup}")
-    if found is not None:
-        return found.material, ImportNote("substituted", where, f"glass {name} -> {found.material} ({found.step})"
-                                          f"{pickup}")
-    if nd_vd is not None:
-        return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in none of {searched_catalogues(user)} "
-                                          f"-> model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g} from the GLAS line")
-    placeholder = _is_placeholder(args)
-    near = nearest_glass_names(name, user)
-    raise InputError(
-        f"surface {zs.number}: unknown glass '{name}', searched {searched_catalogues(user)}; "
-        + ("the GLAS line carries only Zemax's 1.5/40 placeholders (written when OpticStudio had no data for "
-           "the glass), not the glass's n_d and V_d" if placeholder else "the GLAS line gives no n_d and V_d"),
-        file=file, line=zs.glass_line,
-        valid=(f"a near name ({', '.join(near)}), " if near else "")
-        + "a Zemax .agf catalogue holding it (lens.toml glass_catalogs, or --glass-catalog), or real n_d and "
-          "V_d on the GLAS line")
-
-
-def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
-    """n_d, V_d from a GLAS line, None where it carries none or (for a named glass) Zemax's
-    placeholders; a model glass's 1.5/40 is the designer's."""
-    try:
-        nd, vd = float(args[2]), float(args[3])
-    except (IndexError, ValueError):
-        return None
-    if not model and _is_placeholder(args):
-        return None
-    return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
-
-
-def _offset(args) -> tuple[float, float] | None:
-    """(delta n_d, delta V_d) of a GLAS line in OpticStudio's offset mode (4), None without offsets."""
-    if not args or args[0] != "4":
-        return None
-    try:
-        dn, dv = float(args[8]), float(args[9])
-    except (IndexError, ValueError):
-        return None
-    return (dn, dv) if (dn, dv) != (0.0, 0.0) else None
-
-
-def _nd_vd(material: str) -> tuple[float, float]:
-    nd, nf, nc = (float(refractive_index(material, wl)) for wl in (_D_LINE, _F_LINE, _C_LINE))
-    return nd, (nd - 1.0) / (nf - nc)
-
-
-def _is_placeholder(args) -> bool:
-    """1.5/40 is what Zemax writes on a GLAS line when it has no data for the glass (its defaults):
-    no information."""
-    try:
-        return (float(args[2]), float(args[3])) == (1.5, 40.0)
-    except (IndexError, ValueError):
-        return False
-
-
-def _model(nd: float, vd: float) -> str:
-    # V_d = 0 is Zemax's constant index, which lensmount's model glass "n_d/0" means too
-    return f"{nd:.6g}/{vd:.6g}"
 
 
 def _automatic(lens: ZmxLens) -> set[int]:
@@ -694,25 +592,6 @@ def _wavelengths(lens: ZmxLens):
     waves = list(lens.wavl)
     weights = list(lens.wwgt[: len(waves)]) + [1.0] * (len(waves) - len(lens.wwgt))
     return waves, weights
-
-
-def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
-    """Keep the plain name unless a GCAT catalogue holds a different glass of that name."""
-    known = [c for c in catalogues if c.lower() in (k.lower() for k in CATALOGUES)]
-    if not known:
-        return name
-    for cat in known:
-        prefixed = f"{cat.upper()}:{name}"
-        try:
-            n_pref = float(refractive_index(prefixed, _D_LINE))
-        except InputError:
-            continue
-        try:
-            n_plain = float(refractive_index(name, _D_LINE))
-        except InputError:
-            return prefixed
-        return name if n_plain == n_pref else prefixed
-    return name
 
 
 def read_zmx_with_notes(path, glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
