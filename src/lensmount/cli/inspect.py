@@ -48,15 +48,18 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
         })
     doc = {
         "name": prescription.name,
-        "efl_mm": par.efl,
-        "bfl_mm": par.bfl,
-        "f_number": par.f_number,
+        "afocal": par.afocal,
+        "angular_magnification": par.angular_magnification,
+        # an afocal system has no focal length, F/# or image at a finite distance (optics.paraxial)
+        "efl_mm": None if par.afocal else par.efl,
+        "bfl_mm": None if par.afocal else par.bfl,
+        "f_number": None if par.afocal else par.f_number,
         "epd_mm": par.epd,
         "entrance_pupil_z_mm": par.entrance_pupil_z,
         "exit_pupil_z_mm": par.exit_pupil_z,
         "exit_pupil_diameter_mm": par.exit_pupil_diameter,
         "stop_semi_diameter_mm": par.stop_semi_diameter,
-        "paraxial_image_z_mm": par.image_z,
+        "paraxial_image_z_mm": None if par.afocal else par.image_z,
         "image_plane_z_mm": prescription.image_z,
         "stop_surface": prescription.stop_index + 1,
         "wavelengths_um": list(prescription.wavelengths_um),
@@ -115,14 +118,19 @@ def _print_tables(doc: dict) -> None:
     p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
     p.add_column("quantity")
     p.add_column("value", justify="right")
-    rows = [("effective focal length", f"{doc['efl_mm']:.4f} mm"),
-            ("back focal length", f"{doc['bfl_mm']:.4f} mm"),
-            ("image-space F/#", f"{doc['f_number']:.4f}"),
+    if doc["afocal"]:
+        focal = [("afocal", f"angular magnification {doc['angular_magnification']:.6g}x: no focal length, "
+                  "F/# or image at a finite distance (init and simulate need a focusing lens)")]
+    else:
+        focal = [("effective focal length", f"{doc['efl_mm']:.4f} mm"),
+                 ("back focal length", f"{doc['bfl_mm']:.4f} mm"),
+                 ("image-space F/#", f"{doc['f_number']:.4f}")]
+    rows = [*focal,
             ("entrance pupil diameter", f"{doc['epd_mm']:.4f} mm"),
             ("entrance pupil z", f"{doc['entrance_pupil_z_mm']:.4f} mm"),
             ("exit pupil z", f"{doc['exit_pupil_z_mm']:.4f} mm"),
             ("exit pupil diameter", f"{doc['exit_pupil_diameter_mm']:.4f} mm"),
-            ("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm"),
+            *([("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm")] if not doc["afocal"] else []),
             ("image plane z (file)", f"{doc['image_plane_z_mm']:.4f} mm"),
             ("object", "at infinity" if doc["object_distance_mm"] is None
              else f"{doc['object_distance_mm']:g} mm in front of surface 1"),
@@ -144,19 +152,24 @@ def inspect_command(
     save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
                                              "(e.g. to convert a .zmx); automatic semi-diameters stay automatic "
                                              "(a lens with vignetting factors: written out)."),
+    glass_catalog: list[Path] = typer.Option([], "--glass-catalog", help="A Zemax .agf glass catalogue searched "
+                                             "for the lens's glass names before the built-in catalogues "
+                                             "(repeatable; after a lens.toml's own glass_catalogs)."),
 ) -> None:
-    """Show a lens: what the import of a .zmx did (imported, substituted, ignored), the surfaces
-    with their clear semi-diameters, and the paraxial data."""
+    """Show a lens: what the import of a .zmx did (imported, substituted, ignored; where each glass
+    was found), the surfaces with their clear semi-diameters, and the paraxial data (for an afocal
+    system its angular magnification instead of a focal length)."""
     from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 
     try:
-        prescription, clips = load_lens_and_clips(lens, margin_mm=margin)
+        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, glass_catalogs=glass_catalog,
+                                                  afocal_ok=True)
         if save_toml is not None:
-            raw = load_lens(lens, auto_clear_apertures=False)
+            raw = load_lens(lens, auto_clear_apertures=False, glass_catalogs=glass_catalog, afocal_ok=True)
             # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give
             save_lens_toml(prescription if raw.vignetting else raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
-        doc = inspect_document(prescription, import_notes(lens), clips)
+        doc = inspect_document(prescription, import_notes(lens, glass_catalog), clips)
     except InputError as error:
         from lensmount.cli import fail  # defined after the command modules are imported
 

@@ -24,23 +24,26 @@ import numpy as np
 
 from lensmount.design.edges import EdgeClip, clip_crossing_elements, face_gap, height_at_gap
 from lensmount.errors import InputError
-from lensmount.optics.glass import refractive_index
+from lensmount.optics.glass import MODEL_GLASS, refractive_index, resolve_glass
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
-from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
-from lensmount.optics.prescription import Prescription
+from lensmount.optics.io.zemax import ImportNote, read_zmx, read_zmx_with_notes
+from lensmount.optics.paraxial import AFOCAL_POWER_RATIO, paraxial
+from lensmount.optics.prescription import AIR, Prescription
 from lensmount.optics.profiles import Profile
 
 _CROSS_SAMPLES = 64
 _CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is not
 
 
-def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None) -> Prescription:
+def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
+              glass_catalogs=(), afocal_ok: bool = False) -> Prescription:
     """Read `lens.toml` or `.zmx` into a validated Prescription (`load_lens_and_clips`, without the clips)."""
-    return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm)[0]
+    return load_lens_and_clips(path, auto_clear_apertures=auto_clear_apertures, margin_mm=margin_mm,
+                               glass_catalogs=glass_catalogs, afocal_ok=afocal_ok)[0]
 
 
-def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
-                        margin_mm: float | None = None) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
+                        glass_catalogs=(), afocal_ok: bool = False) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
@@ -51,30 +54,46 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True,
             Defaults to True.
         margin_mm: margin added to automatic semi-diameters; defaults to the file's
             `clear_aperture_margin_mm` (0 for .zmx).
+        glass_catalogs: the user's Zemax .agf glass catalogues, searched for a glass name
+            before the built-in ones (after a lens.toml's own `glass_catalogs`).
+        afocal_ok: accept an afocal system (for `inspect`); otherwise it is an InputError.
     """
     path = _resolve(Path(path))
     file = str(path)
     if path.suffix.lower() == ".zmx":
-        prescription, file_margin = read_zmx(path), 0.0
+        prescription, file_margin = read_zmx(path, glass_catalogs), 0.0
     else:
-        prescription, file_margin = read_lens_toml(path)
+        prescription, file_margin = read_lens_toml(path, glass_catalogs)
     margin = file_margin if margin_mm is None else margin_mm
     try:
-        validate(prescription, file)
+        validate(prescription, file, afocal_ok)
         complete, clips = clip_crossing_elements(prescription, margin, file)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
+        _check_image(complete, file, afocal_ok)
     except InputError as exc:
         raise _located(exc, path) from None
     return (complete, clips) if auto_clear_apertures else (prescription, ())
 
 
-def import_notes(path) -> list:
-    """What reading a .zmx imported, substituted and ignored (ImportNote rows); [] for lens.toml."""
+def import_notes(path, glass_catalogs=()) -> list:
+    """What reading a .zmx imported, substituted and ignored (ImportNote rows); for lens.toml, the
+    glasses found elsewhere than under their name in a built-in catalogue."""
     path = _resolve(Path(path))
     if path.suffix.lower() != ".zmx":
-        return []
-    return read_zmx_with_notes(path)[1]
+        return _glass_notes(read_lens_toml(path, glass_catalogs)[0])
+    return read_zmx_with_notes(path, glass_catalogs)[1]
+
+
+def _glass_notes(p: Prescription) -> list:
+    notes = []
+    for i, s in enumerate(p.surfaces):
+        found = resolve_glass(s.material) if s.material.upper() != AIR and not MODEL_GLASS.match(s.material) else None
+        if found is not None and (found.substituted or found.step.startswith("user")):
+            notes.append(ImportNote("substituted" if found.substituted else "imported", f"surface {i + 1}",
+                                    f"glass {s.material}" + (f" -> {found.material}" if found.substituted else "")
+                                    + f" ({found.step})"))
+    return notes
 
 
 def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, header: str | None = None) -> Path:
@@ -82,8 +101,11 @@ def save_lens_toml(prescription: Prescription, path, margin_mm: float = 0.0, hea
     return write_lens_toml(prescription, path, margin_mm, header)
 
 
-def validate(prescription: Prescription, file: str = "lens") -> None:
-    """Checks that need no ray trace. Raises InputError."""
+def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = False) -> None:
+    """Checks that need no ray trace. Raises InputError. afocal_ok: accept an afocal system
+    (`inspect` shows one; the mount and the tracer need an image). Whether the lens forms a real
+    image at all is checked after the real rays (load_lens_and_clips), which name a surface the beam
+    misses first; here only where the image plane lies in front of surface 1."""
     p = prescription
     if not all(0.1 <= w <= 20.0 for w in p.wavelengths_um):
         raise InputError(f"wavelengths {list(p.wavelengths_um)} µm include one outside 0.1-20 µm", file=file,
@@ -125,9 +147,36 @@ def validate(prescription: Prescription, file: str = "lens") -> None:
         raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
                          field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
     if p.image_z <= 0 and not p.has_mirrors:
+        _check_image(p, file, afocal_ok)   # the reason, when it is one: no real image (a negative lens), afocal
         raise InputError("the image plane lies in front of surface 1", file=file,
                          field=f"surface[{len(p.surfaces)}].thickness", valid="a total track > 0 mm")
     _check_radii(p, file, given_only=True)
+
+
+def _check_image(p: Prescription, file: str, afocal_ok: bool) -> None:
+    """lensmount traces to a detector at a real image: an afocal system (optics.paraxial) has no image
+    at a finite distance, and a lens whose paraxial image lies before its last surface (a diverging
+    lens, or an object inside the focal length) forms only a virtual one."""
+    par = paraxial(p)
+    last = f"surface[{len(p.surfaces)}].thickness"
+    if par.afocal:
+        if afocal_ok:
+            return
+        raise InputError(
+            f"the lens is afocal (angular magnification {par.angular_magnification:.4g}x: its power is below "
+            f"{AFOCAL_POWER_RATIO:g} of its surfaces' powers), so it forms no image at a finite distance for a "
+            "detector to sit in; lensmount's mount, scene and tracer are built around a focused image",
+            file=file, field=last,
+            valid="a focusing lens; for an afocal system, add the camera lens (or an ideal lens of a stated "
+                  "focal length) behind it in the file")
+    if par.bfl * p.travel[-1] <= 0:
+        which = "object" if p.finite_object else "object at infinity"
+        raise InputError(
+            f"the lens forms no real image: the paraxial image of the {which} lies {abs(par.bfl):.4g} mm before "
+            f"the last surface (a virtual image; effective focal length {par.efl:.4g} mm), so there is no image "
+            "for a detector to sit in", file=file, field=last,
+            valid="a lens that forms a real image (positive power for an object at infinity, or an object "
+                  "beyond the front focal point)")
 
 
 def _outer_semi_diameter(s) -> float | None:

@@ -1,22 +1,36 @@
-"""Refractive indices from the opticalglass catalogues (never typed by hand).
+"""Refractive indices from glass catalogues (never typed by hand).
 
-Names: `N-BK7` (searched in Schott, Ohara, Hoya, CDGM, Sumita in that order),
-`SCHOTT:N-BK7` (one catalogue), or a model glass `1.5168/64.17` (n_d / V_d, with a
-two-term Cauchy dispersion through n_F - n_C = (n_d - 1)/V_d). Air is 1.0 at every
-wavelength: lensmount models no air dispersion (a < 3e-4 index error, which shifts
-a 360 mm focal length by far less than the 0.01 % we check).
+Names: `N-BK7` (searched in the user's catalogues, then Schott, Ohara, Hoya, CDGM, Sumita,
+Hikari in that order), `SCHOTT:N-BK7` (one catalogue; a user catalogue is named by its .agf
+file's stem, `MYGLASS:B270`), or a model glass `1.5168/64.17` (n_d / V_d, with a two-term
+Cauchy dispersion through n_F - n_C = (n_d - 1)/V_d; V_d = 0 is Zemax's constant index,
+no dispersion). Air is 1.0 at every wavelength: lensmount models no air dispersion (a < 3e-4
+index error, which shifts a 360 mm focal length by far less than the 0.01 % we check).
+
+How a name found in a lens file is resolved, in order (`resolve_glass`, each step said by
+`lensmount inspect`): the user's catalogues in Zemax's .agf format (`register_catalogue`:
+lens.toml `glass_catalogs`, `--glass-catalog`); the built-in catalogues (opticalglass); a
+table of legacy and technical glasses the catalogues lack (`legacy_glasses.csv`: Schott's
+B 270 and D 263 T eco, obsolete Schott glasses, LZOS, with n_d and V_d from the refractiveindex.info
+database, CC0, written by tools/legacy_glasses.py, each row naming its source; used as a model
+glass); a legacy or moulding name's catalogue successor (`successor`: BK7 -> N-BK7).
 
 Besides the vendor catalogues, fused silica (Zemax's MISC catalogue name `SILICA`, also
-`F_SILICA`, `FUSED_SILICA`) uses Malitson's Sellmeier fit (J. Opt. Soc. Am. 55, 1205,
+`F_SILICA`, `FUSED_SILICA`, and Corning's 7980, `C79-80`) uses Malitson's Sellmeier fit (J. Opt. Soc. Am. 55, 1205,
 1965; 0.21-3.71 µm), the formula every optics package uses for it.
 """
 
 from __future__ import annotations
 
+import csv
+import difflib
+import hashlib
 import functools
 import logging
 import re
 import warnings
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -24,11 +38,104 @@ from lensmount.errors import InputError
 from lensmount.optics.prescription import AIR
 
 CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita", "Hikari")
-_FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA")
+# Zemax's MISC and CORNING names for fused silica (C79-80: Corning HPFS 7980)
+_FUSED_SILICA_NAMES = ("SILICA", "F_SILICA", "FUSED_SILICA", "FUSEDSILICA", "MISC:SILICA", "C79-80", "CORNING:C79-80",
+                       "C7980")
 _MALITSON_B = (0.6961663, 0.4079426, 0.8974794)
 _MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
-_MODEL = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
+MODEL_GLASS = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
 _LAMBDA_D, _LAMBDA_F, _LAMBDA_C = 0.5875618, 0.4861327, 0.6562725
+_LEGACY_TABLE = Path(__file__).with_name("legacy_glasses.csv")
+# NAME -> (path, {GLASS: AgfGlass}); see register_catalogue. Process-wide, so that a material
+# `NAME:GLASS` means the same glass wherever the lens goes (the tracer's forked workers too).
+_USER_CATALOGUES: dict[str, tuple[str, dict]] = {}
+
+
+@dataclass(frozen=True)
+class Resolved:
+    """A glass name resolved: the material lensmount uses and the step that found it."""
+
+    material: str
+    step: str
+    substituted: bool = False  # another glass (or a model of it) stands in for the name
+
+
+def register_catalogue(path) -> str:
+    """Read a user glass catalogue (.agf) and make its glasses known by name; returns the
+    catalogue's name, by which `NAME:GLASS` selects one of them: the file's stem, upper case (with
+    a digest of the path added when another file of that stem is already known in this process,
+    so that each name means one file). The same file again is a no-op."""
+    from lensmount.optics.io.agf import read_agf
+
+    path = Path(path).resolve()
+    glasses = read_agf(path)
+    name = path.stem.upper()
+    if name in (c.upper() for c in CATALOGUES):
+        raise InputError(f"the glass catalogue {path.name} has the name of a built-in one ({name})", file=str(path),
+                         valid="another file name for the user's catalogue (its glasses are named NAME:GLASS)")
+    known = _USER_CATALOGUES.get(name)
+    if known is not None and known[0] != str(path):
+        name = f"{name}-{hashlib.sha256(str(path).encode()).hexdigest()[:8].upper()}"
+    _USER_CATALOGUES[name] = (str(path), glasses)   # read again: the file may have changed
+    return name
+
+
+def resolve_glass(name: str, user: tuple[str, ...] = ()) -> Resolved | None:
+    """Where a glass name is found (module docstring), None if nowhere. `user`: the names of the
+    registered user catalogues (register_catalogue) a plain name is looked up in first."""
+    name = name.strip()
+    if ":" in name:
+        cat, glass = (x.strip() for x in name.split(":", 1))
+        if cat.upper() in _USER_CATALOGUES:
+            return (Resolved(f"{cat.upper()}:{glass.upper()}", f"user catalogue {_USER_CATALOGUES[cat.upper()][0]}")
+                    if glass.upper() in _USER_CATALOGUES[cat.upper()][1] else None)
+    else:
+        for cat in user:
+            path, glasses = _USER_CATALOGUES[cat]
+            if name.upper() in glasses:
+                return Resolved(f"{cat}:{name.upper()}", f"user catalogue {path}")
+    if name.upper() in _FUSED_SILICA_NAMES:
+        return Resolved(name, "fused silica (Malitson's Sellmeier fit)")
+    found = _find_catalogue_glass(name)
+    if found is not None:
+        return Resolved(name, f"built-in catalogue {found.catalog_name()}")
+    row = _legacy().get(re.sub(r"[\s_-]", "", name.upper()))
+    if row is not None:
+        return Resolved(_model(row["n_d"], row["V_d"]), f"{row['maker']} {row['name']} from the table of legacy and "
+                        f"technical glasses ({row['source']}): model glass n_d {row['n_d']}, V_d {row['V_d']}", True)
+    new = successor(name)
+    if new is not None:
+        return Resolved(new, "a legacy or moulding name: its catalogue successor", True)
+    return None
+
+
+def nearest_glass_names(name: str, user: tuple[str, ...] = (), n: int = 3) -> list[str]:
+    """The catalogue names closest to `name` (for an unknown glass's message)."""
+    names = {g for cat in user for g in _USER_CATALOGUES[cat][1]}
+    for cat in CATALOGUES:
+        names.update(_catalogue_names(cat))
+    names.update(r["name"] for r in _legacy().values())
+    return difflib.get_close_matches(name.strip().upper(), sorted(names), n=n, cutoff=0.6)
+
+
+def searched_catalogues(user: tuple[str, ...] = ()) -> str:
+    """The catalogues `resolve_glass` searches, in order, for an error message."""
+    names = [f"{n} ({_USER_CATALOGUES[n][0]})" for n in user]
+    return ", ".join(names + list(CATALOGUES) + ["the table of legacy glasses"])
+
+
+@functools.lru_cache(maxsize=None)
+def _legacy() -> dict[str, dict]:
+    out: dict[str, dict] = {}
+    with _LEGACY_TABLE.open(encoding="utf-8", newline="") as fh:
+        for row in csv.DictReader(fh):
+            for key in [row["name"], *row["aliases"].split()]:
+                out.setdefault(re.sub(r"[\s_-]", "", key.upper()), row)  # the table lists Schott's first
+    return out
+
+
+def _model(nd, vd) -> str:
+    return f"{float(nd):.6g}/{float(vd):.6g}"
 
 
 @functools.lru_cache(maxsize=None)
@@ -48,21 +155,31 @@ def medium(name: str):
         return lambda wl: np.ones_like(np.asarray(wl, dtype=np.float64))
     if name.strip().upper() in _FUSED_SILICA_NAMES:
         return _fused_silica
-    m = _MODEL.match(name)
+    m = MODEL_GLASS.match(name)
     if m:
         nd, vd = float(m.group(1)), float(m.group(2))
-        if nd < 1.0 or vd <= 0.0:
-            raise InputError(f"model glass '{name}' has n_d < 1 or V_d <= 0",
-                             field="material", valid="n_d/V_d with n_d >= 1 and V_d > 0, e.g. 1.5168/64.17")
+        if nd < 1.0:
+            raise InputError(f"model glass '{name}' has n_d < 1",
+                             field="material", valid="n_d/V_d with n_d >= 1 and V_d >= 0, e.g. 1.5168/64.17")
+        if vd == 0.0:  # Zemax's model glass with V_d = 0: a constant index
+            return lambda wl: np.full(np.shape(wl), nd)
         # Cauchy n = a + b / lambda^2 through n_d and n_F - n_C.
         b = (nd - 1.0) / vd / (1.0 / _LAMBDA_F**2 - 1.0 / _LAMBDA_C**2)
         a = nd - b / _LAMBDA_D**2
         return lambda wl: a + b / np.asarray(wl, dtype=np.float64) ** 2
+    cat, _, glass_name = name.strip().upper().rpartition(":")
+    if cat in _USER_CATALOGUES and glass_name in _USER_CATALOGUES[cat][1]:
+        return _USER_CATALOGUES[cat][1][glass_name].index
+    resolved = resolve_glass(name)
+    if resolved is not None and resolved.material != name.strip():
+        return medium(resolved.material)
     glass = _find_catalogue_glass(name)
     if glass is None:
-        raise InputError(f"unknown glass '{name}'", field="material",
-                         valid=f"a glass in the {', '.join(CATALOGUES)} catalogues (optionally 'SCHOTT:N-BK7'), "
-                               "a model glass 'n_d/V_d' such as 1.5168/64.17, or AIR")
+        near = nearest_glass_names(name)
+        raise InputError(f"unknown glass '{name}' (searched {searched_catalogues()})", field="material",
+                         valid=(f"a near name: {', '.join(near)}; or " if near else "")
+                         + "a glass of those catalogues (optionally 'SCHOTT:N-BK7'), a user catalogue "
+                         "(glass_catalogs, .agf), a model glass 'n_d/V_d' such as 1.5168/64.17, or AIR")
     return functools.partial(_catalogue_index, glass)
 
 
@@ -150,10 +267,12 @@ def _absorption(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     transmittance of a 10 mm sample; None where the material has no catalogue data."""
     import pandas as pd
 
-    if name.strip().upper() == AIR or _MODEL.match(name) or name.strip().upper() in _FUSED_SILICA_NAMES:
+    if name.strip().upper() == AIR or MODEL_GLASS.match(name) or name.strip().upper() in _FUSED_SILICA_NAMES:
         return None
     medium(name)  # unknown names raise the usual InputError
     glass = _find_catalogue_glass(name)
+    if glass is None:  # a user catalogue's glass, or one of the legacy table: no transmission data here
+        return None
     t10 = pd.to_numeric(glass.glass_data()[_T10], errors="coerce")  # blank cells are no data, not 0
     t10 = t10[np.isfinite(t10.to_numpy(dtype=float))]
     if t10.empty:

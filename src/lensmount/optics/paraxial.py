@@ -14,6 +14,12 @@ Definitions (Zemax's, for an object at infinity, image space in air):
                the paraxial working F/# 1 / (2 n' u'))
     entrance pupil = paraxial image of the stop through the surfaces in front of it
     exit pupil = paraxial image of the stop through the surfaces behind it
+
+Afocal: a system whose power is below AFOCAL_POWER_RATIO of the sum of its surfaces' powers
+|phi_i| (a telescope, a relay to infinity, a zero-power corrector) forms no image at a finite
+distance: its EFL and F/# mean nothing (the rounding of the file's data makes them 1e6 mm and
+F/1e6), and it is described by its angular magnification instead, D of the system matrix
+[[A, B], [C ~ 0, D]] (n u' = D n u; air on both sides).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Prescription
 
 _TINY = 1e-300
+AFOCAL_POWER_RATIO = 1e-4
 
 
 @dataclass(frozen=True)
@@ -55,6 +62,11 @@ class Paraxial:
     stop_semi_diameter: float
     image_z: float
     wavelength_um: float
+    angular_magnification: float | None = None  # an afocal system's (module docstring); None if focal
+
+    @property
+    def afocal(self) -> bool:
+        return self.angular_magnification is not None
 
 
 def indices(prescription: Prescription, wavelength_um: float, signed: bool = False) -> np.ndarray:
@@ -103,6 +115,8 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
     system = _chain(refr, trans, 0, last)  # before surface 1 -> after last surface
     a, c = system[0, 0], system[1, 0]
     power = -c
+    surface_powers = sum(abs(r[1, 0]) for r in refr)
+    afocal = abs(power) < AFOCAL_POWER_RATIO * surface_powers
     efl = 1.0 / _nonzero(power)
     bfl = -a * n_image / _nonzero(c)  # signed z distance, negative while light runs -z
 
@@ -137,6 +151,7 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
         entrance_pupil_z=float(entrance_pupil_z), exit_pupil_z=float(exit_pupil_z),
         exit_pupil_diameter=_finite(exit_pupil_diameter), stop_semi_diameter=float(stop_semi),
         image_z=float(z_vertex[last] + bfl), wavelength_um=wl,
+        angular_magnification=float(system[1, 1] / n_image) if afocal else None,
     )
 
 

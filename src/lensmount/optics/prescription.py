@@ -99,6 +99,8 @@ class Prescription:
             stop. Only the real-ray aiming follows it: the paraxial data stay the stop's (a lens
             designed telecentric has its stop at the front group's focus, so its paraxial entrance
             pupil is far away anyway).
+        glass_catalogs: the user's glass catalogues (.agf paths) the materials were found in
+            (a material `NAME:GLASS` names one by its file's stem; lensmount.optics.glass).
     """
 
     surfaces: tuple[Surface, ...]
@@ -112,6 +114,7 @@ class Prescription:
     object_heights_mm: tuple[float, ...] = ()
     vignetting: tuple[tuple[float, float, float, float, float], ...] = ()
     object_telecentric: bool = False
+    glass_catalogs: tuple[str, ...] = ()
 
     @property
     def finite_object(self) -> bool:

@@ -5,6 +5,8 @@ Format (documented for users in docs/lens-toml.md; unknown keys are errors):
     name = "Double Gauss 360 mm f/7"
     aperture = { f_number = 7.0 }          # or { entrance_pupil_diameter = 51.43 } (mm)
     clear_aperture_margin_mm = 0.0         # added to automatic clear semi-diameters
+    glass_catalogs = ["glass/vendor.agf"]  # optional: Zemax .agf catalogues (paths from this file's
+                                           # folder), searched for a material name before the built-in ones
 
     [wavelengths]
     values_um = [0.4861327, 0.5875618, 0.6562725]
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Literal, Union
 
@@ -41,6 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from lensmount.atomic import write_text
 from lensmount.validation import keys_at, line_of_key, parse_toml
 from lensmount.errors import InputError
+from lensmount.optics.glass import register_catalogue, resolve_glass
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 
@@ -154,19 +158,30 @@ class LensFile(_Strict):
     clear_aperture_margin_mm: float = Field(default=0.0, ge=0)
     wavelengths: WavelengthsModel = WavelengthsModel(values_um=[0.5875618])
     field: FieldModel = FieldModel(angles_deg=[0.0])
+    glass_catalogs: list[str] = Field(default_factory=list)
     surface: list[SurfaceModel] = Field(min_length=1)
 
-    def to_prescription(self) -> Prescription:
+    def to_prescription(self, folder: Path = Path(".")) -> Prescription:
         wl = self.wavelengths
         weights = wl.weights if wl.weights is not None else [1.0] * len(wl.values_um)
         primary = (wl.primary - 1) if wl.primary is not None else len(wl.values_um) // 2
         ap = self.aperture
         aperture = (Aperture("fno", ap.f_number) if ap.f_number is not None
                     else Aperture("epd", ap.entrance_pupil_diameter))
+        catalogues = tuple(str((folder / c).resolve()) for c in self.glass_catalogs)
+        user = tuple(register_catalogue(c) for c in catalogues)
+        surfaces = []
+        for s in self.surface:
+            surface = s.to_surface()
+            found = resolve_glass(surface.material, user) if user and ":" not in surface.material else None
+            if found is not None and found.material.split(":")[0] in user:
+                surface = replace(surface, material=found.material)
+            surfaces.append(surface)
         return Prescription(
-            surfaces=tuple(s.to_surface() for s in self.surface), aperture=aperture,
+            surfaces=tuple(surfaces), aperture=aperture,
             wavelengths_um=tuple(wl.values_um), wavelength_weights=tuple(weights),
-            primary_wavelength=primary, field_angles_deg=tuple(self.field.angles_deg), name=self.name)
+            primary_wavelength=primary, field_angles_deg=tuple(self.field.angles_deg), name=self.name,
+            glass_catalogs=catalogues)
 
 
 _VALID = {
@@ -181,17 +196,26 @@ _VALID = {
 }
 
 
-def parse_lens_toml(text: str, file: str = "lens.toml") -> tuple[Prescription, float]:
-    """Parse lens.toml text. Returns (prescription, clear-aperture margin in mm)."""
+def parse_lens_toml(text: str, file: str = "lens.toml", glass_catalogs=()) -> tuple[Prescription, float]:
+    """Parse lens.toml text. Returns (prescription, clear-aperture margin in mm).
+    glass_catalogs: .agf files searched after the file's own `glass_catalogs` (--glass-catalog)."""
     data = parse_toml(text, file, valid="TOML syntax (https://toml.io), e.g. key = value, [[surface]] tables")
     try:
         model = LensFile.model_validate(data)
     except ValidationError as exc:
         raise _input_error(exc, text, file) from None
-    return model.to_prescription(), model.clear_aperture_margin_mm
+    folder = Path(file).parent
+    for k, rel in enumerate(model.glass_catalogs):
+        if not (folder / rel).is_file():
+            raise InputError(f"glass catalogue {rel!r} not found", file=file, field=f"glass_catalogs[{k + 1}]",
+                             line=line_of_field(text, "glass_catalogs"),
+                             valid="a Zemax .agf file, its path relative to the lens.toml's folder")
+    extra = [str(Path(c).resolve()) for c in glass_catalogs]
+    model = model.model_copy(update={"glass_catalogs": model.glass_catalogs + extra})
+    return model.to_prescription(folder), model.clear_aperture_margin_mm
 
 
-def read_lens_toml(path) -> tuple[Prescription, float]:
+def read_lens_toml(path, glass_catalogs=()) -> tuple[Prescription, float]:
     """Read a lens.toml file (see module docstring)."""
     path = Path(path)
     try:
@@ -200,7 +224,7 @@ def read_lens_toml(path) -> tuple[Prescription, float]:
         raise InputError("file not found", file=str(path), valid="a path to an existing lens.toml or .zmx") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read the file ({exc})", file=str(path), valid="a readable UTF-8 TOML file") from None
-    return parse_lens_toml(text, str(path))
+    return parse_lens_toml(text, str(path), glass_catalogs)
 
 
 def _field_path(loc) -> tuple[str, int | None, str | None]:
@@ -270,6 +294,8 @@ def format_lens_toml(prescription: Prescription, margin_mm: float = 0.0, header:
         out.append(f"aperture = {{ entrance_pupil_diameter = {_num(p.aperture.value)} }}")
     if margin_mm:
         out.append(f"clear_aperture_margin_mm = {_num(margin_mm)}")
+    if p.glass_catalogs:
+        out.append("glass_catalogs = [" + ", ".join(_str(c) for c in p.glass_catalogs) + "]")
     out += ["", "[wavelengths]",
             "values_um = [" + ", ".join(_num(w) for w in p.wavelengths_um) + "]",
             "weights = [" + ", ".join(_num(w) for w in p.wavelength_weights) + "]",

@@ -4,17 +4,31 @@ What a lens file holds and how it is read:
     UNIT MM|CM|IN|METER          lengths are converted to mm
     TYPE STANDARD|EVENASPH|ODDASPH  CURV / CONI / PARM k v (EVENASPH: r^(2k); ODDASPH: r^k, whose
                                  even terms r^4..r^8 are imported and whose odd terms are an error)
+    TYPE XASPHERE|XOSPHERE       the extended aspheres: XDAT 1 N, XDAT 2 r0, XDAT k+2 the term on
+                                 (r/r0)^(2k) (even) or (r/r0)^k (odd; even powers only, as ODDASPH)
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
-    GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup
+    GLAS name | MIRROR | ___BLANK a b n_d V_d | 6-digit code; GLAS ... 2 k is a pickup;
+                                 GLAS name 4 ... dn dv: offsets (lensmount.optics.io.zemax_glass)
+    MNUM n k                     n configurations, k active: the surface data are k's, the rest ignored
     DISZ (INFINITY for an object at infinity, a number for a finite object)
-    DIAM v flag / CLAP rmin rmax / MEMA v: a fixed semi-diameter (flag 1), a pickup of one
+    DIAM v flag / CLAP rmin rmax: a fixed semi-diameter (flag 1), a pickup of one
                                  (flag 2 k), another solve (value as written) and a CLAP are
                                  honoured and vignette; an automatic one (flag 0, or a pickup of
                                  one) is only Zemax's last computed value and is recomputed from
                                  lensmount's real rays, as for surfaces without a DIAM (the
                                  stop's stays: Zemax's size of the diaphragm)
+    MEMA v flag / OEMA chip      the mechanical semi-diameter, flags as DIAM's (OpticStudio 2019+
+                                 writes one on every surface): fixed, pickups of fixed ones and
+                                 solves are kept; an automatic one is recomputed as OpticStudio
+                                 does (the element's largest clear semi-diameter plus its chip
+                                 zone), or left to the mount's edge allowance where there is no
+                                 chip zone (OpticStudio's value is then the clear one, no edge to
+                                 hold the glass by) or a face's clear one comes from real rays.
+                                 A MEMA without a flag (older files) is a given value
+    GCAT NAME ...                the glass catalogues; one that is not built in is read from
+                                 NAME.agf beside the file when it is there (see read_zmx_with_notes)
     VDXN/VDYN/VCXN/VCYN/VANN     vignetting factors per field: the automatic semi-diameters come
                                  from the beam they leave (Prescription.vignetting)
     ENPD | FNUM v 0 (image-space F/#) | FNUM v 1 (paraxial working F/#) | OBNA v 0 (NA) |
@@ -31,17 +45,27 @@ with a BOM), UTF-8 or Latin-1.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lensmount.errors import InputError
-from lensmount.optics.glass import CATALOGUES, refractive_index, successor
+from lensmount.optics.glass import CATALOGUES, register_catalogue
+from lensmount.optics.io import zemax_glass
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
-_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "COORDBRK")
-_SIX_DIGIT = re.compile(r"^(\d{3})(\d{3})$")
+_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "COORDBRK")
+# surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
+_IDEAL = ("an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no element to "
+          "mount or to scatter light", "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (a real lens in place of "
+          "the ideal one)")
+_NOT_BUILDABLE = {
+    "PARAXIAL": _IDEAL,
+    "PARAX_XY": _IDEAL,
+    "DGRATING": ("a diffraction grating, which sends each order in its own direction: lensmount's tracer follows "
+                 "refraction and reflection only", "refracting and reflecting surfaces (TYPE STANDARD, EVENASPH, "
+                 "ODDASPH)"),
+}
 _D_LINE = 0.5875618
 
 
@@ -54,6 +78,7 @@ class ZmxSurface:
     curvature: float = 0.0
     conic: float = 0.0
     parm: dict = field(default_factory=dict)  # k -> (value, line)
+    xdat: dict = field(default_factory=dict)  # k -> (value, line): extended data (XASPHERE, XOSPHERE)
     thickness: float = 0.0
     thickness_line: int = 0
     glass: str = AIR
@@ -65,6 +90,9 @@ class ZmxSurface:
     diam_from: int | None = None  # DIAM ... 2 k: picked up from surface k
     clap: float | None = None
     mema: float | None = None
+    mema_flag: int | None = None  # None: a file older than OpticStudio's flags (the value is a given one)
+    mema_from: int | None = None  # MEMA ... 2 k: picked up from surface k
+    chip_zone: float = 0.0  # OEMA: the annulus OpticStudio's automatic MEMA adds to the clear semi-diameter
     stop: bool = False
     coating: str | None = None
     comment: str | None = None
@@ -90,6 +118,7 @@ class ZmxLens:
     yfields: list[float] = field(default_factory=list)
     vignetting: dict = field(default_factory=dict)  # "VDX", "VDY", "VCX", "VCY", "VAN" -> per-field values
     catalogues: list[str] = field(default_factory=list)
+    configurations: tuple[int, int] = (1, 1)  # MNUM: how many, and the active one
 
 
 @dataclass(frozen=True)
@@ -198,8 +227,11 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             lens.vignetting[cmd[:3]] = [num(a, ln, "vignetting factor") for a in args]
         elif cmd == "GCAT":
             lens.catalogues = list(args)
+        elif cmd == "MNUM":  # configurations: the surface data hold the active one's values
+            lens.configurations = (int(arg(args, 0, ln, "number of configurations")),
+                                   int(arg(args, 1, ln, "active configuration", 1.0)))
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
-                     "PZUP"):
+                     "PZUP", "OEMA", "XDAT"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
             _surface_line(cur, cmd, args, rest, ln, err, num, arg)
@@ -210,6 +242,9 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
 def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
     if cmd == "TYPE":
         cur.type, cur.type_line = (args[0].upper() if args else ""), ln
+        if cur.type in _NOT_BUILDABLE:
+            why, valid = _NOT_BUILDABLE[cur.type]
+            raise err(f"surface {cur.number} has type {cur.type}: {why}", ln, valid)
         if cur.type not in _SUPPORTED_TYPES:
             raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
                       "symmetric or not supported by lensmount", ln,
@@ -224,6 +259,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.conic = arg(args, 0, ln, "conic")
     elif cmd == "PARM":
         cur.parm[int(arg(args, 0, ln, "parameter index"))] = (arg(args, 1, ln, "parameter"), ln)
+    elif cmd == "XDAT":
+        cur.xdat[int(arg(args, 0, ln, "extra data index"))] = (arg(args, 1, ln, "extra data"), ln)
     elif cmd == "DISZ":
         tok = args[0] if args else ""
         cur.thickness = math.inf if tok.upper() in ("INFINITY", "INF") else num(tok, ln, "thickness")
@@ -245,6 +282,12 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.clap = arg(args, 1, ln, "circular aperture radius")
     elif cmd == "MEMA":
         cur.mema = arg(args, 0, ln, "mechanical semi-diameter")
+        if len(args) > 1:
+            cur.mema_flag = int(arg(args, 1, ln, "mechanical semi-diameter type"))
+            if cur.mema_flag == 2:
+                cur.mema_from = int(arg(args, 2, ln, "mechanical semi-diameter pickup surface"))
+    elif cmd == "OEMA":
+        cur.chip_zone = arg(args, 0, ln, "chip zone")
     elif cmd == "STOP":
         cur.stop = True
     elif cmd == "COAT":
@@ -258,8 +301,9 @@ def to_prescription(lens: ZmxLens, file: str = "lens.zmx") -> Prescription:
     return convert(lens, file)[0]
 
 
-def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[ImportNote]]:
-    """The Prescription and the notes on what was imported, substituted and ignored."""
+def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
+    """The Prescription and the notes on what was imported, substituted and ignored.
+    glass_catalogs: the user's .agf files, searched first for a GLAS name."""
     from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
 
     if len(lens.surfaces) < 3:
@@ -277,11 +321,19 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
     if obj.stop or image.stop:
         raise InputError("the stop is on the object or image surface", file=file,
                          line=(obj if obj.stop else image).line, valid="STOP on one of SURF 1..N-1")
+    if lens.configurations[0] > 1:
+        notes.append(ImportNote("imported", "configurations", f"configuration {lens.configurations[1]} of "
+                                f"{lens.configurations[0]} (the one the file's surface data hold); the others "
+                                "(MNUM, THIC, APER ... operands) are ignored"))
     object_distance = obj.thickness * s if math.isfinite(obj.thickness) else math.inf
     notes.append(ImportNote("imported", "object", "at infinity" if math.isinf(object_distance)
                             else f"at {object_distance:g} mm in front of surface 1"))
 
     automatic = _automatic(lens)
+    user = tuple(register_catalogue(p) for p in glass_catalogs)
+    for p in glass_catalogs:
+        notes.append(ImportNote("imported", "glass catalogues", f"{Path(p).resolve()} (searched before the "
+                                "built-in catalogues)"))
     surfaces: list[Surface] = []
     numbers: list[int] = []
     medium = AIR
@@ -305,16 +357,16 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
                                     + ("(zero)" if not any(zs.parm.get(k, (0.0, 0))[0] for k in range(1, 5))
                                        else "undone by a later break" if tilt is None else "(see the next break)")))
             continue
-        optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or _glass_name(zs) != medium.upper()
+        optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or zs.xdat or _glass_name(zs) != medium.upper()
         if tilt is not None:
             if optical or zs.thickness != 0.0:
                 _asymmetric(file, zs, tilt, "is a mirror, lens surface or stop" if optical else
                             "has a thickness along the decentred or tilted axis")
             notes.append(ImportNote("ignored", f"SURF {zs.number}", "dummy surface between coordinate breaks"))
             continue
-        material, note = _material(zs, medium, lens.catalogues, file)
+        material, note = zemax_glass.material(zs, medium, lens.catalogues, user, file)
         if note:
-            notes.append(note)
+            notes.append(ImportNote(note[0], f"SURF {zs.number}", note[1]))
         if zs.mirror:
             notes.append(ImportNote("imported", f"SURF {zs.number}", "mirror (GLAS MIRROR)"))
         if zs.pickups:
@@ -323,7 +375,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         if not math.isfinite(zs.thickness):
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
-        clear, mech = _semi_diameters(zs, s, notes, automatic, len(surfaces))
+        clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -339,6 +391,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
+    surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s)
     waves, weights = _wavelengths(lens)
     if not waves:
         waves, weights = [_D_LINE], [1.0]
@@ -348,7 +401,8 @@ def convert(lens: ZmxLens, file: str = "lens.zmx") -> tuple[Prescription, list[I
         notes.append(ImportNote("imported", "fields", "telecentric object space: chief rays parallel to the axis"))
     base = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0), wavelengths_um=tuple(waves),
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
-                        name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric)
+                        name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric,
+                        glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs))
     return apply_aperture_and_fields(base, lens, numbers, notes, file), notes
 
 
@@ -391,61 +445,6 @@ def _asymmetric(file, zs: ZmxSurface, tilt, why: str):
         valid="coordinate breaks that are zero, or that later breaks undo before the next optical surface")
 
 
-def _material(zs: ZmxSurface, medium: str, catalogues, file) -> tuple[str, ImportNote | None]:
-    """The lensmount material for a GLAS line, and a note when it is a substitution."""
-    where = f"SURF {zs.number}"
-    if zs.mirror:
-        return medium, None
-    name = zs.glass
-    if name.upper() == AIR:
-        return AIR, None
-    args = zs.glass_args
-    pickup = f" (picked up from surface {args[1]})" if len(args) > 1 and args[0] == "2" else ""
-    nd_vd = _file_nd_vd(args, model=name.upper() == "___BLANK")
-    if name.upper() == "___BLANK":
-        if nd_vd is None:
-            raise InputError("model glass without n_d and V_d", file=file, line=zs.glass_line,
-                             valid="GLAS ___BLANK 1 0 n_d V_d ...")
-        return _model(*nd_vd), ImportNote("imported", where, f"model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g}{pickup}")
-    six = _SIX_DIGIT.match(name)
-    if six:
-        nd, vd = 1.0 + int(six.group(1)) / 1000.0, int(six.group(2)) / 10.0
-        return _model(nd, vd), ImportNote("substituted", where, f"glass code {name} -> model glass {nd:g}/{vd:g}")
-    try:
-        refractive_index(name, _D_LINE)
-    except InputError:
-        pass
-    else:
-        return (_prefer_catalogue(name, catalogues) if catalogues else name), (
-            ImportNote("imported", where, f"glass {name}{pickup}") if pickup else None)
-    new = successor(name)
-    if new is not None:
-        return new, ImportNote("substituted", where,
-                               f"glass {name} (a legacy or moulding name) -> {new}, its catalogue successor")
-    if nd_vd is not None:
-        return _model(*nd_vd), ImportNote("substituted", where, f"glass {name} is in no catalogue lensmount has "
-                                          f"-> model glass n_d {nd_vd[0]:g}, V_d {nd_vd[1]:g} from the GLAS line")
-    raise InputError(f"unknown glass '{name}' and the GLAS line gives no n_d and V_d", file=file, line=zs.glass_line,
-                     valid=f"a glass in the {', '.join(CATALOGUES)} catalogues, or n_d and V_d on the GLAS line")
-
-
-def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
-    """n_d, V_d from a GLAS line. For a catalogue name, 1.5/40 is what Zemax writes when it has
-    no data for the glass (its defaults), so it is no information."""
-    try:
-        nd, vd = float(args[2]), float(args[3])
-    except (IndexError, ValueError):
-        return None
-    if not model and (nd, vd) == (1.5, 40.0):
-        return None
-    return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
-
-
-def _model(nd: float, vd: float) -> str:
-    # Zemax treats V_d = 0 as a constant index; a huge V_d is that to 1e-9.
-    return f"{nd:.6g}/{vd if vd > 0 else 1e9:.6g}"
-
-
 def _automatic(lens: ZmxLens) -> set[int]:
     """Numbers of the surfaces whose DIAM is Zemax's automatic one (flag 0, or a pickup of one).
 
@@ -454,17 +453,27 @@ def _automatic(lens: ZmxLens) -> set[int]:
     apertures). The stop's is the exception: it is the size Zemax gives the diaphragm for the system
     aperture with its own ray aiming (US 583,336: 4.215 mm, the real on-axis ray at EPD/2, where the
     paraxial rule says 4.251 mm), and with FLOA it is the aperture: it stays."""
-    by_number = {zs.number: zs for zs in lens.surfaces}
-
-    def automatic(zs: ZmxSurface, seen: frozenset) -> bool:
-        if zs.diam_flag == 2 and zs.diam_from in by_number and zs.diam_from not in seen:
-            return automatic(by_number[zs.diam_from], seen | {zs.number})
-        return zs.diam_flag == 0 and not zs.stop
-
-    return {zs.number for zs in lens.surfaces if zs.diam and automatic(zs, frozenset())}
+    return {zs.number for zs in lens.surfaces if zs.diam and _is_automatic(lens, zs, "diam") and not zs.stop}
 
 
-def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int], index: int):
+def _is_automatic(lens: ZmxLens, zs: ZmxSurface, which: str) -> bool:
+    """The DIAM ("diam") or MEMA ("mema") of `zs` is OpticStudio's automatic value: flag 0, or a
+    pickup (flag 2 k) of an automatic one. A MEMA without a flag (files older than OpticStudio's
+    flags on it) is a given value."""
+    by_number = {z.number: z for z in lens.surfaces}
+    seen = set()
+    while True:
+        flag, source = getattr(zs, f"{which}_flag"), getattr(zs, f"{which}_from")
+        if flag == 2 and source in by_number and source not in seen:
+            seen.add(zs.number)
+            zs = by_number[source]
+            continue
+        return flag == 0
+
+
+def _semi_diameters(lens: ZmxLens, zs: ZmxSurface, s: float, notes, automatic: set[int], index: int):
+    """(clear, mechanical) semi-diameters in mm; a mechanical one the import recomputes is
+    `_AUTOMATIC_MECHANICAL` (filled in by `_automatic_mechanical` once the elements are known)."""
     where = f"SURF {zs.number}"
     clear = zs.diam * s if zs.diam else None
     if zs.number in automatic:
@@ -480,33 +489,95 @@ def _semi_diameters(zs: ZmxSurface, s: float, notes, automatic: set[int], index:
         r = zs.clap * s
         clear = r if clear is None else min(clear, r)
         notes.append(ImportNote("imported", where, f"circular aperture {r:.4g} mm"))
-    mech = zs.mema * s if zs.mema else None
-    if mech is not None and clear is not None and mech < clear:
-        notes.append(ImportNote("ignored", where,
-                                f"mechanical semi-diameter {mech:.4g} mm (smaller than the clear one)"))
-        mech = None
+    if not zs.mema:
+        return clear, None
+    mech = zs.mema * s
+    if _is_automatic(lens, zs, "mema"):
+        return clear, _AUTOMATIC_MECHANICAL
+    kind = {1: "fixed", 2: f"picked up from surface {zs.mema_from}", None: "given"}.get(
+        zs.mema_flag, "solve (value as written)")
+    if clear is not None and mech < clear:
+        notes.append(ImportNote("ignored", where, f"mechanical semi-diameter {mech:.4g} mm, {kind} "
+                                "(smaller than the clear one)"))
+        return clear, None
+    notes.append(ImportNote("imported", where, f"mechanical semi-diameter {mech:.4g} mm, {kind}"))
     return clear, mech
 
 
+_AUTOMATIC_MECHANICAL = -1.0
+
+
+def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes, s: float) -> list[Surface]:
+    """Automatic MEMAs recomputed as OpticStudio computes them: the largest clear semi-diameter plus
+    chip zone (OEMA) over the element's faces. With no chip zone that is the clear semi-diameter
+    itself, which leaves no edge to hold the glass by; and where a face's clear semi-diameter is
+    left to real rays the sum is not known here: both are left to the mount's edge allowance."""
+    from dataclasses import replace
+
+    zmx = {i: zs for i, zs in enumerate(body)}
+    out = list(surfaces)
+    p = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0))
+    groups = {i: g for g in p.lens_groups() for i in g}
+    for i, surf in enumerate(surfaces):
+        if surf.mechanical_semi_diameter != _AUTOMATIC_MECHANICAL:
+            continue
+        faces = groups.get(i, (i,))
+        chips = [zmx[j].chip_zone * s for j in faces]
+        clears = [surfaces[j].clear_semi_diameter for j in faces]
+        where, was = f"SURF {zmx[i].number}", zmx[i].mema * s
+        if any(chips) and all(c is not None for c in clears):
+            mech = max(c + z for c, z in zip(clears, chips))
+            what = f"{mech:.4g} mm, the element's largest clear semi-diameter plus its chip zone (OEMA)"
+        else:
+            mech = None
+            what = ("left to the mount's edge allowance (no chip zone: OpticStudio's rule gives the clear "
+                    "semi-diameter, no edge to hold the glass by)" if not any(chips) else
+                    "left to the mount's edge allowance (a face's clear semi-diameter is recomputed from real rays)")
+        out[i] = replace(surf, mechanical_semi_diameter=mech)
+        notes.append(ImportNote("substituted", where, f"mechanical semi-diameter {was:.4g} mm, automatic in the "
+                                f"file (what OpticStudio last computed) -> {what}"))
+    return out
+
+
+def _polynomial(zs: ZmxSurface, file) -> tuple[bool, dict]:
+    """(even, {k: (coefficient, line)}): the surface's polynomial terms in lens units, on r^(2k) for an
+    even asphere and on r^k for an odd one. The extended aspheres (XASPHERE, XOSPHERE) write their
+    terms on rho = r / r0 (XDAT 1: the number of terms, XDAT 2: r0, XDAT k + 2: the k-th term), so a
+    term alpha rho^p is alpha / r0^p on r^p."""
+    if zs.type in ("EVENASPH", "ODDASPH"):
+        return zs.type == "EVENASPH", zs.parm
+    if zs.type not in ("XASPHERE", "XOSPHERE") or not zs.xdat:
+        return True, {}
+    count = int(zs.xdat.get(1, (0.0, 0))[0])
+    r0, line = zs.xdat.get(2, (0.0, zs.type_line))
+    if not r0 > 0.0:
+        raise InputError(f"surface {zs.number} ({zs.type}) has normalisation radius {r0:g}", file=file, line=line,
+                         valid="XDAT 2 > 0: the extended asphere's normalisation radius")
+    even = zs.type == "XASPHERE"
+    return even, {k: (value / r0 ** (2 * k if even else k), ln)
+                  for k, (value, ln) in ((k, zs.xdat.get(k + 2, (0.0, line))) for k in range(1, count + 1))}
+
+
 def _aspheric(zs: ZmxSurface, s: float, file) -> tuple[float, ...]:
-    """Polynomial sag terms in mm as Surface wants them: (A4, A6, ...) or, for ODDASPH, (A1, A2, A3, ...)."""
-    if not zs.parm or zs.type not in ("EVENASPH", "ODDASPH"):
+    """Polynomial sag terms in mm as Surface wants them: (A4, A6, ...)."""
+    even, parm = _polynomial(zs, file)
+    if not parm:
         return ()
-    if zs.type == "EVENASPH":
-        if zs.parm.get(1, (0.0, 0))[0] != 0.0:
-            raise InputError(f"surface {zs.number} has an r^2 asphere term (PARM 1)", file=file,
-                             line=zs.parm[1][1], valid="PARM 1 = 0; put the base curvature in CURV")
-        # PARM k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
-        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(zs.parm) + 1))
+    if even:
+        if parm.get(1, (0.0, 0))[0] != 0.0:
+            raise InputError(f"surface {zs.number} has an r^2 asphere term", file=file,
+                             line=parm[1][1], valid="no r^2 term (PARM 1 / XDAT 3 = 0); put the base curvature in CURV")
+        # term k multiplies r^(2k); in mm the coefficient scales by unit^(1 - 2k).
+        terms = tuple(parm.get(k, (0.0, 0))[0] * s ** (1 - 2 * k) for k in range(2, max(parm) + 1))
     else:
-        # ODDASPH: PARM k multiplies r^k. Its even terms r^4, r^6, r^8 are an even asphere; an odd
+        # odd: term k multiplies r^k. Its even terms r^4, r^6, r^8 are an even asphere; an odd
         # term (or r^2) has no counterpart in the rotationally symmetric profile the mount and tracer use.
-        for k, (value, line) in sorted(zs.parm.items()):
+        for k, (value, line) in sorted(parm.items()):
             if value != 0.0 and (k % 2 == 1 or k == 2):
-                raise InputError(f"surface {zs.number} is an odd asphere with an r^{k} term (PARM {k} = {value:g})",
+                raise InputError(f"surface {zs.number} is an odd asphere with an r^{k} term ({value:g})",
                                  file=file, line=line,
-                                 valid="ODDASPH terms on r^4, r^6, r^8 only (PARM 4, 6, 8), or TYPE EVENASPH")
-        terms = tuple(zs.parm.get(k, (0.0, 0))[0] * s ** (1 - k) for k in range(4, max(zs.parm) + 1, 2))
+                                 valid="odd-asphere terms on even powers from r^4 only, or TYPE EVENASPH")
+        terms = tuple(parm.get(k, (0.0, 0))[0] * s ** (1 - k) for k in range(4, max(parm) + 1, 2))
     while terms and terms[-1] == 0.0:
         terms = terms[:-1]
     return terms
@@ -523,34 +594,21 @@ def _wavelengths(lens: ZmxLens):
     return waves, weights
 
 
-def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
-    """Keep the plain name unless a GCAT catalogue holds a different glass of that name."""
-    known = [c for c in catalogues if c.lower() in (k.lower() for k in CATALOGUES)]
-    if not known:
-        return name
-    for cat in known:
-        prefixed = f"{cat.upper()}:{name}"
-        try:
-            n_pref = float(refractive_index(prefixed, _D_LINE))
-        except InputError:
-            continue
-        try:
-            n_plain = float(refractive_index(name, _D_LINE))
-        except InputError:
-            return prefixed
-        return name if n_plain == n_pref else prefixed
-    return name
+def read_zmx_with_notes(path, glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
+    """Read a .zmx file: the Prescription and what was imported, substituted and ignored.
+    glass_catalogs: the user's .agf files, searched first for a GLAS name; after them, the
+    catalogues the file's GCAT line names that sit beside it as NAME.agf (as Zemax finds them
+    in its glass folder), other than the built-in ones."""
+    path = Path(path)
+    lens = parse_zmx(read_text(path), str(path))
+    named = {c.upper() for c in lens.catalogues} - {c.upper() for c in CATALOGUES}
+    beside = sorted(p for p in path.parent.iterdir() if p.suffix.lower() == ".agf" and p.stem.upper() in named)
+    return convert(lens, str(path), [*glass_catalogs, *beside])
 
 
-def read_zmx_with_notes(path) -> tuple[Prescription, list[ImportNote]]:
-    """Read a .zmx file: the Prescription and what was imported, substituted and ignored."""
-    text = read_text(path)
-    return convert(parse_zmx(text, str(path)), str(path))
-
-
-def read_zmx(path) -> Prescription:
+def read_zmx(path, glass_catalogs=()) -> Prescription:
     """Read a .zmx file into a Prescription."""
-    return read_zmx_with_notes(path)[0]
+    return read_zmx_with_notes(path, glass_catalogs)[0]
 
 
 __all__ = ["ZmxLens", "ZmxSurface", "ImportNote", "read_text", "parse_zmx", "to_prescription", "convert",
