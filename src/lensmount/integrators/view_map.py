@@ -195,8 +195,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     radius = radius * float(radius_scale)
     area = area_half = None
     if boundaries is not None:
-        area = boundaries.inside_area(pos, nrm, tg, radius, detector_z=det.z)
-        area_half = boundaries.inside_area(pos, nrm, tg, 0.5 * radius, detector_z=det.z)
+        area, area_half = boundaries.inside_areas(pos, nrm, tg, (radius, 0.5 * radius), detector_z=det.z)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
     direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
     tau = tau[ok] * air_radiance_factor(scene, direction, tg, hit["prim"][ok], wavelength)
