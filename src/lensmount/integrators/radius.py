@@ -343,8 +343,9 @@ def initial_radii(position: np.ndarray, tag: np.ndarray, cap: np.ndarray, k: int
         idx = np.flatnonzero(tag == t)
         if len(idx) > 1:
             kk = min(k, len(idx) - 1)
-            d, _ = cKDTree(position[idx]).query(position[idx], k=kk + 1)
-            r[idx] = d[:, kk]
+            # Only the (kk+1)-th distance (the point itself is the first): the nearer ones are not needed.
+            d, _ = cKDTree(position[idx]).query(position[idx], k=[kk + 1])
+            r[idx] = d[:, 0]
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
         r[idx] = np.clip(r[idx], min(floor_mm, limit), limit)
     return r

@@ -56,7 +56,7 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
             continue
         m = -(-len(idx) // RADIUS_SUBSAMPLE)
         sub = position[idx[::m]]
-        d, _ = cKDTree(sub).query(position[idx], k=min(k + 1, len(sub)))
+        d, _ = cKDTree(sub).query(position[idx], k=[min(k + 1, len(sub))])
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
         r[idx] = np.clip(d[:, -1], min(floor_mm, limit), limit)
     return r
