@@ -238,5 +238,5 @@ def ledger_residual(ledger: dict[str, float]) -> float:
 
 
 __all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "scattering_tags", "scattering_parts",
-           "ledger_residual", "phase_clock", "phase_times", "DIRECT", "GHOSTS", "BY_ROUTES", "TIME_PREFIX", "CPU_SUFFIX",
-           "PHASES"]
+           "ledger_residual", "phase_clock", "phase_times", "DIRECT", "GHOSTS", "BY_ROUTES", "TIME_PREFIX",
+           "CPU_SUFFIX", "PHASES"]
