@@ -8,6 +8,8 @@ Prints:
 - the raw embreex intersection rate (one nearest-hit query per ray) on the same mesh and the
   same number of rays, and the ratio of the two;
 - Embree queries per traced ray (probes + relaunches past facets);
+- one pass's view map of case 2 on one core: its CPU per backward segment against the forward
+  trace's per segment on one core (issue 28 asks <= 2x), and the backward rays' own share;
 - optiland's non-sequential tracer through the same lens, in the same run (rays/s and ratio,
   against both of ours: optiland's numpy runs on one core);
 - the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
