@@ -32,9 +32,11 @@ $(VENV)/.installed-test: $(VENV)/.installed
 
 # numba compiles the tracer's kernels once, here, not in the first run (again when their source changes).
 # Their old cache goes first: numba checks only a kernel's own file, and the walk inlines kernels.py's step.
-$(VENV)/.warm: $(VENV)/.installed src/lensmount/trace/kernels.py src/lensmount/trace/lens_kernel.py
+$(VENV)/.warm: $(VENV)/.installed src/lensmount/trace/kernels.py src/lensmount/trace/lens_kernel.py \
+		src/lensmount/integrators/radius.py
 	rm -f src/lensmount/trace/__pycache__/*.nbi src/lensmount/trace/__pycache__/*.nbc
 	$(PY) -m lensmount.trace.warm
+	$(PY) -m lensmount.integrators.warm
 	touch $@
 
 install: $(VENV)/.installed $(VENV)/.warm

@@ -8,6 +8,8 @@ Prints:
 - the raw embreex intersection rate (one nearest-hit query per ray) on the same mesh and the
   same number of rays, and the ratio of the two;
 - Embree queries per traced ray (probes + relaunches past facets);
+- one pass's view map of case 2 on one core: its CPU per backward segment against the forward
+  trace's per segment on one core (issue 28 asks <= 2x), and the backward rays' own share;
 - optiland's non-sequential tracer through the same lens, in the same run (rays/s and ratio,
   against both of ours: optiland's numpy runs on one core);
 - the same bundle traced by an independent optics package (rayoptics, sequential, one ray at
@@ -142,6 +144,53 @@ def _optiland_peer(p, n):
     return n / dt, float(res.total_flux_detected), n / dc
 
 
+def _view_map_line(scene, tracer, forward_cpu_per_segment: float) -> None:
+    """One pass's view map of case 2 (600 × 600 px, a backward sample each, every mount face Lambertian) on
+    one core, as `Bidirectional.run_pass` builds it: its CPU per backward segment against the forward
+    trace's per segment (the bench bundle, one core), the tracing alone and with the hit points' radii and
+    on-face areas."""
+    from lensmount.integrators.bidirectional import _scene_tables, gather_cores
+    from lensmount.integrators.estimate import scattering_tags
+    from lensmount.integrators.settings import EstimatorSettings
+    from lensmount.integrators.view_map import build_view_map, view_map_streams
+    from lensmount.scene.scene import optical_faces
+
+    cfg = EstimatorSettings()
+    half_widths, boundaries = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
+    core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
+    core[~scattering_tags(scene)] = np.inf
+    core[optical_faces(scene.mesh.tag_table)] = np.inf
+    det = scene.detector
+
+    def view_map(pass_index):
+        return build_view_map(scene, tracer, det, view_map_streams(1, pass_index, det, 1), broad=np.isfinite(core),
+                              half_widths=half_widths, radius_scale=1.0, boundaries=boundaries, pilot_seed=1)
+
+    view_map(0)  # compiles, and the learned edge target's pilot when the scene has one
+    traced = [0.0]
+    trace = tracer.next_event
+
+    def timed(*args, **kwargs):  # the backward rays' own share: the tracer's calls, timed
+        c = time.process_time()
+        out = trace(*args, **kwargs)
+        traced[0] += time.process_time() - c
+        return out
+
+    tracer.next_event = timed
+    tracer.segments = 0
+    c0 = time.process_time()
+    hits = view_map(1)
+    whole, segments = time.process_time() - c0, tracer.segments
+    del tracer.next_event
+    samples = det.nx * det.ny
+    per = whole / segments
+    print(f"view map of case 2 on one core ({samples} backward samples, {segments / samples:.1f} segments each, "
+          f"{len(hits.weight)} hit points): {whole:.2f} s CPU, {per * 1e9:.0f} ns per backward segment = "
+          f"{per / forward_cpu_per_segment:.1f}x the forward trace's {forward_cpu_per_segment * 1e9:.0f} ns per "
+          f"segment (one core, CPU; target 2x); the backward rays alone (Tracer.next_event) {traced[0]:.2f} s, "
+          f"{traced[0] / segments / forward_cpu_per_segment:.1f}x per segment")
+
+
 def main() -> None:
     from lensmount.physics.rays import RayBatch
     from lensmount.trace.tracer import DETECTOR, Tracer
@@ -216,11 +265,13 @@ def main() -> None:
     # One core, as each worker process of `simulate` traces (its neighbours have the other cores).
     lens_kernel.one_core_per_process()
     tracer.next_event(rays.subset(slice(0, 2000)))
-    t0 = time.perf_counter()
+    tracer.segments = 0
+    t0, c0 = time.perf_counter(), time.process_time()
     tracer.next_event(rays)
-    one_core = time.perf_counter() - t0
+    one_core, one_core_cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"full non-sequential trace on one core: {N_RAYS / one_core:,.0f} rays/s "
           f"(on every core it took {full / one_core:.2f}x this time)")
+    _view_map_line(scene, tracer, one_core_cpu / tracer.segments)
 
     peer = _optiland_peer(p, N_OPTILAND)
     if isinstance(peer, str):

@@ -70,6 +70,26 @@ def test_summary_says_when_photons_were_aimed_at_the_edge():
     assert line["why"].startswith("3 pass")
 
 
+
+def test_each_phase_reports_its_wall_and_cpu_seconds():
+    """The plan's times: every phase of a bidirectional pass in wall and CPU seconds (issue 28), the
+    CPU of a busy phase neither zero nor beyond what the process spent."""
+    import time
+
+    from lensmount.integrators.bidirectional import Bidirectional
+    from lensmount.integrators.estimate import CPU_SUFFIX, PHASES
+
+    scene = plan(_singlet(effects=Effects(scatter=True))).scene
+    tracer = Tracer(scene)
+    start = time.process_time()
+    estimate = Bidirectional().run_pass(scene, tracer, 0, 2_000, 1)
+    spent = time.process_time() - start
+    times = plan(scene).as_dict(estimate.diagnostics)["time_s"]
+    for phase in ("view_map", "walk", "gather"):
+        name = PHASES[phase]
+        assert times[name] >= 0.0 and 0.0 <= times[name + CPU_SUFFIX] <= spent + 1e-3
+    assert times[PHASES["view_map"] + CPU_SUFFIX] > 0.0 and times[PHASES["walk"] + CPU_SUFFIX] > 0.0
+
 def test_ghosts_skipped_with_perfect_ar_and_without_ghosts():
     assert not plan(_singlet(coating="perfect-ar")).reflect_at_glass
     assert "perfect-ar" in _decision(plan(_singlet(coating="perfect-ar")), "ghosts").why

@@ -45,12 +45,12 @@ whichever worker runs it.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
 from lensmount.integrators.estimate import (
-    AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_times, scattering_tags)
+    AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels, phase_clock, phase_times,
+    scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
 from lensmount.integrators.photon_target import aims_at_edge, edge_band, guided_photons
@@ -131,7 +131,7 @@ class Bidirectional:
 
         # Phase 1: the view map (none without a face to gather at: the plan's "scatter" is off).
         diagnostics: dict[str, float] = {}
-        clock = time.perf_counter()
+        clock = phase_clock()
         hits = build_view_map(scene, tracer, scene.detector,
                               view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel), broad=broad,
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
@@ -140,12 +140,12 @@ class Bidirectional:
                               faces=film.faces) if broad.any() else HitPoints.empty()
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
                             detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
-        view_map_s, gather_s = time.perf_counter() - clock, 0.0
+        view_map_s, gather_s = phase_clock() - clock, np.zeros(2)
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
-        clock = time.perf_counter()
+        clock = phase_clock()
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
@@ -158,19 +158,19 @@ class Bidirectional:
             at_face = ev.kind == FACE
             at_face[at_face] &= scatters[ev.tag[at_face]] & (ev.weight[at_face] > 0)
             if at_face.any() and len(hits.weight):
-                start = time.perf_counter()
+                start = phase_clock()
                 f = np.flatnonzero(at_face)
                 gatherer.gather(PhotonHits(ev.position[f], ev.direction[f], ev.normal[f], ev.weight[f],
                                            ev.tag[f].astype(np.int32), ev.wavelength[f],
                                            film.paths.extend(step.signature[f], ev.tag[f])))
-                gather_s += time.perf_counter() - start
+                gather_s += phase_clock() - start
         diagnostics.update(phase_times(view_map=view_map_s, gather=gather_s,
-                                       walk=time.perf_counter() - clock - gather_s))
+                                       walk=phase_clock() - clock - gather_s))
 
         if by_routes:  # the ghosts channel's two- (four-) reflection light, deterministically
-            clock = time.perf_counter()
+            clock = phase_clock()
             ghost_routes_pass(scene, tracer, film, pass_index, seed, cfg.ghost_rays_across)
-            diagnostics.update(phase_times(ghost_routes=time.perf_counter() - clock))
+            diagnostics.update(phase_times(ghost_routes=phase_clock() - clock))
 
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, film.channel_of_tag, len(film.channels))

@@ -13,6 +13,7 @@ run's answer is the mean of the passes and its error bar is their spread.
 
 from __future__ import annotations
 
+import time
 from collections import defaultdict
 from dataclasses import dataclass, field
 
@@ -82,9 +83,26 @@ PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gath
           "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}
 
 
-def phase_times(**seconds: float) -> dict[str, float]:
-    """Diagnostics entries for the seconds a pass spent per phase (`PHASES`: which effect it serves)."""
-    return {TIME_PREFIX + PHASES[k]: float(v) for k, v in seconds.items()}
+CPU_SUFFIX = ", CPU"  # after a phase's name: its CPU seconds, beside the wall seconds under the bare name
+
+
+def phase_clock() -> np.ndarray:
+    """(wall, CPU) seconds now; a phase's cost is the difference of two readings (`phase_times`)."""
+    return np.array([time.perf_counter(), time.process_time()])
+
+
+def phase_times(**seconds) -> dict[str, float]:
+    """Diagnostics entries for the seconds a pass spent per phase (`PHASES`: which effect it serves): a
+    phase's wall seconds, or its (wall, CPU) pair (differences of `phase_clock`), the CPU under the
+    name + CPU_SUFFIX. Why both: on a shared machine the wall time says how loaded it was as much as what
+    the phase costs; the CPU time (this process, every thread) is the cost."""
+    out = {}
+    for k, v in seconds.items():
+        wall, *cpu = np.atleast_1d(np.asarray(v, np.float64))
+        out[TIME_PREFIX + PHASES[k]] = float(wall)
+        if cpu:
+            out[TIME_PREFIX + PHASES[k] + CPU_SUFFIX] = float(cpu[0])
+    return out
 
 
 def scattering_parts(scene) -> np.ndarray:
@@ -220,4 +238,5 @@ def ledger_residual(ledger: dict[str, float]) -> float:
 
 
 __all__ = ["PassEstimate", "Film", "EnergyLedger", "film_channels", "scattering_tags", "scattering_parts",
-           "ledger_residual", "phase_times", "DIRECT", "GHOSTS", "BY_ROUTES", "TIME_PREFIX", "PHASES"]
+           "ledger_residual", "phase_clock", "phase_times", "DIRECT", "GHOSTS", "BY_ROUTES", "TIME_PREFIX",
+           "CPU_SUFFIX", "PHASES"]

@@ -12,9 +12,7 @@ of 2 passes of 200 000, and the internal batch size changes nothing.
 
 from __future__ import annotations
 
-import time
-
-from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_times
+from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_clock, phase_times
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.walk import emit_photons, photon_walk
@@ -42,17 +40,17 @@ class Forward:
         by_routes = route_reflections(scene, self.settings)
         film, ledger = Film(scene, by_routes), EnergyLedger()
         first = int(pass_index) * int(photons)
-        clock = time.perf_counter()
+        clock = phase_clock()
         for start in range(0, photons, self.batch):
             n = min(self.batch, photons - start)
             rays = emit_photons(scene, seed, self.purpose, first + start, n, photons)
             for _ in photon_walk(scene, tracer, rays, seed, self.purpose, self.settings, film, ledger):
                 pass
-        times = {"walk": time.perf_counter() - clock}
+        times = {"walk": phase_clock() - clock}
         if by_routes:
-            clock = time.perf_counter()
+            clock = phase_clock()
             ghost_routes_pass(scene, tracer, film, pass_index, seed, self.settings.ghost_rays_across)
-            times["ghost_routes"] = time.perf_counter() - clock
+            times["ghost_routes"] = phase_clock() - clock
         return film.estimate(photons, ledger, phase_times(**times))
 
 

@@ -56,7 +56,7 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
             continue
         m = -(-len(idx) // RADIUS_SUBSAMPLE)
         sub = position[idx[::m]]
-        d, _ = cKDTree(sub).query(position[idx], k=min(k + 1, len(sub)))
+        d, _ = cKDTree(sub).query(position[idx], k=[min(k + 1, len(sub))])
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
         r[idx] = np.clip(d[:, -1], min(floor_mm, limit), limit)
     return r
@@ -195,8 +195,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     radius = radius * float(radius_scale)
     area = area_half = None
     if boundaries is not None:
-        area = boundaries.inside_area(pos, nrm, tg, radius, detector_z=det.z)
-        area_half = boundaries.inside_area(pos, nrm, tg, 0.5 * radius, detector_z=det.z)
+        area, area_half = boundaries.inside_areas(pos, nrm, tg, (radius, 0.5 * radius), detector_z=det.z)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
     direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
     tau = tau[ok] * air_radiance_factor(scene, direction, tg, hit["prim"][ok], wavelength)

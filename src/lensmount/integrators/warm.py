@@ -1,0 +1,29 @@
+"""Compile the integrators' numba kernel (the gather area's nearest-boundary search,
+`radius._nearest_boundaries`) into its cache once: `python -m lensmount.integrators.warm`
+(`make install` runs it after `lensmount.trace.warm`).
+
+Why: cold, it takes 2-7 s to compile on the 2-core machine, which the first `simulate` (each of
+its workers that starts before the cache is written) would pay in its first view map. The call
+below goes through `FaceBoundaries.inside_areas`, so the kernel gets a real run's argument types.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def main() -> None:
+    from lensmount.integrators.radius import FaceBoundaries
+
+    start = time.perf_counter()
+    square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    fb = FaceBoundaries(square, np.array([[0, 1, 2], [0, 2, 3]]), np.zeros(2, np.int64), 1)
+    centre = np.array([[0.5, 0.5, 0.0]])
+    fb.inside_areas(centre, np.array([[0.0, 0.0, 1.0]]), np.zeros(1, np.int32), (np.full(1, 0.2),), detector_z=1.0)
+    print(f"lensmount: integrator kernels compiled and cached ({time.perf_counter() - start:.1f} s)")
+
+
+if __name__ == "__main__":
+    main()
