@@ -5,12 +5,21 @@ or the environment variable `LENSMOUNT_STORE` points several designs at a shared
 Each run is one INSERT in one transaction: an interrupted writer leaves no half row.
 The database runs in WAL mode with a busy timeout, so two simulations finishing at
 the same moment both land (one waits for the other's few milliseconds).
+
+A row's files never change afterwards: `record` copies the run's artefacts (summary.json,
+irradiance.exr, preview.png, report.html, paths.npz) into a folder of the row's own,
+`rows/ID/` beside the store file, and the row points there. The run's `--out` folder stays the
+live one: `simulate --resume` adds passes to it (how a run is made more precise), and
+the next row records the longer run without touching the earlier row's numbers. (Refusing to
+resume into a folder a row owns would forbid exactly that.) The checkpoint is not copied: it
+is the size of all the pass sums and only the live run resumes from it.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import sqlite3
 import time
 from dataclasses import dataclass
@@ -21,6 +30,7 @@ from lensmount.errors import InputError
 ENV = "LENSMOUNT_STORE"
 DEFAULT_NAME = Path(".lensmount") / "runs.sqlite"
 BUSY_TIMEOUT_MS = 60_000
+ROWS = "rows"  # beside the store file: rows/ID/ holds the artefacts a row points at
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -152,21 +162,38 @@ class Store:
             "stray_fraction_bias_bound": summary.get("stray_fraction_bias_bound"),
             "per_part": json.dumps(summary.get("per_part", {}), sort_keys=True, allow_nan=False),
             "warnings": json.dumps(list(summary.get("warnings", []))),
-            "out_dir": str(Path(paths["json"]).resolve().parent), "summary_path": str(Path(paths["json"]).resolve()),
-            "image_path": str(Path(paths["exr"]).resolve()), "preview_path": str(Path(paths["png"]).resolve()),
+            "out_dir": "", "summary_path": "", "image_path": "", "preview_path": "",  # set once the id is known
         }
         keys = ", ".join(row)
         marks = ", ".join(f":{k}" for k in row)
         # BEGIN IMMEDIATE takes the write lock up front (waiting up to the busy timeout),
-        # so the insert either commits whole or not at all.
+        # so the insert and the row's files either land whole or not at all.
         self.db.execute("BEGIN IMMEDIATE")
         try:
-            cur = self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row)
+            run_id = int(self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row).lastrowid)
+            kept = self._keep(run_id, paths)
+            self.db.execute("UPDATE runs SET out_dir = ?, summary_path = ?, image_path = ?, preview_path = ? "
+                            "WHERE id = ?", (str(kept), str(kept / Path(paths["json"]).name),
+                                             str(kept / Path(paths["exr"]).name),
+                                             str(kept / Path(paths["png"]).name), run_id))
             self.db.execute("COMMIT")
         except BaseException:
             self.db.execute("ROLLBACK")
             raise
-        return int(cur.lastrowid)
+        return run_id
+
+    def _keep(self, run_id: int, paths: dict[str, Path]) -> Path:
+        """Copy the run's artefacts into rows/ID/ (written whole under a temporary name, then renamed)."""
+        folder = self.path.resolve().parent / ROWS / str(run_id)
+        partial = folder.with_name(f".{run_id}.partial")
+        shutil.rmtree(partial, ignore_errors=True)
+        partial.mkdir(parents=True)
+        for path in paths.values():
+            if Path(path).is_file():
+                shutil.copy2(path, partial / Path(path).name)
+        shutil.rmtree(folder, ignore_errors=True)  # a folder of a rolled-back id that is being reused
+        partial.rename(folder)
+        return folder
 
     def runs(self, design_path: str | Path | None = None, scene_name: str | None = None,
              input_hash: str | None = None) -> list[RunRecord]:
