@@ -72,7 +72,7 @@ def test_mount_finish_defined_by_the_design_finishes_is_accepted():
     """A mount may name a label finishes.toml defines or re-assigns: not an error (the check can pass)."""
     from lensmount.design.finishes import Finishes
     from lensmount.design.mount import parse_mount
-    from lensmount.design.scene import check_mount_finishes
+    from lensmount.design.finishes import check_mount_finishes
     from tests.inputs.conftest import FINISHES
     import tomllib
 

@@ -46,12 +46,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator
 
 from lensmount.errors import InputError
 from lensmount.mesh import FaceTag
 from lensmount.physics.interfaces import parse_coating
-from lensmount.validation import ReadFromFile, input_error, located, parse_toml
+from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, located, parse_toml
 
 FINISHES_NAME = "finishes.toml"
 TABLES = ("finishes", "coatings", "assign")
@@ -204,6 +204,27 @@ def load_finishes(design_root: str | Path) -> Finishes:
     return spec
 
 
+def check_mount_finishes(finishes: Finishes, mount) -> None:
+    """InputError (naming mount.toml's field and line) for a finish the mount file gives that
+    the design's finishes.toml does not define.
+
+    Defined: the built-in library, finishes.toml's `[finishes]`, and names its `finish:`
+    rules re-assign (a mount finish may be a label finishes.toml maps). A misspelt finish would
+    otherwise absorb silently wherever no rule covers it. Needs no geometry, so it runs
+    before the regenerate.
+    """
+    library = finish_library(finishes.finishes)
+    labels = {key.partition(":")[2] for key in finishes.assign if key.startswith("finish:")}
+    defined = sorted(set(library) | labels)
+    for field, name in mount.finish_fields().items():
+        if name not in defined:
+            guess = did_you_mean(name, defined)
+            raise InputError(f"finish '{name}' is not defined" + (f" (did you mean '{guess}'?)" if guess else ""),
+                             file=mount.source_file, field=field, line=line_of_key(mount.source_text, field),
+                             valid="a defined finish: " + ", ".join(defined)
+                                   + "; or define it in the design's finishes.toml [finishes]")
+
+
 def old_layout_error(scene_file: str, tables: list[str]) -> InputError:
     """The error for a scene file that still holds the design's surface treatment, saying how to move it."""
     held = ", ".join(f"[{t}]" for t in tables)
@@ -223,4 +244,4 @@ def old_layout_error(scene_file: str, tables: list[str]) -> InputError:
 
 
 __all__ = ["BUILTIN_FINISHES", "FINISHES_NAME", "Finishes", "finish_library", "check_rules", "check_coatings",
-           "check_finishes", "finish_of", "load_finishes", "old_layout_error", "surface_rule"]
+           "check_finishes", "check_mount_finishes", "finish_of", "load_finishes", "old_layout_error", "surface_rule"]

@@ -54,7 +54,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
-from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
+from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml
 from lensmount.errors import InputError
 from lensmount.design.finishes import (TABLES, Finishes, check_coatings, check_finishes, finish_library,
                                        old_layout_error)
@@ -323,31 +323,10 @@ def fit_detector_to_housing(spec: SceneSpec, mount) -> SceneSpec:
     return fitted
 
 
-def check_mount_finishes(spec: SceneSpec | Finishes, mount) -> None:
-    """InputError (naming mount.toml's field and line) for a finish the mount file gives that
-    the design's finishes.toml does not define.
-
-    Defined: the built-in library, finishes.toml's `[finishes]`, and names its `finish:`
-    rules re-assign (a mount finish may be a label the scene maps). A misspelt finish would
-    otherwise absorb silently wherever no scene rule covers it. Needs no geometry, so it runs
-    before the regenerate.
-    """
-    library = finish_library(spec.finishes)
-    labels = {key.partition(":")[2] for key in spec.assign if key.startswith("finish:")}
-    defined = sorted(set(library) | labels)
-    for field, name in mount.finish_fields().items():
-        if name not in defined:
-            guess = did_you_mean(name, defined)
-            raise InputError(f"finish '{name}' is not defined" + (f" (did you mean '{guess}'?)" if guess else ""),
-                             file=mount.source_file, field=field, line=line_of_key(mount.source_text, field),
-                             valid="a defined finish: " + ", ".join(defined)
-                                   + "; or define it in the design's finishes.toml [finishes]")
-
-
 def _valid_keys(loc) -> str:
     """The keys allowed in the table where the error is."""
     return ", ".join(keys_at(SceneSpec, tuple(loc)))
 
 
 __all__ = ["SceneSpec", "SourceSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
-           "scene_from_dict", "check_mount_finishes"]
+           "scene_from_dict"]

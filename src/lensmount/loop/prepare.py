@@ -24,7 +24,8 @@ def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None]
     """The validated design folder and scene file, (Design, SceneSpec); nothing built yet, so a
     caller can refuse bad options and unwritable outputs before the slow part."""
     from lensmount.design.folder import load_design
-    from lensmount.design.scene import check_mount_finishes, fit_detector_to_housing, load_scene
+    from lensmount.design.finishes import check_mount_finishes
+    from lensmount.design.scene import fit_detector_to_housing, load_scene
 
     (stage or (lambda text: None))("reading the design and the scene")
     design = load_design(design_dir)
