@@ -163,3 +163,22 @@ def test_against_says_which_stored_run_it_takes_or_what_it_must_run_before_it_st
     result = _compare(design, "--scene", CASE2, "--against", "best", "--passes", "1", "--photons-per-pass", "1",
                       "--method", "nonsense")
     assert result.exit_code == 2 and "about" in result.output.split("error:")[0], result.output
+
+
+def test_against_takes_only_stored_runs_of_the_same_test_condition(design, tmp_path, monkeypatch):
+    from lensmount.loop.compare import CompareOptions, plan
+
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    store_path = design / ".lensmount" / "runs.sqlite"
+    with Store(store_path) as store:  # a run at 7°, then the scene edited to 9° and a run there
+        store.record(_run(design, tmp_path / "at7", 1.0e-3, input_hash=_hash(design)), paths(tmp_path / "at7"))
+        _edit(_scene(design), "off_axis_deg = 7.0", "off_axis_deg = 9.0")
+        store.record(_run(design, tmp_path / "at9", 5.0e-4, input_hash=_hash(design)), paths(tmp_path / "at9"))
+    _edit(design / "finishes.toml", "reflectance = 0.05", "reflectance = 0.20")
+    old, _ = plan(CompareOptions(design, scene=CASE2, against="best"))
+    assert old.record.id == 2  # the 9° run, though the 7° one holds the smaller value
+    _edit(_scene(design), "off_axis_deg = 9.0", "off_axis_deg = 11.0")
+    result = _compare(design, "--scene", CASE2, "--against", "last")
+    assert result.exit_code == 2 and "2 stored runs of it have another test condition" in result.output, result.output
+    history = CliRunner().invoke(app, ["history", str(design), "--scene", CASE2])
+    assert history.exit_code == 0 and "test condition changed between these runs" in history.output, history.output

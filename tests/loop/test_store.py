@@ -103,3 +103,21 @@ def test_two_processes_writing_at_once_both_land(tmp_path):
     assert sorted({r.design_path for r in runs}) == sorted(str((tmp_path / f"r{i}").resolve()) for i in range(2))
     assert all(r.out_dir == str(tmp_path.resolve() / "rows" / str(r.id)) and os.path.isfile(r.summary_path)
                for r in runs)  # every row got its own copy
+
+
+def test_a_store_made_before_the_test_condition_column_opens_and_records(tmp_path):
+    import sqlite3
+
+    path = tmp_path / "runs.sqlite"
+    with Store(path) as store:
+        store.record(write_run(tmp_path / "r", 1.0, 0.1), paths(tmp_path / "r"))
+        store.db.execute("ALTER TABLE runs DROP COLUMN condition_sha256")  # the first schema
+    assert "condition_sha256" not in {r[1] for r in sqlite3.connect(path).execute("PRAGMA table_info(runs)")}
+    summary = write_run(tmp_path / "s", 2.0, 0.1)
+    summary["provenance"]["condition_sha256"] = "c" * 64
+    with Store(path) as store:
+        store.record(summary, paths(tmp_path / "s"))
+        old, new = store.runs()
+        assert (old.condition_sha256, new.condition_sha256) == (None, "c" * 64)
+        assert [r.id for r in store.runs(condition_sha256="c" * 64)] == [old.id, new.id]  # an old row may match
+        assert store.runs(condition_sha256="d" * 64) == [old]

@@ -21,7 +21,7 @@ import numpy as np
 
 from lensmount.analysis.compare import Measurement, Verdict, judge
 from lensmount.errors import InputError
-from lensmount.loop.provenance import condition_changes, design_changes
+from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
 from lensmount.run.store import RunRecord, Store, default_path
 
@@ -142,6 +142,7 @@ class RunSource:
     folder: Path
     record: RunRecord | None = None
     input_hash: str | None = None  # of a design folder's current state
+    condition: str | None = None  # its test condition (provenance.condition_sha256)
     why: str = ""  # why this stored run: "same design and test condition", "best", "last", a revision
     simulate: SimulateOptions | None = None
     passes: int | None = None
@@ -167,29 +168,36 @@ def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new")
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s)
     loaded, spec = read_inputs(design, scene_path)
     digest = planned_input_hash(sim, loaded, spec)
+    condition = condition_sha256(spec)
     with Store(default_path(design, o.store)) as store:
         stored = _usable(store.runs(input_hash=digest))
         same_scene = [r for r in _usable(store.runs(design_path=design, scene_name=scene_path.stem)) if r.photons]
     if stored:
         best = max(stored, key=lambda r: (r.photons, r.id))  # the longest: the smallest error for the same inputs
-        return RunSource(role, _stored_folder(best), best, digest, "same design and test condition")
+        return RunSource(role, _stored_folder(best), best, digest, condition, "same design and test condition")
     passes = o.passes or spec.run.passes
     per_pass = o.photons_per_pass or spec.run.photons
     rate = sum(r.time_s for r in same_scene) / sum(r.photons for r in same_scene) if same_scene else None
     estimate = o.time_s if o.time_s is not None else (rate * passes * per_pass if rate else None)
     out = Path(design).resolve() / ".lensmount" / "runs" / f"{scene_path.stem}-{digest[:12]}"
-    return RunSource(role, out, input_hash=digest, simulate=replace(sim, out=out), passes=passes,
-                     photons_per_pass=per_pass, estimate_s=estimate)
+    return RunSource(role, out, input_hash=digest, condition=condition, simulate=replace(sim, out=out),
+                     passes=passes, photons_per_pass=per_pass, estimate_s=estimate)
 
 
-def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None, o: CompareOptions) -> RunSource:
-    """The old run of `design` on `scene` from the store: last (other inputs), best, or a git revision."""
+def stored_run(design: Path, scene: str, against: str, new: RunSource, o: CompareOptions) -> RunSource:
+    """The old run of `design` on `scene` from the store, of the new run's test condition: last (other
+    inputs than the new run's), best, or a git revision."""
     scene_name = Path(scene).stem
+    exclude_hash = new.input_hash
     with Store(default_path(design, o.store)) as store:
-        runs = _usable(store.runs(design_path=design, scene_name=scene_name))
+        every = _usable(store.runs(design_path=design, scene_name=scene_name))
+        runs = _usable(store.runs(design_path=design, scene_name=scene_name, condition_sha256=new.condition))
     if not runs:
-        raise InputError(f"no stored run of scene {scene_name!r} for this design", file=str(design),
-                         field="--against", valid="simulate a revision first, or compare two result folders")
+        other = f"; {len(every)} stored runs of it have another test condition (its source, detector, effects " \
+                "or objects were changed since)" if every else ""
+        raise InputError(f"no stored run of scene {scene_name!r} for this design and test condition{other}",
+                         file=str(design), field="--against",
+                         valid="simulate a revision first, or compare two result folders")
     pick: RunRecord | None
     if against == "last":
         others = [r for r in runs if r.input_hash != exclude_hash]
@@ -206,7 +214,7 @@ def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None,
         commits = sorted({r.git_commit[:10] for r in runs if r.git_commit})
         raise InputError(f"no stored run matches {against!r}", file=str(design), field="--against",
                          valid="last, best, or a stored git revision: " + (", ".join(commits) or "(none stored)"))
-    return RunSource("old", _stored_folder(pick), pick, pick.input_hash, against)
+    return RunSource("old", _stored_folder(pick), pick, pick.input_hash, pick.condition_sha256, against)
 
 
 def plan(options: CompareOptions) -> tuple[RunSource, RunSource]:
@@ -223,7 +231,7 @@ def plan(options: CompareOptions) -> tuple[RunSource, RunSource]:
             raise InputError("--against takes one design folder and --scene", field="--against",
                              valid="lensmount compare DESIGN --scene S --against last|best|REV")
         new = plan_current(a, o.scene, o)
-        return stored_run(a, o.scene, o.against, new.input_hash, o), new
+        return stored_run(a, o.scene, o.against, new, o), new
     if o.b is None:
         raise InputError("compare needs two runs", field="B",
                          valid="two result folders, two design folders with --scene, or one design with --against")

@@ -105,6 +105,11 @@ def condition_record(spec) -> dict:
     return flatten(spec.model_dump(mode="json", include={"source", "detector", "effects", "objects"}))
 
 
+def condition_sha256(spec) -> str:
+    """The hash of a scene's test condition (`condition_record`): what runs must share to compare."""
+    return digest(condition_record(spec))
+
+
 def digest(record: dict) -> str:
     """SHA-256 of a flat record (key order free)."""
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
@@ -240,4 +245,4 @@ def collect(design, spec, scene_path: str | Path, argv: list[str] | None = None)
         design=design_record(design))
 
 
-__all__ = ["Provenance", "GitState", "collect", "condition_record", "condition_changes", "design_changes", "design_record", "digest", "flatten", "user_files", "git_state", "commit_order", "resolve_revision", "file_sha256"]
+__all__ = ["Provenance", "GitState", "collect", "condition_record", "condition_sha256", "condition_changes", "design_changes", "design_record", "digest", "flatten", "user_files", "git_state", "commit_order", "resolve_revision", "file_sha256"]

@@ -17,7 +17,7 @@ from pathlib import Path
 from lensmount.errors import InputError
 from lensmount.run.executor import local_cluster_size
 from lensmount.loop.prepare import build
-from lensmount.loop.provenance import collect
+from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
 
 METHODS = ("bidirectional", "forward")
 CHECKPOINT = "checkpoint.npz"
@@ -158,13 +158,11 @@ def input_hash(design, spec, **params) -> str:
     scene's source, detector, effects and objects, not its run length) and the estimator's
     parameters. Runs with equal hashes differ only by noise; a longer run of the same design and
     test condition has the same hash, so the store finds it whatever its length."""
-    from lensmount.loop.provenance import condition_record, digest, file_sha256, user_files
-
     h = hashlib.sha256()
     h.update(design.input_hash.encode())
     for path in ([design.finishes_path] if design.finishes_path else []) + user_files(design):
         h.update(f"{path.name} {file_sha256(path)}\n".encode())
-    h.update(digest(condition_record(spec)).encode())
+    h.update(condition_sha256(spec).encode())
     for k in sorted(params):
         h.update(f"{k}={params[k]!r}".encode())
     return h.hexdigest()[:16]

@@ -62,11 +62,14 @@ CREATE TABLE IF NOT EXISTS runs (
     out_dir TEXT NOT NULL,
     summary_path TEXT NOT NULL,
     image_path TEXT NOT NULL,
-    preview_path TEXT NOT NULL
+    preview_path TEXT NOT NULL,
+    condition_sha256 TEXT
 );
 CREATE INDEX IF NOT EXISTS runs_by_design ON runs (design_path, scene_name);
 CREATE INDEX IF NOT EXISTS runs_by_input ON runs (input_hash);
 """
+# Columns added since the first schema: (name, SQL type); a store made before gets them (NULL in old rows).
+_ADDED = (("condition_sha256", "TEXT"),)
 
 
 @dataclass(frozen=True)
@@ -102,6 +105,7 @@ class RunRecord:
     summary_path: str
     image_path: str
     preview_path: str
+    condition_sha256: str | None = None  # the test condition (provenance.condition_sha256); None: an older row
 
     @classmethod
     def from_row(cls, row: sqlite3.Row) -> "RunRecord":
@@ -133,6 +137,14 @@ class Store:
             self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
             self.db.execute("PRAGMA journal_mode = WAL")
             self.db.executescript(_SCHEMA)
+            have = {row["name"] for row in self.db.execute("PRAGMA table_info(runs)")}
+            for name, kind in _ADDED:
+                if name not in have:
+                    try:
+                        self.db.execute(f"ALTER TABLE runs ADD COLUMN {name} {kind}")
+                    except sqlite3.OperationalError as exc:  # another process added it a moment ago
+                        if "duplicate column" not in str(exc):
+                            raise
         except (OSError, sqlite3.Error) as exc:
             raise InputError(f"cannot open the results store ({exc})", file=str(self.path), field="--store",
                              valid=f"a writable SQLite file path (--store PATH or ${ENV})") from None
@@ -155,6 +167,7 @@ class Store:
                                  "mount_sha256", "scene_sha256", "git_commit", "git_commit_time",
                                  "lensmount_version", "command_line")},
             "git_dirty": None if p["git_dirty"] is None else int(p["git_dirty"]),
+            "condition_sha256": p.get("condition_sha256") or None,
             "input_hash": summary["input_hash"], "method": summary["method"], "seed": summary["seed"],
             "passes": summary["passes"], "photons": summary["photons"], "time_s": summary["time_s"],
             "stray_fraction": summary.get("stray_fraction"),
@@ -196,8 +209,9 @@ class Store:
         return folder
 
     def runs(self, design_path: str | Path | None = None, scene_name: str | None = None,
-             input_hash: str | None = None) -> list[RunRecord]:
-        """Stored runs matching the filters, oldest first."""
+             input_hash: str | None = None, condition_sha256: str | None = None) -> list[RunRecord]:
+        """Stored runs matching the filters, oldest first (`condition_sha256`: runs of that test
+        condition, and older rows that did not record theirs)."""
         where, args = [], []
         if design_path is not None:
             where.append("design_path = ?")
@@ -208,6 +222,9 @@ class Store:
         if input_hash is not None:
             where.append("input_hash = ?")
             args.append(input_hash)
+        if condition_sha256 is not None:
+            where.append("(condition_sha256 = ? OR condition_sha256 IS NULL)")
+            args.append(condition_sha256)
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
         return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
 
