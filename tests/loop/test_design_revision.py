@@ -182,3 +182,24 @@ def test_against_takes_only_stored_runs_of_the_same_test_condition(design, tmp_p
     assert result.exit_code == 2 and "2 stored runs of it have another test condition" in result.output, result.output
     history = CliRunner().invoke(app, ["history", str(design), "--scene", CASE2])
     assert history.exit_code == 0 and "test condition changed between these runs" in history.output, history.output
+
+
+@pytest.mark.slow  # two regenerates of the Cooke triplet and two short runs
+def test_a_real_paint_change_from_5_to_20_percent_is_a_regression_named_as_a_finish_change(tmp_path, monkeypatch):
+    """Case 2 on the Cooke triplet (a small detector, 4 short passes each): the same lens and mount,
+    the black paint at 5 % and at 20 %. Single scattering off the paint grows with its reflectance,
+    so the stray fraction about quadruples: a regression (exit 1) listed as the finish change."""
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    designs = []
+    for name, reflectance in (("paint-5", "0.05"), ("paint-20", "0.20")):
+        folder = tmp_path / name
+        shutil.copytree(EXAMPLE.parent / "cooke-triplet", folder, ignore=shutil.ignore_patterns("build", ".lensmount"))
+        _edit(folder / "finishes.toml", "reflectance = 0.05", f"reflectance = {reflectance}")
+        _edit(folder / "scenes" / f"{CASE2}.toml", "pixels = [360, 240]", "pixels = [36, 24]")
+        designs.append(folder)
+    result = _compare(*designs, "--scene", CASE2, "--passes", "4", "--photons-per-pass", "5000", "--workers", "1")
+    assert result.exit_code == 1, result.output
+    assert "finish black-paint: reflectance 0.05 -> 0.2" in result.output
+    report = json.loads(next((designs[1] / ".lensmount" / "runs").glob(f"{CASE2}-*/compare/compare.json")).read_text())
+    assert report["design_changes"] == ["finish black-paint: reflectance 0.05 -> 0.2"]
+    assert 2.5 < report["new"] / report["old"] < 5.0  # about 4x: single scatter dominates at 5-20 %

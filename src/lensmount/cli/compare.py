@@ -93,7 +93,7 @@ def compare(
     console = Console()
     for note in result.notes:
         console.print(f"note: {note}", style="yellow")
-    typer.echo("design changes: " + ("none" if not result.design_changes else ""))
+    typer.echo("design changes:" + ("" if result.design_changes else " none"))
     for change in result.design_changes:
         typer.echo(f"  {change}")
     table = Table(title=f"{result.metric}: old {result.old.folder} → new {result.new.folder}; tolerance "
