@@ -1,6 +1,6 @@
 """The ghosts channel: deterministic ghost routes vs the stochastic reflection branch, same error.
 
-Scene: the uncoated Cooke triplet's ghost scene (examples/cooke-triplet/scenes/ghosts-uncoated.toml:
+Scene: the uncoated Cooke triplet's ghost scene (examples/cooke-triplet-uncoated/scenes/ghosts-uncoated.toml:
 sun 10° off axis, bare glass, black mount), forward passes of the scene's photons per pass.
 
 Figures printed, each as seconds to 1 % relative error of the `ghosts` channel (time per pass ×
@@ -13,7 +13,7 @@ the passes' relative variance / 0.01², passes being independent):
 and the ratios 1 / 3 (end to end) and 1 / 2 (the two-reflection part alone).
 
 `python benchmarks/bench_ghosts.py [passes] [design scene photons_per_pass]` (default 6 per mode on
-the Cooke triplet; e.g. `6 double-gauss-360 ghosts-mgf2.toml 200000` for the reference design).
+the uncoated Cooke triplet; e.g. `6 double-gauss-360-mgf2 ghosts-mgf2.toml 200000` for the reference design).
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def _cost(run_pass, passes: int) -> tuple[float, float, float]:
     return per_pass, mean, per_pass * rel_var / TARGET ** 2
 
 
-def main(passes: int = 6, design: str = "cooke-triplet", scene_file: str = "ghosts-uncoated.toml",
+def main(passes: int = 6, design: str = "cooke-triplet-uncoated", scene_file: str = "ghosts-uncoated.toml",
          photons: int | None = None) -> dict:
     from lensmount.integrators.estimate import EnergyLedger, Film, film_channels
     from lensmount.integrators.forward import Forward

@@ -40,6 +40,7 @@ def _reference():
     from lensmount.cad.pipeline import regenerate
     from lensmount.mesh import TaggedMesh
     from lensmount.design.lens import load_lens
+    from lensmount.design.finishes import load_finishes
     from lensmount.design.scene import load_scene
     from lensmount.scene.build import build_scene
 
@@ -48,7 +49,7 @@ def _reference():
     out = Path(tempfile.gettempdir()) / "lensmount-bench-trace"  # regenerate's cache makes reruns fast
     manifest = regenerate(design, out)
     mesh = TaggedMesh.load(out / manifest.mesh)
-    spec = load_scene(design / "scenes" / "case2-lambertian.toml")
+    spec = load_scene(design / "scenes" / "case2-lambertian.toml", load_finishes(design))
     return p, mesh, build_scene(p, mesh, spec)
 
 

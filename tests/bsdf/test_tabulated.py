@@ -98,6 +98,22 @@ def test_a_rising_table_is_refused():
         make_bsdf("tabulated", rho=[0.01, 0.1], brdf=[0.01, 0.02])
 
 
+def test_design_finish_from_a_measurement_relative_to_the_design_folder(tmp_path):
+    from lensmount.design.finishes import load_finishes
+
+    (tmp_path / "data").mkdir()
+    _zemax_file(tmp_path / "data" / "paint.bsdf", abg)
+    (tmp_path / "finishes.toml").write_text('[finishes]\npaint = { model = "tabulated", file = "data/paint.bsdf" }\n'
+                                            '[assign]\n"*" = "paint"\n')
+    table = load_finishes(tmp_path).finishes["paint"]  # the table read in, not the file name
+    assert make_bsdf(**table).tis == pytest.approx(make_bsdf("abg", A=A, B=B, g=G).tis, rel=0.05)
+    (tmp_path / "finishes.toml").write_text('[finishes]\npaint = { model = "tabulated", file = "paint.bsdf" }\n')
+    with pytest.raises(InputError) as e:
+        load_finishes(tmp_path)
+    assert e.value.field == "finishes.paint.file" and e.value.file == str(tmp_path / "finishes.toml")
+    assert e.value.line == 2
+
+
 def test_scene_file_finish_from_a_measurement(tmp_path):
     from lensmount.design.scene import scene_from_dict
 

@@ -40,14 +40,15 @@ def _init(tmp_path: Path, lens: Path):
     return design, result
 
 
-def test_mirror_lens_gets_a_catadioptric_mount_toml_and_a_scene_without_a_diaphragm_rule(tmp_path):
+def test_mirror_lens_gets_a_catadioptric_mount_toml_and_finishes_without_a_diaphragm_rule(tmp_path):
     design, result = _init(tmp_path, CORPUS / "HoO-V2C18Ex03.zmx")
     assert result.exit_code == 0, result.output
     mount = tomllib.loads((design / "mount.toml").read_text())
     assert "does not build" not in (design / "mount.toml").read_text()   # the planner and checks passed
     assert mount["hood"]["enabled"] is False and mount["housing"]["enabled"] is False
-    scene = tomllib.loads((design / "scenes" / "case2-lambertian.toml").read_text())
-    assert scene["assign"] == {"*": "lambert-5"}   # no diaphragm in a catadioptric mount
+    finishes = tomllib.loads((design / "finishes.toml").read_text())
+    assert "role:diaphragm-edge" not in finishes["assign"]   # no diaphragm in a catadioptric mount
+    assert finishes["assign"]["*"] == "lambert-5"
 
 
 def test_derived_mount_and_scene_load_and_follow_the_lens(tmp_path):
@@ -58,9 +59,10 @@ def test_derived_mount_and_scene_load_and_follow_the_lens(tmp_path):
     from lensmount.design.folder import load_design
     from lensmount.design.scene import load_scene
 
-    d = load_design(design)                              # mount.toml validates (unknown keys are errors)
+    d = load_design(design)                              # mount.toml and finishes.toml validate
+    assert d.finishes.assign == {"*": "lambert-5", "role:diaphragm-edge": "absorber"}  # the seed paper's case 2
     scene_file = d.scenes["case2-lambertian"]
-    load_scene(scene_file)
+    load_scene(scene_file, d.finishes)
     p = d.prescription
     # sun 5° outside the field, at the hood's exclusion angle
     raw = tomllib.loads(scene_file.read_text())

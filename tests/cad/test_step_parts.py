@@ -134,7 +134,7 @@ def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path)
     assert res.exit_code == 0, res.output
     summary = json.loads((out / "summary.json").read_text())
     assert math.isfinite(summary["stray_fraction"]) if "stray_fraction" in summary else True
-    assert list(summary["provenance"]["step_sha256"]) == ["housing.step"]
+    assert "file.housing.step" in summary["provenance"]["design"]  # the STEP file is part of the revision
     res = runner.invoke(app, ["paths", str(out), "--faces", "--top", "200"])
     assert res.exit_code == 0, res.output
     assert "housing face" in res.output and "'bore'" in res.output, res.output
@@ -308,20 +308,15 @@ def test_mount_entry_errors_name_file_and_field(tmp_path):
 
 def test_the_step_file_is_part_of_the_design(tmp_path):
     from lensmount.design.folder import load_design
-    from lensmount.loop.compare import input_changes
-    from lensmount.loop.provenance import collect
+    from lensmount.loop.provenance import design_changes, design_record
 
     design = make_design(tmp_path / "d", '[parts.housing]\nstep = "housing.step"\n', [("x", _box(), {}, {}, {})])
     before = load_design(design)
-    p0 = collect(design, before.lens_path, before.mount_path, design / "scenes" / "case2-lambertian.toml",
-                 step_paths=list(before.step_paths.values()), argv=[]).to_dict()
     write_step(design / "housing.step", [("x", _box(11.0), {}, {}, {})])  # a new export
     after = load_design(design)
-    p1 = collect(design, after.lens_path, after.mount_path, design / "scenes" / "case2-lambertian.toml",
-                 step_paths=list(after.step_paths.values()), argv=[]).to_dict()
     assert before.input_hash != after.input_hash
-    assert input_changes(p0, p1) == ["housing.step changed"]
-    assert input_changes(p0, p0) == []
+    assert design_changes(design_record(before), design_record(after)) == ["file housing.step: changed"]
+    assert design_changes(design_record(before), design_record(before)) == []
 
 
 def _box(size: float = 10.0):

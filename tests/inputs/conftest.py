@@ -17,7 +17,7 @@ EXAMPLES = ROOT / "examples"
 
 # A scene for the cooke triplet's 36 × 24 mm housing, small enough to run in a second.
 SCENE = """\
-description = "cooke triplet, case 1 finishes"
+description = "cooke triplet, the sun at 25°"
 
 [source]
 type = "sun"
@@ -29,17 +29,20 @@ width_mm = 36.0
 height_mm = 24.0
 pixels = [12, 8]
 
+[run]
+photons = 2000
+passes = 1
+seed = 1
+"""
+
+# The design's finishes for these tests (DESIGN/finishes.toml): case 1's, only the diaphragm edge scatters.
+FINISHES = """\
 [finishes]
 edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
 
 [assign]
 "*" = "absorber"
 "role:diaphragm-edge" = "edge-lambert-10"
-
-[run]
-photons = 2000
-passes = 1
-seed = 1
 """
 
 OUTPUTS = ("summary.json", "irradiance.exr", "preview.png", "checkpoint.npz")
@@ -61,13 +64,14 @@ def cooke_built(tmp_path_factory):
 
 @pytest.fixture
 def cooke(cooke_built, tmp_path):
-    """A fresh copy of the design (with its cached geometry in build/ and scenes/test.toml) and
-    an out folder that does not exist yet."""
+    """A fresh copy of the design (with its cached geometry in build/, finishes.toml = FINISHES and
+    scenes/test.toml) and an out folder that does not exist yet."""
     design, _ = cooke_built
     mine = tmp_path / "design"
     shutil.copytree(design, mine)
     (mine / "scenes").mkdir(exist_ok=True)
     (mine / "scenes" / "test.toml").write_text(SCENE)
+    (mine / "finishes.toml").write_text(FINISHES)
     return mine, tmp_path / "out"
 
 

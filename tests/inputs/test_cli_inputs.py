@@ -21,10 +21,10 @@ def _one_paragraph(res) -> str:
 
 def test_misspelt_selector_lists_what_the_mesh_holds(cooke):
     design, out = cooke
-    scene = design / "scenes" / "test.toml"
-    line = edit(scene, '"role:diaphragm-edge"', '"role:diafragm-edge"')
+    finishes = design / "finishes.toml"
+    line = edit(finishes, '"role:diaphragm-edge"', '"role:diafragm-edge"')
     text = _one_paragraph(simulate(design, out))
-    assert str(scene) in text and f"line {line}" in text and "field 'assign.role:diafragm-edge'" in text
+    assert str(finishes) in text and f"line {line}" in text and "field 'assign.role:diafragm-edge'" in text
     assert "matches no face" in text and "did you mean 'role:diaphragm-edge'" in text
     # What exists: the parts, roles, kinds and finishes of the cooke-triplet mesh.
     for word in ("part: ", "barrel", "lens-1", "housing", "role: ", "diaphragm-edge", "lens-edge",
@@ -68,26 +68,43 @@ def test_mount_finish_for_a_part_that_does_not_exist(cooke_built):
     check_finish_parts(parse_mount({"finishes": {"vane-1": "mirror"}}), parts)  # an existing part is fine
 
 
-def test_mount_finish_defined_by_the_scene_is_accepted():
-    """A mount may name a label the scene defines or re-assigns: not an error (the check can pass)."""
+def test_mount_finish_defined_by_the_design_finishes_is_accepted():
+    """A mount may name a label finishes.toml defines or re-assigns: not an error (the check can pass)."""
+    from lensmount.design.finishes import Finishes
     from lensmount.design.mount import parse_mount
-    from lensmount.design.scene import check_mount_finishes, scene_from_dict
-    from tests.inputs.conftest import SCENE
+    from lensmount.design.finishes import check_mount_finishes
+    from tests.inputs.conftest import FINISHES
     import tomllib
 
     mount = parse_mount({"barrel": {"finish": "matt-black"}}, file="mount.toml")
-    data = tomllib.loads(SCENE)
-    finishes = data["finishes"] | {"matt-black": {"model": "absorber"}}
-    check_mount_finishes(scene_from_dict(data | {"finishes": finishes}), mount)
-    check_mount_finishes(scene_from_dict(data | {"assign": data["assign"] | {"finish:matt-black": "absorber"}}), mount)
+    data = tomllib.loads(FINISHES)
+    check_mount_finishes(Finishes(**data | {"finishes": data["finishes"] | {"matt-black": {"model": "absorber"}}}),
+                         mount)
+    check_mount_finishes(Finishes(**data | {"assign": data["assign"] | {"finish:matt-black": "absorber"}}), mount)
 
 
-def test_undefined_scene_finish_names_the_line(cooke):
+def test_undefined_design_finish_names_the_line(cooke):
+    design, out = cooke
+    finishes = design / "finishes.toml"
+    line = edit(finishes, '"*" = "absorber"', '"*" = "black-anodized"')
+    msg = _one_paragraph(simulate(design, out))
+    assert str(finishes) in msg and f"line {line}" in msg and "field 'assign.*'" in msg and "black-anodised" in msg
+    assert wrote_nothing(out)
+
+
+def test_a_scene_file_with_finishes_says_how_to_move_them(cooke):
+    """The layout before finishes moved to the design: one paragraph naming the tables, the scene
+    file and where they go (DESIGN/finishes.toml); exit 2, nothing written."""
+    from tests.inputs.conftest import FINISHES
+
     design, out = cooke
     scene = design / "scenes" / "test.toml"
-    line = edit(scene, '"*" = "absorber"', '"*" = "black-anodized"')
+    scene.write_text(scene.read_text().replace("[run]", FINISHES + "\n[run]"))
+    line = scene.read_text().splitlines().index("[finishes]") + 1
     msg = _one_paragraph(simulate(design, out))
-    assert f"line {line}" in msg and "field 'assign.*'" in msg and "black-anodised" in msg
+    assert str(scene) in msg and f"line {line}" in msg and "field 'finishes'" in msg
+    assert "[finishes], [assign]" in msg and f"into {design.absolute() / 'finishes.toml'}" in msg
+    assert "delete them from every scene file" in msg
     assert wrote_nothing(out)
 
 

@@ -79,12 +79,12 @@ def test_selectors_pick_the_faces_they_name(cooke_built):
     ('"finish:black-anodised"', "finish:black-anodised", ["absorber", "edge-lambert-10"]),
 ])
 def test_unknown_scatterer_is_one_paragraph_exit_2(cooke, selector, field_word, listed):
-    """The test scene assigns every face absorber or edge-lambert-10: no face has black-anodised."""
+    """The test design assigns every face absorber or edge-lambert-10: no face has black-anodised."""
     design, out = cooke
     scene = design / "scenes" / "test.toml"
     text = scene.read_text()
-    scene.write_text(text.replace("[finishes]", f"[effects]\nscatter = [{selector}]\n\n[finishes]", 1))
-    line = text[: text.index("[finishes]")].count("\n") + 2
+    scene.write_text(text.replace("[run]", f"[effects]\nscatter = [{selector}]\n\n[run]", 1))
+    line = text[: text.index("[run]")].count("\n") + 2
     res = simulate(design, out)
     assert res.exit_code == 2 and "Traceback" not in res.output, res.output
     msg = [ln for ln in res.output.splitlines() if ln.startswith("error: ")][0]

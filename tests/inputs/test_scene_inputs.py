@@ -26,22 +26,36 @@ def _mount_parts() -> TaggedMesh:
     return TaggedMesh.concatenate([barrel, edge])
 
 
-def _write(tmp_path, data) -> str:
+def _write(tmp_path, data):
+    """DESIGN/scenes/scene.toml with the test condition, DESIGN/finishes.toml with the treatment
+    tables of `data`; the scene file's path."""
     import tomli_w
 
-    path = tmp_path / "scene.toml"
+    design = tmp_path / "design"
+    (design / "scenes").mkdir(parents=True, exist_ok=True)
+    treatment = {k: data.pop(k) for k in ("finishes", "coatings", "assign") if k in data}
+    (design / "finishes.toml").write_text(tomli_w.dumps(treatment))
+    path = design / "scenes" / "scene.toml"
     path.write_text(tomli_w.dumps(data))
     return path
 
 
+def _load(path):
+    """The scene file with its design's finishes, as simulate reads it."""
+    from lensmount.design.finishes import load_finishes
+
+    return load_scene(path, load_finishes(path.parent.parent))
+
+
 def test_selector_that_matches_nothing_names_its_line_in_build_scene(tmp_path):
     path = _write(tmp_path, scene_dict(assign={"*": "absorber", "role:diafragm-edge": "ground-glass"}))
-    spec = load_scene(path)
+    spec = _load(path)
     with pytest.raises(InputError) as err:
         build_scene(air_plane(), _mount_parts(), spec)
     e = err.value
-    line = path.read_text().splitlines().index('"role:diafragm-edge" = "ground-glass"') + 1
-    assert e.file == str(path) and e.line == line and e.field == "assign.role:diafragm-edge"
+    finishes = path.parent.parent / "finishes.toml"
+    line = finishes.read_text().splitlines().index('"role:diafragm-edge" = "ground-glass"') + 1
+    assert e.file == str(finishes) and e.line == line and e.field == "assign.role:diafragm-edge"
     assert "did you mean 'role:diaphragm-edge'" in e.detail
     assert e.valid.startswith("part: barrel, diaphragm; role: diaphragm-edge, mount; kind: barrel, diaphragm; "
                               "finish: black-anodised")
@@ -65,8 +79,9 @@ def test_undefined_mount_finish_without_a_rule_is_an_error_not_an_absorber():
 def test_coating_for_a_surface_the_lens_does_not_have(tmp_path):
     path = _write(tmp_path, scene_dict(coatings={"default": "perfect-ar", "surface-7": "uncoated"}))
     with pytest.raises(InputError) as err:
-        build_scene(air_plane(), _mount_parts(), load_scene(path))
+        build_scene(air_plane(), _mount_parts(), _load(path))
     assert err.value.field == "coatings.surface-7" and err.value.line is not None and "surface-1" in err.value.valid
+    assert err.value.file == str(path.parent.parent / "finishes.toml")
 
 
 @pytest.mark.parametrize("patch,field,words", [
@@ -86,7 +101,7 @@ def test_coating_for_a_surface_the_lens_does_not_have(tmp_path):
 def test_values_that_would_be_ignored(tmp_path, patch, field, words):
     path = _write(tmp_path, scene_dict(**patch))
     with pytest.raises(InputError) as err:
-        load_scene(path)
+        _load(path)
     assert err.value.field == field and words in err.value.detail and err.value.line is not None
 
 
@@ -97,7 +112,7 @@ def test_a_collimated_source_without_sun_keys_is_fine():
 def test_a_point_source_needs_a_finite_object_or_a_plane(tmp_path):
     path = _write(tmp_path, scene_dict(source={"type": "point", "height_mm": 2.0}))
     with pytest.raises(InputError) as err:
-        build_scene(air_plane(), _mount_parts(), load_scene(path))  # the lens's object is at infinity
+        build_scene(air_plane(), _mount_parts(), _load(path))  # the lens's object is at infinity
     assert err.value.field == "source.z_mm" and "object at infinity" in err.value.detail
     assert err.value.file == str(path) and err.value.line is not None
     stopped = air_plane().with_surfaces([replace(air_plane().surfaces[0], is_stop=True, radius=100.0)])
@@ -156,7 +171,7 @@ def test_object_named_like_a_part_would_refinish_it(tmp_path, names):
                for n in names]
     path = _write(tmp_path, scene_dict(objects=objects))
     with pytest.raises(InputError) as err:
-        build_scene(air_plane(), _mount_parts(), load_scene(path))
+        build_scene(air_plane(), _mount_parts(), _load(path))
     assert err.value.field == f"objects.{len(names) - 1}.name" and err.value.line is not None
     assert f"'{names[-1]}' is already taken" in err.value.detail
 

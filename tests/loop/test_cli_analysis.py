@@ -17,7 +17,7 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "lensmount" / "examples
 @pytest.mark.slow  # a cold regenerate of the triplet and its tracer
 def test_ghosts_of_the_uncoated_cooke_triplet(tmp_path):
     design = tmp_path / "cooke"
-    shutil.copytree(EXAMPLES / "cooke-triplet", design)
+    shutil.copytree(EXAMPLES / "cooke-triplet-uncoated", design)
     out = tmp_path / "ghosts"
     result = CliRunner().invoke(app, ["ghosts", str(design), "--scene", str(design / "scenes" / "ghosts-uncoated.toml"),
                                       "--out", str(out), "--rays-across", "41", "--top", "3"])

@@ -25,15 +25,16 @@ angular_diameter_deg = 0.53
 width_mm = 44.5
 height_mm = 44.5
 pixels = [40, 40]
-[finishes]
-lambert-5 = { model = "lambertian", reflectance = 0.05 }
-[assign]
-"*" = "lambert-5"
-"role:diaphragm-edge" = "absorber"
 [run]
 photons = 50_000
 passes = 16
 seed = 1
+"""
+CASE2_FINISHES = """[finishes]
+lambert-5 = { model = "lambertian", reflectance = 0.05 }
+[assign]
+"*" = "lambert-5"
+"role:diaphragm-edge" = "absorber"
 """
 
 
@@ -42,6 +43,7 @@ def _design(tmp_path, name="design", mount_edit=None) -> Path:
     shutil.copytree(EXAMPLE, design, ignore=shutil.ignore_patterns("build", ".lensmount", "scenes"))
     (design / "scenes").mkdir()
     (design / "scenes" / "small2.toml").write_text(SMALL_CASE2)
+    (design / "finishes.toml").write_text(CASE2_FINISHES)
     if mount_edit:
         mount = design / "mount.toml"
         mount.write_text(mount_edit(mount.read_text()))
@@ -64,8 +66,9 @@ def test_runs_with_different_seeds_are_not_a_regression(tmp_path):
 
     design = _design(tmp_path)
     built = regenerate(RegenerateOptions(design))
-    sc = build_scene(load_design(design).prescription, TaggedMesh.load(built.folder / built.manifest.mesh),
-                     load_scene(design / "scenes" / "small2.toml"))
+    loaded = load_design(design)
+    sc = build_scene(loaded.prescription, TaggedMesh.load(built.folder / built.manifest.mesh),
+                     load_scene(design / "scenes" / "small2.toml", loaded.finishes))
     tracer = Tracer(sc)
 
     def run(seed: int) -> Measurement:

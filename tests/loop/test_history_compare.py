@@ -9,7 +9,6 @@ import pytest
 from typer.testing import CliRunner
 
 from lensmount.cli import app
-from lensmount.design.folder import load_design
 from lensmount.loop.provenance import collect, resolve_revision
 from lensmount.run.results import read_exr
 from lensmount.run.store import Store
@@ -26,7 +25,9 @@ def _repo(tmp_path):
 
 
 def _provenance(repo, scene) -> dict:
-    return collect(repo, repo / "lens.toml", repo / "mount.toml", scene, argv=["lensmount"]).to_dict()
+    from lensmount.loop.prepare import read_inputs
+
+    return collect(*read_inputs(repo, scene), scene, argv=["lensmount"]).to_dict()
 
 
 def _record(repo, value, folder, store_path):
@@ -136,7 +137,7 @@ def test_bad_options_exit_2(tmp_path, args, field):
 def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, monkeypatch):
     # The current design state was simulated before (same input hash in the store): compare must
     # reuse that run, not simulate again, and take the old one from the store by git revision.
-    from lensmount.design.scene import load_scene
+    from lensmount.loop.prepare import read_inputs
     from lensmount.loop.simulate import SimulateOptions, planned_input_hash
 
     monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
@@ -151,16 +152,18 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
         store.record(write_run(tmp_path / "old", 1e-3, 1e-5, prov=prov, input_hash="old"), paths(tmp_path / "old"))
     (repo / "mount.toml").write_text((repo / "mount.toml").read_text() + "\n# new revision\n")
     git(repo, "commit", "-qam", "new")
-    design = load_design(repo)
-    digest = planned_input_hash(SimulateOptions(repo, scene), design, load_scene(scene))
+    digest = planned_input_hash(SimulateOptions(repo, scene), *read_inputs(repo, scene))
     with Store(store_path) as store:
         store.record(write_run(tmp_path / "new", 2e-3, 1e-5, prov=_provenance(repo, scene),
                                input_hash=digest), paths(tmp_path / "new"))
     result = _compare(repo, "--scene", SCENE, "--against", "HEAD~1")
     assert result.exit_code == 1, result.output
-    report = json.loads((tmp_path / "new" / "compare" / "compare.json").read_text())
-    assert report["old_run"] == str((tmp_path / "old").resolve()) and report["new_run"] == str((tmp_path / "new").resolve())
+    rows = repo / ".lensmount" / "rows"  # each row's own copy of its artefacts
+    report = json.loads((rows / "2" / "compare" / "compare.json").read_text())
+    assert report["old_run"] == str(rows / "1") and report["new_run"] == str(rows / "2")
     assert report["old"] == 1e-3 and report["new"] == 2e-3
+    assert f"old: stored run 1 (HEAD~1;" in result.output and "new: stored run 2 (same design and test condition;" \
+        in result.output  # said before it compares
     assert not (repo / "build").exists()  # nothing was simulated
     assert resolve_revision(repo, "HEAD~1") == old_commit and resolve_revision(repo, "nonsense") is None
     bad = _compare(repo, "--scene", SCENE, "--against", "deadbeef")

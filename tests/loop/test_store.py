@@ -19,8 +19,29 @@ def test_record_round_trips(tmp_path):
     assert row.id == rid and row.stray_fraction == 1.5e-3 and row.stray_fraction_std_error == 2e-5
     assert row.stray_fraction_bias_bound == 4e-6
     assert row.per_part["barrel"]["fraction"] == 1.5e-3
-    assert row.summary_path == str((tmp_path / "r" / "summary.json").resolve())
+    assert row.summary_path == str(tmp_path.resolve() / "rows" / str(rid) / "summary.json")
     assert row.lens_sha256 == "l" * 64 and row.git_commit is None and row.git_dirty is None
+
+
+def test_a_row_keeps_its_own_artefacts_when_the_run_folder_is_rewritten(tmp_path):
+    """`simulate --resume` into the same --out rewrites that folder; the earlier row's files must
+    still hold the earlier run (they are the row's own copy)."""
+    import json
+
+    from lensmount.run.results import read_exr
+
+    run = tmp_path / "out"
+    with Store(tmp_path / "store" / "runs.sqlite") as store:
+        first = store.record(write_run(run, 1.0e-3, 1e-5, passes=4), paths(run))
+        second = store.record(write_run(run, 1.2e-3, 1e-5, passes=8), paths(run))  # the resumed run, same folder
+        rows = {r.id: r for r in store.runs()}
+    for rid, value, passes in ((first, 1.0e-3, 4), (second, 1.2e-3, 8)):
+        row = rows[rid]
+        assert row.out_dir == str(tmp_path.resolve() / "store" / "rows" / str(rid))
+        summary = json.loads(open(row.summary_path).read())
+        assert (summary["stray_fraction"], summary["passes"]) == (value, passes)
+        assert read_exr(row.image_path)["Y"].max() == value and os.path.isfile(row.preview_path)
+    assert sorted(os.listdir(tmp_path / "store" / "rows")) == [str(first), str(second)]  # no partial folder left
 
 
 def test_store_location(tmp_path, monkeypatch):
@@ -79,4 +100,24 @@ def test_two_processes_writing_at_once_both_land(tmp_path):
     with Store(db) as store:
         runs = store.runs()
     assert len(runs) == 50 and len({r.id for r in runs}) == 50
-    assert sorted({r.out_dir for r in runs}) == sorted(str((tmp_path / f"r{i}").resolve()) for i in range(2))
+    assert sorted({r.design_path for r in runs}) == sorted(str((tmp_path / f"r{i}").resolve()) for i in range(2))
+    assert all(r.out_dir == str(tmp_path.resolve() / "rows" / str(r.id)) and os.path.isfile(r.summary_path)
+               for r in runs)  # every row got its own copy
+
+
+def test_a_store_made_before_the_test_condition_column_opens_and_records(tmp_path):
+    import sqlite3
+
+    path = tmp_path / "runs.sqlite"
+    with Store(path) as store:
+        store.record(write_run(tmp_path / "r", 1.0, 0.1), paths(tmp_path / "r"))
+        store.db.execute("ALTER TABLE runs DROP COLUMN condition_sha256")  # the first schema
+    assert "condition_sha256" not in {r[1] for r in sqlite3.connect(path).execute("PRAGMA table_info(runs)")}
+    summary = write_run(tmp_path / "s", 2.0, 0.1)
+    summary["provenance"]["condition_sha256"] = "c" * 64
+    with Store(path) as store:
+        store.record(summary, paths(tmp_path / "s"))
+        old, new = store.runs()
+        assert (old.condition_sha256, new.condition_sha256) == (None, "c" * 64)
+        assert [r.id for r in store.runs(condition_sha256="c" * 64)] == [old.id, new.id]  # an old row may match
+        assert store.runs(condition_sha256="d" * 64) == [old]

@@ -15,6 +15,7 @@ import pytest
 from lensmount.analysis.passes import Accumulator
 from lensmount.cad.pipeline import regenerate
 from lensmount.mesh import TaggedMesh
+from lensmount.design.finishes import load_finishes
 from lensmount.design.folder import load_design
 from lensmount.design.scene import scene_from_dict
 from lensmount.integrators.bidirectional import bidirectional_pass
@@ -25,6 +26,8 @@ from lensmount.trace.tracer import Tracer
 
 pytestmark = pytest.mark.slow
 DESIGN = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"
+# case 3 is the same lens and mount with another paint: a design of its own (its finishes.toml)
+DESIGN_OF = {"case3-gaussian": DESIGN.parent / "double-gauss-360-gaussian-paint"}
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +39,9 @@ def reference(tmp_path_factory):
 
 def _scene(reference, case, pixels=60, off_axis_deg=None, azimuth_deg=None, **finish_override):
     lens, mesh = reference
-    path = DESIGN / "scenes" / f"{case}.toml"
-    data = tomllib.loads(path.read_text())
+    design = DESIGN_OF.get(case, DESIGN)
+    path = design / "scenes" / f"{case}.toml"
+    data = tomllib.loads(path.read_text()) | load_finishes(design).tables()
     data["detector"]["pixels"] = [pixels, pixels]
     if off_axis_deg is not None:
         data["source"]["off_axis_deg"] = off_axis_deg

@@ -24,7 +24,7 @@ def test_ghost_routes_agree_with_the_stochastic_branch_on_the_cooke_triplet(tmp_
     from lensmount.loop.prepare import prepare
     from lensmount.trace.tracer import Tracer
 
-    design = Path(shutil.copytree(EXAMPLES / "cooke-triplet", tmp_path / "cooke-triplet",
+    design = Path(shutil.copytree(EXAMPLES / "cooke-triplet-uncoated", tmp_path / "cooke-triplet",
                                   ignore=shutil.ignore_patterns("build", ".lensmount")))
     scene = prepare(design, design / "scenes" / "ghosts-uncoated.toml").scene
     tracer = Tracer(scene)
@@ -57,7 +57,7 @@ def test_ghost_routes_through_the_double_gauss_mount_carry_what_its_photons_do(t
     from lensmount.loop.prepare import prepare
     from lensmount.trace.tracer import Tracer
 
-    design = Path(shutil.copytree(EXAMPLES / "double-gauss-360", tmp_path / "double-gauss-360",
+    design = Path(shutil.copytree(EXAMPLES / "double-gauss-360-mgf2", tmp_path / "double-gauss-360",
                                   ignore=shutil.ignore_patterns("build", ".lensmount")))
     scene = prepare(design, design / "scenes" / "ghosts-mgf2.toml").scene
     tracer = Tracer(scene)

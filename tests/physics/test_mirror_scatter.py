@@ -317,15 +317,16 @@ def _init(design: Path) -> None:
     assert result.exit_code == 0, result.output
 
 
-def test_init_writes_a_mirror_lens_a_case2_scene_whose_mirrors_scatter_as_polished_mirrors(tmp_path):
+def test_init_gives_a_mirror_lens_finishes_whose_mirrors_scatter_as_polished_mirrors(tmp_path):
+    from lensmount.design.finishes import load_finishes
     from lensmount.design.scene import load_scene
     from lensmount.physics.bsdf import make_bsdf
 
     _init(tmp_path / "design")
-    case2 = load_scene(tmp_path / "design" / "scenes" / "case2-lambertian.toml")
-    spec = load_scene(tmp_path / "design" / "scenes" / "mirrors-scatter.toml")
-    assert spec.source == case2.source and spec.assign == case2.assign | {"surface:2": "polished-mirror",
-                                                                           "surface:3": "polished-mirror"}
+    finishes = load_finishes(tmp_path / "design")
+    assert finishes.assign == {"*": "lambert-5", "surface:2": "polished-mirror", "surface:3": "polished-mirror"}
+    spec = load_scene(tmp_path / "design" / "scenes" / "case2-lambertian.toml", finishes)
+    assert spec.assign == finishes.assign  # every scene of the design has them
     params = dict(spec.finishes["polished-mirror"])
     tis = make_bsdf(params.pop("model"), **params).tis
     assert tis == pytest.approx((4 * math.pi * 0.002 / 0.55) ** 2, rel=0.01)  # 2 nm rms at 550 nm
@@ -344,7 +345,7 @@ def test_the_corpus_cassegrain_simulates_its_mirrors_scatter(tmp_path):
     runner = CliRunner()
     assert runner.invoke(app, ["regenerate", str(design), "--quiet"]).exit_code == 0
     out = tmp_path / "run"
-    run = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "mirrors-scatter.toml"),
+    run = runner.invoke(app, ["simulate", str(design), "--scene", str(design / "scenes" / "case2-lambertian.toml"),
                               "--photons-per-pass", "20000", "--passes", "3", "--workers", "1",
                               "--method", "forward", "--out", str(out), "--no-record"])
     assert run.exit_code == 0, run.output

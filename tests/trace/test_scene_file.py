@@ -13,15 +13,24 @@ from tests.trace.geometry import double_gauss, double_gauss_mesh, scene_dict
 from lensmount.scene.build import build_scene
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENES = sorted((ROOT / "examples" / "double-gauss-360" / "scenes").glob("case*.toml"))
+EXAMPLES = ROOT / "examples"
 
 
-def test_example_scenes_load():
-    assert len(SCENES) == 3
-    for path in SCENES:
-        spec = load_scene(path)
-        assert spec.source.off_axis_deg == 7.0 and spec.detector.pixels == (600, 600)
-        assert spec.coatings["default"] == "perfect-ar"
+@pytest.mark.parametrize("design", sorted(p.name for p in EXAMPLES.iterdir() if (p / "mount.toml").is_file()))
+def test_example_scenes_load_with_their_design_finishes(design):
+    """Every example scene is a test condition only; the design's finishes.toml gives the treatment."""
+    from lensmount.design.finishes import load_finishes
+
+    finishes = load_finishes(EXAMPLES / design)
+    assert finishes.source_file == str(EXAMPLES / design / "finishes.toml")
+    scenes = sorted((EXAMPLES / design / "scenes").glob("*.toml"))
+    assert scenes
+    for path in scenes:
+        spec = load_scene(path, finishes)
+        assert (spec.finishes, spec.coatings, spec.assign) == (finishes.finishes, finishes.coatings, finishes.assign)
+        if design == "double-gauss-360":
+            assert spec.source.off_axis_deg == 7.0 and spec.detector.pixels == (600, 600)
+            assert spec.coatings["default"] == "perfect-ar"
 
 
 @pytest.mark.parametrize("patch,field", [
@@ -29,23 +38,51 @@ def test_example_scenes_load():
     ({"source": {"type": "sun", "off_axis_deg": 7.0, "elevation": 3}}, "source.elevation"),
     ({"source": {"type": "laser", "off_axis_deg": 7.0}}, "source.type"),
     ({"detector": {"width_mm": -1, "height_mm": 1}}, "detector.width_mm"),
-    ({"coatings": {"default": "shiny"}}, "coatings"),
-    ({"finishes": {"x": {"model": "lambertian", "reflectance": 2.0}}, "assign": {"*": "x"}}, "finishes.x.reflectance"),
-    ({"finishes": {"x": {"model": "lambertian", "colour": 1}}, "assign": {"*": "x"}}, "finishes.x"),
-    ({"assign": {"*": "nope"}}, "assign.*"),
-    ({"assign": {"colour:red": "absorber"}}, "assign.colour:red"),
     ({"objects": [{"type": "disk", "name": "d"}]}, "objects.0"),
+    ({"objects": [{"type": "disk", "name": "d", "radius_mm": 1.0, "finish": "nope"}]}, "objects.0.finish"),
 ])
 def test_bad_scene_files_name_the_field(tmp_path, patch, field):
     import tomli_w
 
     data = scene_dict(**patch)
+    del data["assign"]  # the design's, not the scene's
     path = tmp_path / "bad.toml"
     path.write_text(tomli_w.dumps(data))
     with pytest.raises(InputError) as exc:
         load_scene(path)
     text = exc.value.paragraph()
     assert str(path) in text and field in text, text
+
+
+@pytest.mark.parametrize("tables,field", [
+    ({"coatings": {"default": "shiny"}}, "coatings"),
+    ({"coatings": {"surface-0": "uncoated"}}, "coatings"),
+    ({"finishes": {"x": {"model": "lambertian", "reflectance": 2.0}}, "assign": {"*": "x"}}, "finishes.x.reflectance"),
+    ({"finishes": {"x": {"model": "lambertian", "colour": 1}}, "assign": {"*": "x"}}, "finishes.x"),
+    ({"finishes": {"x": {"reflectance": 0.1}}}, "finishes.x.model"),
+    ({"assign": {"*": "nope"}}, "assign.*"),
+    ({"assign": {"colour:red": "absorber"}}, "assign.colour:red"),
+    ({"paint": {}}, "paint"),
+])
+def test_bad_finishes_files_name_the_field(tmp_path, tables, field):
+    import tomli_w
+
+    from lensmount.design.finishes import load_finishes
+
+    path = tmp_path / "finishes.toml"
+    path.write_text(tomli_w.dumps(tables))
+    with pytest.raises(InputError) as exc:
+        load_finishes(tmp_path)
+    text = exc.value.paragraph()
+    assert str(path) in text and field in text and exc.value.line is not None, text
+
+
+def test_a_design_without_finishes_toml_keeps_the_mount_finishes():
+    """No finishes.toml: the built-in library, no rules (every face its mount finish), perfect-ar."""
+    from lensmount.design.finishes import Finishes, load_finishes
+
+    assert load_finishes(ROOT / "tests") == Finishes() and Finishes().assign == {}
+    assert Finishes().coatings == {"default": "perfect-ar"}
 
 
 def test_not_toml_names_the_line(tmp_path):
@@ -106,6 +143,7 @@ def test_stl_object_from_scene_file(tmp_path):
     data = scene_dict(objects=[{"type": "mesh", "name": "target", "path": "target.stl", "centre_mm": [0, 0, 50.0],
                                 "tilt_deg": [0.0, 0.0], "finish": "ground-glass"}],
                       detector={"width_mm": 1, "height_mm": 1, "pixels": [1, 1], "z_mm": 1000.0})
+    del data["assign"]
     (tmp_path / "scene.toml").write_text(tomli_w.dumps(data))
     spec = load_scene(tmp_path / "scene.toml")
     from lensmount.mesh import TaggedMesh

@@ -1,4 +1,4 @@
-"""A starting mount.toml and case-2 scene derived from a lens (`lensmount init DIR --lens FILE`).
+"""A starting mount.toml, finishes.toml and case-2 scene derived from a lens (`lensmount init DIR --lens FILE`).
 
 The shipped examples' mount.toml fit their own lens only (the Cooke triplet's 0.5 mm
 edge allowance leaves a thin crown with no edge on another lens). Here every
@@ -36,8 +36,10 @@ dimension follows from the lens itself, in the mount layer's own keys
 - a lens with mirrors gets cells in a straight barrel (lensmount.cad.catadioptric),
   with the same wall, lip, margin and allowance rules and no hood or housing yet.
 
-The case-2 scene is the seed paper's: the sun 5° outside the field, every mount face
-and lens edge Lambertian 5 %, the diaphragm edge absorbing, on that detector.
+The finishes (the design's, `starter_finishes`) are the seed paper's case 2: every mount face
+and lens edge Lambertian 5 %, the diaphragm edge absorbing, and a mirror's coated face a
+polished mirror's scatter; the case-2 scene (the test condition) is the sun 5° outside the
+field on that detector.
 """
 
 from __future__ import annotations
@@ -379,25 +381,35 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     }
 
 
+def starter_finishes(p: Prescription) -> dict:
+    """The design's finishes.toml for this lens: the seed paper's case 2 (every mount face and lens
+    edge Lambertian 5 %, the diaphragm edge absorbing) with every mirror's coated face scattering as a
+    polished mirror (`POLISHED_MIRROR`, `[assign] "surface:N"`: in a Cassegrain the primary's scatter
+    of a sun outside the field is a main stray path; with black cells and baffles, often the main one)."""
+    mirrors = p.mirror_surfaces
+    # a catadioptric mount has no diaphragm: the mirrors' coated zones are the stop
+    edge = {} if p.has_mirrors else {"role:diaphragm-edge": "absorber"}
+    return {
+        "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}}
+                    | ({"polished-mirror": dict(POLISHED_MIRROR)} if mirrors else {}),
+        "coatings": {"default": "perfect-ar"},
+        "assign": {"*": "lambert-5"} | edge | {surface_rule(i): "polished-mirror" for i in mirrors},
+    }
+
+
 def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
-    """The seed paper's case 2 for this lens: the sun at the hood's exclusion angle."""
+    """The seed paper's case 2 for this lens (the test condition): the sun at the hood's exclusion angle."""
     sun = mount["hood"]["exclusion_deg"]
     width, height = mount["housing"]["detector_width_mm"], mount["housing"]["detector_height_mm"]
     nx = 360
     ny = max(1, int(round(nx * height / width)))
-    # a catadioptric mount has no diaphragm: the mirrors' coated zones are the stop
-    edge = {} if p.has_mirrors else {"role:diaphragm-edge": "absorber"}
     return {
         "description": f"The seed paper's case 2 on {name}: the sun at {sun:g}° ({SUN_MARGIN_DEG:g}° outside the "
-                       "field); every mount face and lens edge Lambertian 5 %"
-                       + ("" if p.has_mirrors else ", diaphragm edge absorbing"),
+                       "field), with the design's finishes (finishes.toml)",
         "source": {"type": "sun", "off_axis_deg": sun, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
                    "limb_darkening": False},
         "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
         "effects": {"scatter": True, "ghosts": False, "direct": False, "absorption": True},
-        "coatings": {"default": "perfect-ar"},
-        "finishes": {"lambert-5": {"model": "lambertian", "reflectance": 0.05}},
-        "assign": {"*": "lambert-5"} | edge,
         "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05},
     }
 
@@ -405,23 +417,6 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
 # A polished mirror's micro-roughness: ABg g = 2 with its knee at 0.57° (B = 1e-4) and TIS = πA ln(1 + 1/B)
 # = 2.1e-3 = (4πσ/λ)² for σ = 2 nm rms at 550 nm. A starting point: measured data replace it (fit-abg).
 POLISHED_MIRROR = {"model": "abg", "A": 7.2e-5, "B": 1e-4, "g": 2.0}
-
-
-def mirror_scene(p: Prescription, case2: dict) -> dict | None:
-    """For a lens with mirrors: case 2 with every mirror's coated face scattering as a polished mirror
-    (`POLISHED_MIRROR`, `[assign] "surface:N"`): in a Cassegrain the primary's scatter of a sun
-    outside the field is a main stray path (with black cells and baffles, often the main one).
-    None for a lens without mirrors."""
-    mirrors = p.mirror_surfaces
-    if not mirrors:
-        return None
-    numbers = ", ".join(str(i + 1) for i in mirrors)
-    return case2 | {
-        "description": case2["description"] + f"; the mirrors (surface {numbers}) scatter as polished mirrors "
-                       "(ABg, TIS 2.1e-3: 2 nm rms at 550 nm)",
-        "finishes": case2["finishes"] | {"polished-mirror": dict(POLISHED_MIRROR)},
-        "assign": case2["assign"] | {surface_rule(i): "polished-mirror" for i in mirrors},
-    }
 
 
 def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
@@ -436,11 +431,11 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     return case2 | {
         "description": f"The object of {name} as the source: " + (f"a Lambertian disc of {field:g} mm radius"
                        if field > 0.0 else "a point on the axis") + f" on the object plane "
-                       f"{p.object_distance:g} mm in front; every mount face and lens edge Lambertian 5 %",
+                       f"{p.object_distance:g} mm in front, with the design's finishes",
         "source": source,
         "effects": case2["effects"] | {"direct": True},
     }
 
 
-__all__ = ["starter_mount", "case2_scene", "mirror_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
+__all__ = ["starter_mount", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
            "image_height"]

@@ -16,7 +16,7 @@ from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
 from lensmount.cli.simulate import duration, observed
 from lensmount.errors import InputError
-from lensmount.loop.compare import CompareOptions, compare as run_compare, verdict_row
+from lensmount.loop.compare import CompareOptions, RunSource, compare as run_compare, part_rows, plan, verdict_row
 
 
 def _fraction(text: str, field: str) -> float:
@@ -24,6 +24,22 @@ def _fraction(text: str, field: str) -> float:
         return parse_fraction(text, field)
     except ValueError as exc:
         raise InputError(str(exc), field=field, valid="a fraction such as 5% or 0.05") from None
+
+
+def announce(source: RunSource) -> str:
+    """Which run a side takes, or what it must simulate and about how long, said before it starts."""
+    if source.record is not None:
+        r = source.record
+        return (f"{source.role}: stored run {r.id} ({source.why}; {r.passes} passes, {r.photons:,} photons, "
+                f"{r.created_utc}, {r.git_commit[:10] if r.git_commit else 'no commit'}"
+                f"{'*' if r.git_dirty else ''}) from {source.folder}")
+    if source.simulate is None:
+        return f"{source.role}: {source.folder}"
+    length = f"for {duration(source.estimate_s)}" if source.simulate.time_s is not None else (
+        f"{source.passes} passes × {source.photons_per_pass:,} photons, about "
+        + duration(source.estimate_s, "an unknown time (no stored run of this scene to go by)"))
+    return (f"{source.role}: no stored run of this design and test condition: simulating {length} "
+            f"into {source.folder} (--passes, --photons-per-pass or --time shorten it)")
 
 
 @app.command()
@@ -54,7 +70,11 @@ def compare(
 
     Exit 0: no significant regression (or undecided: then it says how many more photons
     would decide). Exit 1: a regression beyond the tolerance at that confidence. Exit 2:
-    bad input or runs that are not comparable.
+    bad input or runs of different test conditions (the scene's source, detector, effects,
+    objects). The design may differ (lens, mount, finishes.toml, user files): what changed is
+    listed beside the verdict, and a part in one run only reads added or removed. Before
+    anything runs it says which stored run each side takes, or what it must simulate and about
+    how long (stored runs match by design and test condition, whatever their length).
     """
     from rich.console import Console
     from rich.table import Table
@@ -63,13 +83,19 @@ def compare(
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,
                                  photons_per_pass, time_s)
+        sources = plan(options)
     except InputError as error:
         fail(error)
-    result = observed(run_compare, options)
+    for source in sources:
+        typer.echo(announce(source), err=True)
+    result = observed(lambda observer: run_compare(options, observer, sources))
     v = result.verdict
     console = Console()
     for note in result.notes:
         console.print(f"note: {note}", style="yellow")
+    typer.echo("design changes:" + ("" if result.design_changes else " none"))
+    for change in result.design_changes:
+        typer.echo(f"  {change}")
     table = Table(title=f"{result.metric}: old {result.old.folder} → new {result.new.folder}; tolerance "
                         f"{100 * options.tolerance:g} %, interval at {100 * options.confidence:g} %",
                   title_justify="left")
@@ -79,6 +105,8 @@ def compare(
     for name, pv in sorted(result.per_part.items(), key=lambda kv: -max(kv[1].old, kv[1].new)):
         if pv.old or pv.new:
             table.add_row(name, *verdict_row(pv))
+    for row in part_rows(result):
+        table.add_row(*row)
     console.print(table)
     typer.echo(f"verdict: {v.verdict}" + (f" — {v.note}" if v.note else ""))
     if v.verdict == UNDECIDED and v.more_photons is not None:

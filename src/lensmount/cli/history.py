@@ -22,7 +22,10 @@ def history(
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/"
                                                                "runs.sqlite or $LENSMOUNT_STORE)."),
 ) -> None:
-    """Stray fraction across the design's revisions: commit ('*' = uncommitted changes), scene, value ± error."""
+    """Stray fraction across the design's revisions: commit ('*' = uncommitted changes), scene, value ± error.
+
+    'test' is the run's test condition (a hash of the scene's source, detector, effects and objects;
+    not its run length): runs with different ones are different tests, which `compare` refuses."""
     from rich.console import Console
     from rich.table import Table
 
@@ -38,15 +41,22 @@ def history(
         return
     table = Table(title=f"{Path(design).resolve().name}: {len(runs)} runs, oldest revision first "
                         "(* = uncommitted changes)", title_justify="left")
-    for col in ("run", "commit", "committed", "scene", "method", "passes", "stray fraction", "bias bound", "input"):
+    for col in ("run", "commit", "committed", "scene", "test", "method", "passes", "stray fraction", "bias bound",
+                "input"):
         table.add_column(col, justify="right" if col in ("run", "passes", "stray fraction", "bias bound") else "left")
     for r in runs:
         when = time.strftime("%Y-%m-%d %H:%M", time.gmtime(r.git_commit_time)) if r.git_commit_time else "—"
         value = "—" if r.stray_fraction is None else f"{r.stray_fraction:.4g}" + (
             f" ± {r.stray_fraction_std_error:.2g}" if r.stray_fraction_std_error is not None else "")
         bias = f"{r.stray_fraction_bias_bound:.2g}" if r.stray_fraction_bias_bound is not None else "—"
-        table.add_row(str(r.id), label(r), when, r.scene_name, r.method, str(r.passes), value, bias, r.input_hash[:10])
+        test = r.condition_sha256[:8] if r.condition_sha256 else "—"
+        table.add_row(str(r.id), label(r), when, r.scene_name, test, r.method, str(r.passes), value, bias,
+                      r.input_hash[:10])
     Console(width=160).print(table)
+    tests = {(r.scene_name, r.condition_sha256) for r in runs if r.condition_sha256}
+    if len(tests) > len({scene_name for scene_name, _ in tests}):
+        typer.echo("note: a scene's test condition changed between these runs (column 'test'): those runs "
+                   "measure different tests, not revisions of the design")
     if plot is not None:
         write_history_plot(plot, runs, f"{Path(design).resolve().name}" + (f" · {scene}" if scene else ""))
         typer.echo(f"wrote {plot}")

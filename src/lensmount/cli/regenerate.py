@@ -15,7 +15,7 @@ from lensmount.cli import app, fail  # defined before lensmount.cli imports this
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
 
-EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml")
+EXAMPLE_FILES = ("lens.toml", "lens.zmx", "mount.toml", "finishes.toml")
 
 
 def examples_root() -> Path:
@@ -81,12 +81,15 @@ def init(
     directory: Path = typer.Argument(..., help="new design folder"),
     example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),
     lens: Optional[Path] = typer.Option(
-        None, "--lens", "-l", help="start from this lens (.zmx or lens.toml) instead of an example: mount.toml "
-        "and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), checked as "
-        "regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
+        None, "--lens", "-l", help="start from this lens (.zmx or lens.toml) instead of an example: mount.toml, "
+        "finishes.toml and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), "
+        "checked as regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
 ) -> None:
-    """Scaffold a design folder (lens file, mount.toml, scenes/) from an example or from a lens file."""
+    """Scaffold a design folder (lens file, mount.toml, finishes.toml, scenes/) from an example or from a lens file.
+
+    The design is the lens, the mount and finishes.toml (finishes, coatings, which faces get which),
+    shared by every scene; a scene (scenes/*.toml) is a test condition: source, detector, effects, run."""
     try:
         directory = Path(directory)
         if directory.exists() and any(directory.iterdir()) and not force:
@@ -94,8 +97,8 @@ def init(
                              valid="a new or empty folder, or --force")
         if lens is not None:
             _init_from_lens(directory, Path(lens))
-            typer.echo(f"{directory}: design folder from {lens} (mount.toml and scenes/case2-lambertian.toml "
-                       f"derived from the lens); next: lensmount regenerate {directory}")
+            typer.echo(f"{directory}: design folder from {lens} (mount.toml, finishes.toml and "
+                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate {directory}")
             return
         root = examples_root()
         names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())
@@ -115,14 +118,14 @@ def init(
 
 
 def _init_from_lens(directory: Path, lens: Path) -> None:
-    """Copy the lens, write the derived mount.toml and case-2 scene, for a finite object the
-    object-lambertian scene and for a lens with mirrors the mirrors-scatter one (everything checked
-    before writing). InputError, with nothing written, when no mount that builds was found."""
+    """Copy the lens, write the derived mount.toml, finishes.toml (mirrors: their scatter included) and
+    case-2 scene, and for a finite object the object-lambertian scene (everything checked before
+    writing). InputError, with nothing written, when no mount that builds was found."""
     import tomli_w
 
     from lensmount.atomic import atomic_path, write_text
     from lensmount.design.lens import load_lens
-    from lensmount.cad.starter import case2_scene, mirror_scene, object_scene, starter_mount
+    from lensmount.cad.starter import case2_scene, object_scene, starter_finishes, starter_mount
 
     prescription = load_lens(lens)
     name = prescription.name if prescription.name not in ("", "lens") else lens.stem
@@ -133,17 +136,17 @@ def _init_from_lens(directory: Path, lens: Path) -> None:
                                "start from an example (`lensmount init DIR --example NAME`) and edit mount.toml")
     scene = case2_scene(prescription, mount, name)
     obj = object_scene(prescription, scene, name)
-    mirrors = mirror_scene(prescription, scene)
     target = "lens.zmx" if lens.suffix.lower() == ".zmx" else "lens.toml"
     directory.mkdir(parents=True, exist_ok=True)
     (directory / "scenes").mkdir(exist_ok=True)
     header = f"# mount.toml derived by `lensmount init --lens {lens.name}` (lensmount.cad.starter); " \
              "keys: docs/mount-toml.md\n"
+    write_text(directory / "finishes.toml", "# finishes.toml derived by `lensmount init` (lensmount.cad.starter): "
+               "the design's finishes, coatings and which faces get which, shared by every scene\n"
+               + tomli_w.dumps(starter_finishes(prescription)))
     write_text(directory / "scenes" / "case2-lambertian.toml", tomli_w.dumps(scene))
     if obj is not None:  # a finite object: the object itself as the source
         write_text(directory / "scenes" / "object-lambertian.toml", tomli_w.dumps(obj))
-    if mirrors is not None:  # mirrors: case 2 with their scatter
-        write_text(directory / "scenes" / "mirrors-scatter.toml", tomli_w.dumps(mirrors))
     write_text(directory / "mount.toml", header + tomli_w.dumps(mount))
     with atomic_path(directory / target) as tmp:  # byte for byte: a .zmx keeps its encoding
         tmp.write_bytes(lens.read_bytes())

@@ -20,7 +20,7 @@ def sweep(
     design: Path = typer.Argument(..., help="Base design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file every variant is simulated with."),
     param: List[str] = typer.Option(..., "--param",
-                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens or scene); repeat for a grid, "
+                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens, finishes or scene); repeat for a grid, "
                                          "e.g. --param mount.vanes.count=3,5,7 --param mount.hood.length_mm=80,120"),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="Folder for the variants, sweep.csv and sweep.png."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),

@@ -3,14 +3,17 @@
     DESIGN/
       lens.toml | lens.zmx     the prescription (exactly one)
       mount.toml               the mount (docs/mount-toml.md)
-      scenes/*.toml            stray-light scenes (names = file stems)
+      finishes.toml            optional: finishes, coatings and which faces get which (design.finishes),
+                               shared by every scene
+      scenes/*.toml            the test conditions: source, detector, effects, run (names = file stems)
       templates/*.py           optional user templates named in mount.toml
       *.step                   optional parts from STEP files named in mount.toml ([parts.NAME])
 
 `input_hash` is the SHA-256 of what the CAD depends on: the lens file's bytes, the
 mount file's bytes, every user template's and STEP part file's bytes and the lensmount version
-(so a new export from the mechanical CAD is a new revision). It keys
-the regenerate cache (lensmount.cad.cache).
+(so a new export from the mechanical CAD is a new revision). It keys the regenerate cache
+(lensmount.cad.cache); finishes.toml is not in it (a paint change rebuilds no geometry), but is
+in a run's input hash (loop.simulate).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from pathlib import Path
 
 import lensmount
 from lensmount.design.edges import clip_warnings
+from lensmount.design.finishes import FINISHES_NAME, Finishes, load_finishes
 from lensmount.design.lens import LENS_NAMES, find_lens, load_lens_and_clips
 from lensmount.design.mount import MountSpec, load_mount
 from lensmount.errors import InputError
@@ -44,6 +48,7 @@ class Design:
         template_paths: part kind → user template file.
         step_paths: part name → STEP file of a `[parts.NAME]` entry.
         input_hash: content hash of the CAD inputs (hex).
+        finishes: the surface treatment (finishes.toml; the built-in one without the file).
         lens_warnings: what the import changed that a result depends on (design.edges: elements
             edged inside the beam, and what that vignettes); regenerate and simulate report them.
     """
@@ -58,6 +63,13 @@ class Design:
     input_hash: str
     lens_warnings: tuple[str, ...] = ()
     step_paths: dict[str, Path] = field(default_factory=dict)  # [parts.NAME] → its STEP file
+    finishes: Finishes = Finishes()
+
+    @property
+    def finishes_path(self) -> Path | None:
+        """finishes.toml, None when the design has none."""
+        path = self.root / FINISHES_NAME
+        return path if path.is_file() else None
 
 
 def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path],
@@ -118,7 +130,8 @@ def load_design(directory: str | Path) -> Design:
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
-                  content_hash(lens_path, mount_path, templates, steps), tuple(clip_warnings(clips)), steps)
+                  content_hash(lens_path, mount_path, templates, steps), tuple(clip_warnings(clips)), steps,
+                  load_finishes(root))
 
 
 __all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

@@ -1,5 +1,10 @@
 """Scene files (`scenes/*.toml`) → validated `SceneSpec`. Unknown keys are errors.
 
+A scene file is the test condition: source, detector, effects, extra objects and run length.
+The surface treatment (finishes, coatings, which faces get which) is the design's
+(`DESIGN/finishes.toml`, design.finishes), shared by all its scenes; `load_scene` joins the two
+into the SceneSpec a Scene is built from, and refuses a scene file that still holds them.
+
 ```toml
 description = "Seed paper case 1: only the 50 µm diaphragm edge scatters"
 
@@ -26,25 +31,13 @@ ghosts = false               # true | false | { order = 2 } (2: two-reflection g
 direct = false
 absorption = true            # bulk absorption in the glass (catalogue data); false: lossless glass
 
-[coatings]
-default = "perfect-ar"       # perfect-ar | uncoated | mgf2-quarter-wave | R=0.01
-# surface-3 = "uncoated"     # per surface, 1-based as in the lens file
-
-[finishes]
-edge-lambert-10 = { model = "lambertian", reflectance = 0.10 }
-
-[assign]                     # part: > role: > kind: > finish: > "*"; no rule: the mount's finish;
-                             # "surface:N" = a mirror's coated face (its scatter on top of R)
-"*" = "absorber"
-"role:diaphragm-edge" = "edge-lambert-10"
-
 [[objects]]                  # extra scene objects beyond the mount
 type = "disk"                # disk | rectangle | mesh (STL or STEP file, relative to the scene file)
 name = "dust-plate"
 centre_mm = [0.0, 0.0, -20.0]
 radius_mm = 30.0             # disk; rectangle: width_mm, height_mm; mesh: path
 tilt_deg = [0.0, 0.0]        # about x, then about y
-finish = "ground-glass"
+finish = "ground-glass"       # a finish of the design (finishes.toml) or a built-in one
 
 [run]
 photons = 1_000_000
@@ -59,11 +52,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
-from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
+from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml
 from lensmount.errors import InputError
-from lensmount.design.finishes import check_rules, finish_library
+from lensmount.design.finishes import (TABLES, Finishes, check_coatings, check_finishes, finish_library,
+                                       old_layout_error)
 from lensmount.physics.interfaces import parse_coating
 from lensmount.physics.sources import SourceParams, source_params
 
@@ -196,7 +190,9 @@ class ObjectSpec(_Strict):
 
 
 class SceneSpec(ReadFromFile, _Strict):
-    """A validated scene file (see the module docstring for every key)."""
+    """A validated scene (see the module docstring for every key) with the design's surface treatment
+    it is simulated with (`finishes`, `coatings`, `assign`: the design's finishes.toml, joined in by
+    `load_scene`; `scene_from_dict` takes them in the table, as scripts and tests build scenes)."""
 
     description: str = ""
     source: SourceParams  # one of physics.sources.SOURCE_KINDS' parameter models, by `type`
@@ -210,6 +206,13 @@ class SceneSpec(ReadFromFile, _Strict):
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
+    _finishes_source: tuple[str | None, str | None] | None = PrivateAttr(None)
+
+    @property
+    def finishes_source(self) -> tuple[str | None, str | None]:
+        """(file, text) the treatment came from, for errors found in it later (a rule matching no face):
+        the design's finishes.toml, or the scene's own when a script gave the tables with the scene."""
+        return self._finishes_source or (self.source_file, self.source_text)
 
     @field_validator("source", mode="before")
     @classmethod
@@ -219,11 +222,7 @@ class SceneSpec(ReadFromFile, _Strict):
     @field_validator("coatings")
     @classmethod
     def _coatings(cls, v):
-        for key, name in v.items():
-            if key != "default" and not (key.startswith("surface-") and key[8:].isdigit() and int(key[8:]) >= 1):
-                raise ValueError(f"coating key '{key}' must be 'default' or 'surface-N' (N >= 1)")
-            parse_coating(name, field=f"coatings.{key}")
-        return v
+        return check_coatings(v)
 
     def coating_of_surface(self, index0: int, lens_coating: str | None = None, mirror: bool = False):
         """Coating of 0-based surface: the scene's per-surface entry, else the lens file's, else default.
@@ -237,15 +236,24 @@ class SceneSpec(ReadFromFile, _Strict):
         return parse_coating(None if mirror else self.coatings.get("default", "perfect-ar"))
 
 
-def load_scene(path: str | Path) -> SceneSpec:
-    """Read and validate a scene file; every problem is an InputError naming the file and field."""
+def load_scene(path: str | Path, finishes: Finishes | None = None) -> SceneSpec:
+    """Read and validate a scene file, simulated with the design's `finishes` (None: the built-in
+    treatment); every problem is an InputError naming the file and field. A scene file holding
+    `[finishes]`, `[coatings]` or `[assign]` (the layout before they moved to the design) is refused
+    with how to move them."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
     data = parse_toml(text, str(path))
-    return scene_from_dict(data, file=str(path), base_dir=str(path.parent), text=text)
+    held = sorted((table for table in TABLES if table in data), key=lambda t: line_of_key(text, t) or 0)
+    if held:
+        raise old_layout_error(str(path), held).located(str(path), line_of_key(text, held[0]))
+    finishes = finishes or Finishes()
+    spec = scene_from_dict(data | finishes.tables(), file=str(path), base_dir=str(path.parent), text=text)
+    spec._finishes_source = (finishes.source_file, finishes.source_text)
+    return spec
 
 
 def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".", text: str | None = None) -> SceneSpec:
@@ -262,23 +270,11 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
     except InputError as exc:
         raise located(exc, file, text) from None
     spec._file, spec._text = file, text
-    library = finish_library(spec.finishes)
     try:
-        from lensmount.physics.bsdf import make_bsdf
-
-        for name, params in spec.finishes.items():
-            params = dict(params)
-            if "model" not in params:
-                raise InputError(f"finish '{name}' has no model", field=f"finishes.{name}.model",
-                                 valid="absorber, lambertian, gaussian, abg, harvey, mirror, tabulated")
-            if params["model"] == "tabulated" and "file" in params:
-                params = _measured_table(name, params, base_dir)
-                spec.finishes[name] = dict(params)  # the Scene gets the table, not the file name
-            try:
-                make_bsdf(params.pop("model"), **params)
-            except InputError as exc:
-                raise InputError(exc.detail, field=f"finishes.{name}.{exc.field or 'model'}", valid=exc.valid) from None
-        check_rules(spec.assign, library)
+        resolved = check_finishes(spec.finishes, spec.assign, base_dir)
+        spec = spec.model_copy(update={"finishes": resolved})  # measured finishes: their tables
+        spec._file, spec._text = file, text
+        library = finish_library(resolved)
         for k, obj in enumerate(spec.objects):
             if obj.finish not in library:
                 raise InputError(f"object '{obj.name}' names undefined finish '{obj.finish}'",
@@ -288,52 +284,13 @@ def scene_from_dict(data: dict, *, file: str | None = None, base_dir: str = ".",
     return spec
 
 
-def _measured_table(name: str, params: dict, base_dir: str) -> dict:
-    """`{ model = "tabulated", file = "paint.bsdf" }` → the model with the measurement's table."""
-    from lensmount.design.brdf_data import read_brdf
-    from lensmount.physics.bsdf.tabulated import measured_profile
-
-    extra = sorted(set(params) - {"model", "file"})
-    if extra:
-        raise InputError(f"a measured finish takes its values from its file, not from '{extra[0]}'",
-                         field=f"finishes.{name}.{extra[0]}", valid='model = "tabulated", file = "DATA.bsdf|csv"')
-    path = Path(base_dir) / str(params["file"])
-    try:
-        rho, brdf = measured_profile(*read_brdf(path))
-    except InputError as exc:
-        raise InputError(f"{exc.detail} (measured BRDF {path})", field=f"finishes.{name}.file",
-                         valid=exc.valid) from None
-    return {"model": "tabulated", "rho": rho.tolist(), "brdf": brdf.tolist()}
-
-
 def fit_detector_to_housing(spec: SceneSpec, mount) -> SceneSpec:
     """The scene with its detector sized for the mount's housing where `[detector]` gives no size."""
     housing = mount.housing
     fitted = spec.model_copy(update={"detector": spec.detector.fitted(housing.detector_width_mm,
                                                                       housing.detector_height_mm)})
-    fitted._file, fitted._text = spec._file, spec._text
+    fitted._file, fitted._text, fitted._finishes_source = spec._file, spec._text, spec._finishes_source
     return fitted
-
-
-def check_mount_finishes(spec: SceneSpec, mount) -> None:
-    """InputError (naming mount.toml's field and line) for a finish the mount file gives that
-    the scene does not define.
-
-    Defined: the built-in library, the scene's `[finishes]`, and names the scene's `finish:`
-    rules re-assign (a mount finish may be a label the scene maps). A misspelt finish would
-    otherwise absorb silently wherever no scene rule covers it. Needs no geometry, so it runs
-    before the regenerate.
-    """
-    library = finish_library(spec.finishes)
-    labels = {key.partition(":")[2] for key in spec.assign if key.startswith("finish:")}
-    defined = sorted(set(library) | labels)
-    for field, name in mount.finish_fields().items():
-        if name not in defined:
-            guess = did_you_mean(name, defined)
-            raise InputError(f"finish '{name}' is not defined" + (f" (did you mean '{guess}'?)" if guess else ""),
-                             file=mount.source_file, field=field, line=line_of_key(mount.source_text, field),
-                             valid="a defined finish: " + ", ".join(defined)
-                                   + "; or define it in the scene's [finishes]")
 
 
 def _valid_keys(loc) -> str:
@@ -342,4 +299,4 @@ def _valid_keys(loc) -> str:
 
 
 __all__ = ["SceneSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
-           "scene_from_dict", "check_mount_finishes"]
+           "scene_from_dict"]

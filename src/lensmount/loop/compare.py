@@ -1,7 +1,12 @@
 """`compare`: two runs (result folders, or design folders simulated as needed) → verdict, difference image.
 
-Runs are found in the results store by input hash, so a design state that was
-simulated before is not simulated again (any seed: equal hashes differ only by noise).
+Runs are found in the results store by input hash: the design (lens, mount, finishes, user
+files) and the test condition (the scene's source, detector, effects, objects), not the run
+length, so a design state simulated before is not simulated again (any seed and length: equal
+hashes differ only by noise). `plan` says which stored runs it takes, or what it must simulate
+and about how long, before anything runs. Runs of different test conditions are refused;
+between the same test condition on two designs the verdict comes with what changed in the
+design, and parts in one run only are named added or removed, never judged.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import numpy as np
 
 from lensmount.analysis.compare import Measurement, Verdict, judge
 from lensmount.errors import InputError
+from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
 from lensmount.run.store import RunRecord, Store, default_path
 
@@ -94,6 +100,9 @@ class CompareResult:
     metric: str
     paths: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    design_changes: list[str] = field(default_factory=list)  # what changed in the design, in the engineer's words
+    parts_added: dict[str, float] = field(default_factory=dict)  # part → its value, parts in the new run only
+    parts_removed: dict[str, float] = field(default_factory=dict)  # part → its old value
 
     @property
     def exit_code(self) -> int:
@@ -106,7 +115,8 @@ class CompareResult:
 
         return {"metric": self.metric, "old_run": str(self.old.folder.resolve()), "new_run": str(self.new.folder.resolve()),
                 **clean(self.verdict), "per_part": {k: clean(v) for k, v in self.per_part.items()},
-                "notes": self.notes, "exit_code": self.exit_code}
+                "design_changes": self.design_changes, "parts_added": self.parts_added,
+                "parts_removed": self.parts_removed, "notes": self.notes, "exit_code": self.exit_code}
 
 
 def _scene_file(design: Path, scene: str) -> Path:
@@ -121,31 +131,72 @@ def _scene_file(design: Path, scene: str) -> Path:
                      valid="a scene file, or one of: " + (", ".join(names) or "(no scenes/ in the design)"))
 
 
-def current_run(design: Path, scene: str, o: CompareOptions, observer: Observer | None = None) -> Run:
-    """The design folder's current state on `scene`: a stored run with the same input hash, else a new run."""
+@dataclass(frozen=True)
+class RunSource:
+    """Where one side of a comparison comes from, known before anything runs: a result folder, a
+    stored run (`record`), or a run to simulate (`simulate`, about `estimate_s` seconds at the
+    speed of the store's runs of the scene; None when the store has none to go by)."""
+
+    role: str  # "old" | "new"
+    folder: Path
+    record: RunRecord | None = None
+    input_hash: str | None = None  # of a design folder's current state
+    condition: str | None = None  # its test condition (provenance.condition_sha256)
+    why: str = ""  # why this stored run: "same design and test condition", "best", "last", a revision
+    simulate: SimulateOptions | None = None
+    passes: int | None = None
+    photons_per_pass: int | None = None
+    estimate_s: float | None = None
+
+
+def _stored_folder(record: RunRecord) -> Path:
+    return Path(record.summary_path).parent
+
+
+def _usable(runs: list[RunRecord]) -> list[RunRecord]:
+    return [r for r in runs if Path(r.summary_path).is_file()]
+
+
+def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new") -> RunSource:
+    """The design folder's current state on `scene`: a stored run of the same design and test
+    condition (any length, the longest), else the run to simulate and its estimated time."""
     from lensmount.loop.prepare import read_inputs
 
     scene_path = _scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s)
-    digest = planned_input_hash(sim, *read_inputs(design, scene_path))
+    loaded, spec = read_inputs(design, scene_path)
+    digest = planned_input_hash(sim, loaded, spec)
+    condition = condition_sha256(spec)
     with Store(default_path(design, o.store)) as store:
-        stored = [r for r in store.runs(input_hash=digest) if Path(r.summary_path).is_file()]
+        stored = _usable(store.runs(input_hash=digest))
+        same_scene = [r for r in _usable(store.runs(design_path=design, scene_name=scene_path.stem)) if r.photons]
     if stored:
-        return Run.load(Path(stored[-1].summary_path).parent, "DESIGN")
+        best = max(stored, key=lambda r: (r.photons, r.id))  # the longest: the smallest error for the same inputs
+        return RunSource(role, _stored_folder(best), best, digest, condition, "same design and test condition")
+    passes = o.passes or spec.run.passes
+    per_pass = o.photons_per_pass or spec.run.photons
+    rate = sum(r.time_s for r in same_scene) / sum(r.photons for r in same_scene) if same_scene else None
+    estimate = o.time_s if o.time_s is not None else (rate * passes * per_pass if rate else None)
     out = Path(design).resolve() / ".lensmount" / "runs" / f"{scene_path.stem}-{digest[:12]}"
-    result = simulate(replace(sim, out=out), observer)
-    return Run(result.out, result.summary)
+    return RunSource(role, out, input_hash=digest, condition=condition, simulate=replace(sim, out=out),
+                     passes=passes, photons_per_pass=per_pass, estimate_s=estimate)
 
 
-def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None, o: CompareOptions) -> Run:
-    """The old run of `design` on `scene` from the store: last (other inputs), best, or a git revision."""
+def stored_run(design: Path, scene: str, against: str, new: RunSource, o: CompareOptions) -> RunSource:
+    """The old run of `design` on `scene` from the store, of the new run's test condition: last (other
+    inputs than the new run's), best, or a git revision."""
     scene_name = Path(scene).stem
+    exclude_hash = new.input_hash
     with Store(default_path(design, o.store)) as store:
-        runs = [r for r in store.runs(design_path=design, scene_name=scene_name) if Path(r.summary_path).is_file()]
+        every = _usable(store.runs(design_path=design, scene_name=scene_name))
+        runs = _usable(store.runs(design_path=design, scene_name=scene_name, condition_sha256=new.condition))
     if not runs:
-        raise InputError(f"no stored run of scene {scene_name!r} for this design", file=str(design),
-                         field="--against", valid="simulate a revision first, or compare two result folders")
+        other = f"; {len(every)} stored runs of it have another test condition (its source, detector, effects " \
+                "or objects were changed since)" if every else ""
+        raise InputError(f"no stored run of scene {scene_name!r} for this design and test condition{other}",
+                         file=str(design), field="--against",
+                         valid="simulate a revision first, or compare two result folders")
     pick: RunRecord | None
     if against == "last":
         others = [r for r in runs if r.input_hash != exclude_hash]
@@ -162,48 +213,11 @@ def stored_run(design: Path, scene: str, against: str, exclude_hash: str | None,
         commits = sorted({r.git_commit[:10] for r in runs if r.git_commit})
         raise InputError(f"no stored run matches {against!r}", file=str(design), field="--against",
                          valid="last, best, or a stored git revision: " + (", ".join(commits) or "(none stored)"))
-    return Run.load(Path(pick.summary_path).parent, "--against")
+    return RunSource("old", _stored_folder(pick), pick, pick.input_hash, pick.condition_sha256, against)
 
 
-def input_changes(po: dict, pn: dict) -> list[str]:
-    """What changed in the design between two runs' provenance: "lens.toml changed", "mount.toml
-    changed", "housing.step changed" (a STEP part's file: a new export from the mechanical CAD)."""
-    out = []
-    if po.get("lens_sha256") and pn.get("lens_sha256") and po["lens_sha256"] != pn["lens_sha256"]:
-        out.append(f"{pn.get('lens_file', 'the lens file')} changed")
-    if po.get("mount_sha256") and pn.get("mount_sha256") and po["mount_sha256"] != pn["mount_sha256"]:
-        out.append("mount.toml changed")
-    so, sn = po.get("step_sha256", {}), pn.get("step_sha256", {})
-    for f in sorted(set(so) | set(sn)):
-        if f not in so:
-            out.append(f"{f} added")
-        elif f not in sn:
-            out.append(f"{f} removed")
-        elif so[f] != sn[f]:
-            out.append(f"{f} changed")
-    return out
-
-
-def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
-    """InputError when the two runs do not measure the same thing; notes for harmless differences."""
-    if metric not in METRICS:
-        raise InputError(f"unknown metric {metric!r}", field="--metric", valid=", ".join(METRICS))
-    po, pn = old.summary.get("provenance", {}), new.summary.get("provenance", {})
-    if po.get("scene_sha256") and pn.get("scene_sha256") and po["scene_sha256"] != pn["scene_sha256"]:
-        raise InputError(f"the runs simulate different scenes ({po.get('scene_path')} vs {pn.get('scene_path')}; "
-                         "the scene files differ)", file=str(new.folder), field="scene",
-                         valid="two runs of the same scene file (source, detector, finishes, effects)")
-    notes = input_changes(po, pn)
-    if old.summary.get("method") != new.summary.get("method"):
-        notes.append(f"methods differ: {old.summary.get('method')} (old) vs {new.summary.get('method')} (new)")
-    if sorted(old.summary.get("effects", [])) != sorted(new.summary.get("effects", [])):
-        raise InputError("the runs simulate different effects", file=str(new.folder), field="effects",
-                         valid=f"the same effects as the old run: {', '.join(old.summary.get('effects', []))}")
-    return notes
-
-
-def compare(options: CompareOptions, observer: Observer | None = None) -> CompareResult:
-    """Compare two runs (see CompareOptions); writes difference.exr, difference.png, compare.json."""
+def plan(options: CompareOptions) -> tuple[RunSource, RunSource]:
+    """(old, new): where each run comes from, before anything is simulated (InputError on bad options)."""
     o = options
     if not 0 < o.confidence < 1:
         raise InputError(f"confidence {o.confidence:g} is out of range", field="--confidence",
@@ -215,29 +229,78 @@ def compare(options: CompareOptions, observer: Observer | None = None) -> Compar
         if o.b is not None or o.scene is None:
             raise InputError("--against takes one design folder and --scene", field="--against",
                              valid="lensmount compare DESIGN --scene S --against last|best|REV")
-        new = current_run(a, o.scene, o, observer)
-        old = stored_run(a, o.scene, o.against, new.summary.get("input_hash"), o)
-    else:
-        if o.b is None:
-            raise InputError("compare needs two runs", field="B",
-                             valid="two result folders, two design folders with --scene, or one design with --against")
-        b = Path(o.b)
-        if (a / "summary.json").is_file() or (b / "summary.json").is_file():
-            old, new = Run.load(a, "A"), Run.load(b, "B")
-        else:
-            if o.scene is None:
-                raise InputError("design folders need --scene", field="--scene", valid="a scene name or file")
-            old, new = current_run(a, o.scene, o, observer), current_run(b, o.scene, o, observer)
+        new = plan_current(a, o.scene, o)
+        return stored_run(a, o.scene, o.against, new, o), new
+    if o.b is None:
+        raise InputError("compare needs two runs", field="B",
+                         valid="two result folders, two design folders with --scene, or one design with --against")
+    b = Path(o.b)
+    if (a / "summary.json").is_file() or (b / "summary.json").is_file():
+        return RunSource("old", a), RunSource("new", b)
+    if o.scene is None:
+        raise InputError("design folders need --scene", field="--scene", valid="a scene name or file")
+    return plan_current(a, o.scene, o, "old"), plan_current(b, o.scene, o, "new")
+
+
+def obtain(source: RunSource, observer: Observer | None) -> Run:
+    """The run a RunSource names: loaded, or simulated now."""
+    if source.simulate is None:
+        return Run.load(source.folder, "A" if source.role == "old" else "B")
+    result = simulate(source.simulate, observer)
+    return Run(result.out, result.summary)
+
+
+def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
+    """InputError when the two runs do not measure the same thing; notes for harmless differences."""
+    if metric not in METRICS:
+        raise InputError(f"unknown metric {metric!r}", field="--metric", valid=", ".join(METRICS))
+    po, pn = old.summary.get("provenance", {}), new.summary.get("provenance", {})
+    if po.get("condition_sha256") and pn.get("condition_sha256"):
+        if po["condition_sha256"] != pn["condition_sha256"]:
+            differ = condition_changes(po.get("condition", {}), pn.get("condition", {}))
+            raise InputError(f"the runs are of different test conditions ({'; '.join(differ) or 'the scenes differ'}; "
+                             f"{po.get('scene_path')} vs {pn.get('scene_path')}): that is another test, not a "
+                             "revision of the design", file=str(new.folder), field="scene",
+                             valid="two runs of the same test condition (the scene's source, detector, effects and "
+                                   "objects); the design (lens, mount, finishes, user files) and the run length "
+                                   "may differ")
+    elif po.get("scene_sha256") and pn.get("scene_sha256") and po["scene_sha256"] != pn["scene_sha256"]:
+        raise InputError(f"the runs simulate different scenes ({po.get('scene_path')} vs {pn.get('scene_path')}; "
+                         "the scene files differ, and a run recorded before test conditions were recorded apart "
+                         "cannot tell a test change from a design change)", file=str(new.folder), field="scene",
+                         valid="two runs of the same scene file, or runs of this lensmount version")
+    notes = []
+    if old.summary.get("method") != new.summary.get("method"):
+        notes.append(f"methods differ: {old.summary.get('method')} (old) vs {new.summary.get('method')} (new)")
+    if sorted(old.summary.get("effects", [])) != sorted(new.summary.get("effects", [])):
+        raise InputError("the runs simulate different effects", file=str(new.folder), field="effects",
+                         valid=f"the same effects as the old run: {', '.join(old.summary.get('effects', []))}")
+    return notes
+
+
+def compare(options: CompareOptions, observer: Observer | None = None,
+            sources: tuple[RunSource, RunSource] | None = None) -> CompareResult:
+    """Compare two runs (see CompareOptions; `sources`: `plan(options)`, made here when not given);
+    writes difference.exr, difference.png, compare.json and report.html."""
+    o = options
+    old_source, new_source = sources or plan(o)
+    new = obtain(new_source, observer)
+    old = obtain(old_source, observer)
     notes = check_comparable(old, new, o.metric)
     if old.folder.resolve() == new.folder.resolve():
         notes.append("old and new are the same stored run: the store holds no run of other inputs to compare with")
     verdict = judge(old.measurement(o.metric), new.measurement(o.metric), o.tolerance, o.confidence)
-    per_part = {}
+    result = CompareResult(old, new, verdict, {}, o.metric, notes=notes, design_changes=design_changes(
+        old.summary.get("provenance", {}).get("design", {}), new.summary.get("provenance", {}).get("design", {})))
     if o.metric == "stray_fraction":
-        names = list(dict.fromkeys([*old.summary.get("per_part", {}), *new.summary.get("per_part", {})]))
-        for name in names:
-            per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
-    result = CompareResult(old, new, verdict, per_part, o.metric, notes=notes)
+        old_parts, new_parts = old.summary.get("per_part", {}), new.summary.get("per_part", {})
+        for name in dict.fromkeys([*old_parts, *new_parts]):
+            if name not in new_parts:  # a part of one design only: named so, never judged (-100 % is no finding)
+                result.parts_removed[name] = old.part(name).value
+            elif name not in old_parts:
+                result.parts_added[name] = new.part(name).value
+            else:
+                result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
     out = Path(o.out) if o.out is not None else new.folder / "compare"
     result.paths = write_comparison(out, old, new, result)
     return result
@@ -295,10 +358,12 @@ def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> di
     kind = {"regression": "regression", "undecided": "undecided"}.get(v.verdict, "ok")
     headers = ["", "old", "new", "change", "interval of the change", "verdict"]
     rows = [["total", *verdict_row(v)]] + [[k, *verdict_row(pv)] for k, pv in result.per_part.items()
-                                           if pv.old or pv.new]
+                                           if pv.old or pv.new] + part_rows(result)
+    detail = " ".join(filter(None, [v.note, "Design changes: " + "; ".join(result.design_changes) + "."
+                                    if result.design_changes else "Design: unchanged."]))
     write_report(paths["html"], comparison_report(
         old.summary, new.summary, verdict_sentence(v), rows, headers,
-        {"old": paths["old_png"], "new": paths["new_png"], "new − old": paths["png"]}, v.note, kind))
+        {"old": paths["old_png"], "new": paths["new_png"], "new − old": paths["png"]}, detail, kind))
     return paths
 
 
@@ -309,11 +374,17 @@ def verdict_row(v: Verdict) -> list[str]:
     return [f"{v.old:.4g}", f"{v.new:.4g}", f"{v.change:+.3g}{rel}", interval, v.verdict]
 
 
+def part_rows(result: CompareResult) -> list[list[str]]:
+    """Rows for the parts of one run only (same columns as `verdict_row`): named added or removed."""
+    return [[k, f"{x:.4g}", "—", "—", "—", "removed"] for k, x in result.parts_removed.items()] + \
+           [[k, "—", f"{x:.4g}", "—", "—", "added"] for k, x in result.parts_added.items()]
+
+
 def verdict_sentence(v: Verdict) -> str:
     rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
     return f"{v.verdict}: change {v.change:+.3g}{rel}, interval [{v.low:+.3g}, {v.high:+.3g}] at " \
            f"{100 * v.confidence:g} % confidence, tolerance {v.threshold:.3g}"
 
 
-__all__ = ["CompareOptions", "CompareResult", "Run", "compare", "current_run", "stored_run", "check_comparable",
-           "verdict_row", "verdict_sentence", "METRICS"]
+__all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "plan", "plan_current", "stored_run",
+           "check_comparable", "part_rows", "verdict_row", "verdict_sentence", "METRICS"]

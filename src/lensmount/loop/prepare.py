@@ -29,11 +29,13 @@ def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None]
     """The validated design folder and scene file, (Design, SceneSpec); nothing built yet, so a
     caller can refuse bad options and unwritable outputs before the slow part."""
     from lensmount.design.folder import load_design
-    from lensmount.design.scene import check_mount_finishes, fit_detector_to_housing, load_scene
+    from lensmount.design.finishes import check_mount_finishes
+    from lensmount.design.scene import fit_detector_to_housing, load_scene
 
     (stage or (lambda text: None))("reading the design and the scene")
-    design, spec = load_design(design_dir), load_scene(Path(scene_path))
-    check_mount_finishes(spec, design.mount)
+    design = load_design(design_dir)
+    spec = load_scene(Path(scene_path), design.finishes)
+    check_mount_finishes(design.finishes, design.mount)
     return design, fit_detector_to_housing(spec, design.mount)
 
 

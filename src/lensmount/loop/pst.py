@@ -129,9 +129,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     passes = o.passes or spec.run.passes
     per_pass = o.photons_per_pass or spec.run.photons
     azimuth = spec.source.azimuth_deg if o.azimuth_deg is None else float(o.azimuth_deg)
-    provenance = collect(design.root, design.lens_path, design.mount_path, o.scene,
-                         list(design.template_paths.values()),
-                         step_paths=list(design.step_paths.values())).to_dict()
+    provenance = collect(design, spec, o.scene).to_dict()
 
     base = build(design, spec, o.geometry, stage=say).scene
     det = base.detector

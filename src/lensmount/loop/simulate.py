@@ -18,7 +18,7 @@ from lensmount.errors import InputError
 from lensmount.integrators.registry import check_method
 from lensmount.run.executor import local_cluster_size
 from lensmount.loop.prepare import build
-from lensmount.loop.provenance import collect
+from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
 
 CHECKPOINT = "checkpoint.npz"
 PATHS = "paths.npz"  # per-path and per-face sums for `lensmount paths` (analysis.paths.write_paths)
@@ -151,22 +151,26 @@ def check_writable(folder: Path, field: str = "--out") -> None:
                          valid="a folder you can write to (or one that can be created)") from None
 
 
-def input_hash(design_hash: str, scene_path: Path, **params) -> str:
-    """What a run's numbers depend on besides its seed: the CAD inputs (design.input_hash),
-    the scene file and the estimator's parameters. Runs with equal hashes differ only by noise."""
+def input_hash(design, spec, **params) -> str:
+    """What a run's numbers depend on besides its seed and length: the CAD inputs
+    (design.input_hash), the design's finishes.toml and user files, the test condition (the
+    scene's source, detector, effects and objects, not its run length) and the estimator's
+    parameters. Runs with equal hashes differ only by noise; a longer run of the same design and
+    test condition has the same hash, so the store finds it whatever its length."""
     h = hashlib.sha256()
-    h.update(design_hash.encode())
-    h.update(Path(scene_path).read_bytes())
+    h.update(design.input_hash.encode())
+    for path in ([design.finishes_path] if design.finishes_path else []) + user_files(design):
+        h.update(f"{path.name} {file_sha256(path)}\n".encode())
+    h.update(condition_sha256(spec).encode())
     for k in sorted(params):
         h.update(f"{k}={params[k]!r}".encode())
     return h.hexdigest()[:16]
 
 
 def planned_input_hash(o: SimulateOptions, design, spec) -> str:
-    """The input hash a run with these options would get (design: loaded Design, spec: its SceneSpec)."""
-    per_pass = o.photons_per_pass or spec.run.photons
-    return input_hash(design.input_hash, Path(o.scene), method=o.method, photons_per_pass=per_pass,
-                      estimator_settings=estimator_settings(o).as_dict())
+    """The input hash a run with these options would get (design: loaded Design, spec: its SceneSpec
+    with the detector fitted)."""
+    return input_hash(design, spec, method=o.method, estimator_settings=estimator_settings(o).as_dict())
 
 
 def estimator_settings(o: SimulateOptions):
@@ -176,16 +180,19 @@ def estimator_settings(o: SimulateOptions):
     return EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
 
 
+RESUME_KEYS = ("seed", "method", "input_hash", "photons_per_pass")  # what a resumed run must share
+
+
 def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
-    differ = [k for k in ("seed", "method", "input_hash") if str(meta.get(k)) != str(asked[k])]
+    differ = [k for k in RESUME_KEYS if str(meta.get(k)) != str(asked[k])]
     if not differ:
         return
-    held = ", ".join(f"{k} {meta.get(k)}" for k in ("seed", "method", "input_hash"))
-    wanted = ", ".join(f"{k} {asked[k]}" for k in ("seed", "method", "input_hash"))
+    held = ", ".join(f"{k} {meta.get(k)}" for k in RESUME_KEYS)
+    wanted = ", ".join(f"{k} {asked[k]}" for k in RESUME_KEYS)
     raise InputError(f"the checkpoint belongs to another run ({', '.join(differ)} differ): it holds {held}; "
                      f"this run asks for {wanted}", file=str(checkpoint), field=differ[0],
-                     valid="resume with the checkpoint's --seed and --method on unchanged inputs, "
-                           "or run without --resume into another --out")
+                     valid="resume with the checkpoint's --seed, --method and --photons-per-pass on unchanged "
+                           "inputs, or run without --resume into another --out")
 
 
 def simulate(options: SimulateOptions, observer: Observer | None = None) -> SimulateResult:
@@ -214,10 +221,9 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
         except ValueError as error:  # another lensmount version's layout: say so, no traceback
             raise InputError(f"the checkpoint cannot be resumed: {error}", file=str(checkpoint),
                              valid="a checkpoint this lensmount version wrote; run again without --resume") from None
-        _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
-    provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
-                         list(design.template_paths.values()), o.argv,
-                         list(design.step_paths.values()))
+        _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest,
+                                    "photons_per_pass": per_pass}, checkpoint)
+    provenance = collect(design, spec, scene_path, o.argv)
 
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
     return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance)
@@ -270,7 +276,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 
     obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, on {executor.description}")
     runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
-                    checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
+                    checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method,
+                                     "photons_per_pass": per_pass}, progress=progress)
     runner.run(stopping)
 
     tags, areas = scene_tags(sc), face_areas(sc.mesh)

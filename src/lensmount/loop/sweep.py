@@ -3,8 +3,9 @@
     sweep(SweepOptions(design, scene, params=[Param.parse("mount.vanes.count=3,5,7"),
                                                Param.parse("mount.hood.length_mm=80,120")]))
 
-A parameter names a file (`mount`, `lens` for lens.toml, `scene`), a table path and a
-key; its values are TOML literals. Each variant is a copy of the design folder (and of
+A parameter names a file (`mount`, `lens` for lens.toml, `finishes` for the design's
+finishes.toml, `scene`), a table path and a key; its values are TOML literals
+(`finishes.finishes.black-paint.reflectance=0.02,0.05`). Each variant is a copy of the design folder (and of
 the scene) with those keys set, written under OUT/variants/NN/, regenerated and
 simulated with the same seed and stopping rules through `loop.simulate`, so its passes
 run on whatever executor the simulate options name (local processes or Dask). Variants
@@ -28,12 +29,12 @@ from lensmount.atomic import atomic_path, write_text
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, SimulateOptions, simulate
 
-FILES = {"mount": "mount.toml", "lens": "lens.toml", "scene": None}
+FILES = {"mount": "mount.toml", "lens": "lens.toml", "finishes": "finishes.toml", "scene": None}
 
 
 @dataclass(frozen=True)
 class Param:
-    """One swept key: file ('mount' | 'lens' | 'scene'), table path and key, and its values."""
+    """One swept key: file ('mount' | 'lens' | 'finishes' | 'scene'), table path and key, and its values."""
 
     file: str
     keys: tuple[str, ...]
@@ -50,7 +51,7 @@ class Param:
         parts = tuple(p.strip() for p in path.strip().split("."))
         if not eq or len(parts) < 2 or parts[0] not in FILES or not all(parts) or not values.strip():
             raise InputError(f"parameter '{text}' is not understood", field="--param",
-                             valid="FILE.TABLE.KEY=V1,V2,... with FILE one of mount, lens, scene, "
+                             valid="FILE.TABLE.KEY=V1,V2,... with FILE one of mount, lens, finishes, scene, "
                                    "e.g. mount.vanes.count=3,5,7")
         return cls(parts[0], parts[1:], tuple(_literal(v.strip()) for v in values.split(",")))
 
@@ -140,10 +141,10 @@ def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict
     shutil.copy2(scene, scene_copy)
     for p in params:
         path = scene_copy if p.file == "scene" else target / FILES[p.file]
-        if not path.exists():
+        if not path.exists() and p.file != "finishes":  # no finishes.toml yet: the swept key starts one
             raise InputError(f"the design has no {path.name} to set '{p.name}' in", file=str(path), field="--param",
                              valid="a parameter of a file the design has (a .zmx lens cannot be swept)")
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
         table = doc
         for key in p.keys[:-1]:
             table = table.setdefault(key, {})

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from lensmount.errors import InputError
-from lensmount.loop.compare import CompareOptions, CompareResult, Run, compare, current_run, verdict_sentence
+from lensmount.loop.compare import CompareOptions, CompareResult, Run, compare, obtain, plan_current, verdict_sentence
 from lensmount.loop.simulate import Observer
 from lensmount.run.report import esc, page, section, table_block, write_report
 
@@ -120,7 +120,7 @@ def watch(options: WatchOptions, observer: Observer | None = None,
     baseline: Run | None = None
     if o.against is None:  # the design as it is now; stored when an identical run exists
         start = time.perf_counter()
-        baseline = current_run(design, o.scene, settings, observer)
+        baseline = obtain(plan_current(design, o.scene, settings, "old"), observer)
         first = Revision(0, (), None, None, time.perf_counter() - start)
         history.append(first)
         write_watch_page(out, design, baseline, history)
@@ -136,7 +136,7 @@ def watch(options: WatchOptions, observer: Observer | None = None,
             if baseline is None:
                 result = compare(replace(settings, out=target), observer)
             else:
-                new = current_run(design, o.scene, settings, observer)
+                new = obtain(plan_current(design, o.scene, settings), observer)
                 result = compare(replace(settings, a=baseline.folder, b=new.folder, scene=None, against=None,
                                          out=target), observer)
             revision = Revision(number, changed, result, None, time.perf_counter() - start)

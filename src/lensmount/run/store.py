@@ -5,12 +5,21 @@ or the environment variable `LENSMOUNT_STORE` points several designs at a shared
 Each run is one INSERT in one transaction: an interrupted writer leaves no half row.
 The database runs in WAL mode with a busy timeout, so two simulations finishing at
 the same moment both land (one waits for the other's few milliseconds).
+
+A row's files never change afterwards: `record` copies the run's artefacts (summary.json,
+irradiance.exr, preview.png, report.html, paths.npz) into a folder of the row's own,
+`rows/ID/` beside the store file, and the row points there. The run's `--out` folder stays the
+live one: `simulate --resume` adds passes to it (how a run is made more precise), and
+the next row records the longer run without touching the earlier row's numbers. (Refusing to
+resume into a folder a row owns would forbid exactly that.) The checkpoint is not copied: it
+is the size of all the pass sums and only the live run resumes from it.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import sqlite3
 import time
 from dataclasses import dataclass
@@ -21,6 +30,7 @@ from lensmount.errors import InputError
 ENV = "LENSMOUNT_STORE"
 DEFAULT_NAME = Path(".lensmount") / "runs.sqlite"
 BUSY_TIMEOUT_MS = 60_000
+ROWS = "rows"  # beside the store file: rows/ID/ holds the artefacts a row points at
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -52,11 +62,14 @@ CREATE TABLE IF NOT EXISTS runs (
     out_dir TEXT NOT NULL,
     summary_path TEXT NOT NULL,
     image_path TEXT NOT NULL,
-    preview_path TEXT NOT NULL
+    preview_path TEXT NOT NULL,
+    condition_sha256 TEXT
 );
 CREATE INDEX IF NOT EXISTS runs_by_design ON runs (design_path, scene_name);
 CREATE INDEX IF NOT EXISTS runs_by_input ON runs (input_hash);
 """
+# Columns added since the first schema: (name, SQL type); a store made before gets them (NULL in old rows).
+_ADDED = (("condition_sha256", "TEXT"),)
 
 
 @dataclass(frozen=True)
@@ -92,6 +105,7 @@ class RunRecord:
     summary_path: str
     image_path: str
     preview_path: str
+    condition_sha256: str | None = None  # the test condition (provenance.condition_sha256); None: an older row
 
     @classmethod
     def from_row(cls, row: sqlite3.Row) -> "RunRecord":
@@ -123,6 +137,14 @@ class Store:
             self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
             self.db.execute("PRAGMA journal_mode = WAL")
             self.db.executescript(_SCHEMA)
+            have = {row["name"] for row in self.db.execute("PRAGMA table_info(runs)")}
+            for name, kind in _ADDED:
+                if name not in have:
+                    try:
+                        self.db.execute(f"ALTER TABLE runs ADD COLUMN {name} {kind}")
+                    except sqlite3.OperationalError as exc:  # another process added it a moment ago
+                        if "duplicate column" not in str(exc):
+                            raise
         except (OSError, sqlite3.Error) as exc:
             raise InputError(f"cannot open the results store ({exc})", file=str(self.path), field="--store",
                              valid=f"a writable SQLite file path (--store PATH or ${ENV})") from None
@@ -145,6 +167,7 @@ class Store:
                                  "mount_sha256", "scene_sha256", "git_commit", "git_commit_time",
                                  "lensmount_version", "command_line")},
             "git_dirty": None if p["git_dirty"] is None else int(p["git_dirty"]),
+            "condition_sha256": p.get("condition_sha256") or None,
             "input_hash": summary["input_hash"], "method": summary["method"], "seed": summary["seed"],
             "passes": summary["passes"], "photons": summary["photons"], "time_s": summary["time_s"],
             "stray_fraction": summary.get("stray_fraction"),
@@ -152,25 +175,43 @@ class Store:
             "stray_fraction_bias_bound": summary.get("stray_fraction_bias_bound"),
             "per_part": json.dumps(summary.get("per_part", {}), sort_keys=True, allow_nan=False),
             "warnings": json.dumps(list(summary.get("warnings", []))),
-            "out_dir": str(Path(paths["json"]).resolve().parent), "summary_path": str(Path(paths["json"]).resolve()),
-            "image_path": str(Path(paths["exr"]).resolve()), "preview_path": str(Path(paths["png"]).resolve()),
+            "out_dir": "", "summary_path": "", "image_path": "", "preview_path": "",  # set once the id is known
         }
         keys = ", ".join(row)
         marks = ", ".join(f":{k}" for k in row)
         # BEGIN IMMEDIATE takes the write lock up front (waiting up to the busy timeout),
-        # so the insert either commits whole or not at all.
+        # so the insert and the row's files either land whole or not at all.
         self.db.execute("BEGIN IMMEDIATE")
         try:
-            cur = self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row)
+            run_id = int(self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row).lastrowid)
+            kept = self._keep(run_id, paths)
+            self.db.execute("UPDATE runs SET out_dir = ?, summary_path = ?, image_path = ?, preview_path = ? "
+                            "WHERE id = ?", (str(kept), str(kept / Path(paths["json"]).name),
+                                             str(kept / Path(paths["exr"]).name),
+                                             str(kept / Path(paths["png"]).name), run_id))
             self.db.execute("COMMIT")
         except BaseException:
             self.db.execute("ROLLBACK")
             raise
-        return int(cur.lastrowid)
+        return run_id
+
+    def _keep(self, run_id: int, paths: dict[str, Path]) -> Path:
+        """Copy the run's artefacts into rows/ID/ (written whole under a temporary name, then renamed)."""
+        folder = self.path.resolve().parent / ROWS / str(run_id)
+        partial = folder.with_name(f".{run_id}.partial")
+        shutil.rmtree(partial, ignore_errors=True)
+        partial.mkdir(parents=True)
+        for path in paths.values():
+            if Path(path).is_file():
+                shutil.copy2(path, partial / Path(path).name)
+        shutil.rmtree(folder, ignore_errors=True)  # a folder of a rolled-back id that is being reused
+        partial.rename(folder)
+        return folder
 
     def runs(self, design_path: str | Path | None = None, scene_name: str | None = None,
-             input_hash: str | None = None) -> list[RunRecord]:
-        """Stored runs matching the filters, oldest first."""
+             input_hash: str | None = None, condition_sha256: str | None = None) -> list[RunRecord]:
+        """Stored runs matching the filters, oldest first (`condition_sha256`: runs of that test
+        condition, and older rows that did not record theirs)."""
         where, args = [], []
         if design_path is not None:
             where.append("design_path = ?")
@@ -181,6 +222,9 @@ class Store:
         if input_hash is not None:
             where.append("input_hash = ?")
             args.append(input_hash)
+        if condition_sha256 is not None:
+            where.append("(condition_sha256 = ? OR condition_sha256 IS NULL)")
+            args.append(condition_sha256)
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
         return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
 

@@ -124,12 +124,16 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
         from lensmount.physics.bsdf import make_bsdf as bsdf_factory
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
     library = finish_library(spec.finishes)
+    treatment = spec.finishes_source  # finishes.toml: where a rule or coating error is
     try:
         check_object_names(spec.objects, mesh.parts)
         mesh = TaggedMesh.concatenate([mesh] + object_meshes(spec))
-        check_rules_match(spec.assign, mesh, set(prescription.mirror_surfaces))
     except InputError as exc:
         raise located(exc, spec.source_file, spec.source_text) from None
+    try:
+        check_rules_match(spec.assign, mesh, set(prescription.mirror_surfaces))
+    except InputError as exc:
+        raise located(exc, *treatment) from None
     # A scene object's own `finish` is as specific as a part rule (an explicit part rule still wins).
     assign = {f"part:{o.name}": o.finish for o in spec.objects} | dict(spec.assign)
     finishes, bsdfs, cache = [], [], {}
@@ -148,7 +152,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                                          "its coating already reflects specularly", field=f"assign.surface:"
                                          f"{tag.surface + 1}", valid="a scatter finish (lambertian, gaussian, abg, "
                                          "harvey, tabulated), or absorber for none; R is the coating's"),
-                              spec.source_file, spec.source_text)
+                              *treatment)
             bsdfs.append(MirrorFinish(cache[name]))
             continue
         bsdfs.append(cache[name])
@@ -156,8 +160,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     for key in spec.coatings:
         if key.startswith("surface-") and int(key[8:]) > len(prescription.surfaces):
             raise located(InputError(f"the lens has no surface {key[8:]}", field=f"coatings.{key}",
-                                     valid=f"surface-1 to surface-{len(prescription.surfaces)}"),
-                          spec.source_file, spec.source_text)
+                                     valid=f"surface-1 to surface-{len(prescription.surfaces)}"), *treatment)
     optical = optical_surfaces(prescription, wavelengths,
                                lambda i, c: spec.coating_of_surface(i, c, prescription.surfaces[i].mirror))
     opening = front_opening(prescription, mesh)

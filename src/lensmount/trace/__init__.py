@@ -1,5 +1,6 @@
 """lensmount.trace — the engine: the non-sequential ray tracer that consumes a Scene.
 
+    from lensmount.design.finishes import load_finishes
     from lensmount.design.lens import load_lens
     from lensmount.design.scene import load_scene
     from lensmount.mesh import TaggedMesh
@@ -11,7 +12,9 @@
 
     lens = load_lens("examples/double-gauss-360/lens.toml")
     mesh = TaggedMesh.load("out/double-gauss-360/mesh.npz")          # from `lensmount regenerate`
-    scene = build_scene(lens, mesh, load_scene("examples/double-gauss-360/scenes/case2-lambertian.toml"))
+    spec = load_scene("examples/double-gauss-360/scenes/case2-lambertian.toml",
+                      load_finishes("examples/double-gauss-360"))                 # the design's finishes
+    scene = build_scene(lens, mesh, spec)
     tracer = Tracer(scene)
 
     # Trace your own rays to the next mechanical face / the detector:
