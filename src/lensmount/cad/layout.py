@@ -10,7 +10,7 @@ vane bores. Geometry rules, all in the (r, z) half plane of the solids of revolu
   its bore is R + radial clearance.
 * Every contact (spacer, retainer, shoulder) touches an optical surface at the
   contact height h = clear semi-diameter + contact margin, with an end face cone
-  whose slope keeps it off the glass everywhere else (`contact_slope`).
+  whose slope keeps it off the glass everywhere else (`cad.seats.contact_slope`).
 * The bore steps where the glass outside the spacer's radius ends, so no part
   overlaps another; `checks` verifies it on the final profiles.
 """
@@ -24,6 +24,8 @@ import numpy as np
 
 from lensmount.cad.baffles import hood_and_vanes, housing
 from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group
+from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, contact_slope, diaphragm_spacer_ends,
+                                 glass_seat_bore, radii_to_rim, ring_opening, stop_diaphragm)
 from lensmount.cad.step_parts import StepSource
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
@@ -35,8 +37,6 @@ from lensmount.templates.profile import Template
 from lensmount.templates.retainer import Retainer
 from lensmount.templates.spacer import Spacer
 
-_SLOPE_SAMPLES = 256
-_EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding
 ENVELOPE_STEP_MM = 0.25
 APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance aperture (vane sight lines)
 
@@ -128,167 +128,6 @@ def _exact_envelope(prescription: Prescription, z) -> np.ndarray:
     return np.nan_to_num(beam_envelope(prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
 
 
-def contact_slope(boundary, h: float, r_max: float, side: int, tangent: bool, wedge: float) -> float:
-    """Cone slope m of an end face touching the glass at radius h.
-
-    boundary(r) is the glass's z at r (the face toward the part); side = +1 when the
-    part lies behind the glass (larger z), -1 in front. The face z_c + side·m·(r − h)
-    must stay off the glass for h < r <= r_max: m >= side·(z(r) − z(h)) / (r − h).
-    Sharp-corner contact: the face leaves the glass at least at the angle atan(wedge),
-    m >= that bound + wedge, so the gap grows by at least wedge·(r − h) and never runs
-    alongside the glass at sub-micrometre distance (on a surface concave toward the
-    part the bare bound would hug it); never steeper into the part than flat (m >= 0).
-    Tangent contact: the surface's own slope at h, m = side·z'(h), safe on a surface
-    convex toward the part (m may then be negative; the gap grows quadratically, as
-    a tangent contact does); on a concave one the sharp rule wins.
-    """
-    zh = float(boundary(h))
-    need = -np.inf
-    if r_max > h + 1e-9:
-        rs = np.linspace(h, r_max, _SLOPE_SAMPLES)[1:]
-        need = float((side * (boundary(rs) - zh) / (rs - h)).max())
-    sharp = max(0.0, need + wedge)
-    if tangent:
-        dh = 1e-4
-        along = side * float(boundary(h + dh) - boundary(h - dh)) / (2 * dh)
-        return (along if along >= need else sharp) + _EPS_SLOPE
-    return sharp + _EPS_SLOPE
-
-
-def _opening(env: "Envelope", h: float, z_far: float, z_contact: float, spec: MountSpec) -> float:
-    """Bore radius at a ring's far face: the contact radius, or wider where the beam grows.
-
-    The bore runs straight from (h, z_contact) to (r, z_far); the beam is convex in z
-    in air, so clearing both ends (with the spacer margin) clears the whole bore.
-    """
-    beam = env.max_over(min(z_far, z_contact), max(z_far, z_contact))
-    return float(max(h, beam + spec.spacers.aperture_margin_mm if beam > h else h))
-
-
-def _check_ring(name: str, bore: float, outside: float, min_t: float) -> None:
-    if outside - bore < min_t:
-        raise GeometryError(
-            f"{name}: its bore must open to {bore:.3f} mm to clear the beam, leaving a wall of "
-            f"{outside - bore:.3f} mm inside its outside radius {outside:.3f} mm (minimum {min_t} mm)",
-            field="retainer.thickness_mm", valid="a thinner ring, a smaller aperture margin or a larger lens")
-
-
-def _radii(lo: float, R: float, chamfer: float) -> np.ndarray:
-    """Radii from lo to R including the chamfer's corner (where the glass's z peaks)."""
-    rs = np.linspace(lo, R, 129)
-    return np.unique(np.concatenate([rs, [R - chamfer] if R - chamfer >= lo else []]))
-
-
-def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float:
-    """Largest radius, for z in [z0, z1], of the on-axis ray entering at the designed EPD/2.
-
-    A diaphragm whose bore is this radius over its land passes exactly the designed
-    entrance pupil (primary wavelength), wherever the land sits: on a dummy stop plane,
-    or next to a curved stop surface where the paraxial stop height no longer applies.
-    """
-    from lensmount.optics.apertures import beam_envelope
-    from lensmount.optics.paraxial import paraxial
-    from lensmount.optics.realrays import trace
-
-    if prescription.object_telecentric:   # the object-space NA is the aperture: the stop passes every field's beam
-        return float(beam_envelope(prescription, np.linspace(z0, z1, 9)).max())
-    h = 0.5 * paraxial(prescription).epd
-    rays = trace(prescription, np.array([[0.0, h, -1.0]]), np.array([[0.0, 0.0, 1.0]]), clip=False)
-    pts = np.concatenate([rays.origins[None], rays.points], axis=0)[:, 0]  # (S+2, 3) polyline
-    zs = np.linspace(z0, z1, 9)
-    return float(np.interp(zs, pts[:, 2], np.abs(pts[:, 1])).max())
-
-
-def _diaphragm(spec, p, stop, od, z_stop, face=None) -> Diaphragm:
-    """The diaphragm for the stop at z_stop; its land passes the designed pupil.
-
-    face None: the knife edge on the stop plane (a dummy stop surface in an air gap).
-    face (side, glass, R): the plate follows the face glass(r) of the lens in front of it
-    (side +1) or behind it (side -1), R that lens's radius: its land sits just off the
-    glass where the face crosses the pupil's edge, the plate a cone that clears the glass
-    outward of it (`contact_slope`), so the plate limits no field more than the face itself.
-    That is the stop on a lens face, or a stop plane so close to a curved face that no
-    spacer fits between them; there the land stays on the stop plane wherever the glass
-    leaves room (the field beams cross the axis there), else as close to it as the glass allows.
-    """
-    ds = spec.diaphragm
-    land = ds.land_mm
-    args = (od, ds.thickness_mm, land, ds.bevel_angle_deg, ds.bevel_side)
-    if face is None:
-        return Diaphragm(z_stop, pupil_edge_radius(p, z_stop - 0.5 * land, z_stop + 0.5 * land), *args)
-    side, glass, R = face
-    gap = spec.seats.clearance_mm  # air between glass and plate at the land
-    wedge = float(np.tan(np.radians(spec.seats.wedge_deg)))
-    on_face = abs(float(glass(0.0)) - z_stop) < 1e-9
-    r0 = float(p.surfaces[stop].clear_semi_diameter)
-    for _ in range(4):  # the land's z depends on its radius through the glass's sag: settle both
-        off0, off1 = Diaphragm(0.0, r0, *args).z_range()  # face offsets from the land centre
-        near = off0 if side > 0 else off1                   # the face toward the glass
-        zc = float(glass(r0)) + side * gap - near
-        if on_face or side * (z_stop - zc) <= 0.0:
-            m = side * contact_slope(glass, r0, min(od, R), side, False, wedge)
-        else:  # the stop plane is farther from the glass: the land stays on it, the plate
-            zc = z_stop  # only as steep as keeps it `gap` off the glass outward
-            rs = np.linspace(r0, max(min(od, R), r0 + 1e-6), _SLOPE_SAMPLES)[1:]
-            need = float((side * (glass(rs) + side * gap - (zc + near)) / (rs - r0)).max())
-            m = side * (max(0.0, need) + _EPS_SLOPE)
-        lo = zc - 0.5 * land
-        r0 = pupil_edge_radius(p, lo, lo + land)
-    return Diaphragm(zc, r0, *args, slope=m)
-
-
-def _diaphragm_spacer_ends(dia, env, spec, od, hug, ia, ib, a, b) -> list[tuple]:
-    """Spacers between lens A and the diaphragm and between the diaphragm and lens B, as
-    `add_spacers` ends; none on the side whose face the plate follows (`hug`).
-    a, b: (contact height, contact slope, lens PartPlan) of A's rear and B's front face."""
-    (hA, mA, A), (hB, mB, B) = a, b
-    margin = spec.spacers.aperture_margin_mm
-
-    def bore(side: str, reach: float) -> float:
-        """Inner corner of the spacer on the plate's front or rear face: above the beam over the
-        millimetre next to where it meets the plate (on a cone that z moves with the corner)."""
-        r = dia.face_inner_radius(side)
-        for _ in range(20):
-            z = float(dia.face_z(side, r))
-            r_next = max(dia.face_inner_radius(side), env.max_over(z, z + reach) + margin)
-            if r_next <= r + 1e-9:
-                break
-            r = r_next
-        return r
-
-    hd0, hd1 = bore("front", -1.0), bore("rear", 1.0)
-    ends = []
-    if hug != ia:
-        ends.append((hA, float(A.template.back_z(hA)), mA, hd0, float(dia.face_z("front", hd0)),
-                     _EPS_SLOPE - dia.slope, A.name, "diaphragm"))
-    if hug != ib:
-        ends.append((hd1, float(dia.face_z("rear", hd1)), dia.slope + _EPS_SLOPE, hB,
-                     float(B.template.front_z(hB)), mB, "diaphragm", B.name))
-    return ends
-
-
-BEAM_CLEAR_MM = 0.01  # a glass seat's contact at least this far outside the light
-
-
-def _glass_seat(A, B, RA, RB, bore_a, bore_b, c_glass, element_no) -> list[tuple[float, float]]:
-    """Barrel bore points where lens A and lens B sit on each other (seat "glass"): the bore steps
-    from the smaller element's to the larger's `c_glass` clear of the larger's glass outside the
-    smaller's bore; the smaller element's edge cylinder must start before that step (the bore holds it)."""
-    if RA < RB:   # A nests into B's front: step just in front of B's glass outside A's bore
-        rs = _radii(min(bore_a, RB), RB, B.template.front_chamfer)
-        z = float(B.template.front_z(rs).min()) - c_glass
-        inside = z > A.template.edge_z()[0]
-    else:         # B nests into A's rear
-        rs = _radii(min(bore_b, RA), RA, A.template.back_chamfer)
-        z = float(A.template.back_z(rs).max()) + c_glass
-        inside = z < B.template.edge_z()[1]
-    if not inside:
-        raise GeometryError(f"{A.name} and {B.name} cannot sit on each other: the barrel step between their "
-                            "bores would pass the smaller one's whole edge", field=f"seats.element.{element_no}",
-                            valid="'spacer' or 'shoulder'")
-    return [(bore_a, z), (bore_b, z)]
-
-
 def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:
     """Mechanical semi-diameter (mm) of a lens group whose first element is number `first`: the largest
     `lens_edge.semi_diameter_mm` of its elements, else the largest of the file's mechanical
@@ -310,7 +149,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     if any(s.clear_semi_diameter is None for s in p.surfaces):
         p = with_clear_semi_diameters(p)
     if p.has_mirrors:
-        from lensmount.cad.catadioptric import plan_catadioptric
+        from lensmount.cad.catadioptric import plan_catadioptric   # lazy: it builds on this module's Layout
 
         return plan_catadioptric(p, spec)
     mount = _MountPlanner(p, spec)
@@ -324,11 +163,10 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
 
 @dataclass
 class _Gap:
-    """The air gap between lens group gi and the next: the elements the seats touch (A behind, B in front of
-    the gap; a stepped group's GroupOutline), their outer surfaces ia, ib, the surfaces sa, sb and heights
+    """The air gap between two lens groups: the elements the seats touch (A in front of the gap, B behind
+    it; a stepped group's GroupOutline), their outer surfaces ia, ib, the surfaces sa, sb and heights
     hA, hB where the seats touch (ia, ib unless stepped), the groups' rims and bores."""
 
-    gi: int
     A: PartPlan
     B: PartPlan
     ia: int
@@ -441,8 +279,9 @@ class _MountPlanner:
                          f"[{short.index + 1}])" if outer_face else ""))
         if stepped:
             partner = f"lens-{n_el + (1 if k == 0 else -1)}"
-            self.notes.append(f"{name}: stepped, edged to {el.outer_radius:.3f} mm (clear {max(clear[a], clear[b]):.3f} "
-                              f"mm plus a {max(el.front_chamfer, el.back_chamfer):.3f} mm bevel; edge "
+            self.notes.append(f"{name}: stepped, edged to {el.outer_radius:.3f} mm (clear "
+                              f"{max(clear[a], clear[b]):.3f} mm plus a "
+                              f"{max(el.front_chamfer, el.back_chamfer):.3f} mm bevel; edge "
                               f"{el.edge_thickness():.3f} mm, lens_edge.stepped_min_edge_mm "
                               f"{edge.stepped_min_edge_mm}): at the group's {R:.3f} mm it would be "
                               f"{LensElement(self._face(a), self._face(b), R).edge_thickness():.3f} mm; the group is "
@@ -530,15 +369,15 @@ class _MountPlanner:
         glass = el.template.front_z if side < 0 else el.template.back_z
         m = contact_slope(glass, h, min(R, r_out), side, self.tangent, self.wedge)
         ret = Retainer(h, float(glass(h)), m, side, r_out, self.spec.retainer.thickness_mm)
-        ret.far_r = _opening(self.env, h, ret.far_face_z(), ret.contact_z, self.spec)
+        ret.far_r = ring_opening(self.env, h, ret.far_face_z(), ret.contact_z, self.spec)
         name = f"retainer-{len(self.retainers) + 1}"
-        _check_ring(name, ret.far_r, r_out, self.min_t)
+        check_ring_wall(name, ret.far_r, r_out, self.min_t)
         self.retainers.append(PartPlan(name, "retainer", self.spec.finish_of(name, self.spec.retainer.finish), ret))
         return name, ret
 
     def _outer_diaphragm(self, od: float, face=None) -> Diaphragm:
         """A diaphragm on a stop in front of the first element or behind the last one (or on its face)."""
-        dia = _diaphragm(self.spec, self.p, self.stop, od, float(self.p.vertex_z[self.stop]), face)
+        dia = stop_diaphragm(self.spec, self.p, self.stop, od, float(self.p.vertex_z[self.stop]), face)
         self.parts.append(PartPlan("diaphragm", "diaphragm",
                                    self.spec.finish_of("diaphragm", self.spec.diaphragm.finish), dia))
         return dia
@@ -574,7 +413,7 @@ class _MountPlanner:
                 dz1 = dia.z_range()[1]
                 m = contact_slope(el0.front_z, h0, min(R0, od), -1, self.tangent, self.wedge)
                 hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
-                self._add_spacers([(hd1, dz1, _EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first.name)],
+                self._add_spacers([(hd1, dz1, EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first.name)],
                                   od, -1, s0)
         elif spec.seats.front == "retainer":
             name, ret = self._retainer(first, h0, -1, R0, bore0 - c_sp)
@@ -585,7 +424,7 @@ class _MountPlanner:
             m = contact_slope(el0.front_z, h0, R0, -1, self.tangent, self.wedge)
             cz = lambda r: float(el0.front_z(h0)) - m * (r - h0)  # noqa: E731
             z_front = cz(bore0) - spec.barrel.lip_mm
-            self.bore_pts += [(_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bore0, cz(bore0))]
+            self.bore_pts += [(ring_opening(env, h0, z_front, cz(h0), spec), z_front), (h0, cz(h0)), (bore0, cz(bore0))]
             self.contacts.append(Contact("barrel", first.name, s0, h0, self.clear[s0]))
         return z_front
 
@@ -597,7 +436,7 @@ class _MountPlanner:
         stop_placed = stop <= groups[0][0] or stop >= groups[-1][-1]
         for gi in range(len(groups) - 1):
             (sa, hA), (sb, hB) = self._seat_at(gi, 1), self._seat_at(gi + 1, 0)
-            gap = _Gap(gi, self._seated(gi, 1), self._seated(gi + 1, 0), groups[gi][-1], groups[gi + 1][0],
+            gap = _Gap(self._seated(gi, 1), self._seated(gi + 1, 0), groups[gi][-1], groups[gi + 1][0],
                        sa, hA, sb, hB, self.radii[gi], self.radii[gi + 1], self.bores[gi], self.bores[gi + 1],
                        int(self.lens_parts[gi + 1][0].name.split("-")[1]))
             stop_here = gap.ia <= stop <= gap.ib
@@ -632,7 +471,7 @@ class _MountPlanner:
                 f"no room for a shoulder behind {A.name} and a retainer in front of {B.name}: "
                 f"{-room:.3f} mm short", field=f"seats.element.{g.element_no}",
                 valid="'spacer' or 'shoulder', a thinner retainer or barrel lip, or a larger air gap")
-        r_sh = _opening(self.env, hA, z_sh, cA(hA), self.spec)
+        r_sh = ring_opening(self.env, hA, z_sh, cA(hA), self.spec)
         if g.bore_b - r_sh < min_t:
             raise GeometryError(f"the shoulder behind {A.name} would be {g.bore_b - r_sh:.3f} mm high "
                                 f"(minimum {min_t} mm)", field=f"seats.element.{g.element_no}",
@@ -644,7 +483,7 @@ class _MountPlanner:
     def _glass_gap(self, g: _Gap) -> None:
         """The element with the smaller rim rests its rim corner on the other's face; the bore steps between."""
         A, B, env, c_glass = g.A, g.B, self.env, self.c_glass
-        self.bore_pts += _glass_seat(A, B, g.RA, g.RB, g.bore_a, g.bore_b, c_glass, g.element_no)
+        self.bore_pts += glass_seat_bore(A, B, g.RA, g.RB, g.bore_a, g.bore_b, c_glass, g.element_no)
         # the rim corner that rests on the other face; that face is touched where no light
         # reaches it (the envelope there), which may lie inside the file's semi-diameter
         small, big, i_big = (A, B, g.ib) if g.RA < g.RB else (B, A, g.ia)
@@ -697,22 +536,23 @@ class _MountPlanner:
             # no room for a spacer between it and A (B): the plate follows A's (B's) face up to it
             hug = stop if stop in faces else None
             while True:
-                dia = _diaphragm(spec, self.p, stop, od, float(self.p.vertex_z[stop]), faces.get(hug))
-                ends = _diaphragm_spacer_ends(dia, self.env, spec, od, hug, ia, ib, (hA, mA, A), (hB, mB, B))
+                dia = stop_diaphragm(spec, self.p, stop, od, float(self.p.vertex_z[stop]), faces.get(hug))
+                ends = diaphragm_spacer_ends(dia, self.env, spec, od, hug, ia, ib, (hA, mA, A), (hB, mB, B))
                 short = [ia if e[7] == "diaphragm" else ib for e in ends
                          if Spacer(*e[:6], od).min_length() < self.min_t]
                 if hug is not None or not short:
                     break
                 hug = short[0]
-            self.parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", spec.diaphragm.finish), dia))
+            self.parts.append(PartPlan("diaphragm", "diaphragm", spec.finish_of("diaphragm", spec.diaphragm.finish),
+                                       dia))
         else:
             ends.append((hA, float(A.template.back_z(hA)), mA, hB, float(B.template.front_z(hB)), mB, A.name, B.name))
         self._add_spacers(ends, od, g.sa, g.sb)
         r_in = od + self.c_sp
         # clear of the glass by c_glass: the step does not hold the lens, and a step face
         # through the glass's corner would leave a sub-micrometre sliver beside it
-        za = float(A.template.back_z(_radii(min(r_in, RA), RA, A.template.back_chamfer)).max()) + c_glass
-        zb = float(B.template.front_z(_radii(min(r_in, RB), RB, B.template.front_chamfer)).min()) - c_glass
+        za = float(A.template.back_z(radii_to_rim(min(r_in, RA), RA, A.template.back_chamfer)).max()) + c_glass
+        zb = float(B.template.front_z(radii_to_rim(min(r_in, RB), RB, B.template.front_chamfer)).min()) - c_glass
         if zb < za:
             raise GeometryError(f"the barrel cannot step between {A.name} and {B.name}: their edges overlap "
                                 f"axially by {za - zb:.3f} mm", field="lens_edge.allowance_mm",
@@ -740,15 +580,16 @@ class _MountPlanner:
             if stop > iL:
                 dz0 = dia.z_range()[0]
                 m = contact_slope(elL.back_z, hL, min(RL, od), +1, self.tangent, self.wedge)
-                hd0 = max(dia.face_inner_radius("front"), env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
-                self._add_spacers([(hL, float(elL.back_z(hL)), m, hd0, dz0, _EPS_SLOPE, last.name, "diaphragm")],
+                hd0 = max(dia.face_inner_radius("front"),
+                          env.max_over(dz0 - 1.0, dz0) + spec.spacers.aperture_margin_mm)
+                self._add_spacers([(hL, float(elL.back_z(hL)), m, hd0, dz0, EPS_SLOPE, last.name, "diaphragm")],
                                   od, sL, -1)
             self.bore_pts += [(boreL, rz(boreL)), (r_lip, rz(r_lip)), (r_lip, z_back)]
         elif spec.seats.rear == "shoulder":
             m = contact_slope(elL.back_z, hL, RL, +1, self.tangent, self.wedge)
             cz = lambda r: float(elL.back_z(hL)) + m * (r - hL)  # noqa: E731
             z_back = cz(boreL) + spec.barrel.lip_mm
-            self.bore_pts += [(boreL, cz(boreL)), (hL, cz(hL)), (_opening(env, hL, z_back, cz(hL), spec), z_back)]
+            self.bore_pts += [(boreL, cz(boreL)), (hL, cz(hL)), (ring_opening(env, hL, z_back, cz(hL), spec), z_back)]
             self.contacts.append(Contact("barrel", last.name, sL, hL, self.clear[sL]))
         else:
             name, ret = self._retainer(last, hL, +1, RL, boreL - c_sp)
@@ -761,7 +602,8 @@ class _MountPlanner:
         """The barrel around the bore the seats stepped, [barrel] wall_mm thick; its outside radius."""
         r_barrel = max(r for r, _ in self.bore_pts) + self.spec.barrel.wall_mm
         barrel = Barrel(tuple((float(r), float(z)) for r, z in self.bore_pts), float(r_barrel))
-        self.parts.insert(0, PartPlan("barrel", "barrel", self.spec.finish_of("barrel", self.spec.barrel.finish), barrel))
+        finish = self.spec.finish_of("barrel", self.spec.barrel.finish)
+        self.parts.insert(0, PartPlan("barrel", "barrel", finish, barrel))
         return r_barrel
 
     def baffles(self, z_front: float, z_back: float, r_barrel: float) -> Layout:
@@ -787,4 +629,4 @@ class _MountPlanner:
         return Layout(p, ordered, self.contacts, self.env, self.notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "group_rim", "contact_slope", "pupil_edge_radius"]
+__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "group_rim"]
