@@ -39,7 +39,7 @@ def test_every_contact_is_outside_the_clear_aperture(reference_layout):
 
 
 def test_diaphragm_sits_at_the_stop_with_the_stop_radius(reference_layout):
-    from lensmount.cad.layout import pupil_edge_radius
+    from lensmount.cad.seats import pupil_edge_radius
     from lensmount.optics.paraxial import paraxial
 
     layout, spec = reference_layout

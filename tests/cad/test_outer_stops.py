@@ -38,7 +38,7 @@ def two_singlets(folder: Path, stop: str) -> Path:
 
 @pytest.mark.parametrize("stop", ["front", "rear"])
 def test_outer_stop_is_clamped_by_a_lip_and_a_spacer(tmp_path, stop):
-    from lensmount.cad.layout import pupil_edge_radius
+    from lensmount.cad.seats import pupil_edge_radius
 
     d = two_singlets(tmp_path / stop, stop)
     p = load_lens(d / "lens.toml")

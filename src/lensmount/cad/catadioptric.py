@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.path import Path as MplPath
 
+from lensmount.cad.layout import Envelope, Layout, PartPlan
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.prescription import Prescription
@@ -201,64 +202,91 @@ class BeamPaths:
                         field=plan.kind, valid="larger bores or holes, or a smaller edge allowance")
 
 
-def plan_catadioptric(p: Prescription, spec: MountSpec):
+def plan_catadioptric(p: Prescription, spec: MountSpec) -> Layout:
     """The Layout of a lens with mirrors (module docstring). Raises GeometryError."""
-    from lensmount.cad.layout import Layout, Envelope, PartPlan
+    mount = _CatadioptricPlanner(p, spec)
+    mount.units()
+    mount.fit_units()
+    mount.lips()
+    mount.beam_paths()
+    mount.cells()
+    mount.central_units()
+    mount.holes()
+    return mount.layout()
 
-    surf, zv, travel = p.surfaces, p.vertex_z, p.travel
-    phys = physical_surfaces(p)
-    clear = [float(s.clear_semi_diameter) for s in surf]
-    edge, min_t = spec.lens_edge, spec.checks.min_thickness_mm
-    c_glass, c_bore, c_sp = spec.seats.clearance_mm, spec.barrel.radial_clearance_mm, spec.spacers.radial_clearance_mm
-    lip, margin, cm = spec.barrel.lip_mm, spec.spacers.aperture_margin_mm, edge.contact_margin_mm
-    notes = ["catadioptric lens: no hood, vanes or detector housing are built (the barrel is the light tube)"]
 
-    def face(i: int) -> OpticalFace:
-        s = surf[i]
-        return OpticalFace(i, float(zv[i]), s.curvature, s.conic, tuple(s.aspheric))
+class _CatadioptricPlanner:
+    """The stages of `plan_catadioptric` and what they share: the lens (its physical surfaces), mount.toml's
+    settings, the units being sized, the folded beam and the barrel's bore."""
 
-    def clear_of(j: int) -> float:   # a physical surface's clear semi-diameter over all its passes
-        return max(clear[i] for i in range(len(surf)) if phys[i] == j)
+    def __init__(self, p: Prescription, spec: MountSpec):
+        self.p, self.spec = p, spec
+        self.surf, self.zv, self.travel = p.surfaces, p.vertex_z, p.travel
+        self.phys = physical_surfaces(p)
+        self.clear = [float(s.clear_semi_diameter) for s in self.surf]
+        self.edge, self.min_t = spec.lens_edge, spec.checks.min_thickness_mm
+        self.c_glass, self.c_bore, self.c_sp = (spec.seats.clearance_mm, spec.barrel.radial_clearance_mm,
+                                                spec.spacers.radial_clearance_mm)
+        self.lip, self.margin = spec.barrel.lip_mm, spec.spacers.aperture_margin_mm
+        self.cm = self.edge.contact_margin_mm
+        self.cell_wall = 2 * self.min_t
+        self.notes = ["catadioptric lens: no hood, vanes or detector housing are built (the barrel is the light tube)"]
+        self.all_units: list[_Unit] = []
+        self.beam: BeamPaths | None = None
+        self.env: Envelope | None = None
+        self.r_bore = 0.0
 
-    def mech_of(j: int) -> float:
-        mech = [surf[i].mechanical_semi_diameter or 0.0 for i in range(len(surf)) if phys[i] == j]
-        return max([clear_of(j) + edge.allowance_mm] + mech)
+    def _face(self, i: int) -> OpticalFace:
+        s = self.surf[i]
+        return OpticalFace(i, float(self.zv[i]), s.curvature, s.conic, tuple(s.aspheric))
 
-    # ---- units: glass pieces and mirror blanks ------------------------------------------
-    pieces = set()
-    for i, s in enumerate(surf[:-1]):
-        if not s.is_air_after and phys[i] != phys[i + 1]:
-            a, b = sorted((phys[i], phys[i + 1]), key=lambda j: zv[j])
-            pieces.add((a, b))
-    units: list[_Unit] = []
-    for a, b in sorted(pieces, key=lambda ab: zv[ab[0]]):
-        joined = [u for u in units if u.pieces[0][1] != -1 and ({a, b} & u.surfaces)]
-        if joined:
-            u = joined[0]
-            u.pieces.append((a, b))
-            u.surfaces |= {a, b}
-            u.radius = max(u.radius, mech_of(a), mech_of(b))
-            u.mirror |= surf[a].mirror or surf[b].mirror
-        else:
-            units.append(_Unit([(a, b)], max(mech_of(a), mech_of(b)), {a, b}, surf[a].mirror or surf[b].mirror))
-    for i, s in enumerate(surf):
-        if s.mirror and s.is_air_after and p.material_before(i).upper() == "AIR":
-            units.append(_Unit([(i, -1)], mech_of(i), {i}, True))
-    if not units:
-        raise GeometryError("the prescription has neither glass nor mirrors: nothing to mount", field="surfaces")
+    def _clear_of(self, j: int) -> float:   # a physical surface's clear semi-diameter over all its passes
+        return max(self.clear[i] for i in range(len(self.surf)) if self.phys[i] == j)
 
-    def side(i: int) -> int:   # the direction light arrives at surface i from
-        return 1 if i == 0 else travel[i - 1]
+    def _mech_of(self, j: int) -> float:
+        mech = [self.surf[i].mechanical_semi_diameter or 0.0 for i in range(len(self.surf)) if self.phys[i] == j]
+        return max([self._clear_of(j) + self.edge.allowance_mm] + mech)
 
-    def build_templates(u: _Unit) -> None:
+    def _side(self, i: int) -> int:   # the direction light arrives at surface i from
+        return 1 if i == 0 else self.travel[i - 1]
+
+    def units(self) -> None:
+        """Glass pieces (glass between two physical surfaces) and front-surface mirror blanks, pieces that
+        share a surface held as one unit, each at the largest mechanical semi-diameter of its surfaces
+        (clear + [lens_edge] allowance_mm where the file gives none)."""
+        surf, zv, phys, mech_of = self.surf, self.zv, self.phys, self._mech_of
+        pieces = set()
+        for i, s in enumerate(surf[:-1]):
+            if not s.is_air_after and phys[i] != phys[i + 1]:
+                a, b = sorted((phys[i], phys[i + 1]), key=lambda j: zv[j])
+                pieces.add((a, b))
+        units = self.all_units
+        for a, b in sorted(pieces, key=lambda ab: zv[ab[0]]):
+            joined = [u for u in units if u.pieces[0][1] != -1 and ({a, b} & u.surfaces)]
+            if joined:
+                u = joined[0]
+                u.pieces.append((a, b))
+                u.surfaces |= {a, b}
+                u.radius = max(u.radius, mech_of(a), mech_of(b))
+                u.mirror |= surf[a].mirror or surf[b].mirror
+            else:
+                units.append(_Unit([(a, b)], max(mech_of(a), mech_of(b)), {a, b}, surf[a].mirror or surf[b].mirror))
+        for i, s in enumerate(surf):
+            if s.mirror and s.is_air_after and self.p.material_before(i).upper() == "AIR":
+                units.append(_Unit([(i, -1)], mech_of(i), {i}, True))
+        if not units:
+            raise GeometryError("the prescription has neither glass nor mirrors: nothing to mount", field="surfaces")
+
+    def _build_templates(self, u: _Unit) -> None:
+        face, clear, clear_of, surf = self._face, self.clear, self._clear_of, self.surf
         u.templates = []
         R, h = u.radius, u.hole
         for a, b in u.pieces:
             if b == -1:   # a front-surface mirror blank on the side away from the light
                 rs = np.linspace(h, R, 65)
                 zs = face(a).z(rs)
-                t = max(min(BLANK_RATIO * R, 0.4 * room(u, a)), 2 * min_t)
-                if side(a) > 0:
+                t = max(min(BLANK_RATIO * R, 0.4 * self._room(u, a)), 2 * self.min_t)
+                if self._side(a) > 0:
                     el = MirrorElement(face(a), None, R, h, front_coated=clear[a], back_z_flat=float(zs.max()) + t)
                 else:
                     el = MirrorElement(None, face(a), R, h, back_coated=clear[a], front_z_flat=float(zs.min()) - t)
@@ -269,84 +297,96 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
                 el = LensElement(face(a), face(b), R)
             u.templates.append(el)
 
-    def extent(u: _Unit):
+    @staticmethod
+    def _extent(u: _Unit):
         rs = np.linspace(u.hole, u.radius, 65)
         return (min(float(np.min(t.front_z(rs))) for t in u.templates),
                 max(float(np.max(t.back_z(rs))) for t in u.templates))
 
-    def room(u: _Unit, a: int) -> float:
+    def _room(self, u: _Unit, a: int) -> float:
         """Axial room behind mirror surface a (away from the light) to the nearest glass."""
-        zs = face(a).z(np.linspace(u.hole, u.radius, 65))
-        edge = float(zs.max()) if side(a) > 0 else float(zs.min())
-        gaps = [(w_lo - edge) if side(a) > 0 else (edge - w_hi) for w in units if w is not u and w.templates
-                for w_lo, w_hi in [extent(w)]]
+        side = self._side(a)
+        zs = self._face(a).z(np.linspace(u.hole, u.radius, 65))
+        edge = float(zs.max()) if side > 0 else float(zs.min())
+        gaps = [(w_lo - edge) if side > 0 else (edge - w_hi) for w in self.all_units if w is not u and w.templates
+                for w_lo, w_hi in [self._extent(w)]]
         gaps = [g for g in gaps if g > 0]
         return min(gaps) if gaps else np.inf
 
-    def fit_radius(u: _Unit) -> None:
+    def _fit_radius(self, u: _Unit) -> None:
         """Cut the unit's radius back where a glass piece's edge would be thinner than min_t."""
-        floor = max(clear_of(j) for j in u.surfaces) + cm + min_t
+        min_t = self.min_t
+        floor = max(self._clear_of(j) for j in u.surfaces) + self.cm + min_t
         while True:
-            build_templates(u)
+            self._build_templates(u)
             thin = [t for t, (a, b) in zip(u.templates, u.pieces) if b != -1
                     and float(t.back_z(u.radius) - t.front_z(u.radius)) < min_t]
             if not thin or u.radius - 0.05 < floor:
                 break
             u.radius -= 0.05
 
-    for u in sorted(units, key=lambda w: w.pieces[0][1] == -1):   # glass first: blanks fit the room it leaves
-        fit_radius(u)
+    def fit_units(self) -> None:
+        """Each unit's templates, its radius cut back where an edge would be thinner than [checks]
+        min_thickness_mm; units whose edges leave no room for a lip between them are held as one."""
+        extent, units = self._extent, self.all_units
+        for u in sorted(units, key=lambda w: w.pieces[0][1] == -1):   # glass first: blanks fit the room it leaves
+            self._fit_radius(u)
+        units.sort(key=lambda u: extent(u)[0])
+        merged: list[_Unit] = []
+        for u in units:
+            if merged and not u.mirror and not merged[-1].mirror:
+                prev = merged[-1]
+                gap = extent(u)[0] - extent(prev)[1]
+                if gap < 2 * self.min_t + 3 * self.c_glass:
+                    prev.pieces += u.pieces
+                    prev.surfaces |= u.surfaces
+                    prev.radius = max(prev.radius, u.radius)
+                    self._fit_radius(prev)
+                    continue
+            merged.append(u)
+        self.all_units = merged
 
-    # units whose edges leave no room for a lip between them are held as one
-    units.sort(key=lambda u: extent(u)[0])
-    merged: list[_Unit] = []
-    for u in units:
-        if merged and not u.mirror and not merged[-1].mirror:
-            prev = merged[-1]
-            gap = extent(u)[0] - extent(prev)[1]
-            if gap < 2 * min_t + 3 * c_glass:
-                prev.pieces += u.pieces
-                prev.surfaces |= u.surfaces
-                prev.radius = max(prev.radius, u.radius)
-                fit_radius(prev)
-                continue
-        merged.append(u)
-    units = merged
-    # lips: as thick as the barrel's, or half the gap to the neighbour's glass
-    for u in units:
-        u.lips = [lip, lip]
-    for prev in units:   # with the nearest unit wholly behind it (a relay nested in a hole has none)
-        behind = [u for u in units if extent(u)[0] >= extent(prev)[1]]
-        if behind:
-            u = min(behind, key=lambda w: extent(w)[0])
-            share = 0.5 * (extent(u)[0] - extent(prev)[1]) - 1.5 * c_glass
-            prev.lips[1] = min(prev.lips[1], share)
-            u.lips[0] = min(u.lips[0], share)
-    for u in units:
-        if min(u.lips) < min_t:
-            raise GeometryError(f"surfaces {'/'.join(str(j + 1) for j in sorted(u.surfaces))}: no room for a cell lip "
-                                f"{min_t} mm thick next to the neighbouring element", field="checks.min_thickness_mm",
-                                valid="a thinner minimum wall or a larger air gap")
+    def lips(self) -> None:
+        """Each cell's front and back lip: [barrel] lip_mm thick, or half the gap to the neighbour's glass
+        (less [seats] clearance_mm), at least [checks] min_thickness_mm."""
+        extent, units, c_glass = self._extent, self.all_units, self.c_glass
+        for u in units:
+            u.lips = [self.lip, self.lip]
+        for prev in units:   # with the nearest unit wholly behind it (a relay nested in a hole has none)
+            behind = [u for u in units if extent(u)[0] >= extent(prev)[1]]
+            if behind:
+                u = min(behind, key=lambda w: extent(w)[0])
+                share = 0.5 * (extent(u)[0] - extent(prev)[1]) - 1.5 * c_glass
+                prev.lips[1] = min(prev.lips[1], share)
+                u.lips[0] = min(u.lips[0], share)
+        for u in units:
+            if min(u.lips) < self.min_t:
+                raise GeometryError(f"surfaces {'/'.join(str(j + 1) for j in sorted(u.surfaces))}: no room for a "
+                                    f"cell lip {self.min_t} mm thick next to the neighbouring element",
+                                    field="checks.min_thickness_mm", valid="a thinner minimum wall or a larger air gap")
 
-    z_lo = min(extent(u)[0] for u in units) - 4 * lip - 10.0
-    beam = BeamPaths(p, phys, z_lo)
-    z_hi = max(p.image_z, max(extent(u)[1] for u in units)) + lip
-    env = Envelope(p, z_lo, z_hi, step=max(0.25, (z_hi - z_lo) / 200))   # sizes the barrel only
+    def beam_paths(self) -> None:
+        """The folded path's rays (what may stand where) and the beam envelope (the barrel's bore only)."""
+        extent, units, p, lip = self._extent, self.all_units, self.p, self.lip
+        z_lo = min(extent(u)[0] for u in units) - 4 * lip - 10.0
+        self.beam = BeamPaths(p, self.phys, z_lo)
+        z_hi = max(p.image_z, max(extent(u)[1] for u in units)) + lip
+        self.env = Envelope(p, z_lo, z_hi, step=max(0.25, (z_hi - z_lo) / 200))
 
-    # ---- cells ---------------------------------------------------------------------------
-    def lip_radius(t, front: bool, R: float, h: float) -> float:
+    def _lip_radius(self, t, front: bool, R: float, h: float) -> float:
         f = t.front if front else t.back
         if f is None:   # a blank's flat back: a ring support at half the radius
-            return max(0.5 * R, h + margin + min_t)
+            return max(0.5 * R, h + self.margin + self.min_t)
         z = float(f.z(R))
-        za, zb = (z - 2 * lip, z) if front else (z, z + 2 * lip)
-        beam_near = beam.meeting(phys[f.index], za, zb) + margin
-        return min(max(clear_of(f.index) + cm, beam_near), R + c_bore)
+        za, zb = (z - 2 * self.lip, z) if front else (z, z + 2 * self.lip)
+        beam_near = self.beam.meeting(self.phys[f.index], za, zb) + self.margin
+        return min(max(self._clear_of(f.index) + self.cm, beam_near), R + self.c_bore)
 
-    def cell_outline(u: _Unit, r_out: float):
+    def _cell_outline(self, u: _Unit, r_out: float):
+        c_glass, c_bore = self.c_glass, self.c_bore
         first, last = u.templates[0], u.templates[-1]
         R = u.radius
-        hf, hb = lip_radius(first, True, R, u.hole), lip_radius(last, False, R, u.hole)
+        hf, hb = self._lip_radius(first, True, R, u.hole), self._lip_radius(last, False, R, u.hole)
         rf, rb = np.linspace(hf, R, 65), np.linspace(hb, R, 65)
         zf = float(np.min(first.front_z(rf))) - c_glass
         zb = float(np.max(last.back_z(rb))) + c_glass
@@ -361,147 +401,167 @@ def plan_catadioptric(p: Prescription, spec: MountSpec):
         return ((hf, zf - lf), (r_out, zf - lf), (r_out, zb + lb), (hb, zb + lb), (hb, zb),
                 (R + c_bore, zb), (R + c_bore, zf), (hf, zf))
 
-    r_bore = max(max(u.radius for u in units) + c_bore + min_t + c_sp, float(env.r.max()) + margin)
-    for u in units:
-        cell_outline(u, r_bore)
-    # central units: light passes outside them, or another element's body does
-    for u in units:
-        r_lo, r_hi = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False)
-        body = any(w is not u and extent(w)[0] < extent(u)[1] and extent(w)[1] > extent(u)[0]
-                   and w.radius > u.radius for w in units)
-        u.inner = bool(np.any(r_hi > u.radius)) or body
-    cell_wall = 2 * min_t
-
-    def obscure() -> None:
+    def _obscure(self) -> None:
         # only on the way in: a central part that stops light the mirrors return is in the beam
+        beam = self.beam
         beam.obscured[:] = False
-        for u in units:
+        for u in self.all_units:
             if u.inner:
                 c_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=False, leg="incoming")
                 beam.obscured |= np.isfinite(c_lo) & (c_lo < u.r_out)
 
-    for u in units:
-        if u.inner:
-            cell_outline(u, u.radius + c_bore + cell_wall)
-    obscure()
-    for u in units:   # a central unit's edge and cell stay inside the light that passes it
-        if not u.inner:
-            continue
-        r_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=True, leg="returning")
-        fits = float(r_lo.min()) - c_bore - cell_wall - margin
-        if fits < u.radius:
-            u.radius = max(fits, max(clear_of(j) for j in u.surfaces) + cm + min_t)
-            fit_radius(u)
-            cell_outline(u, u.radius + c_bore + cell_wall)
-    obscure()
-    # a central lens unit hangs on a tube from the lens unit behind it where the light between
-    # them stays inside the tube's bore (a relay cantilevered from the cell that reaches the barrel)
-    for u in sorted(units, key=lambda x: -extent(x)[0]):   # from the back: the unit behind is final
-        if not u.inner or u.mirror:
-            continue
-        behind = [w for w in units if not w.mirror and extent(w)[0] >= extent(u)[1]]
-        if not behind:
-            continue
-        w = min(behind, key=lambda x: extent(x)[0])
-        r_in = max(u.hb, w.hf, beam.between(u.surfaces, w.surfaces, u.z1, w.z0) + margin)
-        r_out = max(u.r_out, r_in + cell_wall)
-        if w.inner:
-            r_out = min(r_out, w.r_out)
-        if r_out - r_in >= min_t:
-            cell_outline(u, r_out)
-            u.tube, u.holder = (r_in, r_out, u.z1, w.z0), w
-    obscure()
-    # The light the mirrors return passes the central parts on its way to the image; where it
-    # would meet one, the first central cell on the way in (the secondary's) is widened into a
-    # baffle that obscures those rays, as a designer sizes a Cassegrain's central obscuration.
-    inner = [u for u in units if u.inner]
-    if inner:
-        front = min(inner, key=lambda u: u.z0)
-        for _ in range(20):
-            clash = np.zeros_like(beam.obscured)
-            for u in inner:
-                spans = [(u.surfaces, u.r_out, u.z0, u.z1)]
-                if u.tube:
-                    spans.append((u.surfaces | u.holder.surfaces, u.tube[1], u.tube[2], u.tube[3]))
-                for surfaces, r_out, za, zb in spans:
-                    r_lo, _ = beam.passing(surfaces, za, zb, unobscured=True, leg="returning")
-                    clash |= r_lo < r_out + margin
-            if not clash.any():
-                break
-            r_in, _ = beam.passing(front.surfaces, front.z0, front.z1, unobscured=False, leg="incoming")
-            grown = float(r_in[clash & np.isfinite(r_in)].max(initial=front.r_out)) + _BEAM_TOL_MM
-            if grown <= front.r_out + _BEAM_TOL_MM or grown >= r_bore - min_t:
-                break   # nothing more to obscure from there: the beam check says where the light meets what
-            cell_outline(front, grown)
-            obscure()
-    # holes: the unobscured light another pass brings through an outer unit, and the central parts
-    for u in units:
-        if u.inner:
-            continue
-        za, zb = extent(u)
-        _, r_hi = beam.passing(u.surfaces, za, zb, unobscured=True)
-        through = [float(r_hi[np.isfinite(r_hi)].max())] if np.isfinite(r_hi).any() else []
-        through += [w.r_out for w in units if w.inner and w.z0 < zb and w.z1 > za]
-        through += [w.tube[1] for w in units if w.tube and w.holder is not u and w.tube[2] < zb and w.tube[3] > za]
-        if through:
-            u.hole = max(through) + margin
-            build_templates(u)
-            cell_outline(u, r_bore)
-            used = beam.radius_on(u.surfaces)
-            if used < u.hole:
-                raise GeometryError(
-                    f"{'/'.join(str(j + 1) for j in sorted(u.surfaces))}: the central hole the returning light "
-                    f"needs ({u.hole:.3f} mm) reaches into the zone the unobscured light uses (from {used:.3f} mm)",
-                    field="spacers.aperture_margin_mm", valid="a smaller aperture margin or contact margin")
-    # a unit that hangs on a tube from one that hangs on the barrel needs no spider
-    held = {id(u) for u in units if not u.inner}
-    for _ in units:
-        held |= {id(u) for u in units if u.holder is not None and id(u.holder) in held}
+    def cells(self) -> None:
+        """The barrel's bore (clear of every unit and of the beam by [spacers] aperture_margin_mm) and a cell
+        per unit reaching it; the units the light passes outside of, or another element's body, are central."""
+        extent, units = self._extent, self.all_units
+        self.r_bore = max(max(u.radius for u in units) + self.c_bore + self.min_t + self.c_sp,
+                          float(self.env.r.max()) + self.margin)
+        for u in units:
+            self._cell_outline(u, self.r_bore)
+        for u in units:
+            r_lo, r_hi = self.beam.passing(u.surfaces, u.z0, u.z1, unobscured=False)
+            body = any(w is not u and extent(w)[0] < extent(u)[1] and extent(w)[1] > extent(u)[0]
+                       and w.radius > u.radius for w in units)
+            u.inner = bool(np.any(r_hi > u.radius)) or body
 
-    # ---- parts ---------------------------------------------------------------------------
-    parts: list = []
-    n_lens = n_mirror = 0
-    for u in units:
-        u.names = []
-        for (a, b), t in zip(u.pieces, u.templates):
-            if b == -1:
-                n_mirror += 1
-                u.names.append(f"mirror-{n_mirror}")
-                parts.append(PartPlan(u.names[-1], "mirror", spec.finish_of(u.names[-1], edge.finish), t))
+    def central_units(self) -> None:
+        """The central units' cells, a wall of 2 × [checks] min_thickness_mm round them, inside the light
+        that passes them; a central lens unit on a tube from the lens unit behind it where the light
+        between them stays inside the tube; the first central cell widened until it obscures what the
+        mirrors return toward a central part."""
+        extent, units, beam, margin, c_bore, cell_wall = (self._extent, self.all_units, self.beam, self.margin,
+                                                          self.c_bore, self.cell_wall)
+        for u in units:
+            if u.inner:
+                self._cell_outline(u, u.radius + c_bore + cell_wall)
+        self._obscure()
+        for u in units:   # a central unit's edge and cell stay inside the light that passes it
+            if not u.inner:
+                continue
+            r_lo, _ = beam.passing(u.surfaces, u.z0, u.z1, unobscured=True, leg="returning")
+            fits = float(r_lo.min()) - c_bore - cell_wall - margin
+            if fits < u.radius:
+                u.radius = max(fits, max(self._clear_of(j) for j in u.surfaces) + self.cm + self.min_t)
+                self._fit_radius(u)
+                self._cell_outline(u, u.radius + c_bore + cell_wall)
+        self._obscure()
+        # a central lens unit hangs on a tube from the lens unit behind it where the light between
+        # them stays inside the tube's bore (a relay cantilevered from the cell that reaches the barrel)
+        for u in sorted(units, key=lambda x: -extent(x)[0]):   # from the back: the unit behind is final
+            if not u.inner or u.mirror:
+                continue
+            behind = [w for w in units if not w.mirror and extent(w)[0] >= extent(u)[1]]
+            if not behind:
+                continue
+            w = min(behind, key=lambda x: extent(x)[0])
+            r_in = max(u.hb, w.hf, beam.between(u.surfaces, w.surfaces, u.z1, w.z0) + margin)
+            r_out = max(u.r_out, r_in + cell_wall)
+            if w.inner:
+                r_out = min(r_out, w.r_out)
+            if r_out - r_in >= self.min_t:
+                self._cell_outline(u, r_out)
+                u.tube, u.holder = (r_in, r_out, u.z1, w.z0), w
+        self._obscure()
+        # The light the mirrors return passes the central parts on its way to the image; where it
+        # would meet one, the first central cell on the way in (the secondary's) is widened into a
+        # baffle that obscures those rays, as a designer sizes a Cassegrain's central obscuration.
+        inner = [u for u in units if u.inner]
+        if inner:
+            front = min(inner, key=lambda u: u.z0)
+            for _ in range(20):
+                clash = np.zeros_like(beam.obscured)
+                for u in inner:
+                    spans = [(u.surfaces, u.r_out, u.z0, u.z1)]
+                    if u.tube:
+                        spans.append((u.surfaces | u.holder.surfaces, u.tube[1], u.tube[2], u.tube[3]))
+                    for surfaces, r_out, za, zb in spans:
+                        r_lo, _ = beam.passing(surfaces, za, zb, unobscured=True, leg="returning")
+                        clash |= r_lo < r_out + margin
+                if not clash.any():
+                    break
+                r_in, _ = beam.passing(front.surfaces, front.z0, front.z1, unobscured=False, leg="incoming")
+                grown = float(r_in[clash & np.isfinite(r_in)].max(initial=front.r_out)) + _BEAM_TOL_MM
+                if grown <= front.r_out + _BEAM_TOL_MM or grown >= self.r_bore - self.min_t:
+                    break   # nothing more to obscure from there: the beam check says where the light meets what
+                self._cell_outline(front, grown)
+                self._obscure()
+
+    def holes(self) -> None:
+        """A central hole in each outer unit that another pass of the light, or a central part, goes
+        through: that light plus [spacers] aperture_margin_mm."""
+        units = self.all_units
+        for u in units:
+            if u.inner:
+                continue
+            za, zb = self._extent(u)
+            _, r_hi = self.beam.passing(u.surfaces, za, zb, unobscured=True)
+            through = [float(r_hi[np.isfinite(r_hi)].max())] if np.isfinite(r_hi).any() else []
+            through += [w.r_out for w in units if w.inner and w.z0 < zb and w.z1 > za]
+            through += [w.tube[1] for w in units if w.tube and w.holder is not u and w.tube[2] < zb and w.tube[3] > za]
+            if through:
+                u.hole = max(through) + self.margin
+                self._build_templates(u)
+                self._cell_outline(u, self.r_bore)
+                used = self.beam.radius_on(u.surfaces)
+                if used < u.hole:
+                    raise GeometryError(
+                        f"{'/'.join(str(j + 1) for j in sorted(u.surfaces))}: the central hole the returning light "
+                        f"needs ({u.hole:.3f} mm) reaches into the zone the unobscured light uses (from {used:.3f} mm)",
+                        field="spacers.aperture_margin_mm", valid="a smaller aperture margin or contact margin")
+
+    def layout(self) -> Layout:
+        """The parts: lenses and mirrors numbered along z, a cell per unit (a ring to the barrel, a cell held
+        by a tube, or a spider of [vanes] thickness_mm), the tubes, and the straight barrel, [barrel] lip_mm
+        beyond the first and last cells, [barrel] wall_mm thick."""
+        spec, units, edge, cell_outline, r_bore = self.spec, self.all_units, self.edge, self._cell_outline, self.r_bore
+        extent = self._extent
+        # a unit that hangs on a tube from one that hangs on the barrel needs no spider
+        held = {id(u) for u in units if not u.inner}
+        for _ in units:
+            held |= {id(u) for u in units if u.holder is not None and id(u.holder) in held}
+        parts: list = []
+        n_lens = n_mirror = 0
+        for u in units:
+            u.names = []
+            for (a, b), t in zip(u.pieces, u.templates):
+                if b == -1:
+                    n_mirror += 1
+                    u.names.append(f"mirror-{n_mirror}")
+                    parts.append(PartPlan(u.names[-1], "mirror", spec.finish_of(u.names[-1], edge.finish), t))
+                else:
+                    n_lens += 1
+                    u.names.append(f"lens-{n_lens}")
+                    parts.append(PartPlan(u.names[-1], "lens", spec.finish_of(u.names[-1], edge.finish), t))
+        for k, u in enumerate(units, start=1):
+            u.cell_name = f"cell-{k}"
+            if not u.inner:
+                u.cell = Cell(cell_outline(u, r_bore - self.c_sp))
+            elif id(u) in held:
+                u.cell = Cell(cell_outline(u, u.r_out))
             else:
-                n_lens += 1
-                u.names.append(f"lens-{n_lens}")
-                parts.append(PartPlan(u.names[-1], "lens", spec.finish_of(u.names[-1], edge.finish), t))
-    for k, u in enumerate(units, start=1):
-        u.cell_name = f"cell-{k}"
-        if not u.inner:
-            u.cell = Cell(cell_outline(u, r_bore - c_sp))
-        elif id(u) in held:
-            u.cell = Cell(cell_outline(u, u.r_out))
-        else:
-            outline = cell_outline(u, u.r_out)
-            clash = [w.names[0] for w in units if w is not u and extent(w)[0] < u.z1 and extent(w)[1] > u.z0
-                     and w.radius > u.r_out]
-            if clash:
-                raise GeometryError(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam and its spider to the "
-                                    f"barrel would cut {clash[0]}", field="lens_edge.allowance_mm",
-                                    valid="a lens whose central elements a tube can join to one behind them")
-            u.cell = SpiderCell(outline, SPIDER_VANES, spec.vanes.thickness_mm, r_bore, u.z0, u.z1)
-            notes.append(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam on {SPIDER_VANES} vanes "
-                         f"{spec.vanes.thickness_mm} mm thick")
-        parts.append(PartPlan(u.cell_name, "cell", spec.finish_of(u.cell_name, spec.retainer.finish), u.cell))
-        if u.tube:
-            r_in, r_out, z0, z1 = u.tube
-            name = f"tube-{k}"
-            parts.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish),
-                                  Cell(((r_in, z0), (r_out, z0), (r_out, z1), (r_in, z1)))))
-    z_front = min(u.z0 for u in units) - lip
-    z_back = max(u.z1 for u in units) + lip
-    barrel = Barrel(((r_bore, z_front), (r_bore, z_back)), float(r_bore + spec.barrel.wall_mm))
-    parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
-    layout = Layout(p, parts, [], env, notes)
-    layout.beam = beam
-    return layout
+                outline = cell_outline(u, u.r_out)
+                clash = [w.names[0] for w in units if w is not u and extent(w)[0] < u.z1 and extent(w)[1] > u.z0
+                         and w.radius > u.r_out]
+                if clash:
+                    raise GeometryError(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam and its spider "
+                                        f"to the barrel would cut {clash[0]}", field="lens_edge.allowance_mm",
+                                        valid="a lens whose central elements a tube can join to one behind them")
+                u.cell = SpiderCell(outline, SPIDER_VANES, spec.vanes.thickness_mm, r_bore, u.z0, u.z1)
+                self.notes.append(f"{u.cell_name} ({', '.join(u.names)}) stands in the beam on {SPIDER_VANES} vanes "
+                                  f"{spec.vanes.thickness_mm} mm thick")
+            parts.append(PartPlan(u.cell_name, "cell", spec.finish_of(u.cell_name, spec.retainer.finish), u.cell))
+            if u.tube:
+                r_in, r_out, z0, z1 = u.tube
+                name = f"tube-{k}"
+                parts.append(PartPlan(name, "spacer", spec.finish_of(name, spec.spacers.finish),
+                                      Cell(((r_in, z0), (r_out, z0), (r_out, z1), (r_in, z1)))))
+        z_front = min(u.z0 for u in units) - self.lip
+        z_back = max(u.z1 for u in units) + self.lip
+        barrel = Barrel(((r_bore, z_front), (r_bore, z_back)), float(r_bore + spec.barrel.wall_mm))
+        parts.insert(0, PartPlan("barrel", "barrel", spec.finish_of("barrel", spec.barrel.finish), barrel))
+        layout = Layout(self.p, parts, [], self.env, self.notes)
+        layout.beam = self.beam
+        return layout
 
 
 __all__ = ["plan_catadioptric", "physical_surfaces", "BeamPaths"]

@@ -178,7 +178,7 @@ def _envelope_beam(prescription: Prescription) -> tuple:
 
 def _stop_passing_the_rim(prescription: Prescription) -> Prescription:
     """The lens with a stop that passes the rays aimed at its rim. The mount's diaphragm passes the
-    designed pupil (cad.layout.pupil_edge_radius), so a stop DIAM a hair under the paraxial marginal ray
+    designed pupil (cad.seats.pupil_edge_radius), so a stop DIAM a hair under the paraxial marginal ray
     (the Cooke triplet's 3.8 mm for 3.8046 mm; Zemax's real-ray 4.215 mm for US 583,336's paraxial
     4.251 mm) must not drop the rim rays the beam is aimed with from the envelope or the automatic
     semi-diameters behind it."""
