@@ -109,3 +109,20 @@ def test_a_uniform_share_in_few_heavy_photons_is_flagged_and_not_converged():
     assert acc.converged(0.3)
     acc.diagnostics.update(bad)
     assert not acc.converged(0.3)
+
+
+def test_an_all_zero_aimed_run_bounds_by_its_heaviest_photon():
+    """Issue 29, 6: aimed photons weigh up to A_S / (UNIFORM_SHARE N) (the uniform share, off the
+    bands), five times the mean Φ: the no-signal bound takes that, not the mean."""
+    from lensmount.integrators.estimate import AIMED_PASSES
+    from lensmount.integrators.photon_target import UNIFORM_SHARE
+
+    runs = []
+    for aimed in (0.0, 1.0):
+        acc = Accumulator.empty((1, 1), ["diaphragm"], 1.0)
+        for _ in range(8):
+            z = np.zeros((1, 1))
+            acc.add(PassEstimate(z, z[None], ["diaphragm"], 1.0, 20_000, ledger={"source": 5.0, "escaped": 5.0},
+                                 diagnostics={AIMED_PASSES: aimed}))
+        runs.append(acc.upper_bound())
+    assert runs[0] == pytest.approx(3 * 5.0 / 20_000) and runs[1] == pytest.approx(runs[0] / UNIFORM_SHARE)

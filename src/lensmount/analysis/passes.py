@@ -43,6 +43,7 @@ from lensmount.analysis.paths import PathSums
 from lensmount.integrators.paths import EMPTY
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
+from lensmount.integrators.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
 _STATE_VERSION = 7  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
@@ -238,11 +239,14 @@ class Accumulator:
         """95 % upper bound on `flux` (mm²) when every pass was exactly zero, else None.
 
         No photon of the N traced reached the detector: the expected count is below 3
-        (Poisson, e^−3 ≈ 0.05), and a photon carries at most its emitted flux (the ledger's
-        `source` over the photons), so flux < 3 · Σ source / N."""
+        (Poisson, e^−3 ≈ 0.05), and a photon carries at most its emitted flux: the mean (the
+        ledger's `source` over the photons) for uniform emission; photons aimed at the diaphragm
+        edge weigh up to 1/UNIFORM_SHARE times that (`photon_target`; issue 29, 6: the bound was
+        up to 5× too low there), so flux < 3 · Σ source / N · that factor."""
         if self.n == 0 or self.photons == 0 or any(f != 0.0 for f in self.pass_flux):
             return None
-        return ZERO_SIGNAL_COUNT * self.ledger.get("source", 0.0) / self.photons
+        heaviest = 1.0 / UNIFORM_SHARE if self.diagnostics.get(AIMED_PASSES, 0) > 0 else 1.0
+        return ZERO_SIGNAL_COUNT * self.ledger.get("source", 0.0) / self.photons * heaviest
 
     def rel_error(self) -> float:
         """Relative uncertainty of the total flux for the stopping rule: (standard error +
