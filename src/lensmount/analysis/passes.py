@@ -40,9 +40,9 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.paths import PathSums
-from lensmount.integrators.paths import EMPTY
 from lensmount.atomic import write_npz
 from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
+from lensmount.integrators.paths import EMPTY
 from lensmount.integrators.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
