@@ -16,6 +16,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
+from lensmount.integrators import photon_target as PT  # noqa: E402
 from lensmount.integrators import targets as T  # noqa: E402
 from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, classify  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc, mixture_pdf, sample_toward_exit  # noqa: E402
@@ -141,8 +142,10 @@ def test_edge_view_map_is_unbiased_and_far_denser_with_the_learned_band(case1):
 def test_same_seed_same_pass_whatever_the_order(case1):
     scene, tracer = case1
     T._CACHE.clear()
+    PT._CACHE.clear()
     a = [bidirectional_pass(scene, tracer, 20_000, 5, i, 1.0, samples_per_pixel=8) for i in (0, 1)]
-    T._CACHE.clear()  # a fresh worker
+    T._CACHE.clear()  # a fresh worker: neither pilot cached (issue 29, 7: the photon pilot's was kept)
+    PT._CACHE.clear()
     b = [bidirectional_pass(scene, tracer, 20_000, 5, i, 1.0, samples_per_pixel=8) for i in (1, 0)]
     for x, y in ((a[0], b[1]), (a[1], b[0])):
         assert np.array_equal(x.image, y.image) and np.array_equal(x.per_part, y.per_part)
