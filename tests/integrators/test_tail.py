@@ -126,3 +126,12 @@ def test_an_all_zero_aimed_run_bounds_by_its_heaviest_photon():
                                  diagnostics={AIMED_PASSES: aimed}))
         runs.append(acc.upper_bound())
     assert runs[0] == pytest.approx(3 * 5.0 / 20_000) and runs[1] == pytest.approx(runs[0] / UNIFORM_SHARE)
+
+
+def test_a_significant_but_small_excess_does_not_dominate():
+    """Case 1, seed 25 after the fix: the last pass (smallest radius) at 1.10× among seven within
+    ±2.6 % is an outlier by the test (p < TAIL_P) but moves the mean by 1.3 %: not heavy."""
+    acc = _run([0.99, 0.983, 0.974, 1.01, 1.012, 1.012, 0.975, 1.101])
+    tail = acc.tail()
+    assert tail.p < TAIL_P and tail.over_median == pytest.approx(1.101 / 0.9995, rel=1e-3)
+    assert not tail.heavy
