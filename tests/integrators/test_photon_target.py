@@ -157,3 +157,27 @@ def test_a_dimly_lit_edge_is_found_with_more_pilot_rounds(case1):
         ev = tracer.next_event(PT.guided_photons(scene, b, 11, "photons", 0, m), np.random.default_rng(0))
         got[name] = np.count_nonzero((ev.kind == FACE) & np.isin(ev.tag, tags))
     assert got["band"] > 20 * max(got["uniform"], 1), got
+
+
+def test_band_photons_started_beside_the_source_disc_carry_nothing():
+    """Issue 29, 6: the bands' photons are moved back to the disc's plane; where that lands beside the
+    disc there is no sunlight. A band straddling the disc's rim: Σ Φ through the region of P whose
+    starts lie on the disc is its area, and every photon started off the disc has Φ = 0."""
+    scene, n = _sun(), 200_000
+    disc = scene.source.disc
+    coef = np.zeros((2, 2 * PT._K + 1))
+    coef[:, 0] = disc.radius  # the ring on P lies over the disc's rim (P is normal to d₀ like the disc)
+    band = PT.EdgeBand(tuple(np.asarray(disc.centre) + 30.0 * D0), tuple(D0), coef, np.full(2, 0.5),
+                       np.full(PT.N_PHI, 1.0 / PT.N_PHI))
+    rays = PT.guided_photons(scene, band, 7, "photons", 0, n)
+    c, d0 = np.asarray(disc.centre), np.asarray(D0)
+    rel = rays.origin - c
+    off = np.linalg.norm(rel - (rel @ d0)[:, None] * d0, axis=1) > disc.radius
+    assert 0.01 < off.mean() and np.all(rays.weight[off] == 0.0) and not rays.alive[off].any()
+    # Within 0.2 mm of the rim on P (starts on the disc: the sun's directions are within 0.27° of d₀
+    # over 30 mm, 0.14 mm at most): Σ Φ is that annulus's area inside the disc.
+    rho, _ = band.crossing(rays.origin, rays.direction)
+    ring = (rho > disc.radius - 0.4) & (rho < disc.radius - 0.2)
+    area = math.pi * ((disc.radius - 0.2) ** 2 - (disc.radius - 0.4) ** 2)
+    w = np.where(ring, rays.weight, 0.0)
+    assert abs(w.sum() - area) < 5 * w.std() * math.sqrt(n)

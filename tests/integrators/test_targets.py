@@ -16,6 +16,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
+from lensmount.integrators import photon_target as PT  # noqa: E402
 from lensmount.integrators import targets as T  # noqa: E402
 from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, gather_cores  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc, mixture_pdf, sample_toward_exit  # noqa: E402
@@ -26,7 +27,7 @@ from lensmount.trace.tracer import Tracer  # noqa: E402
 Z_T, D = 0.0, 100.0  # target plane, detector 100 mm behind it (detector at z = 100)
 
 
-def _band(n_wl=2, half=0.01, skew=0.3):
+def _band(n_wl=2, half=0.01, skew=0.3, wide_share=T.WIDE_SHARE):
     """A LearnedRim centred near ρ = 6 mm, depending on s, Δφ and λ, with a lopsided azimuth pmf."""
     coef = np.zeros((n_wl, T._J * T._K))
     coef[:, 0] = 6.0 + 0.05 * np.arange(n_wl)  # ρ* constant term, per wavelength
@@ -35,16 +36,18 @@ def _band(n_wl=2, half=0.01, skew=0.3):
     pmf = np.ones((T.N_ZONES, T.N_DPHI))
     pmf[:, : T.N_DPHI // 2] += skew * np.arange(T.N_DPHI // 2)
     pmf /= pmf.sum(axis=1, keepdims=True)
-    return T.LearnedRim(Z_T, -1.0, coef, np.full(n_wl, half), 2.0, pmf)
+    return T.LearnedRim(Z_T, -1.0, coef, np.full(n_wl, half), 2.0, pmf, wide_share)
 
 
 def _points(rng, n):
     return np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.full(n, D)])
 
 
-def test_band_support_area_matches_quadrature_of_its_centre_line():
-    """E_q~p[1/p_A(q)] = area of the support = ∫ 2 h ρ*(Δφ) dΔφ (sampler and density agree)."""
-    band = _band(n_wl=1)
+@pytest.mark.parametrize("wide_share", [0.0, T.WIDE_SHARE])
+def test_band_support_area_matches_quadrature_of_its_centre_line(wide_share):
+    """E_q~p[1/p_A(q)] = area of the support = ∫ 2 h ρ*(Δφ) dΔφ (sampler and density agree); with
+    the wide band the support is that band, WIDE_FACTOR times as wide."""
+    band = _band(n_wl=1, wide_share=wide_share)
     rng = np.random.default_rng(1)
     n = 200_000
     x = np.tile([0.7, -0.4, D], (n, 1))
@@ -54,6 +57,7 @@ def test_band_support_area_matches_quadrature_of_its_centre_line():
     dphi = np.linspace(-math.pi, math.pi, 20001)[:-1] + math.pi / 20000
     s = np.full_like(dphi, math.hypot(0.7, 0.4) / 2.0)
     area = np.mean(2 * 0.01 * band.centre(s, dphi, np.zeros(len(dphi), int))) * 2 * math.pi
+    area *= T.WIDE_FACTOR if wide_share > 0 else 1.0
     v = 1.0 / p
     assert abs(v.mean() - area) < 4 * v.std() / math.sqrt(n)
 
@@ -138,8 +142,10 @@ def test_edge_view_map_is_unbiased_and_far_denser_with_the_learned_band(case1):
 def test_same_seed_same_pass_whatever_the_order(case1):
     scene, tracer = case1
     T._CACHE.clear()
+    PT._CACHE.clear()
     a = [bidirectional_pass(scene, tracer, 20_000, 5, i, 1.0, samples_per_pixel=8) for i in (0, 1)]
-    T._CACHE.clear()  # a fresh worker
+    T._CACHE.clear()  # a fresh worker: neither pilot cached (issue 29, 7: the photon pilot's was kept)
+    PT._CACHE.clear()
     b = [bidirectional_pass(scene, tracer, 20_000, 5, i, 1.0, samples_per_pixel=8) for i in (1, 0)]
     for x, y in ((a[0], b[1]), (a[1], b[0])):
         assert np.array_equal(x.image, y.image) and np.array_equal(x.per_part, y.per_part)

@@ -21,7 +21,14 @@ What the error bar includes (docs/bidirectional.md, "What the error bar includes
   c·r^k, k ∈ [1, 2], the pass's bias is (Ê(r) − Ê(r/2)) / (1 − 2^−k) ≤ 2 (Ê(r) − Ê(r/2)).
   The bound is |2 D̄| plus one standard error of it (D̄ the mean difference);
 - a run whose passes are all exactly zero has no error bar: `upper_bound()` gives the
-  95 % bound from the photons traced (none of them reached the detector).
+  95 % bound from the photons traced (none of them reached the detector);
+- the spread of the passes is an error bar only while no single pass dominates them. `tail()`
+  tests the largest pass against the others (Grubbs's outlier test, one-sided, and at least
+  TAIL_RATIO medians): a rare event
+  that makes one pass several times the rest (issue 32: one pass in 432 at 4.4× the median on
+  case 1) inflates the spread and moves the mean by more than the quoted error says, and runs
+  that have not met it yet read low with a small error. Such a run is flagged `heavy`, names the
+  path that carried the excess, and does not count as converged (`converged`).
 """
 
 from __future__ import annotations
@@ -35,12 +42,41 @@ import numpy as np
 
 from lensmount.analysis.paths import PathSums
 from lensmount.atomic import write_npz
-from lensmount.integrators.estimate import PassEstimate
+from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
+from lensmount.integrators.paths import EMPTY
+from lensmount.integrators.photon_target import UNIFORM_SHARE
+from lensmount.integrators.plan import edge_flux_components
 
-_STATE_VERSION = 6  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
-# scale; 6: path signatures and per-face light (`analysis.paths.PathSums`)
+_STATE_VERSION = 7  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
+# scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess
 MIN_PASSES = 3  # below this the spread of the passes is no error bar (std error: inf)
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
+TAIL_P = 0.01  # the largest pass is an outlier below this p-value: 1 % of runs with normal passes are flagged
+# ... and dominates only at this many medians: on case 1 the last pass (smallest radius, the noisiest) at 1.10×
+# among seven within ±2.6 % is an outlier by the test (seed 25, p = 0.004) but moves the mean by 1.3 %
+TAIL_RATIO = 1.5
+
+
+@dataclass
+class Tail:
+    """The largest pass against the others.
+
+    largest_pass : its index in the run; over_median : largest / median (None when the median is 0)
+    share : its share of the sum of the passes
+    p : one-sided p-value of Grubbs's test that the largest pass belongs with the others (normal
+        passes); 1 when undefined (fewer than MIN_PASSES, no spread)
+    heavy : p < TAIL_P and the largest pass is at least TAIL_RATIO medians (or the median is 0): one
+        pass dominates; the spread is no error bar for this run
+    path : signature of the path whose flux in that pass most exceeded its mean over the passes before
+        (`analysis.paths`; EMPTY when the passes carry no paths)
+    """
+
+    largest_pass: int
+    over_median: float | None
+    share: float
+    p: float
+    heavy: bool
+    path: int = EMPTY
 
 
 @dataclass
@@ -77,6 +113,8 @@ class Accumulator:
     last_pass : index of the last pass added (-1 before any)
     elapsed_s : wall time spent on the passes, summed over resumed parts of a run
     paths : per path signature and per CAD face sums (`analysis.paths.PathSums`) of the passes that carry them
+    pass_excess_path : per pass, the signature of the path whose flux most exceeded its mean over the
+        passes before it (EMPTY without paths): where a dominant pass's light came from (`tail`)
     """
 
     part_names: list[str]
@@ -96,6 +134,7 @@ class Accumulator:
     pass_part_flux_half: list[np.ndarray] = field(default_factory=list)
     pass_radius_scale: list[float] = field(default_factory=list)
     paths: PathSums = field(default_factory=PathSums)
+    pass_excess_path: list[int] = field(default_factory=list)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -135,6 +174,7 @@ class Accumulator:
         self.pass_part_flux.append(part_flux)
         self.pass_part_flux_half.append(half)
         self.pass_radius_scale.append(float(estimate.radius_scale))
+        self.pass_excess_path.append(EMPTY if estimate.paths is None else _excess_path(self.paths, estimate.paths))
         if estimate.paths is not None:
             self.paths.add(estimate.paths, estimate.faces)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
@@ -204,11 +244,14 @@ class Accumulator:
         """95 % upper bound on `flux` (mm²) when every pass was exactly zero, else None.
 
         No photon of the N traced reached the detector: the expected count is below 3
-        (Poisson, e^−3 ≈ 0.05), and a photon carries at most its emitted flux (the ledger's
-        `source` over the photons), so flux < 3 · Σ source / N."""
+        (Poisson, e^−3 ≈ 0.05), and a photon carries at most its emitted flux: the mean (the
+        ledger's `source` over the photons) for uniform emission; photons aimed at the diaphragm
+        edge weigh up to 1/UNIFORM_SHARE times that (`photon_target`; issue 29, 6: the bound was
+        up to 5× too low there), so flux < 3 · Σ source / N · that factor."""
         if self.n == 0 or self.photons == 0 or any(f != 0.0 for f in self.pass_flux):
             return None
-        return ZERO_SIGNAL_COUNT * self.ledger.get("source", 0.0) / self.photons
+        heaviest = 1.0 / UNIFORM_SHARE if self.diagnostics.get(AIMED_PASSES, 0) > 0 else 1.0
+        return ZERO_SIGNAL_COUNT * self.ledger.get("source", 0.0) / self.photons * heaviest
 
     def rel_error(self) -> float:
         """Relative uncertainty of the total flux for the stopping rule: (standard error +
@@ -220,6 +263,28 @@ class Accumulator:
         if mean == 0:
             return math.inf
         return (self.flux_std_error + self.bias_bound()[0]) / mean
+
+    def tail(self) -> Tail:
+        """The largest pass against the others (`Tail`, Grubbs's test on the passes' totals)."""
+        f = np.asarray(self.pass_flux, np.float64)
+        if not len(f):
+            return Tail(-1, None, 0.0, 1.0, False)
+        k = int(np.argmax(f))
+        median, total = float(np.median(f)), float(f.sum())
+        p = grubbs_p(f)
+        ratio = f[k] / median if median > 0 else None
+        return Tail(self.last_pass - self.n + 1 + k, ratio, f[k] / total if total > 0 else 0.0, p,
+                    p < TAIL_P and (ratio is None or ratio >= TAIL_RATIO),
+                    int(self.pass_excess_path[k]) if k < len(self.pass_excess_path) else EMPTY)
+
+    def converged(self, target_rel_error: float) -> bool:
+        """The relative error is at most the target and no single pass dominates (`tail`): a run that
+        has met a rare event once cannot quote its error from the spread, and one that stops on a
+        low spread before meeting it reads low (issue 29, optional stopping). Nor while the aimed
+        photons' uniform or wide components carry the edge's light in few heavy photons
+        (`plan.edge_flux_components`: the learned ring misses part of the lit edge)."""
+        return (self.rel_error() <= target_rel_error and not self.tail().heavy
+                and "warning" not in edge_flux_components(self.diagnostics, int(self.diagnostics.get(AIMED_PASSES, 0))))
 
     def drift(self) -> Drift:
         """First-half vs second-half means of the total flux (the radius bias indicator)."""
@@ -265,6 +330,7 @@ class Accumulator:
             diagnostics_values=np.array([self.diagnostics[k] for k in sorted(self.diagnostics)], dtype=np.float64),
             pass_part_flux_half=np.asarray(self.pass_part_flux_half, dtype=np.float64).reshape(-1, len(self.part_names)),
             pass_radius_scale=np.asarray(self.pass_radius_scale, dtype=np.float64),
+            pass_excess_path=np.asarray(self.pass_excess_path, dtype=np.int64),
             **self.paths.arrays(),
         )
         for key, value in meta.items():
@@ -288,7 +354,8 @@ class Accumulator:
                       diagnostics={str(k): float(v) for k, v in zip(z["diagnostics_keys"], z["diagnostics_values"])},
                       pass_part_flux_half=[row.copy() for row in z["pass_part_flux_half"]],
                       pass_radius_scale=[float(v) for v in z["pass_radius_scale"]],
-                      paths=PathSums.from_arrays(z))
+                      paths=PathSums.from_arrays(z),
+                      pass_excess_path=[int(v) for v in z["pass_excess_path"]])
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 
@@ -306,6 +373,41 @@ def t_factor(n: int) -> float:
     return float(t.ppf(0.975, n - 1) / 1.959963984540054)
 
 
+def grubbs_p(series: np.ndarray) -> float:
+    """One-sided p-value that the largest value belongs with the others, were they normal: Grubbs's
+    G = (max − mean)/s, p ≤ n · P(T_{n−2} > t), t² = n(n−2)G² / ((n−1)² − nG²) (the Bonferroni
+    form, exact where p is small). 1 below MIN_PASSES or without spread; 0 when the largest pass
+    holds all the spread (every other pass equal)."""
+    n = len(series)
+    if n < MIN_PASSES:
+        return 1.0
+    s = float(np.std(series, ddof=1))
+    if not s > 0:
+        return 1.0
+    g2 = ((float(np.max(series)) - float(np.mean(series))) / s) ** 2
+    room = (n - 1) ** 2 - n * g2
+    if room <= 1e-12 * (n - 1) ** 2:
+        return 0.0
+    from scipy.stats import t
+
+    return float(min(1.0, n * t.sf(math.sqrt(n * (n - 2) * g2 / room), n - 2)))
+
+
+def _excess_path(sums: PathSums, paths) -> int:
+    """The signature of the path whose flux in this pass (`PassPaths`) most exceeds its mean over the
+    passes summed so far; EMPTY when the pass has no stray path."""
+    stray = paths.signature != EMPTY
+    if not stray.any():
+        return EMPTY
+    sig, flux = paths.signature[stray], paths.flux[stray]
+    before = np.zeros(len(sig))
+    if sums.n and len(sums.signature):
+        at = np.minimum(np.searchsorted(sums.signature, sig), len(sums.signature) - 1)
+        seen = sums.signature[at] == sig
+        before[seen] = sums.total[at[seen]] / sums.n
+    return int(sig[int(np.argmax(flux - before))])
+
+
 def _std_error(series: np.ndarray) -> float:
     """Sample standard deviation / √n of a 1-D series × `t_factor`; inf below MIN_PASSES values."""
     n = len(series)
@@ -314,4 +416,4 @@ def _std_error(series: np.ndarray) -> float:
     return float(np.std(series, ddof=1) / math.sqrt(n) * t_factor(n))
 
 
-__all__ = ["Accumulator", "Drift", "MIN_PASSES", "t_factor"]
+__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "TAIL_RATIO", "grubbs_p", "t_factor"]

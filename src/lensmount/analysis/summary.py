@@ -9,13 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
-from lensmount.analysis.passes import Accumulator
+from lensmount.analysis.passes import TAIL_P, Accumulator
+from lensmount.analysis.paths import describe_event
+from lensmount.integrators.paths import EMPTY
 from lensmount.integrators.estimate import TIME_PREFIX, ledger_residual
 
 
 def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list[str], effects_skipped: list[str],
                   time_s: float, aperture_flux_mm2: float, input_hash: str, estimator_settings: dict,
-                  extra: dict | None = None) -> dict:
+                  extra: dict | None = None, tag_table=None) -> dict:
     """The summary dict. aperture_flux_mm2: flux entering the entrance pupil per unit E_sun;
     estimator_settings: `EstimatorSettings.as_dict()` (with method, seed and photons per pass in
     `extra`, what reproduces the run).
@@ -23,7 +25,8 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     The error bar is `stray_fraction_std_error` (spread of the passes, Student-t widened) plus
     `stray_fraction_bias_bound` (kernel bias, `Accumulator.bias_bound`); `stray_fraction_rel_error`
     is their sum over the value. With no signal at all `stray_fraction_upper_bound` is the 95 %
-    bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null."""
+    bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null.
+    `tail` says whether one pass dominates the others (`tail_block`; tag_table names its path)."""
     flux, se = acc.flux, acc.flux_std_error
     bias, part_bias = acc.bias_bound()
     upper = acc.upper_bound()
@@ -58,6 +61,7 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "stray_fraction_drift": finite_or_none(drift.relative),
         "stray_fraction_drift_z": finite_or_none(drift.z),
         "stray_fraction_drift_p": finite_or_none(drift.p),
+        "tail": tail_block(acc, tag_table),
         "mean_irradiance": finite_or_none(float(image.mean()) if image.size else 0.0),
         "peak_irradiance": finite_or_none(float(image.max()) if image.size else 0.0),
         "lost_flux": finite_or_none(acc.lost_flux / max(acc.n, 1)),
@@ -74,6 +78,26 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     return summary
 
 
+def tail_block(acc: Accumulator, tag_table=None) -> dict:
+    """The largest pass against the others (`Accumulator.tail`), and when it dominates them
+    (`heavy`) a sentence saying so and the path it came from: the error bar is then not the spread's."""
+    t = acc.tail()
+    block = {"largest_pass": t.largest_pass if acc.n else None,
+             "largest_over_median": finite_or_none(t.over_median) if t.over_median is not None else None,
+             "largest_share": finite_or_none(t.share), "outlier_p": finite_or_none(t.p), "heavy": bool(t.heavy)}
+    path = acc.paths.events.get(t.path, ()) if t.path != EMPTY else ()
+    if tag_table is not None and path:
+        block["path"] = [describe_event(c, tag_table)["name"] for c in path]
+    if t.heavy:
+        ratio = f"{t.over_median:.2f}× the median" if t.over_median is not None else "against a median of 0"
+        via = f" (its excess came by {' → '.join(block['path'])})" if "path" in block else ""
+        block["note"] = (f"pass {t.largest_pass} dominates the others: {ratio}, {100 * t.share:.1f} % of the sum of "
+                         f"{acc.n} passes, p = {t.p:.2g} < {TAIL_P:g} that it belongs with them{via}. The "
+                         "passes are heavy-tailed: the standard error from their spread is not to be trusted "
+                         "and the run does not count as converged; run more passes.")
+    return block
+
+
 def energy_ledger(acc: Accumulator) -> dict:
     """Where the emitted flux went, per pass (mm², flux / E_sun), and how well it balances.
 
@@ -86,4 +110,4 @@ def energy_ledger(acc: Accumulator) -> dict:
             "units": "mm² (flux / E_sun) per pass"}
 
 
-__all__ = ["build_summary", "energy_ledger"]
+__all__ = ["build_summary", "energy_ledger", "tail_block"]

@@ -29,7 +29,11 @@ def print_plan(console, block: dict | None) -> None:
     table.add_column(style="bold")
     table.add_column()
     for item in block["ran"]:
-        table.add_row(item["what"], item["why"])
+        share = item.get("edge_flux_share")
+        table.add_row(item["what"], item["why"] + (" · edge light by component: " + ", ".join(
+            f"{c} {100 * v:.1f} %" for c, v in share.items()) if share else ""))
+        if item.get("warning"):
+            table.add_row("", f"warning: {item['warning']}", style="yellow")
     for item in block["skipped"]:
         table.add_row(f"{item['what']} (skipped)", item["why"], style="dim")
     for phase, seconds in block["time_s"].items():
@@ -55,6 +59,10 @@ def describe(s: PassStatus) -> str:
     text = f"pass {s.passes} · {s.photons:,} photons · {s.elapsed_s:.0f} s · stray fraction {value} · rel. error {rel}"
     if s.error_slope is not None:
         text += f" (∝ t^{s.error_slope:+.2f})"
+    if s.largest_over_median is not None:
+        text += f" · largest pass {s.largest_over_median:.2f}× median"
+    if s.heavy_tail:
+        text += " (one pass dominates: heavy tail, not converged)"
     if s.target_rel_error is not None:
         text += f" · target {100 * s.target_rel_error:g} % in ~{duration(s.eta_s)}"
     return text
@@ -188,6 +196,8 @@ def print_summary(summary: dict, paths: dict) -> None:
         console.print(f"warning: {warning}", style="yellow", markup=False)  # "[checks]" is text
     if summary.get("no_light_enters"):
         console.print(f"no light enters: {summary['no_light_enters']}", style="yellow")
+    if (summary.get("tail") or {}).get("note"):
+        console.print(f"warning: {summary['tail']['note']}", style="yellow", markup=False)
     table = Table(title=f"{summary['method']} · {summary['passes']} passes · {summary['photons']:,} photons "
                         f"· {summary['time_s']:.1f} s", title_justify="left", show_header=False)
     table.add_column(style="bold")
@@ -207,6 +217,10 @@ def print_summary(summary: dict, paths: dict) -> None:
     if drift is not None:
         p = summary.get("stray_fraction_drift_p")
         table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} %" + (f" (p = {p:.2f})" if p is not None else ""))
+    tail = summary.get("tail") or {}
+    if tail.get("largest_over_median") is not None:
+        table.add_row("largest pass / median", f"{tail['largest_over_median']:.2f}"
+                      + (" (one pass dominates: not converged)" if tail.get("heavy") else ""))
     unit = summary["units"]["irradiance"].split(" ")[0]  # E/E_sun, or E/E_ref for a source at a finite distance
     table.add_row(f"peak irradiance {unit.replace('E/', '/ ')}", f"{summary['peak_irradiance']:.4g}")
     table.add_row("effects", ", ".join(summary["effects"]) + (f" (skipped: {', '.join(summary['effects_skipped'])})"

@@ -78,6 +78,10 @@ class PassEstimate:
 TIME_PREFIX = "time/"  # diagnostics keys holding seconds per phase, summed over passes (the plan's times)
 AIMED_PASSES = "passes/photons aimed at the diaphragm edge"  # diagnostics key, summed over passes
 UNAIMED_PASSES = "passes/diaphragm edge too rarely lit to aim at"  # diagnostics key, summed over passes
+# Aimed photons' first arrivals at the diaphragm edge by emission component (`photon_target.COMPONENTS`):
+# Σ Φ and Σ Φ² (mm², mm⁴), summed over passes; `plan.Plan.as_dict` turns them into shares and spreads.
+EDGE_FLUX = "edge flux/"
+EDGE_FLUX_SQ = "edge flux squared/"
 PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
           "walk": "photon walk (scatter, direct and ghosts together)",
           "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}

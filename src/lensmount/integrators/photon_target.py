@@ -28,6 +28,7 @@ Directions and wavelengths are the source's. Every photon carries Φ = 1 / (N q)
 mixture density q = c_u/A_S · [on the disc] + c_w p_wide + c_n p_band evaluated at its own
 position, so the estimate stays unbiased whatever the fit's quality (uniform emission is
 Φ = A_S / N); the uniform share keeps every path of light reachable and bounds Φ at A_S / (c_u N).
+A photon of a band that starts off the source's disc carries nothing (the source has no light there).
 Why the wide band: a photon that meets the edge just outside the band (~1 % of the edge's light
 on the reference design, where the ring is a little wider at some azimuths than the fit's
 mean spread) would otherwise be a uniform one carrying ~8 000 times a band photon's Φ; one such
@@ -64,6 +65,8 @@ _K = 4  # harmonics of φ
 _PLANE_SHIFTS = np.linspace(-40.0, 40.0, 21)  # mm along d₀ from the paraxial entrance pupil, tried by the fit
 _SCAN_HITS = 2000  # hits (every m-th) the plane's place is fitted from
 
+UNIFORM, WIDE, AIMED = 0, 1, 2  # `emission_component`
+COMPONENTS = ("uniform", "wide", "aimed")
 _CACHE: dict[tuple, tuple] = {}
 
 
@@ -135,17 +138,26 @@ def guided_photons(scene, band: EdgeBand | None, seed: int, purpose: str, first:
     wide = band.widened(WIDE_FACTOR)
     u = Streams(seed, purpose + "/emit-band", rays.id).random((n, 3))
     centre, d0 = np.asarray(disc.centre), np.asarray(band.d0)
-    for component, rows in ((wide, (u[:, 0] >= UNIFORM_SHARE) & (u[:, 0] < UNIFORM_SHARE + WIDE_SHARE)),
-                            (band, u[:, 0] >= UNIFORM_SHARE + WIDE_SHARE)):
+    which = emission_component(seed, purpose, rays.id)
+    for component, rows in ((wide, which == WIDE), (band, which == AIMED)):
         d = rays.direction[rows]
         rays.origin[rows] = _back_to_disc(component.sample(u[rows, 1:], rays.wavelength[rows]), d, centre, d0)
     on_disc = np.linalg.norm(rays.origin - centre - ((rays.origin - centre) @ d0)[:, None] * d0, axis=1) <= disc.radius
     rho, phi = band.crossing(rays.origin, rays.direction)
     q = (UNIFORM_SHARE * on_disc / disc.area + WIDE_SHARE * wide.density(rho, phi, rays.wavelength)
          + (1.0 - UNIFORM_SHARE - WIDE_SHARE) * band.density(rho, phi, rays.wavelength))
-    rays.alive &= q > 0
+    # The source emits only from its disc: a band photon started beside it (~0.3 % on case 1) is light
+    # that does not exist, so it carries nothing; q stays the density of where photons were drawn.
+    rays.alive &= (q > 0) & on_disc
     rays.weight = np.where(rays.alive, 1.0 / (n * np.where(q > 0, q, 1.0)), 0.0)
     return rays
+
+
+def emission_component(seed: int, purpose: str, ids: np.ndarray) -> np.ndarray:
+    """(N,) which part of the mixture photons `ids` were drawn from: UNIFORM, WIDE or AIMED (the same
+    numbers `guided_photons` draws, so the edge flux can be told by component after the walk)."""
+    u0 = Streams(seed, purpose + "/emit-band", np.asarray(ids, np.int64)).random((len(ids), 3))[:, 0]
+    return np.where(u0 < UNIFORM_SHARE, UNIFORM, np.where(u0 < UNIFORM_SHARE + WIDE_SHARE, WIDE, AIMED))
 
 
 def edge_band(scene, tracer, broad: np.ndarray, seed: int, n_photons: int = PILOT_PHOTONS) -> EdgeBand | None:
@@ -323,4 +335,4 @@ def _ring(rho, phi, wl, n_wl):
     return coef, sigma
 
 
-__all__ = ["EdgeBand", "aims_at_edge", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
+__all__ = ["EdgeBand", "COMPONENTS", "emission_component", "aims_at_edge", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]

@@ -50,8 +50,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lensmount.integrators.estimate import AIMED_PASSES, TIME_PREFIX, UNAIMED_PASSES
-from lensmount.integrators.photon_target import MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
+from lensmount.integrators.estimate import AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, TIME_PREFIX, UNAIMED_PASSES
+from lensmount.integrators.photon_target import COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
@@ -60,6 +60,7 @@ from lensmount.trace.ghosts import reflecting, route_count
 from lensmount.trace.tracer import MIRROR_SCATTER_MIN_SHARE
 
 DIRECT_MARGIN_DEG = 5.0  # beyond the imaged field, as the mount's exclusion angle (field + 5°)
+HEAVY_COMPONENT_SPREAD = 0.25  # a uniform or wide component alone spreading a pass's edge flux by this: heavy tails
 _WAVELENGTH_FREE_COATINGS = ("perfect-ar", "uncoated", "constant")
 
 
@@ -98,7 +99,8 @@ class Plan:
         if aimed:
             ran.append({"what": "photons aimed at the diaphragm edge",
                         "why": f"{aimed} pass(es): most photons start in the pilot's band in the entrance pupil, "
-                               "each weighted by the mixture density (unbiased)"})
+                               "each weighted by the mixture density (unbiased)",
+                        **edge_flux_components(diagnostics or {}, aimed)})
         skipped = [{"what": d.what, "why": d.why} for d in self.decisions if not d.ran]
         unaimed = int((diagnostics or {}).get(UNAIMED_PASSES, 0))
         if unaimed:
@@ -110,6 +112,29 @@ class Plan:
         return {"ran": ran,
                 "skipped": skipped,
                 "time_s": times}
+
+
+def edge_flux_components(diagnostics: dict, passes: int) -> dict:
+    """Which part of the aimed photons' mixture carried the edge's light: per component (uniform on the
+    disc, wide band, aimed ring) its share of the flux first arriving at the edge and the relative
+    spread it alone gives a pass, √(Σ Φ² / passes) / (edge flux per pass). A uniform or wide share
+    carried by few heavy photons (spread ≥ HEAVY_COMPONENT_SPREAD) makes passes heavy-tailed: the
+    ring misses part of the lit edge (issue 29, item 1); `warning` says so."""
+    total = sum(diagnostics.get(EDGE_FLUX + c, 0.0) for c in COMPONENTS)
+    if not total > 0 or passes < 1:
+        return {}
+    per_pass = total / passes
+    share = {c: diagnostics.get(EDGE_FLUX + c, 0.0) / total for c in COMPONENTS}
+    spread = {c: math.sqrt(diagnostics.get(EDGE_FLUX_SQ + c, 0.0) / passes) / per_pass for c in COMPONENTS}
+    out = {"edge_flux_share": {c: round(share[c], 6) for c in COMPONENTS},
+           "edge_flux_pass_spread": {c: round(spread[c], 6) for c in COMPONENTS}}
+    heavy = [c for c in ("uniform", "wide") if spread[c] >= HEAVY_COMPONENT_SPREAD]
+    if heavy:
+        out["warning"] = (" and ".join(f"the {c} photons ({100 * share[c]:.1f} % of the edge's light, {spread[c]:.2f} "
+                                       "of a pass in spread)" for c in heavy)
+                          + " carry the edge's light in few heavy photons: the learned ring misses part of the "
+                            "lit edge, the passes are heavy-tailed and the error bar is not to be trusted")
+    return out
 
 
 def plan(scene, settings=None) -> Plan:

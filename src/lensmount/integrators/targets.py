@@ -26,6 +26,13 @@ uniform in [ρ* − h, ρ* + h]; its density per unit area on the plane is
 evaluated exactly for every backward sample in the mixture (`exit_sampler.mixture_pdf`),
 so the estimator stays unbiased whatever the fit's quality; the disc and the hemisphere
 stay in the mixture for all other light (docs/bidirectional.md).
+
+Near misses. A share `WIDE_SHARE` of the band's samples is drawn in a band `WIDE_FACTOR` times as
+wide, every azimuth alike (the photon side's wide band, `photon_target`). At some detector points
+the window is wider than the fit's mean spread, and a sample that meets the edge just outside
+±h was a disc sample carrying ~23 000 times a band sample's τ: on case 1 (seed 21, pass 1) one
+such hit point, 1.01 h outside the band at Δφ = 168°, s = 0.73, held 76 % of the pass's light and
+made the pass read 4.35 times the median (issue 32). In the wide band it carries ~40 times.
 """
 
 from __future__ import annotations
@@ -46,6 +53,8 @@ HALF_WIDTH_SIGMAS = 2.5  # final band half width in residual standard deviations
 PILOT_RAYS = 100_000  # per pilot stage
 MIN_HITS = 40  # per wavelength, to fit the 12 coefficients; fewer: no learned target
 _J, _K = 3, 4  # powers of s, harmonics of Δφ
+WIDE_SHARE = 0.2  # band samples drawn in the wide band (near misses of the fit)
+WIDE_FACTOR = 8.0  # its half width in h
 
 _CACHE: dict[tuple, tuple] = {}
 
@@ -99,7 +108,9 @@ class LearnedRim:
     """The band around the edge's window on the plane z (normal to the axis), per wavelength.
 
     coef : (W, J·K) fit of ρ*; half_width : (W,) mm; r_max : detector radius scale (mm);
-    pmf : (N_ZONES, N_DPHI) azimuth probabilities per detector zone (rows sum to 1).
+    pmf : (N_ZONES, N_DPHI) azimuth probabilities per detector zone (rows sum to 1);
+    wide_share : share of samples in the band WIDE_FACTOR times as wide, every azimuth alike
+        (module docstring; the pilot's own proposal has none).
     """
 
     z: float
@@ -108,6 +119,7 @@ class LearnedRim:
     half_width: np.ndarray
     r_max: float
     pmf: np.ndarray
+    wide_share: float = WIDE_SHARE
 
     def _frame(self, x: np.ndarray, wavelength):
         """Per-sample s, detector azimuth, zone, wavelength index (0 when None)."""
@@ -129,13 +141,20 @@ class LearnedRim:
         dphi = _wrap(np.arctan2(q[:, 1], q[:, 0]) - az)  # in [−π, π)
         b = azimuth_bin(dphi)
         h = self.half_width[wl]
-        inside = (np.abs(rho - self.centre(s, dphi, wl)) <= h) & (rho > 0)
-        dens = self.pmf[zone, b] * (N_DPHI / (2 * math.pi)) / (2.0 * h * np.where(rho > 0, rho, 1.0))
-        return np.where(inside, dens, 0.0)
+        off = np.abs(rho - self.centre(s, dphi, wl))
+        per_rho = 1.0 / (2.0 * math.pi * 2.0 * h * np.where(rho > 0, rho, 1.0))
+        narrow = np.where(off <= h, self.pmf[zone, b] * N_DPHI * per_rho, 0.0)
+        wide = np.where(off <= WIDE_FACTOR * h, per_rho / WIDE_FACTOR, 0.0)
+        return np.where(rho > 0, (1.0 - self.wide_share) * narrow + self.wide_share * wide, 0.0)
 
     def sample_points(self, x: np.ndarray, u: np.ndarray, wavelength=None) -> np.ndarray:
-        """(N, 3) points: Δφ from the zone's histogram (u[:,1]), ρ uniform in the band (u[:,0])."""
+        """(N, 3) points: Δφ from the zone's histogram (u[:,1]), ρ uniform in the band (u[:,0]); for
+        u[:,0] < wide_share, Δφ uniform and ρ uniform in the wide band (u[:,0] rescaled: one number
+        picks the component and places ρ)."""
         s, az, zone, wl = self._frame(x, wavelength)
+        wide = u[:, 0] < self.wide_share
+        u0 = np.where(wide, u[:, 0] / max(self.wide_share, 1e-300),
+                      (u[:, 0] - self.wide_share) / (1.0 - self.wide_share))
         cdf = np.cumsum(self.pmf, axis=1)
         cdf[:, -1] = 1.0
         flat = (np.arange(N_ZONES)[:, None] + cdf).ravel()  # zone k's cdf shifted to (k, k+1]
@@ -145,8 +164,8 @@ class LearnedRim:
         lo = np.where(b > 0, cdf[zone, np.maximum(b - 1, 0)], 0.0)
         p = self.pmf[zone, b]
         frac = np.clip((u[:, 1] - lo) / np.where(p > 0, p, 1.0), 0.0, 1.0 - 1e-12)  # the rest of u, reused
-        dphi = -math.pi + (b + frac) * (2 * math.pi / N_DPHI)
-        rho = self.centre(s, dphi, wl) + self.half_width[wl] * (2.0 * u[:, 0] - 1.0)
+        dphi = np.where(wide, -math.pi + 2.0 * math.pi * u[:, 1], -math.pi + (b + frac) * (2 * math.pi / N_DPHI))
+        rho = self.centre(s, dphi, wl) + np.where(wide, WIDE_FACTOR, 1.0) * self.half_width[wl] * (2.0 * u0 - 1.0)
         rho = np.maximum(rho, 0.0)
         phi = az + dphi
         return np.stack([rho * np.cos(phi), rho * np.sin(phi), np.full(len(x), self.z)], axis=1)
@@ -229,7 +248,7 @@ def _pilot(scene, tracer, det, broad, seed, rim, n_rays):
         if new is None:
             break
         fit = new
-        proposal = LearnedRim(fit.z, fit.facing, fit.coef, 2.0 * fit.half_width, r_max, fit.pmf)
+        proposal = LearnedRim(fit.z, fit.facing, fit.coef, 2.0 * fit.half_width, r_max, fit.pmf, wide_share=0.0)
     return fit
 
 
@@ -262,4 +281,4 @@ def _fit(x, omega, wl, hit, z, facing, r_max, n_wl, stage):
 
 
 __all__ = ["LearnedRim", "learned_rim", "edge_tags", "edge_rim", "paraxial_trace", "robust_fit", "azimuth_bin",
-           "azimuth_pmf", "cached_pilot", "N_DPHI", "FLOOR"]
+           "azimuth_pmf", "cached_pilot", "N_DPHI", "FLOOR", "WIDE_SHARE", "WIDE_FACTOR"]

@@ -63,6 +63,7 @@ class Level:
     rel_std_error: float | None
     bias_bound: float | None = None
     rel_error_vs_reference: float | None = None
+    rel_error: float | None = None  # (standard error + bias bound) / value: what --target-rel-error stops on
 
 
 @dataclass
@@ -175,10 +176,14 @@ def _curve(method, statuses, times, summary, reference) -> MethodCurve:
         last = s is statuses[-1]
         while k < len(times) and (s.elapsed_s >= times[k] or (last and k == len(times) - 1)):
             # All passes zero (nothing reached the detector yet) is no error bar of 0: unknown.
-            rel = s.rel_error if math.isfinite(s.rel_error) and s.value != 0 else None
+            # rel_std_error is the standard error alone (the 1/√t curve); it was (se + bias)/value (issue 29, 6).
+            signal = s.value != 0 and s.std_error is not None
+            rel_se = s.std_error / abs(s.value) if signal else None
+            rel = s.rel_error if signal and math.isfinite(s.rel_error) else None
             bias = summary.get("stray_fraction_bias_bound") if last else None
             vs_ref = abs(s.value - reference) / reference if reference else None
-            levels.append(Level(method, k, s.elapsed_s, s.passes, s.photons, s.value, s.std_error, rel, bias, vs_ref))
+            levels.append(Level(method, k, s.elapsed_s, s.passes, s.photons, s.value, s.std_error, rel_se, bias, vs_ref,
+                                rel))
             k += 1
     # Several levels can fall on one pass when passes are long: keep the distinct points.
     distinct = [lv for i, lv in enumerate(levels) if i == 0 or lv.passes != levels[i - 1].passes]
@@ -206,12 +211,12 @@ def write_converge(out: Path, curves: list[MethodCurve], reference: float | None
     out = Path(out)
     paths = {"csv": out / "converge.csv", "png": out / "converge.png"}
     cols = ["method", "level", "time_s", "passes", "photons", "stray_fraction", "std_error", "rel_std_error",
-            "bias_bound", "rel_error_vs_reference"]
+            "bias_bound", "rel_error", "rel_error_vs_reference"]
     lines = [",".join(cols)]
     for c in curves:
         for lv in c.levels:
             vals = [lv.method, lv.level, f"{lv.time_s:.3f}", lv.passes, lv.photons, f"{lv.value:.6g}",
-                    lv.std_error, lv.rel_std_error, lv.bias_bound, lv.rel_error_vs_reference]
+                    lv.std_error, lv.rel_std_error, lv.bias_bound, lv.rel_error, lv.rel_error_vs_reference]
             lines.append(",".join("" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v)) for v in vals))
     write_text(paths["csv"], "\n".join(lines) + "\n")
     plot_converge(paths["png"], curves, reference)

@@ -46,11 +46,13 @@ def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | Non
     rel = acc.rel_error()
     history.append((elapsed, rel))
     se = acc.flux_std_error
+    tail = acc.tail()
     return PassStatus(
         passes=acc.n, photons=acc.photons, elapsed_s=elapsed, value=stray_fraction(acc.flux, aperture_flux_mm2),
         std_error=stray_fraction(se, aperture_flux_mm2) if math.isfinite(se) else None, rel_error=rel,
         error_slope=error_slope(history), target_rel_error=target,
-        eta_s=time_to_error(elapsed, rel, target) if target else None, max_passes=max_passes)
+        eta_s=time_to_error(elapsed, rel, target) if target else None, max_passes=max_passes,
+        largest_over_median=tail.over_median, heavy_tail=tail.heavy)
 
 
 __all__ = ["status_of", "time_to_error", "next_halving_s", "error_slope"]

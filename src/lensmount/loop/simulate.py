@@ -66,6 +66,9 @@ class PassStatus:
     rel_error : relative error of the total (inf when unknown)
     error_slope : d log(rel error) / d log(time) over the run so far (≈ −0.5 when it converges as 1/√t)
     eta_s : seconds to the target relative error at the rate so far (None without a target)
+    largest_over_median : the largest pass / the median pass (None before any pass or with a median of 0)
+    heavy_tail : one pass dominates the others (`Accumulator.tail`): the error is not the spread's, and
+        the target is not met however small the relative error reads
     """
 
     passes: int
@@ -78,6 +81,8 @@ class PassStatus:
     target_rel_error: float | None
     eta_s: float | None
     max_passes: int | None
+    largest_over_median: float | None = None
+    heavy_tail: bool = False
 
 
 class Observer:
@@ -284,6 +289,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
                             aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
+                            tag_table=tags,
                             extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
                                    "no_light_enters": no_light, "plan": work.as_dict(acc.diagnostics),

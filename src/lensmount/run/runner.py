@@ -13,7 +13,8 @@ Stopping rules (any that is given; at least one pass always runs):
   photons ≥ N,   elapsed ≥ T seconds,
   (standard error + kernel-bias bound) / total flux ≤ E (`Accumulator.rel_error`; checked
   only after `min_passes`, since an error bar from 2 passes is itself noise; never met by a
-  run with no signal, whose relative error is unknown),
+  run with no signal, whose relative error is unknown, nor while one pass dominates the
+  others, `Accumulator.converged`: its error bar is the spread of a heavy tail),
   passes ≥ max_passes.
 """
 
@@ -58,7 +59,7 @@ class Stopping:
         if self.time_s is not None and elapsed >= self.time_s:
             return True
         if self.target_rel_error is not None and acc.n >= self.min_passes:
-            return acc.rel_error() <= self.target_rel_error
+            return acc.converged(self.target_rel_error)
         return False
 
 
