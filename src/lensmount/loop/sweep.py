@@ -1,13 +1,15 @@
 """`sweep`: regenerate and simulate every combination of design and scene parameters, then rank.
 
-    sweep(SweepOptions(design, scene, params=[Param.parse("mount.vanes.count=3,5,7"),
-                                               Param.parse("mount.hood.length_mm=80,120")]))
+    sweep(SweepOptions(design, scene, params=[Param.parse("mount.hood.length_mm=80,100,120"),
+                                               Param.parse("mount.vanes.aperture_margin_mm=0.2,0.5")]))
 
 A parameter names a file (`mount`, `lens` for lens.toml, `scene`), a table path and a
 key; its values are TOML literals. Each variant is a copy of the design folder (and of
 the scene) with those keys set, written under OUT/variants/NN/, regenerated and
 simulated with the same seed and stopping rules through `loop.simulate`, so its passes
-run on whatever executor the simulate options name (local processes or Dask). Variants
+run on whatever executor the simulate options name (local processes or Dask). A mount
+parameter whose values lay out the same parts (the same templates and finishes) is refused
+before anything is simulated: it would only measure noise. Variants
 whose stray levels differ by less than the noise are ties: ranks are given to groups,
 and a group holds every variant not separated from its best member at the chosen
 confidence.
@@ -51,7 +53,7 @@ class Param:
         if not eq or len(parts) < 2 or parts[0] not in FILES or not all(parts) or not values.strip():
             raise InputError(f"parameter '{text}' is not understood", field="--param",
                              valid="FILE.TABLE.KEY=V1,V2,... with FILE one of mount, lens, scene, "
-                                   "e.g. mount.vanes.count=3,5,7")
+                                   "e.g. mount.hood.length_mm=80,100,120")
         return cls(parts[0], parts[1:], tuple(_literal(v.strip()) for v in values.split(",")))
 
 
@@ -111,10 +113,13 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
                          valid="a number in [0.5, 1), e.g. 0.95")
     obs = observer or Observer()
     base = options.simulate or SimulateOptions(options.design, options.scene)
+    grid = variants_of(options.params)
+    written = [_write_variant(Path(options.design), Path(options.scene), Path(options.out) / "variants" / f"{k:02d}",
+                              options.params, values) for k, values in enumerate(grid)]
+    refuse_identical_layouts(options.params, grid, [design for design, _ in written])
     variants = []
-    for k, values in enumerate(variants_of(options.params)):
+    for k, (values, (design, scene)) in enumerate(zip(grid, written)):
         folder = Path(options.out) / "variants" / f"{k:02d}"
-        design, scene = _write_variant(Path(options.design), Path(options.scene), folder, options.params, values)
         obs.stage(f"variant {k + 1}: " + ", ".join(f"{n} = {v}" for n, v in values.items()))
         run = simulate(replace(base, design=design, scene=scene, out=folder / "run", geometry=folder / "build",
                                store=base.store, resume=False), obs)
@@ -152,6 +157,34 @@ def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict
         table[p.keys[-1]] = values[p.name]
         write_text(path, tomli_w.dumps(doc))  # the loaders validate it: an unknown key is an error there
     return target, scene_copy
+
+
+def refuse_identical_layouts(params, grid: list[dict], designs: list[Path]) -> None:
+    """InputError naming a mount parameter two of whose values lay out the same parts (templates,
+    sizes, finishes) with everything else equal: those variants differ only by noise."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.folder import load_design
+
+    layouts: dict[int, str] = {}
+
+    def layout(k: int) -> str:
+        if k not in layouts:
+            design = load_design(designs[k])
+            layouts[k] = repr(plan(design.prescription, design.mount).parts)
+        return layouts[k]
+
+    for p in params:
+        if p.file != "mount":
+            continue
+        for i, a in enumerate(grid):
+            for j in range(i + 1, len(grid)):
+                b = grid[j]
+                if a[p.name] != b[p.name] and all(a[n] == b[n] for n in a if n != p.name) and layout(i) == layout(j):
+                    raise InputError(f"{p.name} = {a[p.name]!r} and {b[p.name]!r} lay out the same mount (the same "
+                                     "parts, sizes and finishes): the sweep would only measure noise",
+                                     field="--param", valid="a key that changes the mount for these values "
+                                     "(under [vanes] placement = \"line-of-sight\" the construction sets the hood "
+                                     "vanes; count applies to placement = \"even\")")
 
 
 def rank(variants: list[Variant], confidence: float) -> None:
@@ -234,4 +267,5 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "variants_of"]
+__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "refuse_identical_layouts",
+           "variants_of"]
