@@ -20,9 +20,8 @@ def sweep(
     design: Path = typer.Argument(..., help="Base design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file every variant is simulated with."),
     param: List[str] = typer.Option(..., "--param",
-                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens or scene); repeat for a grid, "
-                                         "e.g. --param mount.hood.length_mm=80,100,120 --param "
-                                         "mount.vanes.aperture_margin_mm=0.2,0.5. A mount key whose values lay "
+                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens or scene), e.g. "
+                                         "mount.hood.length_mm=80,100,120; repeat for a grid. A mount key whose values lay "
                                          "out the same parts is refused (vanes.count counts only under "
                                          "placement = \"even\")."),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="Folder for the variants, sweep.csv and sweep.png."),
