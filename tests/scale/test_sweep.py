@@ -110,3 +110,25 @@ def test_a_parameter_that_builds_identical_mounts_is_refused_before_any_run(tmp_
         mount = d / "mount.toml"
         mount.write_text("\n".join(line for line in mount.read_text().splitlines() if not line.startswith("count")))
     refuse_identical_layouts(los, grid, designs)
+
+
+def test_the_plot_is_honest_about_scale_ticks_and_missing_bars():
+    """Issue 26 item 9: ticks at 1.2 vanes, an offset label over the title, a 0.002 % difference
+    drawn as a steep drop, no error bars without a word although the axis said ±2σ."""
+    import matplotlib.pyplot as plt
+
+    from lensmount.loop.sweep import NO_ERROR_BAR, figure
+
+    params = (Param.parse("mount.vanes.count=3,4,5"),)
+    vs = [Variant(0, {"mount.vanes.count": 3}, 1.00002e-4, None), Variant(1, {"mount.vanes.count": 4}, 1.0e-4, None),
+          Variant(2, {"mount.vanes.count": 5}, 1.00001e-4, None)]
+    fig = figure(vs, params)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] < 1.5e0  # from 0: the 0.002 % differences stay flat
+    assert ax.yaxis.get_offset_text().get_text() == "" and ax.xaxis.get_offset_text().get_text() == ""
+    assert "10^-4" in ax.get_ylabel()
+    ticks = [t for t in ax.get_xticks() if 3 <= t <= 5]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    assert any(NO_ERROR_BAR in t.get_text() for t in ax.texts)
+    plt.close(fig)

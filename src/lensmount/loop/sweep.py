@@ -215,14 +215,18 @@ def _same(a: Variant, b: Variant, z: float) -> bool:
     return abs(a.stray_fraction - b.stray_fraction) <= z * math.hypot(sa, sb) + a.bias_bound + b.bias_bound
 
 
+NO_ERROR_BAR = "no error bar: fewer than 3 passes"  # why std_error is blank (analysis.passes.MIN_PASSES)
+
+
 def _csv(variants: list[Variant], params) -> str:
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["variant", *(p.name for p in params), "stray_fraction", "std_error", "bias_bound", "rank",
-                "tied_with", "results"])
+                "tied_with", "results", "note"])
     for v in variants:
+        note = NO_ERROR_BAR if v.stray_fraction is not None and v.std_error is None else ""
         w.writerow([v.index, *(v.values[p.name] for p in params), _num(v.stray_fraction), _num(v.std_error),
-                    _num(v.bias_bound), v.rank, " ".join(map(str, v.tied_with)), str(v.out)])
+                    _num(v.bias_bound), v.rank, " ".join(map(str, v.tied_with)), str(v.out), note])
     return buf.getvalue()
 
 
@@ -231,36 +235,65 @@ def _num(x) -> str:
 
 
 def _plot(variants: list[Variant], params, path: Path) -> Path | None:
-    """Stray fraction with error bars against the first parameter, one line per combination of the others."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    """sweep.png (`figure`)."""
     import matplotlib.pyplot as plt
 
-    first, rest = params[0], params[1:]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for combo in itertools.product(*(p.values for p in rest)) if rest else [()]:
-        group = [v for v in variants if all(v.values[p.name] == c for p, c in zip(rest, combo))
-                 and v.stray_fraction is not None]
-        if not group:
-            continue
-        x = list(range(len(group))) if not all(_is_number(v.values[first.name]) for v in group) \
-            else [v.values[first.name] for v in group]
-        label = ", ".join(f"{p.name} = {c}" for p, c in zip(rest, combo)) or None
-        ax.errorbar(x, [v.stray_fraction for v in group], yerr=[2 * (v.std_error or 0) for v in group],
-                    marker="o", capsize=3, label=label)
-        for xi, v in zip(x, group):
-            ax.annotate(f"#{v.rank}", (xi, v.stray_fraction), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set_xlabel(first.name)
-    ax.set_ylabel("stray fraction (±2σ)")
-    ax.set_title("sweep: equal ranks are ties (within the noise)")
-    if rest:
-        ax.legend(fontsize=8)
-    fig.tight_layout()
+    fig = figure(variants, params)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         fig.savefig(fh, format="png", dpi=110)
     plt.close(fig)
     return path
+
+
+def figure(variants: list[Variant], params):
+    """Stray fraction with ±2σ bars against the first parameter, one line per combination of the others.
+
+    Honest at a glance: the axis starts at 0 (a 0.002 % difference is no steep drop), the scale
+    sits in the axis label (no offset text over the title), a parameter of whole numbers gets whole
+    ticks, and variants without an error bar say so on the plot."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    first, rest = params[0], params[1:]
+    known = [v for v in variants if v.stray_fraction is not None]
+    top = max((v.stray_fraction + 2 * (v.std_error or 0) + v.bias_bound for v in known), default=0.0)
+    exponent = math.floor(math.log10(top)) if top > 0 else 0
+    unit = 10.0 ** exponent
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    numeric = all(_is_number(v.values[first.name]) for v in variants)
+    for combo in itertools.product(*(p.values for p in rest)) if rest else [()]:
+        group = [v for v in known if all(v.values[p.name] == c for p, c in zip(rest, combo))]
+        if not group:
+            continue
+        x = [v.values[first.name] for v in group] if numeric else [first.values.index(v.values[first.name])
+                                                                   for v in group]
+        label = ", ".join(f"{p.name} = {c}" for p, c in zip(rest, combo)) or None
+        ax.errorbar(x, [v.stray_fraction / unit for v in group], yerr=[2 * (v.std_error or 0) / unit for v in group],
+                    marker="o", capsize=3, label=label)
+        for xi, v in zip(x, group):
+            ax.annotate(f"#{v.rank}", (xi, v.stray_fraction / unit), textcoords="offset points", xytext=(4, 4),
+                        fontsize=8)
+    if not numeric:
+        ax.set_xticks(range(len(first.values)), [str(v) for v in first.values])
+    elif all(isinstance(v, int) for v in first.values):
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # 3, 4, 5 vanes, not 3.5
+    ax.ticklabel_format(axis="both" if numeric else "y", useOffset=False, style="plain")
+    ax.set_ylim(0, 1.1 * top / unit if top > 0 else 1.0)
+    ax.set_xlabel(first.name)
+    scale = f" (×10^{exponent})" if exponent else ""
+    ax.set_ylabel(f"stray fraction{scale}, bars ±2σ")
+    ax.set_title("sweep: equal ranks are ties (within the noise)")
+    missing = sum(v.std_error is None for v in known)
+    if missing:
+        ax.text(0.01, 0.02, f"{missing} variant(s) without a bar: {NO_ERROR_BAR}", transform=ax.transAxes,
+                fontsize=8, color="0.3")
+    if rest:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
 
 
 def _is_number(x) -> bool:
