@@ -126,3 +126,4 @@ def test_until_decided_resumes_the_vanes_removed_change_to_a_regression(tmp_path
     assert "verdict: regression" in result.output and "until decided:" in result.output
     report = json.loads(next((without / ".lensmount" / "runs").glob("small2-*/compare/compare.json")).read_text())
     assert report["confidence"] > 0.99 and report["low"] > report["threshold"]
+    assert any(n.startswith("until decided:") for n in report["notes"])

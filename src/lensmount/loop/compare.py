@@ -282,8 +282,11 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
                                  confidence=look_confidence(o.confidence, look), out=o.out or result.paths["json"].parent),
                          observer)
     result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
-                             f"interval at {100 * look_confidence(o.confidence, look):.3g} % so that all looks "
+                             f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
+    from lensmount.run.results import write_summary
+
+    write_summary(result.paths["json"], result.to_dict())  # compare.json with the looks' notes
     return result
 
 
