@@ -59,3 +59,18 @@ def test_unknown_view_is_an_input_error(tmp_path, design_copier):
     res = CliRunner().invoke(app, ["check", str(d), "--from", "moon"])
     assert res.exit_code == 2 and "--from" in res.output and "aperture" in res.output
     assert "Traceback" not in res.output and not (d / "build").exists()  # refused before the build
+
+
+def test_the_two_views_write_separate_files(reference):
+    """Issue 26 item 9: `check` and `check --from aperture` wrote the same check.png/check.json."""
+    design, out, _ = reference
+    res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "30"])
+    assert res.exit_code == 0, res.output
+    before = (out / "check" / "check.json").read_text()
+    res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "30",
+                                   "--from", "aperture"])
+    assert res.exit_code in (0, 1), res.output
+    assert "check-aperture.png" in res.output
+    assert json.loads((out / "check" / "check-aperture.json").read_text())["seen_from"] == "aperture"
+    assert (out / "check" / "check-aperture.png").stat().st_size > 10_000
+    assert (out / "check" / "check.json").read_text() == before  # the detector's view is untouched

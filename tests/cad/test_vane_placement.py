@@ -18,6 +18,8 @@ def _layout(examples_dir, placement, exclusion, count=None, example="double-gaus
     data["hood"]["exclusion_deg"] = exclusion
     if count is not None:
         data["vanes"]["count"] = count
+    if placement == "line-of-sight":
+        data["vanes"].pop("count")  # the construction's own number: a count there is an error
     spec = parse_mount(data)
     p = load_lens(examples_dir / example / "lens.toml")
     return plan(p, spec), spec
@@ -71,3 +73,20 @@ def test_line_of_sight_vanes_hide_every_lit_wall(examples_dir, example, exclusio
     assert len(_lit_and_seen(even, exclusion)) > 0, "the example's even vanes hide the wall too"
     same, _ = _layout(examples_dir, "even", exclusion, count=n, example=example)
     assert len(_lit_and_seen(same, exclusion)) > 0, f"{n} even vanes hide the wall too"
+
+
+def test_a_count_under_line_of_sight_placement_is_an_error_naming_the_key(examples_dir):
+    """Issue 26 item 8: `count` was silently ignored under line-of-sight placement (the default), so
+    `sweep --param mount.vanes.count=3,5,7` built three identical mounts."""
+    from lensmount.errors import InputError
+
+    text = (examples_dir / "double-gauss-360" / "mount.toml").read_text().replace(
+        'placement = "even"', 'placement = "line-of-sight"')
+    with pytest.raises(InputError) as err:
+        parse_mount(parse_toml(text, "mount.toml"), file="mount.toml", text=text)
+    e = err.value
+    assert e.field == "vanes.count" and "count = 3" in str(e) and 'placement = \"even\"' in e.valid
+    assert text.splitlines()[e.line - 1].startswith("count = 3")
+    # Without the key, or with even placement, or explicit positions, it reads.
+    parse_mount(parse_toml(text.replace("count = 3 ", "# count"), "mount.toml"))
+    parse_mount(parse_toml(text.replace('placement = "line-of-sight"', 'placement = "even"'), "mount.toml"))

@@ -73,7 +73,9 @@ def test_no_error_bar_from_two_passes():
 def test_no_signal_is_never_converged_and_has_an_upper_bound():
     """Issue 13, item 4: all-zero passes used to give 0 ± 0 and relative error 0 (a stopping rule
     on it stopped). Now the relative error is unknown and the 95 % bound is 3 photons' worth of
-    the emitted flux (the ledger's `source`, 5 mm² per pass of 1000 photons here)."""
+    the emitted flux over the run's 8000 photons (the ledger's `source`, 5 mm² per pass of 1000
+    photons here): no photon in 8000 means a chance below 3/8000 per photon, so the mean pass
+    flux is below 5 · 3/8000 (issue 26: it read 5 · 3/1000, 8× loose)."""
     acc = Accumulator.empty((2, 2), ["p"], 1.0)
     assert acc.rel_error() == math.inf and acc.flux == 0.0 and acc.upper_bound() is None
     assert np.all(acc.std_error_image == 0) and np.all(np.isfinite(acc.mean_image))
@@ -81,12 +83,30 @@ def test_no_signal_is_never_converged_and_has_an_upper_bound():
     for _ in range(8):
         acc.add(PassEstimate(z, z[None], ["p"], 1.0, 1000, ledger={"source": 5.0, "escaped": 5.0}))
     assert acc.rel_error() == math.inf
-    assert acc.upper_bound() == pytest.approx(3.0 * 5.0 / 1000)  # Φ per photon = 5/1000, < 3 photons
+    assert acc.upper_bound() == pytest.approx(3.0 * 5.0 / 8000)  # Φ per photon = 5/1000, < 3 photons in 8000
     d = acc.drift()
     assert d.relative == 0.0 and d.z == 0.0
     one = np.array([[0.0, 1e-9], [0.0, 0.0]])
     acc.add(PassEstimate(one, one[None], ["p"], 1.0, 1000, ledger={"source": 5.0}))
     assert acc.upper_bound() is None
+
+
+def test_no_signal_bound_of_aimed_photons_takes_the_heaviest_weight():
+    """Issue 29 item 6: photons aimed at the diaphragm edge weigh up to A_S / (N · UNIFORM_SHARE)
+    (the disc's uniform share, 5× the mean weight); the bound must take that weight, not the mean.
+    Checked against Poisson directly: photons of weight 5w hitting with probability p give the mean
+    flux 5w·p·N per pass, and the bound must lie above it whenever all-zero runs are common (p·N·n = 3)."""
+    from lensmount.integrators.estimate import AIMED_PASSES
+    from lensmount.integrators.photon_target import UNIFORM_SHARE
+
+    acc = Accumulator.empty((1, 1), ["p"], 1.0)
+    z = np.zeros((1, 1))
+    for _ in range(4):
+        acc.add(PassEstimate(z, z[None], ["p"], 1.0, 1000, ledger={"source": 5.0}, diagnostics={AIMED_PASSES: 1.0}))
+    heaviest = 5.0 / 1000 / UNIFORM_SHARE
+    p = 3.0 / 4000  # chance per photon at which 4 × 1000 photons all miss 5 % of the time
+    assert math.exp(-p * 4000) == pytest.approx(0.05, rel=0.01)
+    assert acc.upper_bound() == pytest.approx(heaviest * p * 1000)  # the true mean flux at that chance
 
 
 def _biased_pass(rng, s, c, truth=1.0, noise=0.02):

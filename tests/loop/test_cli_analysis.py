@@ -53,6 +53,28 @@ def test_fit_abg_prints_the_finish_lines(tmp_path):
     assert result.exit_code == 0, result.output
     assert 'model = "abg", A = 0.002, B = 0.001, g = 2 }' in result.output
     assert (tmp_path / "fit.png").stat().st_size > 0
+    assert "rms error 0.000 decades" in result.output and "poor fit" not in result.output
+
+
+def test_fit_abg_warns_on_a_poor_fit_and_its_help_keeps_the_brackets(tmp_path):
+    """Issue 26 item 9: a 0.59-decade rms fit was accepted without a word, and --help lost
+    "[finishes]" to rich markup. A BRDF with a second, wide lobe 1000x below the specular peak
+    is no ABg curve: the fit misses it by decades."""
+    import math
+
+    rows = ["incidence_deg,scatter_deg,brdf"]
+    for inc in (0.0, 30.0):
+        for sc in range(-85, 90, 5):
+            rho = abs(math.sin(math.radians(sc)) - math.sin(math.radians(inc)))
+            brdf = 2e-3 / (1e-4 + rho ** 3) + (1.0 if 0.3 < rho < 0.6 else 0.0)
+            rows.append(f"{inc},{sc},{brdf:.8e}")
+    (tmp_path / "bumpy.csv").write_text("\n".join(rows) + "\n")
+    result = CliRunner().invoke(app, ["fit-abg", str(tmp_path / "bumpy.csv")])
+    assert result.exit_code == 0, result.output
+    rms = float(result.output.split("rms error ")[1].split()[0])
+    assert rms > 0.2 and "warning: a poor fit" in result.output and "measured table" in result.output
+    help_text = CliRunner().invoke(app, ["fit-abg", "--help"], env={"COLUMNS": "200"}).output
+    assert "[finishes]" in help_text
 
 
 def test_fit_abg_bad_file_is_exit_2(tmp_path):

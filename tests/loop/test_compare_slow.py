@@ -111,3 +111,22 @@ def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(tmp_path, m
     assert len(list((with_vanes / ".lensmount" / "runs").iterdir())) == 1
     history = CliRunner().invoke(app, ["history", str(without), "--scene", "small2"])
     assert history.exit_code == 0 and f"{runs[without]['stray_fraction']:.4g}" in history.output
+
+
+def test_until_decided_resumes_the_vanes_removed_change_to_a_regression(tmp_path, monkeypatch):
+    """Issue 26: 4 against 4 forward passes of 20 000 photons leave the vanes-removed change (about
+    +20 %) undecided at 99 %; --until-decided resumes both runs by the passes `to_decide` asks for
+    and looks again (each look stricter) until the interval clears the 5 % tolerance: exit 1."""
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    with_vanes = _design(tmp_path, "with-vanes")
+    without = _design(tmp_path, "no-vanes", lambda text: text.replace("count = 3 ", "count = 0 "))
+    args = ["compare", str(with_vanes), str(without), "--scene", "small2", "--method", "forward", "--workers", "1",
+            "--passes", "4", "--photons-per-pass", "20000"]
+    first = CliRunner().invoke(app, args)
+    assert first.exit_code == 0 and "verdict: undecided" in first.output, first.output
+    result = CliRunner().invoke(app, args + ["--until-decided", "--budget", "3600"])
+    assert result.exit_code == 1, result.output
+    assert "verdict: regression" in result.output and "until decided:" in result.output
+    report = json.loads(next((without / ".lensmount" / "runs").glob("small2-*/compare/compare.json")).read_text())
+    assert report["confidence"] > 0.99 and report["low"] > report["threshold"]
+    assert any(n.startswith("until decided:") for n in report["notes"])

@@ -78,3 +78,57 @@ def test_sweep_of_six_reference_variants_ranks_them(tmp_path):
     for v in result.variants:
         mount = (tmp_path / "sweep" / "variants" / f"{v.index:02d}" / "design" / "mount.toml").read_text()
         assert f"count = {v.values['mount.vanes.count']}" in mount
+
+
+def _written(tmp_path, *params):
+    from lensmount.loop.sweep import _write_variant
+
+    grid = variants_of(params)
+    scene = DESIGN / "scenes" / "case2-lambertian.toml"
+    return grid, [_write_variant(DESIGN, scene, tmp_path / f"{k:02d}", params, v)[0] for k, v in enumerate(grid)]
+
+
+def test_a_parameter_that_builds_identical_mounts_is_refused_before_any_run(tmp_path):
+    """Issue 26 item 8: values of a key that does not change the mount (here [hood] exclusion_deg
+    under even vane placement, which only line-of-sight vanes follow) would only measure noise."""
+    from lensmount.loop.sweep import SweepOptions, refuse_identical_layouts, sweep
+
+    params = (Param.parse("mount.hood.exclusion_deg=10,12"), Param.parse("mount.hood.length_mm=80,120"))
+    with pytest.raises(InputError) as e:
+        refuse_identical_layouts(params, *_written(tmp_path / "a", *params))
+    assert e.value.field == "--param" and "mount.hood.exclusion_deg = 10 and 12" in str(e.value)
+    # The sweep itself refuses before simulating (no run folder is made).
+    with pytest.raises(InputError):
+        sweep(SweepOptions(DESIGN, DESIGN / "scenes" / "case2-lambertian.toml", params[:1], tmp_path / "s"))
+    assert not list((tmp_path / "s").glob("variants/*/run"))
+    # A key that does change the mount passes, also under line-of-sight placement (where, on this
+    # lens, exclusion_deg 6 to 30 places the same 12 hood vanes: refused there too).
+    refuse_identical_layouts(params[1:], *_written(tmp_path / "b", params[1]))
+    los = (Param.parse('mount.vanes.placement="line-of-sight"'), Param.parse("mount.hood.length_mm=80,120"))
+    grid, designs = _written(tmp_path / "c", *los)
+    for d in designs:  # the example's own count would be an error under line-of-sight
+        mount = d / "mount.toml"
+        mount.write_text("\n".join(line for line in mount.read_text().splitlines() if not line.startswith("count")))
+    refuse_identical_layouts(los, grid, designs)
+
+
+def test_the_plot_is_honest_about_scale_ticks_and_missing_bars():
+    """Issue 26 item 9: ticks at 1.2 vanes, an offset label over the title, a 0.002 % difference
+    drawn as a steep drop, no error bars without a word although the axis said ±2σ."""
+    import matplotlib.pyplot as plt
+
+    from lensmount.loop.sweep import NO_ERROR_BAR, figure
+
+    params = (Param.parse("mount.vanes.count=3,4,5"),)
+    vs = [Variant(0, {"mount.vanes.count": 3}, 1.00002e-4, None), Variant(1, {"mount.vanes.count": 4}, 1.0e-4, None),
+          Variant(2, {"mount.vanes.count": 5}, 1.00001e-4, None)]
+    fig = figure(vs, params)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] < 1.5e0  # from 0: the 0.002 % differences stay flat
+    assert ax.yaxis.get_offset_text().get_text() == "" and ax.xaxis.get_offset_text().get_text() == ""
+    assert "10^-4" in ax.get_ylabel()
+    ticks = [t for t in ax.get_xticks() if 3 <= t <= 5]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    assert any(NO_ERROR_BAR in t.get_text() for t in ax.texts)
+    plt.close(fig)

@@ -37,7 +37,7 @@ def chromium():
 def open_offline(chromium):
     """open_offline(path) -> (page, urls requested). Any request that is not the file itself
     or an inline data: URI is recorded and aborted, so a page that needs the network shows it."""
-    context = chromium.new_context(offline=True)
+    context = chromium.new_context(offline=True, viewport={"width": 1400, "height": 1000})  # issue 26: fits 1400 px
     page = context.new_page()
     requested = []
 
@@ -57,6 +57,11 @@ def open_offline(chromium):
 
     yield open_
     context.close()
+
+
+def horizontal_overflow(page) -> int:
+    """Pixels the page is wider than the window (0: nothing needs a horizontal scroll)."""
+    return page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth) - window.innerWidth")
 
 
 def images_loaded(page) -> list[int]:

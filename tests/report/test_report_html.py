@@ -91,3 +91,39 @@ def test_compare_writes_a_report_with_the_verdict_and_shared_scale_images(tmp_pa
     widths = images_loaded(page)
     assert len(widths) == 3 and all(w > 0 for w in widths), widths
     assert [u for u in requested if not u.startswith(("file:", "data:"))] == []
+
+
+def test_comparison_report_fits_1400_px_and_marks_what_differs(tmp_path, open_offline):
+    """Issue 26 item 9: the provenance table pushed its "new" column off screen at 1400 px (64-digit
+    hashes, long paths and command lines do not wrap) and did not mark the fields that differ. A
+    1400 px screenshot is kept for a reader; the check is that nothing overflows sideways."""
+    from .conftest import horizontal_overflow
+
+    long_path = "/home/engineer/projects/" + "optics-group-" * 8 + "mylens"
+    def prov(mount_sha, commit):
+        return {**SUMMARY["provenance"], "design_path": long_path, "scene_path": long_path + "/scenes/case1.toml",
+                "mount_sha256": mount_sha, "lens_sha256": "ab" * 32, "git_commit": commit,
+                "command_line": "lensmount simulate " + long_path + " --scene " + long_path + "/scenes/case1.toml "
+                                "--out " + long_path + "/runs/case1-after-the-vane-change --passes 32 --seed 7"}
+    old = {**SUMMARY, "provenance": prov("cd" * 32, "0" * 40), "input_hash": "f" * 16}
+    new = {**SUMMARY, "provenance": prov("ef" * 32, "1" * 40), "input_hash": "e" * 16}
+    doc = comparison_report(old, new, "no regression: change +1e-08", [["total", "1.5e-06", "1.51e-06", "+1e-08"]],
+                            ["", "old", "new", "change"], {})
+    page, _ = open_offline(write_report(tmp_path / "report.html", doc))
+    page.screenshot(path=str(tmp_path / "report-1400.png"), full_page=True)
+    assert page.evaluate("window.innerWidth") == 1400
+    assert horizontal_overflow(page) <= 0
+    last = page.evaluate("Math.max(...Array.from(document.querySelectorAll('td')).map(c => c.getBoundingClientRect().right))")
+    assert last <= 1400
+    marked = page.evaluate("Array.from(document.querySelectorAll('tr.differs td:first-child')).map(c => c.innerText)")
+    assert sorted(marked) == ["≠ input_hash", "≠ provenance.git_commit",
+                              "≠ provenance.mount_sha256"], marked
+
+
+def test_the_overflow_check_sees_a_page_wider_than_the_window(tmp_path, open_offline):
+    from .conftest import horizontal_overflow
+
+    wide = tmp_path / "wide.html"
+    wide.write_text("<html><body><table><tr><td>" + "x" * 400 + "</td></tr></table></body></html>")
+    page, _ = open_offline(wide)
+    assert horizontal_overflow(page) > 0

@@ -25,8 +25,10 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     The error bar is `stray_fraction_std_error` (spread of the passes, Student-t widened) plus
     `stray_fraction_bias_bound` (kernel bias, `Accumulator.bias_bound`); `stray_fraction_rel_error`
     is their sum over the value. With no signal at all `stray_fraction_upper_bound` is the 95 %
-    bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null.
-    `tail` says whether one pass dominates the others (`tail_block`; tag_table names its path)."""
+    bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null;
+    `stray_fraction_no_signal_bound` is that bound for any figure that read zero (a part too), what
+    `compare` takes for a zero instead of 0 ± 0. `tail` says whether one pass dominates the others
+    (`tail_block`; tag_table names its path)."""
     flux, se = acc.flux, acc.flux_std_error
     bias, part_bias = acc.bias_bound()
     upper = acc.upper_bound()
@@ -57,6 +59,7 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "stray_flux_bias_bound_mm2": finite_or_none(bias),
         "stray_fraction_bias_bound": finite_or_none(bias * scale),
         "stray_fraction_upper_bound": None if upper is None else finite_or_none(upper * scale),
+        "stray_fraction_no_signal_bound": finite_or_none(acc.no_signal_bound() * scale),
         "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
         "stray_fraction_drift": finite_or_none(drift.relative),
         "stray_fraction_drift_z": finite_or_none(drift.z),

@@ -2,7 +2,7 @@
 
 Parses, builds (or restores) the geometry through lensmount.loop, calls
 lensmount.loop.sightlines and lensmount.cad.pupil, prints and writes
-check.json + check.png. Exit 1 when a lit wall is seen, 0 when none is, 2 on bad input.
+check.json + check.png (check-aperture.* with --from aperture). Exit 1 when a lit wall is seen, 0 when none is, 2 on bad input.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
     """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
     (lensmount.loop.sightlines.VIEWS); True when it passes."""
-    from lensmount.loop.sightlines import lit_walls_seen, plot_report
+    from lensmount.loop.sightlines import file_stem, lit_walls_seen, plot_report
     from lensmount.atomic import write_text
     from lensmount.mesh import TaggedMesh
     from lensmount.cad.pupil import realised_entrance_pupil
@@ -65,15 +65,16 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
              "seen from the aperture by design, not counted)")
     out = Path(folder) / "check"
     out.mkdir(parents=True, exist_ok=True)
-    plot_report(report, mesh, out / "check.png")
+    png, json_path = out / f"{file_stem(view)}.png", out / f"{file_stem(view)}.json"
+    plot_report(report, mesh, png)
     doc = {"exclusion_deg": angle, "seen_from": view, "passed": report.passed, "rays": report.rays,
            "lit_walls_seen": [w.__dict__ for w in report.walls],
            "lit_vane_edges_seen": [w.__dict__ for w in report.edges],
            "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
                               "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
                               "limited_by": limited}}
-    write_text(out / "check.json", json.dumps(doc, indent=2) + "\n")
-    echo(f"picture: {out / 'check.png'}; details: {out / 'check.json'}")
+    write_text(json_path, json.dumps(doc, indent=2) + "\n")
+    echo(f"picture: {png}; details: {json_path}")
     return report.passed
 
 

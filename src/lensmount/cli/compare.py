@@ -65,16 +65,21 @@ def compare(
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
                                                    help="Photons per pass for runs that must be simulated."),
     time_s: Optional[float] = typer.Option(None, "--time", help="Seconds per run that must be simulated."),
+    until_decided: bool = typer.Option(False, "--until-decided",
+                                       help="While undecided, resume the runs by the passes that would decide "
+                                            "it and look again; each look's interval is wider so that all looks "
+                                            "together keep --confidence."),
+    budget: float = typer.Option(3600.0, "--budget", help="Seconds of further tracing --until-decided may spend."),
 ) -> None:
     """Is the new run worse than the old one? Old, new, change with its interval, per part, and the verdict.
 
-    Exit 0: no significant regression (or undecided: then it says how many more photons
-    would decide). Exit 1: a regression beyond the tolerance at that confidence. Exit 2:
-    bad input or runs of different test conditions (the scene's source, detector, effects,
-    objects). The design may differ (lens, mount, finishes.toml, user files): what changed is
-    listed beside the verdict, and a part in one run only reads added or removed. Before
-    anything runs it says which stored run each side takes, or what it must simulate and about
-    how long (stored runs match by design and test condition, whatever their length).
+    Exit 0: no significant regression (or undecided: then it says how many more passes of
+    which run would decide; --until-decided runs them). Exit 1: a regression beyond the tolerance
+    at that confidence. Exit 2: bad input or runs of different test conditions (the scene's
+    source, detector, effects, objects). The design may differ (lens, mount, finishes.toml, user
+    files): what changed is listed beside the verdict, and a part in one run only reads added or
+    removed. Before anything runs it says which stored run each side takes, or what it must
+    simulate and about how long (stored runs match by design and test condition, whatever their length).
     """
     from rich.console import Console
     from rich.table import Table
@@ -82,7 +87,7 @@ def compare(
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,
-                                 photons_per_pass, time_s)
+                                 photons_per_pass, time_s, until_decided, budget)
         sources = plan(options)
     except InputError as error:
         fail(error)
@@ -110,7 +115,7 @@ def compare(
     console.print(table)
     typer.echo(f"verdict: {v.verdict}" + (f" — {v.note}" if v.note else ""))
     if v.verdict == UNDECIDED and v.more_photons is not None:
-        typer.echo(f"to decide: about {v.more_photons:,} more photons over both runs "
-                   f"(~{duration(v.more_time_s)} at their speed)")
+        typer.echo(f"to decide: about {v.more_photons:,} more photons (~{duration(v.more_time_s)} at the runs' "
+                   f"speed); --until-decided resumes them")
     typer.echo("wrote " + ", ".join(str(p) for p in result.paths.values()))
     raise typer.Exit(code=result.exit_code)

@@ -11,15 +11,19 @@ from lensmount.cli import app, fail
 from lensmount.errors import InputError
 
 
+POOR_FIT_DECADES = 0.2  # rms error of log10 BRDF above which the fit is called poor (a factor 1.6)
+
+
 @app.command("fit-abg")
 def fit_abg_command(
     data: Path = typer.Argument(..., help="Measured BRDF: a Zemax tabular .bsdf file, or a .csv with columns "
                                           "incidence_deg,scatter_deg,brdf (in-plane, scatter angle from the normal)."),
-    name: str = typer.Option("measured", "--name", help="Finish name in the printed [finishes] lines."),
+    name: str = typer.Option("measured", "--name", help="Finish name in the printed \\[finishes] lines."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG of the points, the table and the fit."),
 ) -> None:
     """Fit A/(B + |β − β0|^g) to the measurement (least squares in log BRDF) and check both the fit and the
-    measured table for energy (TIS ≤ 1). Prints the finish lines to paste into a scene's [finishes]."""
+    measured table for energy (TIS ≤ 1). Prints the fit's rms error in decades of BRDF (a warning above
+    0.2, a factor 1.6: then use the measured table) and the finish lines to paste into \\[finishes]."""
     from lensmount.design.brdf_data import read_brdf
     from lensmount.physics.bsdf import make_bsdf
     from lensmount.physics.bsdf.tabulated import fit_abg, measured_profile
@@ -32,7 +36,12 @@ def fit_abg_command(
     except InputError as error:
         fail(error.located(str(data)))
     typer.echo(f"{len(rho)} points from {data}")
-    typer.echo(f"ABg fit: A = {a:.4g} 1/sr, B = {b:.4g}, g = {g:.4g}  (rms error {rms:.3f} decades of BRDF)")
+    typer.echo(f"ABg fit: A = {a:.4g} 1/sr, B = {b:.4g}, g = {g:.4g}  (rms error {rms:.3f} decades of BRDF, "
+               f"a factor {10 ** rms:.2f})")
+    if rms > POOR_FIT_DECADES:
+        typer.echo(f"warning: a poor fit: the ABg curve misses the measurement by {rms:.2f} decades rms (a factor "
+                   f"{10 ** rms:.1f}; above {POOR_FIT_DECADES} decades ABg does not describe this surface): use the "
+                   f"measured table ('{name}' below), not '{name}-abg'", err=True)
     typer.echo(f"TIS at normal incidence: fit {fitted.tis:.4g}, measured table {table.tis:.4g}")
     typer.echo("\n[finishes]")
     typer.echo(f'{name}-abg = {{ model = "abg", A = {a:.6g}, B = {b:.6g}, g = {g:.6g} }}')

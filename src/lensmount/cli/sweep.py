@@ -1,4 +1,4 @@
-"""`lensmount sweep DESIGN --scene S --param mount.vanes.count=3,5,7 ...`: parses, calls lensmount.loop.sweep, prints."""
+"""`lensmount sweep DESIGN --scene S --param mount.hood.length_mm=80,100,120 ...`: parses, calls lensmount.loop.sweep, prints."""
 
 from __future__ import annotations
 
@@ -20,8 +20,10 @@ def sweep(
     design: Path = typer.Argument(..., help="Base design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file every variant is simulated with."),
     param: List[str] = typer.Option(..., "--param",
-                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens, finishes or scene); repeat for a grid, "
-                                         "e.g. --param mount.vanes.count=3,5,7 --param mount.hood.length_mm=80,120"),
+                                    help="FILE.TABLE.KEY=V1,V2,... (FILE: mount, lens, finishes or scene), e.g. "
+                                         "mount.hood.length_mm=80,100,120; repeat for a grid. A mount key whose values lay "
+                                         "out the same parts is refused (vanes.count counts only under "
+                                         "placement = \"even\")."),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="Folder for the variants, sweep.csv and sweep.png."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed for every variant (default: the scene's)."),

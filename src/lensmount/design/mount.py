@@ -310,6 +310,14 @@ def parse_mount(data: dict, file: str | None = None, text: str | None = None) ->
         spec = MountSpec.model_validate(data)
     except ValidationError as exc:
         raise input_error(exc, MountSpec, file=file, text=text, valid="see docs/mount-toml.md") from None
+    vanes = spec.vanes
+    if vanes.placement == "line-of-sight" and vanes.positions_mm is None and "count" in vanes.model_fields_set:
+        # the construction decides how many hood vanes it takes: a count here would be silently ignored
+        raise InputError(f"[vanes] count = {vanes.count} has no effect under placement = \"line-of-sight\" (the "
+                         "default): the construction places as many hood vanes as the beam and [hood] "
+                         "exclusion_deg need", file=file, field="vanes.count", line=line_of_key(text, "vanes.count"),
+                         valid="remove `count`; or set placement = \"even\" to choose the number of hood vanes; "
+                               "positions_mm = [] for none")
     spec._file, spec._text = file, text
     return spec
 

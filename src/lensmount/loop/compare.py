@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lensmount.analysis.compare import Measurement, Verdict, judge
+from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
 from lensmount.errors import InputError
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
@@ -56,14 +56,23 @@ class Run:
         if s.get(value) is None:
             raise InputError(f"the run has no value of {metric}", file=str(self.folder / "summary.json"),
                              field="--metric", valid=", ".join(METRICS))
+        bound = self.no_signal_bound()
+        if bound is not None and metric == "stray_flux_mm2":
+            bound *= float(s.get("aperture_flux_mm2") or math.inf)
         return Measurement(float(s[value]), s.get(error), float(s.get(bias) or 0.0) if bias else 0.0,
-                           int(s.get("passes", 2)), int(s.get("photons", 0)), float(s.get("time_s", 0.0)))
+                           int(s.get("passes", 2)), int(s.get("photons", 0)), float(s.get("time_s", 0.0)), bound)
+
+    def no_signal_bound(self) -> float | None:
+        """The stray fraction's 95 % bound for a figure that read zero in every pass (older summaries
+        only hold it for an all-zero total, where it is looser)."""
+        s = self.summary
+        return s.get("stray_fraction_no_signal_bound", s.get("stray_fraction_upper_bound"))
 
     def part(self, name: str) -> Measurement:
         p = self.summary.get("per_part", {}).get(name, {"fraction": 0.0, "std_error": 0.0})
         return Measurement(float(p.get("fraction") or 0.0), p.get("std_error"), float(p.get("bias_bound") or 0.0),
                            int(self.summary.get("passes", 2)), int(self.summary.get("photons", 0)),
-                           float(self.summary.get("time_s", 0.0)))
+                           float(self.summary.get("time_s", 0.0)), self.no_signal_bound())
 
 
 @dataclass(frozen=True)
@@ -73,7 +82,9 @@ class CompareOptions:
     tolerance : relative to the old value; confidence : of the interval on the change.
     out : folder for difference.exr/png and compare.json (default NEW/compare).
     method, workers, passes, photons_per_pass, time_s : for runs that must be simulated (unset: the
-        scene's [run] table); a stored run is reused when its input hash matches."""
+        scene's [run] table); a stored run is reused when its input hash matches.
+    until_decided : while the verdict is undecided, resume the runs by the passes that would decide
+        it and look again, within `budget_s` seconds of further tracing (`compare_until_decided`)."""
 
     a: Path
     b: Path | None = None
@@ -89,6 +100,8 @@ class CompareOptions:
     passes: int | None = None
     photons_per_pass: int | None = None
     time_s: float | None = None
+    until_decided: bool = False
+    budget_s: float = 3600.0
 
 
 @dataclass
@@ -283,6 +296,8 @@ def compare(options: CompareOptions, observer: Observer | None = None,
     """Compare two runs (see CompareOptions; `sources`: `plan(options)`, made here when not given);
     writes difference.exr, difference.png, compare.json and report.html."""
     o = options
+    if o.until_decided:
+        return compare_until_decided(o, observer)
     old_source, new_source = sources or plan(o)
     new = obtain(new_source, observer)
     old = obtain(old_source, observer)
@@ -304,6 +319,92 @@ def compare(options: CompareOptions, observer: Observer | None = None,
     out = Path(o.out) if o.out is not None else new.folder / "compare"
     result.paths = write_comparison(out, old, new, result)
     return result
+
+
+MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
+
+
+def compare_until_decided(options: CompareOptions, observer: Observer | None = None) -> CompareResult:
+    """`compare`, then while the verdict is undecided: resume the runs by the passes that would decide
+    it (`analysis.compare.to_decide`) and look again. Look j judges at `look_confidence(c, j)`, so the
+    chance that any look reads a wrong verdict stays below 1 − c however many looks it takes. Stops at
+    a verdict, when the next step would overrun `budget_s` seconds of tracing, when no number of passes
+    would decide it, or after MAX_LOOKS looks; the notes say which."""
+    o = replace(options, until_decided=False)
+    if not o.budget_s >= 0:
+        raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
+    look, spent, steps = 1, 0.0, []
+    result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer)
+    while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
+        runs = (result.old, result.new)
+        m = [r.measurement(o.metric) for r in runs]
+        grows = tuple(resumable(r) for r in runs)
+        if any(x.std_error is None for x in m):  # fewer than 3 passes: first an error bar
+            more = tuple(max(3 - x.passes, 0) for x in m)
+            more = None if any(a and not g for a, g in zip(more, grows)) else more
+        else:
+            more = to_decide(*m, result.verdict.threshold, look_confidence(o.confidence, look + 1), grows)
+        if more is None:
+            held = " and ".join(f"the {n} run's inputs changed since it ran (it cannot be resumed)"
+                                for n, g in zip(("old", "new"), grows) if not g)
+            steps.append("no number of passes decides it" + (f": {held}" if held else " (see the verdict's note)"))
+            break
+        per_pass = [x.time_s / max(x.passes, 1) for x in m]
+        cost = sum(a * t for a, t in zip(more, per_pass))
+        if spent + cost > o.budget_s:
+            steps.append(f"stopped: the next step ({', '.join(f'{a} passes' for a in more)}, ~{cost:.0f} s) would "
+                         f"overrun the budget ({o.budget_s:.0f} s, {spent:.0f} s spent); raise --budget")
+            break
+        resumed = [resume(r, a, o, observer) if a else r for r, a in zip(runs, more)]
+        spent += sum(r.summary.get("time_s", 0.0) - x.time_s for r, x in zip(resumed, m))
+        look += 1
+        steps.append(f"look {look}: +{more[0]} passes of the old run, +{more[1]} of the new")
+        result = compare(replace(o, a=resumed[0].folder, b=resumed[1].folder, against=None, scene=None,
+                                 confidence=look_confidence(o.confidence, look), out=o.out or result.paths["json"].parent),
+                         observer)
+    result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
+                             f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
+                             f"together keep {100 * o.confidence:g} %"]
+    from lensmount.run.results import write_summary
+
+    write_summary(result.paths["json"], result.to_dict())  # compare.json with the looks' notes
+    return result
+
+
+def resumable(run: Run) -> bool:
+    """The run has a checkpoint and its design and scene still hold the inputs it ran on."""
+    from lensmount.loop.prepare import read_inputs
+    from lensmount.loop.simulate import CHECKPOINT
+
+    sim = _resumed_options(run, 0, CompareOptions(run.folder))
+    if not (run.folder / CHECKPOINT).is_file() or sim is None or not sim.design.is_dir() or not sim.scene.is_file():
+        return False
+    return planned_input_hash(sim, *read_inputs(sim.design, sim.scene)) == run.summary.get("input_hash")
+
+
+def _resumed_options(run: Run, more: int, o: CompareOptions) -> SimulateOptions | None:
+    """The options that continue `run` by `more` passes on the design and scene its provenance names."""
+    s, prov = run.summary, run.summary.get("provenance", {})
+    if not prov.get("design_path") or not prov.get("scene_path"):
+        return None
+    settings = s.get("estimator_settings", {})
+    return SimulateOptions(Path(prov["design_path"]), Path(prov["scene_path"]), method=s.get("method", o.method),
+                           seed=s.get("seed"), out=run.folder, passes=int(s.get("passes", 0)) + more,
+                           photons_per_pass=s.get("photons_per_pass"),
+                           samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
+                           alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,
+                           store=o.store)
+
+
+def resume(run: Run, more: int, o: CompareOptions, observer: Observer | None = None) -> Run:
+    """The run continued from its checkpoint by `more` passes, on the design and scene its provenance
+    names (InputError when they changed since: the checkpoint then belongs to other inputs)."""
+    sim = _resumed_options(run, more, o)
+    if sim is None:
+        raise InputError("the run does not say which design and scene made it", file=str(run.folder / "summary.json"),
+                         field="provenance", valid="a run written by `lensmount simulate` of this version")
+    result = simulate(sim, observer)
+    return Run(result.out, result.summary)
 
 
 def _std_error_image(run: Run, shape) -> np.ndarray:
@@ -386,5 +487,6 @@ def verdict_sentence(v: Verdict) -> str:
            f"{100 * v.confidence:g} % confidence, tolerance {v.threshold:.3g}"
 
 
-__all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "plan", "plan_current", "stored_run",
-           "check_comparable", "part_rows", "verdict_row", "verdict_sentence", "METRICS"]
+__all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "compare_until_decided", "resume", "obtain",
+           "plan", "plan_current", "stored_run", "check_comparable", "part_rows", "verdict_row", "verdict_sentence",
+           "METRICS"]

@@ -51,6 +51,12 @@ LOOK_POLAR, LOOK_AZIMUTHS = 45, 48  # directions over the half space in front of
 VIEWS = ("detector", "aperture")
 
 
+def file_stem(view: str) -> str:
+    """The check's file names per view (check.png/json from the detector, check-aperture.* from the
+    entrance aperture), so one view's run never overwrites the other's."""
+    return "check" if view == "detector" else f"check-{view}"
+
+
 @dataclass
 class LitWall:
     part: str
@@ -224,7 +230,7 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
 
 
 def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
-    """check.png: the mount's (r, z) section, seen points, lit points and the lit walls seen."""
+    """check.png (`file_stem`): the mount's (r, z) section, seen points, lit points and the lit walls seen."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -254,4 +260,4 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     save_figure(fig, path)
 
 
-__all__ = ["lit_walls_seen", "plot_report", "SightlineReport", "LitWall", "VIEWS"]
+__all__ = ["lit_walls_seen", "plot_report", "SightlineReport", "LitWall", "VIEWS", "file_stem"]

@@ -1,14 +1,16 @@
 """`sweep`: regenerate and simulate every combination of design and scene parameters, then rank.
 
-    sweep(SweepOptions(design, scene, params=[Param.parse("mount.vanes.count=3,5,7"),
-                                               Param.parse("mount.hood.length_mm=80,120")]))
+    sweep(SweepOptions(design, scene, params=[Param.parse("mount.hood.length_mm=80,100,120"),
+                                               Param.parse("mount.vanes.aperture_margin_mm=0.2,0.5")]))
 
 A parameter names a file (`mount`, `lens` for lens.toml, `finishes` for the design's
 finishes.toml, `scene`), a table path and a key; its values are TOML literals
 (`finishes.finishes.black-paint.reflectance=0.02,0.05`). Each variant is a copy of the design folder (and of
 the scene) with those keys set, written under OUT/variants/NN/, regenerated and
 simulated with the same seed and stopping rules through `loop.simulate`, so its passes
-run on whatever executor the simulate options name (local processes or Dask). Variants
+run on whatever executor the simulate options name (local processes or Dask). A mount
+parameter whose values lay out the same parts (the same templates and finishes) is refused
+before anything is simulated: it would only measure noise. Variants
 whose stray levels differ by less than the noise are ties: ranks are given to groups,
 and a group holds every variant not separated from its best member at the chosen
 confidence.
@@ -52,7 +54,7 @@ class Param:
         if not eq or len(parts) < 2 or parts[0] not in FILES or not all(parts) or not values.strip():
             raise InputError(f"parameter '{text}' is not understood", field="--param",
                              valid="FILE.TABLE.KEY=V1,V2,... with FILE one of mount, lens, finishes, scene, "
-                                   "e.g. mount.vanes.count=3,5,7")
+                                   "e.g. mount.hood.length_mm=80,100,120")
         return cls(parts[0], parts[1:], tuple(_literal(v.strip()) for v in values.split(",")))
 
 
@@ -112,10 +114,13 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
                          valid="a number in [0.5, 1), e.g. 0.95")
     obs = observer or Observer()
     base = options.simulate or SimulateOptions(options.design, options.scene)
+    grid = variants_of(options.params)
+    written = [_write_variant(Path(options.design), Path(options.scene), Path(options.out) / "variants" / f"{k:02d}",
+                              options.params, values) for k, values in enumerate(grid)]
+    refuse_identical_layouts(options.params, grid, [design for design, _ in written])
     variants = []
-    for k, values in enumerate(variants_of(options.params)):
+    for k, (values, (design, scene)) in enumerate(zip(grid, written)):
         folder = Path(options.out) / "variants" / f"{k:02d}"
-        design, scene = _write_variant(Path(options.design), Path(options.scene), folder, options.params, values)
         obs.stage(f"variant {k + 1}: " + ", ".join(f"{n} = {v}" for n, v in values.items()))
         run = simulate(replace(base, design=design, scene=scene, out=folder / "run", geometry=folder / "build",
                                store=base.store, resume=False), obs)
@@ -155,6 +160,34 @@ def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict
     return target, scene_copy
 
 
+def refuse_identical_layouts(params, grid: list[dict], designs: list[Path]) -> None:
+    """InputError naming a mount parameter two of whose values lay out the same parts (templates,
+    sizes, finishes) with everything else equal: those variants differ only by noise."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.folder import load_design
+
+    layouts: dict[int, str] = {}
+
+    def layout(k: int) -> str:
+        if k not in layouts:
+            design = load_design(designs[k])
+            layouts[k] = repr(plan(design.prescription, design.mount).parts)
+        return layouts[k]
+
+    for p in params:
+        if p.file != "mount":
+            continue
+        for i, a in enumerate(grid):
+            for j in range(i + 1, len(grid)):
+                b = grid[j]
+                if a[p.name] != b[p.name] and all(a[n] == b[n] for n in a if n != p.name) and layout(i) == layout(j):
+                    raise InputError(f"{p.name} = {a[p.name]!r} and {b[p.name]!r} lay out the same mount (the same "
+                                     "parts, sizes and finishes): the sweep would only measure noise",
+                                     field="--param", valid="a key that changes the mount for these values "
+                                     "(under [vanes] placement = \"line-of-sight\" the construction sets the hood "
+                                     "vanes; count applies to placement = \"even\")")
+
+
 def rank(variants: list[Variant], confidence: float) -> None:
     """Rank by stray fraction, lowest first; a variant within the noise of a group's best joins its group.
 
@@ -183,14 +216,18 @@ def _same(a: Variant, b: Variant, z: float) -> bool:
     return abs(a.stray_fraction - b.stray_fraction) <= z * math.hypot(sa, sb) + a.bias_bound + b.bias_bound
 
 
+NO_ERROR_BAR = "no error bar: fewer than 3 passes"  # why std_error is blank (analysis.passes.MIN_PASSES)
+
+
 def _csv(variants: list[Variant], params) -> str:
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["variant", *(p.name for p in params), "stray_fraction", "std_error", "bias_bound", "rank",
-                "tied_with", "results"])
+                "tied_with", "results", "note"])
     for v in variants:
+        note = NO_ERROR_BAR if v.stray_fraction is not None and v.std_error is None else ""
         w.writerow([v.index, *(v.values[p.name] for p in params), _num(v.stray_fraction), _num(v.std_error),
-                    _num(v.bias_bound), v.rank, " ".join(map(str, v.tied_with)), str(v.out)])
+                    _num(v.bias_bound), v.rank, " ".join(map(str, v.tied_with)), str(v.out), note])
     return buf.getvalue()
 
 
@@ -199,40 +236,70 @@ def _num(x) -> str:
 
 
 def _plot(variants: list[Variant], params, path: Path) -> Path | None:
-    """Stray fraction with error bars against the first parameter, one line per combination of the others."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    """sweep.png (`figure`)."""
     import matplotlib.pyplot as plt
 
-    first, rest = params[0], params[1:]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for combo in itertools.product(*(p.values for p in rest)) if rest else [()]:
-        group = [v for v in variants if all(v.values[p.name] == c for p, c in zip(rest, combo))
-                 and v.stray_fraction is not None]
-        if not group:
-            continue
-        x = list(range(len(group))) if not all(_is_number(v.values[first.name]) for v in group) \
-            else [v.values[first.name] for v in group]
-        label = ", ".join(f"{p.name} = {c}" for p, c in zip(rest, combo)) or None
-        ax.errorbar(x, [v.stray_fraction for v in group], yerr=[2 * (v.std_error or 0) for v in group],
-                    marker="o", capsize=3, label=label)
-        for xi, v in zip(x, group):
-            ax.annotate(f"#{v.rank}", (xi, v.stray_fraction), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set_xlabel(first.name)
-    ax.set_ylabel("stray fraction (±2σ)")
-    ax.set_title("sweep: equal ranks are ties (within the noise)")
-    if rest:
-        ax.legend(fontsize=8)
-    fig.tight_layout()
+    fig = figure(variants, params)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         fig.savefig(fh, format="png", dpi=110)
     plt.close(fig)
     return path
 
 
+def figure(variants: list[Variant], params):
+    """Stray fraction with ±2σ bars against the first parameter, one line per combination of the others.
+
+    Honest at a glance: the axis starts at 0 (a 0.002 % difference is no steep drop), the scale
+    sits in the axis label (no offset text over the title), a parameter of whole numbers gets whole
+    ticks, and variants without an error bar say so on the plot."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    first, rest = params[0], params[1:]
+    known = [v for v in variants if v.stray_fraction is not None]
+    top = max((v.stray_fraction + 2 * (v.std_error or 0) + v.bias_bound for v in known), default=0.0)
+    exponent = math.floor(math.log10(top)) if top > 0 else 0
+    unit = 10.0 ** exponent
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    numeric = all(_is_number(v.values[first.name]) for v in variants)
+    for combo in itertools.product(*(p.values for p in rest)) if rest else [()]:
+        group = [v for v in known if all(v.values[p.name] == c for p, c in zip(rest, combo))]
+        if not group:
+            continue
+        x = [v.values[first.name] for v in group] if numeric else [first.values.index(v.values[first.name])
+                                                                   for v in group]
+        label = ", ".join(f"{p.name} = {c}" for p, c in zip(rest, combo)) or None
+        ax.errorbar(x, [v.stray_fraction / unit for v in group], yerr=[2 * (v.std_error or 0) / unit for v in group],
+                    marker="o", capsize=3, label=label)
+        for xi, v in zip(x, group):
+            ax.annotate(f"#{v.rank}", (xi, v.stray_fraction / unit), textcoords="offset points", xytext=(4, 4),
+                        fontsize=8)
+    if not numeric:
+        ax.set_xticks(range(len(first.values)), [str(v) for v in first.values])
+    elif all(isinstance(v, int) for v in first.values):
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # 3, 4, 5 vanes, not 3.5
+    ax.ticklabel_format(axis="both" if numeric else "y", useOffset=False, style="plain")
+    ax.set_ylim(0, 1.1 * top / unit if top > 0 else 1.0)
+    ax.set_xlabel(first.name)
+    scale = f" (×10^{exponent})" if exponent else ""
+    ax.set_ylabel(f"stray fraction{scale}, bars ±2σ")
+    ax.set_title("sweep: equal ranks are ties (within the noise)")
+    missing = sum(v.std_error is None for v in known)
+    if missing:
+        ax.text(0.01, 0.02, f"{missing} variant(s) without a bar: {NO_ERROR_BAR}", transform=ax.transAxes,
+                fontsize=8, color="0.3")
+    if rest:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
 def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "variants_of"]
+__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "refuse_identical_layouts",
+           "variants_of"]

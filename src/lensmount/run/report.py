@@ -30,6 +30,7 @@ body{font-family:system-ui,sans-serif;margin:2em auto;max-width:60em;color:#222;
 h1{font-size:1.4em}h2{font-size:1.1em;margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:.9em}td,th{padding:.2em .8em;border-bottom:1px solid #eee;text-align:right}
 td:first-child,th:first-child{text-align:left}figure{display:inline-block;margin:.5em}
+td,th{overflow-wrap:anywhere}tr.differs td{background:#fff3cd}tr.differs td:first-child{font-weight:bold}
 figcaption{font-size:.85em;color:#555}img{max-width:100%}
 .verdict{font-size:1.2em;font-weight:bold;padding:.5em;border:2px solid #888;display:inline-block}
 .regression{border-color:#c00;color:#c00}.ok{border-color:#080;color:#080}.undecided{border-color:#b80;color:#b80}
@@ -57,9 +58,12 @@ def image_block(caption: str, png: bytes | str | os.PathLike) -> str:
     return f'<figure><img src="{uri}" alt="{esc(caption)}"><figcaption>{esc(caption)}</figcaption></figure>'
 
 
-def table_block(headers: list[str], rows: list[list], caption: str = "") -> str:
+def table_block(headers: list[str], rows: list[list], caption: str = "", marked: set[int] = frozenset()) -> str:
+    """A table; rows whose index is in `marked` get class "differs" (highlighted). Long cells
+    (hashes, paths, command lines) wrap anywhere, so the page keeps its width."""
     head = "".join(f"<th>{esc(h)}</th>" for h in headers)
-    body = "".join("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>" for row in rows)
+    body = "".join(("<tr class=\"differs\">" if i in marked else "<tr>") + "".join(f"<td>{esc(c)}</td>" for c in row)
+                   + "</tr>" for i, row in enumerate(rows))
     cap = f"<caption>{esc(caption)}</caption>" if caption else ""
     return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
@@ -190,8 +194,11 @@ def comparison_report(old: dict, new: dict, verdict: str, rows: list[list], head
                               *(image_block(c, p) for c, p in images.items())))
     prov_old, prov_new = dict(provenance_rows(old)), dict(provenance_rows(new))
     keys = sorted(set(prov_old) | set(prov_new))
+    rows = [[k, prov_old.get(k, "—"), prov_new.get(k, "—")] for k in keys]
+    differ = {i for i, (_, a, b) in enumerate(rows) if a != b}
+    rows = [["≠ " + r[0] if i in differ else r[0], *r[1:]] for i, r in enumerate(rows)]
     blocks.append(section("Inputs and provenance", table_block(
-        ["field", "old", "new"], [[k, prov_old.get(k, "—"), prov_new.get(k, "—")] for k in keys])))
+        ["field", "old", "new"], rows, f"{len(differ)} field(s) differ, marked ≠ and highlighted", differ)))
     return page("lensmount comparison", blocks)
 
 
