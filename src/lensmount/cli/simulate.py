@@ -170,8 +170,7 @@ def simulate(
     if result.run_id is not None:
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
     if result.interrupted:
-        how = "SIGTERM" if result.terminated else "interrupted"
-        typer.echo(f"{how}: results and checkpoint written; continue with --resume", err=True)
+        typer.echo(result.stop_message(), err=True)
         raise typer.Exit(code=143 if result.terminated else 130)
 
 

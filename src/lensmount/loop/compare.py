@@ -136,6 +136,7 @@ def current_run(design: Path, scene: str, o: CompareOptions, observer: Observer 
         return Run.load(Path(stored[-1].summary_path).parent, "DESIGN")
     out = Path(design).resolve() / ".lensmount" / "runs" / f"{scene_path.stem}-{digest[:12]}"
     result = simulate(replace(sim, out=out), observer)
+    result.raise_if_stopped("no comparison made: run the same compare again")
     return Run(result.out, result.summary)
 
 

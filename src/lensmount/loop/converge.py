@@ -161,6 +161,7 @@ def converge(o: ConvergeOptions, progress: Callable[[str], None] | None = None) 
         run = simulate(SimulateOptions(o.design, o.scene, method=method, seed=o.seed, out=Path(o.out) / method,
                                        time_s=per_method, photons_per_pass=o.photons_per_pass, workers=o.workers,
                                        record=False), Watch())
+        run.raise_if_stopped("the convergence study stopped: run it again")
         curves.append(_curve(method, statuses, times, run.summary, o.reference))
         last = curves[-1].levels[-1] if curves[-1].levels else None
         if last is not None:

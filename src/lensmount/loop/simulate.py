@@ -16,6 +16,7 @@ from pathlib import Path
 
 from lensmount.errors import InputError
 from lensmount.run.executor import local_cluster_size
+from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
@@ -103,6 +104,21 @@ class SimulateResult:
     run_id: int | None = None
     store_path: Path | None = None
     warnings: list[str] = field(default_factory=list)
+    complete: bool = False  # the signal came after the last pass, while the results were written
+
+    def stop_message(self, then: str = "continue with the same command and --resume") -> str:
+        """One line for a stopped run: what is kept and how to continue (`then`)."""
+        how = "SIGTERM" if self.terminated else "SIGINT"
+        passes = self.summary.get("passes", 0)
+        if self.complete:
+            return f"{how} after the run was complete ({passes} passes): results written, nothing to continue"
+        return f"{how}: stopped after {passes} passes; results and checkpoint written in {self.out}; {then}"
+
+    def raise_if_stopped(self, then: str) -> None:
+        """For callers with more work after this run (sweep, compare, converge): a stopped run stops
+        them too, with this run's line and `then`, what to do about the caller's own work."""
+        if self.interrupted:
+            raise (Terminated if self.terminated else KeyboardInterrupt)(self.stop_message(then))
 
 
 def check_options(o: SimulateOptions) -> None:
@@ -191,11 +207,27 @@ def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
 
 def simulate(options: SimulateOptions, observer: Observer | None = None) -> SimulateResult:
     """Run one simulation end to end (see the module docstring). InputError on bad input,
-    raised before anything is built or written."""
+    raised before anything is built or written.
+
+    SIGINT or SIGTERM at any moment: once a pass is complete, the checkpoint and the results
+    of the passes merged so far are written and the result says `interrupted`; before that,
+    nothing is written and KeyboardInterrupt (`Terminated` for SIGTERM) is raised with a line
+    saying so (lensmount.run.signals)."""
+    with stop_on_signals():
+        try:
+            return _simulate(options, observer or Observer())
+        except KeyboardInterrupt as stop:
+            if stop.args:  # already says what happened
+                raise
+            kept = ("the checkpoint is as it was; continue with the same command" if options.resume
+                    else "nothing written; run the same command again")
+            raise type(stop)(f"{signal_name(stop)} before the first pass was complete: {kept}") from None
+
+
+def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     from lensmount.analysis.passes import Accumulator
     from lensmount.loop.prepare import read_inputs
 
-    o, obs = options, observer or Observer()
     check_options(o)
     design, spec = read_inputs(o.design, o.scene, obs.stage)
     scene_path = Path(o.scene)
@@ -210,11 +242,7 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     if o.resume:
         if not checkpoint.exists():
             raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
-        try:
-            acc, meta = Accumulator.load(checkpoint)
-        except ValueError as error:  # another lensmount version's layout: say so, no traceback
-            raise InputError(f"the checkpoint cannot be resumed: {error}", file=str(checkpoint),
-                             valid="a checkpoint this lensmount version wrote; run again without --resume") from None
+        acc, meta = Accumulator.load(checkpoint)
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
                          list(design.template_paths.values()), o.argv)
@@ -225,18 +253,14 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
     from lensmount.analysis.passes import Accumulator
-    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
-    from lensmount.analysis.summary import build_summary
     from lensmount.run.executor import executor_for
     from lensmount.integrators.estimate import film_channels
     from lensmount.integrators.plan import plan
     from lensmount.loop.progress import status_of
-    from lensmount.run.results import write_run
     from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
     from lensmount.scene.scene import EFFECT_NAMES
-    from lensmount.physics.sources import ObjectSource
 
-    design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
+    design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
     warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
 
@@ -273,14 +297,35 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
     runner.run(stopping)
+    if acc.n == 0:  # stopped before the first pass: nothing to write
+        raise (Terminated if runner.terminated else KeyboardInterrupt)()
+    try:
+        with deferred():  # a signal now waits until the results are whole
+            result = _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance,
+                            seed=seed, photons_per_pass=per_pass, input_hash=digest, settings=settings,
+                            no_light_enters=no_light, effects=effects)
+    except KeyboardInterrupt as stop:  # it came while they were written: `result` is bound, the files whole
+        if not result.interrupted:
+            result.interrupted, result.terminated, result.complete = True, isinstance(stop, Terminated), True
+    return result
 
+
+def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
+           input_hash, settings, no_light_enters, effects) -> SimulateResult:
+    """summary.json, the images, paths.npz and the store's row of a run that has passes."""
+    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
+    from lensmount.analysis.summary import build_summary
+    from lensmount.physics.sources import ObjectSource
+    from lensmount.run.results import write_run
+
+    design, built, sc = prepared.design, prepared.built, prepared.scene
     tags, areas = scene_tags(sc), face_areas(sc.mesh)
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
-                            aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
-                            extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
+                            aperture_flux_mm2=aperture, input_hash=input_hash, estimator_settings=settings.as_dict(),
+                            extra={"photons_per_pass": photons_per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
-                                   "no_light_enters": no_light, "plan": work.as_dict(acc.diagnostics),
+                                   "no_light_enters": no_light_enters, "plan": work.as_dict(acc.diagnostics),
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
