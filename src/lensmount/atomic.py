@@ -1,9 +1,15 @@
-"""Write files so a reader never sees half of one: temp file in the same folder, then rename."""
+"""Write files so a reader never sees half of one: temp file in the same folder, then rename.
+
+A folder of outputs that belong together (regenerate's STEP files, mesh and manifest) is built
+in a temp folder beside it and swapped in whole (`atomic_dir`).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
+import signal
 import tempfile
 from pathlib import Path
 
@@ -41,3 +47,32 @@ def write_npz(path: str | os.PathLike, *, compressed: bool = False, **arrays) ->
     """Write a numpy .npz atomically."""
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         (np.savez_compressed if compressed else np.savez)(fh, **arrays)
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike):
+    """Yield a new temp folder beside `path`; on success it replaces `path` whole, on error (or a
+    signal) it is removed and `path` is as it was. What the old folder holds and the new one does
+    not (a cache, the user's own files) moves over. SIGINT and SIGTERM wait the few renames of the swap.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp"))
+    os.chmod(tmp, 0o755)  # mkdtemp makes it 0700
+    old = tmp.with_name(tmp.name + ".old")
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        if path.exists():
+            for entry in path.iterdir():
+                if not (tmp / entry.name).exists():
+                    os.rename(entry, tmp / entry.name)
+            os.rename(path, old)
+        os.rename(tmp, path)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+    shutil.rmtree(old, ignore_errors=True)

@@ -61,7 +61,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from lensmount.validation import ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml
+from lensmount.validation import (ReadFromFile, did_you_mean, input_error, keys_at, line_of_key, located, parse_toml,
+                                  read_text)
 from lensmount.errors import InputError
 from lensmount.design.finishes import check_rules, finish_library
 from lensmount.physics.interfaces import parse_coating
@@ -272,10 +273,7 @@ class SceneSpec(ReadFromFile, _Strict):
 def load_scene(path: str | Path) -> SceneSpec:
     """Read and validate a scene file; every problem is an InputError naming the file and field."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
+    text = read_text(path, "scene file", "a path to a scenes/*.toml file")
     data = parse_toml(text, str(path))
     return scene_from_dict(data, file=str(path), base_dir=str(path.parent), text=text)
 
