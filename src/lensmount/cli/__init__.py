@@ -15,7 +15,7 @@ import sys
 import typer
 from typer.core import TyperGroup
 
-from lensmount.errors import InputError
+from lensmount.errors import InputError, WorkersGone
 from lensmount.run.signals import exit_code, signal_name, stop_on_signals
 
 
@@ -31,6 +31,9 @@ class _Commands(TyperGroup):
                 typer.echo(str(stop) or f"{signal_name(stop)}: stopped, nothing half-written left; "
                                         "run the command again", err=True)
                 raise typer.Exit(code=exit_code(stop)) from None
+            except WorkersGone as gone:
+                typer.echo(f"{gone} (exit {WorkersGone.EXIT_CODE}: retry later)", err=True)
+                raise typer.Exit(code=WorkersGone.EXIT_CODE) from None
 
 
 app = typer.Typer(

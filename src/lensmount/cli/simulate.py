@@ -17,6 +17,7 @@ from lensmount.cli import app, fail
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, PassStatus, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
+from lensmount.run.executor import WORKER_WAIT_S
 
 
 def print_plan(console, block: dict | None) -> None:
@@ -155,6 +156,9 @@ def simulate(
                                             help="Run the passes on this Dask scheduler (tcp://HOST:8786); "
                                                  "see docs/scale.md."),
     cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a Dask LocalCluster: local:N processes."),
+    worker_wait: float = typer.Option(WORKER_WAIT_S, "--worker-wait",
+                                      help="Seconds a Dask run with no worker left waits for one; then it writes "
+                                           "its checkpoint and exits 75, for a batch script to retry with --resume."),
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
@@ -163,7 +167,7 @@ def simulate(
     """
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
                               photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
-                              not no_record, list(sys.argv), scheduler, cluster)
+                              not no_record, list(sys.argv), scheduler, cluster, worker_wait)
     result = observed(run_simulation, options)
     print_summary(result.summary, result.paths)
     typer.echo(f"one more halving of the error: about {duration(next_halving_s(result.summary['time_s']))} more")
@@ -171,7 +175,7 @@ def simulate(
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
     if result.interrupted:
         typer.echo(result.stop_message(), err=True)
-        raise typer.Exit(code=143 if result.terminated else 130)
+        raise typer.Exit(code=result.exit_code)
 
 
 def print_summary(summary: dict, paths: dict) -> None:

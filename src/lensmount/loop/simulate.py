@@ -14,8 +14,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lensmount.errors import InputError
-from lensmount.run.executor import local_cluster_size
+from lensmount.errors import InputError, WorkersGone
+from lensmount.run.executor import WORKER_WAIT_S, local_cluster_size
 from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
@@ -35,6 +35,7 @@ class SimulateOptions:
     store : results store (default: lensmount.run.store.default_path); record : add the run to it
     argv : the command line recorded in the provenance (default sys.argv)
     scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.run.executor
+    worker_wait_s : with no Dask worker left, wait this long for one, then stop with the checkpoint (exit 75)
     """
 
     design: Path
@@ -57,6 +58,7 @@ class SimulateOptions:
     argv: list[str] | None = None
     scheduler: str | None = None
     cluster: str | None = None
+    worker_wait_s: float = WORKER_WAIT_S
 
 
 @dataclass(frozen=True)
@@ -105,10 +107,18 @@ class SimulateResult:
     store_path: Path | None = None
     warnings: list[str] = field(default_factory=list)
     complete: bool = False  # the signal came after the last pass, while the results were written
+    workers_gone: str | None = None  # stopped because no Dask worker came back in time: why
+
+    @property
+    def exit_code(self) -> int:
+        """0, 130 (SIGINT), 143 (SIGTERM) or 75 (no Dask worker: retry later, with --resume)."""
+        if not self.interrupted:
+            return 0
+        return WorkersGone.EXIT_CODE if self.workers_gone else (143 if self.terminated else 130)
 
     def stop_message(self, then: str = "continue with the same command and --resume") -> str:
         """One line for a stopped run: what is kept and how to continue (`then`)."""
-        how = "SIGTERM" if self.terminated else "SIGINT"
+        how = self.workers_gone or ("SIGTERM" if self.terminated else "SIGINT")
         passes = self.summary.get("passes", 0)
         if self.complete:
             return f"{how} after the run was complete ({passes} passes): results written, nothing to continue"
@@ -117,6 +127,8 @@ class SimulateResult:
     def raise_if_stopped(self, then: str) -> None:
         """For callers with more work after this run (sweep, compare, converge): a stopped run stops
         them too, with this run's line and `then`, what to do about the caller's own work."""
+        if self.workers_gone:
+            raise WorkersGone(self.stop_message(then))
         if self.interrupted:
             raise (Terminated if self.terminated else KeyboardInterrupt)(self.stop_message(then))
 
@@ -145,6 +157,9 @@ def check_options(o: SimulateOptions) -> None:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
     if o.cluster is not None:
         local_cluster_size(o.cluster)
+    if not (o.worker_wait_s >= 0 and math.isfinite(o.worker_wait_s)):
+        raise InputError(f"--worker-wait must be a number of seconds >= 0, got {o.worker_wait_s:g}",
+                         field="--worker-wait", valid="seconds >= 0, e.g. --worker-wait 600")
     if o.scheduler is not None and o.cluster is not None:
         raise InputError("give either a scheduler address or a local cluster, not both", field="--cluster",
                          valid="--scheduler ADDRESS (or LENSMOUNT_SCHEDULER) | --cluster local:N")
@@ -244,6 +259,10 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
             raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
         acc, meta = Accumulator.load(checkpoint)
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
+    if o.record:  # a locked or damaged store is said now, not after the run
+        from lensmount.run.store import Store, default_path
+
+        Store(default_path(design.root, o.store)).close()
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
                          list(design.template_paths.values()), o.argv)
 
@@ -286,7 +305,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     no_light = sc.source.no_light_enters
     if no_light:
         obs.stage(f"no light enters: {no_light}")
-    executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster)
+    executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster,
+                            worker_wait_s=o.worker_wait_s, say=obs.stage)
     shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
     history: list[tuple[float, float]] = []
 
@@ -298,6 +318,9 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
     runner.run(stopping)
     if acc.n == 0:  # stopped before the first pass: nothing to write
+        if runner.workers_gone:
+            raise WorkersGone(f"{runner.workers_gone}: stopped before the first pass was complete, nothing written; "
+                              "start workers and run the same command again")
         raise (Terminated if runner.terminated else KeyboardInterrupt)()
     try:
         with deferred():  # a signal now waits until the results are whole
@@ -307,6 +330,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     except KeyboardInterrupt as stop:  # it came while they were written: `result` is bound, the files whole
         if not result.interrupted:
             result.interrupted, result.terminated, result.complete = True, isinstance(stop, Terminated), True
+    result.workers_gone = runner.workers_gone
     return result
 
 

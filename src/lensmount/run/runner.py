@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
+from lensmount.errors import WorkersGone
 from lensmount.run.executor import Executor, executor_for, resolve
 from lensmount.run.signals import Terminated, deferred, stop_on_signals
 from lensmount.integrators.bidirectional import Bidirectional
@@ -117,6 +118,7 @@ class Runner:
         self.tracer_path = tracer_path
         self.interrupted = False
         self.terminated = False  # stopped by SIGTERM rather than Ctrl-C
+        self.workers_gone: str | None = None  # stopped because no Dask worker came back: why
 
     @property
     def elapsed(self) -> float:
@@ -137,8 +139,9 @@ class Runner:
                 self.progress(self.acc, self.acc.elapsed_s)
 
     def run(self, stopping: Stopping) -> Accumulator:
-        """Run until `stopping` holds, Ctrl-C or SIGTERM; the checkpoint is written either way
-        (when a pass is complete: a stop before the first leaves none)."""
+        """Run until `stopping` holds, Ctrl-C, SIGTERM or the loss of every Dask worker for longer than
+        the executor waits; the checkpoint is written either way (when a pass is complete: a stop
+        before the first leaves none)."""
         start, base = time.perf_counter(), self.acc.elapsed_s
         with stop_on_signals():
             try:
@@ -149,6 +152,8 @@ class Runner:
                     self.executor.close()
             except KeyboardInterrupt as stop:
                 self._stopped(stop)
+            except WorkersGone as gone:  # the merged passes are kept as for a signal; a retry resumes
+                self.interrupted, self.workers_gone = True, str(gone)
             try:
                 with deferred():
                     self.acc.elapsed_s = base + time.perf_counter() - start

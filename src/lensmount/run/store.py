@@ -123,9 +123,28 @@ class Store:
             self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
             self.db.execute("PRAGMA journal_mode = WAL")
             self.db.executescript(_SCHEMA)
+            damage = [row[0] for row in self.db.execute("PRAGMA quick_check")]
+        except sqlite3.OperationalError as exc:
+            raise self._error(exc) from None
         except (OSError, sqlite3.Error) as exc:
             raise InputError(f"cannot open the results store ({exc})", file=str(self.path), field="--store",
-                             valid=f"a writable SQLite file path (--store PATH or ${ENV})") from None
+                             valid=f"a writable SQLite file path (--store PATH or ${ENV}), or a store that is not "
+                                   "damaged: move a damaged one aside (its runs' result folders stay as they "
+                                   "are) or run with --no-record") from None
+        if damage != ["ok"]:
+            self.db.close()
+            raise self._error(sqlite3.DatabaseError("; ".join(map(str, damage[:3]))))
+
+    def _error(self, exc: sqlite3.Error) -> InputError:
+        """A store that another process holds locked longer than the busy timeout, or a damaged one."""
+        if "locked" in str(exc) or "busy" in str(exc):
+            return InputError(f"the results store stayed locked by another process for {BUSY_TIMEOUT_MS // 1000} s "
+                              f"({exc})", file=str(self.path), field="--store",
+                              valid="wait for the other lensmount to finish and run again, use another --store, "
+                                    "or --no-record")
+        return InputError(f"the results store is damaged ({exc})", file=str(self.path), field="--store",
+                          valid="move it aside (its runs' result folders stay as they are; history and compare "
+                                "forget them) and run again, or run with --no-record")
 
     def __enter__(self) -> "Store":
         return self
@@ -159,12 +178,17 @@ class Store:
         marks = ", ".join(f":{k}" for k in row)
         # BEGIN IMMEDIATE takes the write lock up front (waiting up to the busy timeout),
         # so the insert either commits whole or not at all.
-        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            self.db.execute("BEGIN IMMEDIATE")
+        except sqlite3.Error as exc:
+            raise self._error(exc) from None
         try:
             cur = self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row)
             self.db.execute("COMMIT")
-        except BaseException:
+        except BaseException as exc:
             self.db.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.Error):
+                raise self._error(exc) from None
             raise
         return int(cur.lastrowid)
 
@@ -182,7 +206,10 @@ class Store:
             where.append("input_hash = ?")
             args.append(input_hash)
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
-        return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
+        try:
+            return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
+        except (sqlite3.Error, ValueError, TypeError) as exc:  # ValueError: a damaged row's JSON
+            raise self._error(sqlite3.DatabaseError(str(exc))) from None
 
 
 __all__ = ["Store", "RunRecord", "default_path", "ENV"]
