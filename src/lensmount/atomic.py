@@ -1,5 +1,9 @@
 """Write files so a reader never sees half of one: temp file in the same folder, then rename.
 
+A JSON file that another command reads back (summary.json, regenerate's manifest.json) carries
+the sha256 of its own content (`with_checksum`, `checksum_holds`), so a flipped bit that still
+parses is seen as damage rather than read as another number.
+
 A folder of outputs that belong together (regenerate's STEP files, mesh and manifest) is built
 in a temp folder beside it and swapped in whole (`atomic_dir`).
 """
@@ -7,6 +11,8 @@ in a temp folder beside it and swapped in whole (`atomic_dir`).
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import os
 import shutil
 import signal
@@ -76,3 +82,24 @@ def atomic_dir(path: str | os.PathLike):
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
     shutil.rmtree(old, ignore_errors=True)
+
+
+CHECKSUM = "sha256"  # the key under which a JSON document carries the checksum of the rest of it
+
+
+def _digest(data: dict) -> str:
+    return hashlib.sha256(json.dumps(data, sort_keys=True, allow_nan=False).encode()).hexdigest()
+
+
+def with_checksum(data: dict) -> dict:
+    """`data` and, under CHECKSUM, the sha256 of its canonical JSON (sorted keys)."""
+    return {**{k: v for k, v in data.items() if k != CHECKSUM}, CHECKSUM: _digest(data)}
+
+
+def checksum_holds(data: dict) -> bool:
+    """Whether a JSON document read back is as written: its CHECKSUM (removed from `data` here)
+    agrees with the rest. A document without one (written by hand or by an older lensmount) holds."""
+    if not isinstance(data, dict):
+        return False
+    claimed = data.pop(CHECKSUM, None)
+    return claimed is None or claimed == _digest(data)

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import lensmount
-from lensmount.atomic import atomic_dir, write_text
+from lensmount.atomic import atomic_dir, checksum_holds, with_checksum, write_text
 from lensmount.cad import cache
 from lensmount.errors import InputError
 from lensmount.validation import located
@@ -67,11 +67,14 @@ class Manifest:
     def to_json(self) -> str:
         d = asdict(self)
         d.pop("cached")
-        return json.dumps(d, indent=2)
+        return json.dumps(with_checksum(d), indent=2)
 
     @classmethod
     def from_json(cls, text: str, cached: bool = False) -> "Manifest":
+        """The manifest; ValueError when its checksum disagrees (damaged: rebuilt, never trusted)."""
         d = json.loads(text)
+        if not checksum_holds(d):
+            raise ValueError("manifest.json does not match its checksum")
         d["parts"] = [PartEntry(**p) for p in d["parts"]]
         return cls(**d, cached=cached)
 

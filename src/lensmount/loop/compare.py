@@ -17,6 +17,7 @@ import numpy as np
 from lensmount.analysis.compare import Measurement, Verdict, judge
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
+from lensmount.run.results import read_summary
 from lensmount.run.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
@@ -40,10 +41,7 @@ class Run:
         if not path.is_file():
             raise InputError("not a results folder (no summary.json)", file=str(folder), field=field,
                              valid="a folder written by `lensmount simulate`, or a design folder with --scene")
-        try:
-            return cls(folder, json.loads(path.read_text()))
-        except ValueError as exc:
-            raise InputError(f"summary.json is not valid JSON ({exc})", file=str(path), field=field) from None
+        return cls(folder, read_summary(path, field))
 
     def measurement(self, metric: str) -> Measurement:
         value, error, bias = METRICS[metric]

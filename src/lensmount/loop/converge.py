@@ -21,7 +21,6 @@ only rather than the sum of all.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +29,7 @@ from typing import Callable
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.run.results import read_summary
 
 METHODS = ("bidirectional", "forward")
 MIN_PASSES_FOR_SLOPE = 4
@@ -92,8 +92,8 @@ def read_reference(text: str | None) -> float | None:
             raise InputError("reference not found", file=text, field="--reference",
                              valid="a stray fraction (e.g. 1.5e-6) or a long run's summary.json") from None
         try:
-            value = json.loads(path.read_text())["stray_fraction"]
-        except (ValueError, KeyError, TypeError):
+            value = read_summary(path, "--reference")["stray_fraction"]
+        except (KeyError, TypeError):
             raise InputError("no stray_fraction in this file", file=text, field="--reference",
                              valid="a summary.json written by lensmount simulate") from None
     if value is None or not (math.isfinite(float(value)) and float(value) > 0):

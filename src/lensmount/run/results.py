@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
-from lensmount.atomic import atomic_path
+from lensmount.atomic import atomic_path, checksum_holds, with_checksum
+from lensmount.errors import InputError
 from lensmount.run.report import run_report, write_report
 
 
@@ -248,13 +249,34 @@ def display_binning(mean: np.ndarray, std_error: np.ndarray, target_rel_error: f
 
 
 def write_summary(path: str | os.PathLike, summary: dict) -> None:
-    """JSON with sorted keys, refusing NaN/Inf (a bug upstream, never silently written)."""
-    text = json.dumps(summary, indent=2, sort_keys=True, allow_nan=False)
+    """JSON with sorted keys, refusing NaN/Inf (a bug upstream, never silently written), with the
+    checksum `read_summary` checks."""
+    text = json.dumps(with_checksum(summary), indent=2, sort_keys=True, allow_nan=False)
 
     def write(tmp):
         Path(tmp).write_text(text + "\n")
 
     _atomic(Path(path), write)
+
+
+def read_summary(path: str | os.PathLike, field: str | None = None) -> dict:
+    """A summary.json as written; InputError naming it when it is missing, damaged (does not parse, or
+    its checksum disagrees: a flipped digit) or not a summary."""
+    path = Path(path)
+    try:
+        summary = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        raise InputError("not a results folder (no summary.json)", file=str(path.parent), field=field,
+                         valid="a folder written by `lensmount simulate`") from None
+    except (OSError, ValueError) as exc:
+        summary, problem = None, f"it does not parse ({exc})"
+    else:
+        problem = "its checksum disagrees with its content"
+    if summary is None or not checksum_holds(summary):
+        raise InputError(f"summary.json is damaged: {problem}", file=str(path), field=field,
+                         valid="a summary.json as `lensmount simulate` wrote it: simulate again (with --resume "
+                               "while its checkpoint.npz is there, the same numbers)")
+    return summary
 
 
 def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dict, *,
@@ -282,4 +304,4 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
 
 
 __all__ = ["write_run", "display_binning", "PreviewScale", "preview_scale", "shared_scale", "block_mean",
-           "write_difference", "save_figure", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]
+           "write_difference", "save_figure", "write_exr", "read_exr", "write_preview", "write_summary", "read_summary", "channel_name"]

@@ -116,6 +116,8 @@ class Store:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
+        if self.path.is_file() and self.path.stat().st_size == 0:  # SQLite would take it for a new, empty store
+            raise self._error(sqlite3.DatabaseError("it is empty, 0 bytes: the runs it held are gone"))
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
