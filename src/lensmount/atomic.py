@@ -17,6 +17,8 @@ import os
 import shutil
 import signal
 import tempfile
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +49,13 @@ def write_text(path: str | os.PathLike, text: str) -> None:
     """Write UTF-8 text atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+# What numpy and zipfile raise on a damaged .npz (truncated, emptied, a flipped bit: the zip's CRCs see
+# those in the data; a flip in a header gives an unknown compression method, a bogus "encrypted" flag,
+# a size that does not fit): readers turn these into an InputError naming the file.
+NPZ_DAMAGE = (OSError, EOFError, ValueError, KeyError, IndexError, TypeError, zipfile.BadZipFile, zlib.error,
+              NotImplementedError, RuntimeError, OverflowError, MemoryError)
 
 
 def write_npz(path: str | os.PathLike, *, compressed: bool = False, **arrays) -> None:

@@ -9,12 +9,10 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
-import zlib
 from dataclasses import asdict, dataclass, field
 import numpy as np
 
-from lensmount.atomic import write_npz
+from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
 
 ROLES = ("optical", "lens-edge", "bevel", "mount", "diaphragm-edge", "vane-edge", "object")
@@ -104,7 +102,7 @@ class TaggedMesh:
             with np.load(path, allow_pickle=False) as z:
                 table = [FaceTag(**t) for t in json.loads(str(z["tag_table"]))]
                 return cls(z["vertices"], z["triangles"], z["tags"], table)
-        except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile, zlib.error) as e:
+        except NPZ_DAMAGE as e:
             raise InputError(f"the mesh is damaged and cannot be read ({type(e).__name__}: {e})", file=str(path),
                              valid="a mesh.npz as `lensmount regenerate` writes it: regenerate the design "
                                    "(it rebuilds a damaged build folder)") from None

@@ -28,15 +28,13 @@ from __future__ import annotations
 
 import math
 import os
-import zipfile
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from lensmount.analysis.paths import PathSums
-from lensmount.atomic import write_npz
+from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
 from lensmount.integrators.estimate import PassEstimate
 
@@ -283,7 +281,7 @@ class Accumulator:
             acc, meta = cls._read(path)
         except InputError:
             raise
-        except (OSError, EOFError, ValueError, KeyError, IndexError, TypeError, zipfile.BadZipFile, zlib.error) as e:
+        except NPZ_DAMAGE as e:
             raise InputError(f"the checkpoint is damaged and cannot be resumed ({type(e).__name__}: {e})",
                              file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
                                                    "it and run again without --resume (its passes are lost)") from None

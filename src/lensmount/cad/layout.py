@@ -194,6 +194,17 @@ def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float
     return float(np.interp(zs, pts[:, 2], np.abs(pts[:, 1])).max())
 
 
+def _size_keys(part: str) -> list[str]:
+    """The mount.toml keys that set how much of an air gap a part takes along the axis."""
+    if part == "diaphragm":
+        return ["diaphragm.thickness_mm"]
+    if part.startswith("retainer"):
+        return ["retainer.thickness_mm"]
+    if part.startswith("vane"):
+        return ["vanes.thickness_mm"]
+    return ["lens_edge.contact_margin_mm"]  # a lens: where its seat touches
+
+
 def _diaphragm(spec, p, stop, od, z_stop, face=None) -> Diaphragm:
     """The diaphragm for the stop at z_stop; its land passes the designed pupil.
 
@@ -437,10 +448,13 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
             sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
             name = f"spacer-{len(spacers) + 1}"
             if sp.min_length() < min_t:
+                keys = [k for part in (pa, pb) for k in _size_keys(part)]
+                keys = list(dict.fromkeys(keys))  # in order, once each
                 raise GeometryError(
                     f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
-                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
-                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
+                    f"{pa} and {pb} leave no room in the air gap between them (their sizes: "
+                    f"{', '.join(keys)})", field=keys[0],
+                    valid=f"a smaller {' or '.join(keys)}, a shoulder seat, or a larger air gap in the lens")
             if od - max(fr, br) < min_t:
                 raise GeometryError(
                     f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",

@@ -255,8 +255,9 @@ def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> di
     from lensmount.run.report import comparison_report, write_report
     from lensmount.run.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
 
-    a = read_exr(old.folder / "irradiance.exr")["Y"].astype(np.float64)
-    b = read_exr(new.folder / "irradiance.exr")["Y"].astype(np.float64)
+    a = read_exr(old.folder / "irradiance.exr", old.summary.get("files", {}).get("irradiance.exr"))["Y"]
+    b = read_exr(new.folder / "irradiance.exr", new.summary.get("files", {}).get("irradiance.exr"))["Y"]
+    a, b = a.astype(np.float64), b.astype(np.float64)
     if a.shape != b.shape or (old.summary.get("detector") or new.summary.get("detector")) and \
             old.summary.get("detector") != new.summary.get("detector"):
         raise InputError(f"the detectors differ: {a.shape[1]}×{a.shape[0]} pixels "

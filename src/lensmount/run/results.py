@@ -14,6 +14,7 @@ so a reader never sees half a file and a crash leaves the previous result intact
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -66,12 +67,22 @@ def write_exr(path: str | os.PathLike, image: np.ndarray, per_part: np.ndarray, 
     return written
 
 
-def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Channels of an EXR file as float32 arrays (for tests and `compare`)."""
+def read_exr(path: str | os.PathLike, sha256: str | None = None) -> dict[str, np.ndarray]:
+    """Channels of an EXR file as float32 arrays (for tests and `compare`). InputError naming the
+    file when it is damaged: it does not read, or its bytes disagree with `sha256` (the checksum
+    summary.json keeps under `files`: EXR has none of its own, and a flipped bit reads as a pixel)."""
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as f:
-        return {k: np.array(v.pixels) for k, v in f.channels().items()}
+    path = Path(path)
+    try:
+        if sha256 is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha256:
+            raise ValueError("its bytes disagree with the checksum in summary.json")
+        with OpenEXR.File(str(path)) as f:
+            return {k: np.array(v.pixels) for k, v in f.channels().items()}
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise InputError(f"the image is damaged and cannot be read ({exc})", file=str(path),
+                         valid="irradiance.exr as `lensmount simulate` wrote it: simulate again (with --resume "
+                               "while checkpoint.npz is there, the same numbers)") from None
 
 
 @dataclass(frozen=True)
@@ -292,6 +303,7 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
     paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json",
              "html": out / "report.html"}
     write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names)
+    summary["files"] = {paths["exr"].name: hashlib.sha256(paths["exr"].read_bytes()).hexdigest()}  # read_exr checks
     title = f"{summary.get('method', '')} · {summary.get('passes', accumulator.n)} passes"
     scale = shared_scale([(accumulator.mean_image, accumulator.std_error_image)])
     if scale.block > 1:
