@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "src" / "lensmount" / "examples" / "cooke-triplet"
 TINY_SCENE = (EXAMPLE / "scenes" / "case1-diaphragm-edge.toml").read_text().replace("pixels = [360, 240]",
                                                                                     "pixels = [36, 24]")
-FAST = 6  # the first seeds of each kind run in the fast suite, the rest are marked slow
+FAST = 4  # the first seeds of each kind run in the fast suite, the rest are marked slow
 
 
 def some(kind: str, n: int):

@@ -8,6 +8,8 @@ pass when stdout is a file or a pipe (logs stay readable).
 from __future__ import annotations
 
 import sys
+import threading
+import time
 from pathlib import Path
 from typing import Optional
 
@@ -33,8 +35,10 @@ def print_plan(console, block: dict | None) -> None:
         table.add_row(item["what"], item["why"])
     for item in block["skipped"]:
         table.add_row(f"{item['what']} (skipped)", item["why"], style="dim")
+    for phase, seconds in block.get("wall_time_s", {}).items():
+        table.add_row(f"wall time: {phase}", f"{seconds:.2f} s")
     for phase, seconds in block["time_s"].items():
-        table.add_row(f"time: {phase}", f"{seconds:.2f} s")
+        table.add_row(f"time: {phase}", f"{seconds:.2f} s, summed over passes and workers")
     console.print(table)
 
 
@@ -55,7 +59,7 @@ def describe(s: PassStatus) -> str:
     rel = f"{100 * s.rel_error:.2f} %" if s.rel_error < float("inf") else "—"
     text = f"pass {s.passes} · {s.photons:,} photons · {s.elapsed_s:.0f} s · stray fraction {value} · rel. error {rel}"
     if s.error_slope is not None:
-        text += f" (∝ t^{s.error_slope:+.2f})"
+        text += f" (∝ t^{s.error_slope:+.2f}" + (f" ± {s.error_slope_se:.2f})" if s.error_slope_se else ")")
     if s.target_rel_error is not None:
         text += f" · target {100 * s.target_rel_error:g} % in ~{duration(s.eta_s)}"
     return text
@@ -64,6 +68,8 @@ def describe(s: PassStatus) -> str:
 class TerminalObserver(Observer):
     """Stages and passes on stderr: rich on a terminal, one line per event otherwise."""
 
+    HEARTBEAT_S = 10.0  # while the first pass runs (tracer, pilot, view map, photons), a line this often
+
     def __init__(self, live: bool):
         from rich.console import Console
 
@@ -71,18 +77,39 @@ class TerminalObserver(Observer):
         self.console = Console(stderr=True)
         self.bar = None
         self.tasks: dict[str, int] = {}
+        self.step_started: dict[str, float] = {}
+        self.first_pass: threading.Event | None = None
 
     def stage(self, text: str) -> None:
         self._close()
+        self.step_started.clear()
+        self._say(text)
+        if text.startswith("tracing:"):
+            self._wait_for_first_pass(time.monotonic())
+
+    def _say(self, text: str) -> None:
         if self.live:
-            self.console.print(f"[bold]·[/bold] {text}")
+            self.console.print(f"[bold]·[/bold] {text}", markup=True)
         else:
             typer.echo(text, err=True)
 
+    def _wait_for_first_pass(self, start: float) -> None:
+        """A line every HEARTBEAT_S until the first pass is merged: it builds the tracer and runs the
+        pilot and the view map before its photons, and was silent for minutes."""
+        self.first_pass = done = threading.Event()
+
+        def beat():
+            while not done.wait(self.HEARTBEAT_S):
+                self._say(f"  pass 1 still running ({time.monotonic() - start:.0f} s): the first pass also loads "
+                          "the tracer, aims the photons (pilot) and builds the view map")
+
+        threading.Thread(target=beat, daemon=True).start()
+
     def build_step(self, step: str, done: int, total: int) -> None:
+        started = self.step_started.setdefault(step, time.monotonic())
         if not self.live:
             if done == total:
-                typer.echo(f"  CAD {step}: done", err=True)
+                typer.echo(f"  CAD {step}: done ({time.monotonic() - started:.1f} s)", err=True)
             return
         bar = self._bar()
         if step not in self.tasks:
@@ -90,6 +117,8 @@ class TerminalObserver(Observer):
         bar.update(self.tasks[step], completed=done, total=total)
 
     def pass_done(self, s: PassStatus) -> None:
+        if self.first_pass is not None:
+            self.first_pass.set()
         if not self.live:
             typer.echo(describe(s), err=True)
             return
@@ -114,6 +143,8 @@ class TerminalObserver(Observer):
             self.tasks = {}
 
     def close(self) -> None:
+        if self.first_pass is not None:
+            self.first_pass.set()
         self._close()
 
 

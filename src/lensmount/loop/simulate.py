@@ -11,6 +11,7 @@ import hashlib
 import math
 import os
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +22,8 @@ from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect
 
 METHODS = ("bidirectional", "forward")
+# What the plan's per-phase seconds are: each pass times its own phases, and passes run side by side
+TIME_SUMMED = "passes and workers: the seconds each pass spent, added up (more than the wall time on several workers)"
 CHECKPOINT = "checkpoint.npz"
 PATHS = "paths.npz"  # per-path and per-face sums for `lensmount paths` (analysis.paths.write_paths)
 
@@ -67,7 +70,9 @@ class PassStatus:
 
     value, std_error : stray fraction and its standard error (None before 2 passes)
     rel_error : relative error of the total (inf when unknown)
-    error_slope : d log(rel error) / d log(time) over the run so far (≈ −0.5 when it converges as 1/√t)
+    error_slope : d log(rel error) / d log(time) over the last half of the run (≈ −0.5 when it converges
+        as 1/√t); None until enough passes make it more than noise (loop.progress.error_trend)
+    error_slope_se : its standard error
     eta_s : seconds to the target relative error at the rate so far (None without a target)
     """
 
@@ -81,6 +86,7 @@ class PassStatus:
     target_rel_error: float | None
     eta_s: float | None
     max_passes: int | None
+    error_slope_se: float | None = None
 
 
 class Observer:
@@ -244,6 +250,7 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     from lensmount.loop.prepare import read_inputs
 
     check_options(o)
+    clock, wall = time.perf_counter(), {}  # the driver's phases in wall-clock seconds (the plan's are summed)
     design, spec = read_inputs(o.design, o.scene, obs.stage)
     scene_path = Path(o.scene)
     out = Path(o.out) if o.out is not None else Path("out") / scene_path.stem
@@ -266,11 +273,13 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     provenance = collect(design.root, design.lens_path, design.mount_path, scene_path,
                          list(design.template_paths.values()), o.argv)
 
+    wall["reading the inputs"] = time.perf_counter() - clock
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
-    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance)
+    wall["geometry and scene"] = time.perf_counter() - clock - sum(wall.values())
+    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall)
 
 
-def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
+def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
     from lensmount.analysis.passes import Accumulator
     from lensmount.run.executor import executor_for
     from lensmount.integrators.estimate import film_channels
@@ -316,7 +325,9 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, on {executor.description}")
     runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method}, progress=progress)
+    start = time.perf_counter()
     runner.run(stopping)
+    wall["passes"] = time.perf_counter() - start
     if acc.n == 0:  # stopped before the first pass: nothing to write
         if runner.workers_gone:
             raise WorkersGone(f"{runner.workers_gone}: stopped before the first pass was complete, nothing written; "
@@ -326,7 +337,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         with deferred():  # a signal now waits until the results are whole
             result = _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance,
                             seed=seed, photons_per_pass=per_pass, input_hash=digest, settings=settings,
-                            no_light_enters=no_light, effects=effects)
+                            no_light_enters=no_light, effects=effects, wall=wall)
     except KeyboardInterrupt as stop:  # it came while they were written: `result` is bound, the files whole
         if not result.interrupted:
             result.interrupted, result.terminated, result.complete = True, isinstance(stop, Terminated), True
@@ -335,7 +346,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 
 
 def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
-           input_hash, settings, no_light_enters, effects) -> SimulateResult:
+           input_hash, settings, no_light_enters, effects, wall) -> SimulateResult:
     """summary.json, the images, paths.npz and the store's row of a run that has passes."""
     from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
     from lensmount.analysis.summary import build_summary
@@ -349,7 +360,9 @@ def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, pr
                             aperture_flux_mm2=aperture, input_hash=input_hash, estimator_settings=settings.as_dict(),
                             extra={"photons_per_pass": photons_per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
-                                   "no_light_enters": no_light_enters, "plan": work.as_dict(acc.diagnostics),
+                                   "no_light_enters": no_light_enters,
+                                   "plan": {**work.as_dict(acc.diagnostics), "time_s_summed_over": TIME_SUMMED,
+                                            "wall_time_s": {k: round(v, 3) for k, v in wall.items()}},
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),
