@@ -93,7 +93,9 @@ def reference(design, tmp_path_factory):
     out = tmp_path_factory.mktemp("reference") / "out"
     result = CliRunner().invoke(app, _simulate(design, out, tmp_path_factory.mktemp("store") / "runs.sqlite"))
     assert result.exit_code == 0, result.output
-    return Accumulator.load(out / "checkpoint.npz")[0]
+    reference = Accumulator.load(out / "checkpoint.npz")[0]
+    reference.out = out  # the results folder, for compare
+    return reference
 
 
 def _simulate(design: Path, out: Path, store: Path, *extra: str) -> list[str]:
@@ -204,3 +206,68 @@ def test_signal_in_regenerate(seed, design, reference, tmp_path, monkeypatch):
     assert again.exit_code == 0, again.output
     mesh, ref = TaggedMesh.load(copy / "build" / "mesh.npz"), TaggedMesh.load(design / "build" / "mesh.npz")
     assert np.array_equal(mesh.vertices, ref.vertices) and mesh.tag_table == ref.tag_table
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", seeds("compare-signal", 6))
+def test_signal_in_compare(seed, reference, tmp_path, monkeypatch):
+    """compare of two results folders stopped at a seeded phase: no half compare.json; run again, the same."""
+    import json
+
+    from lensmount.cli import app
+    from lensmount.loop import compare
+    from lensmount.run import results
+
+    old, new = tmp_path / "old", tmp_path / "new"
+    shutil.copytree(reference.out, old)
+    shutil.copytree(reference.out, new)
+    argv = ["compare", str(old), str(new), "--out", str(tmp_path / "cmp")]
+    straight = CliRunner().invoke(app, argv + ["--out", str(tmp_path / "straight")])
+    assert straight.exit_code == 0, straight.output
+    rng = random.Random(seed)
+    owner, name = rng.choice([(compare, "read_summary"), (results, "read_exr"), (results, "write_difference"),
+                              (results, "write_summary")])
+    k, signum = rng.randint(1, 2 if name.startswith("read") else 1), rng.choice([signal.SIGINT, signal.SIGTERM])
+    fired: list = []
+    arm(monkeypatch, owner, name, k, signum, fired)
+    result = CliRunner().invoke(app, argv)
+    monkeypatch.undo()
+    record(f"compare: {signal.Signals(signum).name} at call {k} of {name} (seed {seed})")
+    assert fired and result.exit_code == (143 if signum == signal.SIGTERM else 130), result.output
+    assert "Traceback" not in result.output
+    _no_half_files(tmp_path / "cmp")
+    again = CliRunner().invoke(app, argv)
+    assert again.exit_code == 0, again.output
+
+    def verdict(folder):
+        doc = json.loads((folder / "compare.json").read_text())
+        return {k: v for k, v in doc.items() if "path" not in k and "folder" not in k and k not in ("out", "sha256")}
+
+    assert verdict(tmp_path / "cmp") == verdict(tmp_path / "straight")
+
+
+@pytest.mark.slow
+def test_signal_in_sweep(design, reference, tmp_path, monkeypatch):
+    """A sweep stopped in its second variant says so; run again, its first variant is the reference run."""
+    import csv
+
+    from lensmount.analysis.passes import Accumulator
+    from lensmount.cli import app
+    from lensmount.run.executor import InProcess
+
+    out = tmp_path / "sweep"
+    argv = ["sweep", str(design), "--scene", str(design / "scenes" / "tiny.toml"), "--param", "scene.run.seed=1,2",
+            "--out", str(out), *RUN]
+    fired: list = []
+    arm(monkeypatch, InProcess, "start", 2, signal.SIGTERM, fired)  # the second variant's passes begin
+    result = CliRunner().invoke(app, argv)
+    monkeypatch.undo()
+    record("sweep: SIGTERM as the second variant starts tracing")
+    assert fired and result.exit_code == 143, result.output
+    assert "Traceback" not in result.output and result.output.strip().splitlines()[-1].startswith("SIGTERM")
+    assert not (out / "sweep.csv").exists()
+    again = CliRunner().invoke(app, argv)
+    assert again.exit_code == 0, again.output
+    first = Accumulator.load(out / "variants" / "00" / "run" / "checkpoint.npz")[0]
+    assert first.pass_flux == reference.pass_flux
+    assert len(list(csv.DictReader((out / "sweep.csv").open()))) == 2
