@@ -102,7 +102,8 @@ def _digest(data: dict) -> str:
 
 def with_checksum(data: dict) -> dict:
     """`data` and, under CHECKSUM, the sha256 of its canonical JSON (sorted keys)."""
-    return {**{k: v for k, v in data.items() if k != CHECKSUM}, CHECKSUM: _digest(data)}
+    content = {k: v for k, v in data.items() if k != CHECKSUM}  # a document read back carries its old one
+    return {**content, CHECKSUM: _digest(content)}
 
 
 def checksum_holds(data: dict) -> bool:

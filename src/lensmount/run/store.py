@@ -9,9 +9,11 @@ the same moment both land (one waits for the other's few milliseconds).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sqlite3
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -111,6 +113,26 @@ def default_path(design_dir: str | Path, override: str | Path | None = None) -> 
     return Path(design_dir).resolve() / DEFAULT_NAME
 
 
+def _create(path: Path) -> None:
+    """A new store appears whole, its schema in it (made beside it, then linked into place; of two
+    processes creating it at once, one wins): a store of 0 bytes is damage, never one being made."""
+    if path.exists():
+        return
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        db = sqlite3.connect(tmp)
+        db.execute("PRAGMA journal_mode = WAL")
+        db.executescript(_SCHEMA)
+        db.close()
+        with contextlib.suppress(FileExistsError):
+            os.link(tmp, path)
+    finally:
+        for leftover in (tmp, tmp + "-wal", tmp + "-shm"):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(leftover)
+
+
 class Store:
     """The SQLite file of runs. Use as a context manager or call `close()`."""
 
@@ -120,6 +142,7 @@ class Store:
             raise self._error(sqlite3.DatabaseError("it is empty, 0 bytes: the runs it held are gone"))
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            _create(self.path)
             self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
             self.db.row_factory = sqlite3.Row
             self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
