@@ -1,4 +1,4 @@
-"""The count of injected faults, printed at the end of a session (tests/faults/conftest.py), and
+"""The count of injected faults, printed at the end of a session (tests/conftest.py), and
 each fault's description with its seed, so a failure names what to replay."""
 
 from __future__ import annotations
