@@ -224,6 +224,7 @@ def test_damaged_mesh(seed, mesh_file, tmp_path):
         assert np.array_equal(mesh.vertices, whole.vertices) and mesh.tag_table == whole.tag_table
 
 
+@pytest.mark.slow
 def test_damaged_numba_cache_is_compiled_again(tmp_path):
     """A kernel's cache files truncated or emptied: compiled again, the same answer, no traceback."""
     module = tmp_path / "kernel_mod.py"
