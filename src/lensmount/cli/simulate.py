@@ -177,7 +177,8 @@ def simulate(
     samples_per_pixel: int = typer.Option(1, "--samples-per-pixel", help="Backward samples per pixel per pass."),
     alpha: float = typer.Option(0.7, "--alpha", help="Radius shrink parameter, 0 < alpha < 1."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
-    resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz (none there: start from the first "
+                                                       "pass, as a batch retry of a run that kept nothing)."),
     geometry: Optional[Path] = typer.Option(None, "--geometry",
                                             help="Regenerate's output folder to reuse (default DESIGN/build)."),
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/runs.sqlite, "

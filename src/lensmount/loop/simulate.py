@@ -240,9 +240,9 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
         except KeyboardInterrupt as stop:
             if stop.args:  # already says what happened
                 raise
-            kept = ("the checkpoint is as it was; continue with the same command" if options.resume
-                    else "nothing written; run the same command again")
-            raise type(stop)(f"{signal_name(stop)} before the first pass was complete: {kept}") from None
+            raise type(stop)(f"{signal_name(stop)} before the first pass was complete: nothing written (a checkpoint "
+                             "already there is as it was); run the same command again, with --resume or without"
+                             ) from None
 
 
 def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
@@ -261,9 +261,9 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     digest = planned_input_hash(o, design, spec)
     checkpoint = out / CHECKPOINT
     acc = None
-    if o.resume:
-        if not checkpoint.exists():
-            raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
+    if o.resume and not checkpoint.exists():  # a run stopped before its first pass kept nothing: a retry starts it
+        obs.stage(f"no checkpoint in {out}: nothing to resume, the run starts at its first pass")
+    elif o.resume:
         acc, meta = Accumulator.load(checkpoint)
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest}, checkpoint)
     if o.record:  # a locked or damaged store is said now, not after the run
