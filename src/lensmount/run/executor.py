@@ -143,6 +143,10 @@ class LocalProcesses(Executor):
         self.description = f"{self.workers} local processes"
         self._idle: list[_Worker] = []
         self._busy: dict[_Worker, object] = {}  # worker → the pass it runs
+        # Every worker started and not yet stopped, whatever list it is in: a signal can land between
+        # taking a worker off `_idle` and putting it in `_busy`, and `close` must still stop it (a live
+        # worker ignores SIGTERM, so multiprocessing's exit handler would wait for it forever).
+        self._started: list[_Worker] = []
 
     def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
         super().start(scene, tracer_path, run_pass_path)
@@ -200,19 +204,22 @@ class LocalProcesses(Executor):
         conn, child = context.Pipe()
         process = context.Process(target=_local_worker, daemon=True,
                                   args=(child, self.scene, self.tracer_path, self.run_pass_path))
+        worker = _Worker(process, conn)
+        self._started.append(worker)  # before it starts: `close` stops it even if a signal lands now
         process.start()
         child.close()  # the worker alone holds its end: its death is end-of-file here
-        return _Worker(process, conn)
+        return worker
 
     def _replace(self, worker: "_Worker") -> None:
         worker.stop()
+        self._started.remove(worker)
         self._idle.append(self._spawn())
 
     def close(self) -> None:
         # Passes in flight are not waited for: a stopped run redoes them on resume, identically.
-        for worker in [*self._idle, *self._busy]:
+        for worker in self._started:
             worker.stop()
-        self._idle, self._busy = [], {}
+        self._idle, self._busy, self._started = [], {}, []
         super().close()
 
 
@@ -222,8 +229,9 @@ class _Worker:
     conn: Connection
 
     def stop(self) -> None:
-        self.process.kill()
-        self.process.join()
+        if self.process.pid is not None:  # started
+            self.process.kill()
+            self.process.join()
         self.conn.close()
 
 
