@@ -44,3 +44,11 @@ class InputError(ValueError):
 
 class GeometryError(InputError):
     """Parts that interfere or violate a manufacturing limit (names both parts, overlap in mm)."""
+
+
+class WorkersGone(Exception):
+    """Every worker of a Dask cluster is gone and none came back within the wait limit. Not the
+    user's input and not a crash: the run keeps what is complete and exits `EXIT_CODE` (75,
+    EX_TEMPFAIL), which a batch script can retry on (docs/scale.md)."""
+
+    EXIT_CODE = 75

@@ -12,7 +12,8 @@ import os
 from dataclasses import asdict, dataclass, field
 import numpy as np
 
-from lensmount.atomic import write_npz
+from lensmount.atomic import NPZ_DAMAGE, write_npz
+from lensmount.errors import InputError
 
 ROLES = ("optical", "lens-edge", "bevel", "mount", "diaphragm-edge", "vane-edge", "object")
 KINDS = ("lens", "barrel", "spacer", "retainer", "diaphragm", "vane", "hood", "housing", "baffle", "object")
@@ -97,6 +98,13 @@ class TaggedMesh:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "TaggedMesh":
-        with np.load(path, allow_pickle=False) as z:
-            table = [FaceTag(**t) for t in json.loads(str(z["tag_table"]))]
-            return cls(z["vertices"], z["triangles"], z["tags"], table)
+        """The mesh; InputError naming the file when it is damaged (regenerate checks its own
+        outputs' checksums first and rebuilds a damaged one, so this is a file given by hand)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                table = [FaceTag(**t) for t in json.loads(str(z["tag_table"]))]
+                return cls(z["vertices"], z["triangles"], z["tags"], table)
+        except NPZ_DAMAGE as e:
+            raise InputError(f"the mesh is damaged and cannot be read ({type(e).__name__}: {e})", file=str(path),
+                             valid="a mesh.npz as `lensmount regenerate` writes it: regenerate the design "
+                                   "(it rebuilds a damaged build folder)") from None

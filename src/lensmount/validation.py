@@ -1,4 +1,4 @@
-"""What the three input files share: TOML syntax errors, unknown keys (with the keys allowed
+"""What the three input files share: reading their text, TOML syntax errors, unknown keys (with the keys allowed
 there and a did-you-mean), pydantic errors as InputErrors, and the line a field sits on.
 
 TOML parsers give no positions for keys, so `line_of_key` scans the file text for the key
@@ -32,6 +32,23 @@ class ReadFromFile(BaseModel):
     @property
     def source_text(self) -> str | None:
         return self._text
+
+
+def read_text(path, what: str, valid: str) -> str:
+    """An input file's UTF-8 text; InputError naming the file when it is missing, unreadable or
+    damaged (bytes that are not UTF-8: a flipped bit, a truncated character), with the line."""
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{what} not found", file=str(path), valid=valid) from None
+    except OSError as exc:
+        raise InputError(f"cannot read the {what} ({exc.strerror or exc})", file=str(path), valid=valid) from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"the {what} is damaged or not text: byte {exc.start} is not UTF-8", file=str(path),
+                         line=raw.count(b"\n", 0, exc.start) + 1,
+                         valid=f"{valid}, as UTF-8 text (restore it from a copy or your version control)") from None
 
 
 def parse_toml(text: str, file: str, valid: str = "TOML syntax (https://toml.io)") -> dict:

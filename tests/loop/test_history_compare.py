@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from lensmount.cli import app
 from lensmount.loop.provenance import collect, resolve_revision
-from lensmount.run.results import read_exr
+from lensmount.run.results import read_exr, write_summary
 from lensmount.run.store import Store
 from tests.loop.runs import EXAMPLE, git, paths, write_run
 
@@ -199,7 +199,7 @@ def test_bias_bounds_from_the_summaries_widen_the_interval(tmp_path):
         s = json.loads((folder / "summary.json").read_text())
         s["stray_fraction_bias_bound"] = 1e-4
         s["per_part"]["barrel"]["bias_bound"] = 1e-4
-        (folder / "summary.json").write_text(json.dumps(s))
+        write_summary(folder / "summary.json", s)  # with a new checksum: an edit without one reads as damage
     result = _compare(a, b, "--out", tmp_path / "c")
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "c" / "compare.json").read_text())

@@ -1,6 +1,7 @@
 """A small planar run driven from the command line, for the process-level tests of the runner.
 
-    python planar_run.py CHECKPOINT PASSES WORKERS [--resume] [--cluster local:N] [--crash-once MARKER]
+    python planar_run.py CHECKPOINT PASSES WORKERS [--resume] [--cluster local:N | --scheduler ADDRESS]
+                         [--worker-wait SECONDS] [--crash-once MARKER]
 
 Prints one line per merged pass ("merged N") and, at the end, the accumulator's flux
 series as JSON on the last line. `--crash-once` makes the worker that first computes
@@ -56,6 +57,8 @@ def main(argv):
     checkpoint, passes, workers = Path(argv[0]), int(argv[1]), int(argv[2])
     resume = "--resume" in argv
     cluster = argv[argv.index("--cluster") + 1] if "--cluster" in argv else None
+    scheduler = argv[argv.index("--scheduler") + 1] if "--scheduler" in argv else None
+    wait_s = float(argv[argv.index("--worker-wait") + 1]) if "--worker-wait" in argv else 300.0
     crash = argv[argv.index("--crash-once") + 1] if "--crash-once" in argv else None
     delay = float(os.environ.get("PLANAR_PASS_DELAY", "0"))
     sc = scene()
@@ -74,11 +77,16 @@ def main(argv):
         print(f"merged {a.n}", flush=True)
         time.sleep(delay)
 
-    runner = Runner(sc, job, acc, executor=executor_for(workers=workers, cluster=cluster), checkpoint=checkpoint,
-                    checkpoint_every=1, progress=progress, tracer_path=TRACER)
+    executor = executor_for(workers=workers, cluster=cluster, scheduler=scheduler, worker_wait_s=wait_s,
+                            say=lambda text: print(text, flush=True))
+    runner = Runner(sc, job, acc, executor=executor, checkpoint=checkpoint, checkpoint_every=1, progress=progress,
+                    tracer_path=TRACER)
     runner.run(Stopping(max_passes=passes))
     print(json.dumps({"flux": acc.pass_flux, "n": acc.n, "terminated": runner.terminated,
-                      "interrupted": runner.interrupted, "elapsed_s": acc.elapsed_s}), flush=True)
+                      "interrupted": runner.interrupted, "elapsed_s": acc.elapsed_s,
+                      "workers_gone": runner.workers_gone}), flush=True)
+    if runner.workers_gone:
+        return 75
     return 143 if runner.terminated else (130 if runner.interrupted else 0)
 
 

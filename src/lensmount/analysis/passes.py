@@ -43,7 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.paths import PathSums
-from lensmount.atomic import write_npz
+from lensmount.atomic import NPZ_DAMAGE, write_npz
+from lensmount.errors import InputError
 from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
 from lensmount.integrators.paths import EMPTY
 from lensmount.integrators.photon_target import UNIFORM_SHARE
@@ -349,10 +350,33 @@ class Accumulator:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> tuple["Accumulator", dict]:
-        """The state and its meta dict (values as Python scalars/strings)."""
+        """The state and its meta dict (values as Python scalars/strings). InputError naming the
+        file when it is damaged (truncated, empty, a flipped bit: the zip's CRCs see those) or
+        not a checkpoint this version writes."""
+        try:
+            acc, meta = cls._read(path)
+        except InputError:
+            raise
+        except NPZ_DAMAGE as e:
+            raise InputError(f"the checkpoint is damaged and cannot be resumed ({type(e).__name__}: {e})",
+                             file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
+                                                   "it and run again without --resume (its passes are lost)") from None
+        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_half, acc.pass_radius_scale)
+        shapes = {acc.sum_image.shape, acc.sumsq_image.shape, acc.sum_parts.shape[1:]}
+        if any(len(x) != acc.n for x in series) or len(shapes) != 1 or acc.n < 0 or not all(
+                np.isfinite(a).all() for a in (acc.sum_image, acc.sumsq_image, acc.sum_parts)):
+            raise InputError(f"the checkpoint is damaged: its {acc.n} passes and their sums do not agree",
+                             file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
+                                                   "it and run again without --resume (its passes are lost)")
+        return acc, meta
+
+    @classmethod
+    def _read(cls, path) -> tuple["Accumulator", dict]:
         with np.load(path, allow_pickle=False) as z:
             if int(z["version"]) != _STATE_VERSION:
-                raise ValueError(f"checkpoint version {int(z['version'])} is not {_STATE_VERSION}")
+                raise InputError(f"the checkpoint has layout version {int(z['version'])}, this lensmount reads "
+                                 f"{_STATE_VERSION}", file=str(path),
+                                 valid="a checkpoint this lensmount version wrote; run again without --resume")
             names = [str(s) for s in z["part_names"]]
             acc = cls(names, float(z["pixel_area_mm2"]), z["sum_image"].copy(), z["sumsq_image"].copy(),
                       z["sum_parts"].copy(), n=int(z["n"]), photons=int(z["photons"]),

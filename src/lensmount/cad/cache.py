@@ -40,7 +40,7 @@ def _same(a: Path, b: Path) -> bool:
         return False
 
 
-def _place(src: Path, dst: Path) -> None:
+def place(src: Path, dst: Path) -> None:
     """dst becomes src's content, atomically (hard link, or copy), unless it already is."""
     if dst.exists() and _same(src, dst):
         return
@@ -64,24 +64,14 @@ def store(out_dir: Path, key: str, relpaths: list[str]) -> None:
     """Put the listed outputs of OUT into the cache under key."""
     target = cache_dir(out_dir, key)
     for rel in relpaths:
-        _place(Path(out_dir) / rel, target / rel)
+        place(Path(out_dir) / rel, target / rel)
 
 
-def restore(out_dir: Path, key: str) -> bool:
-    """Restore OUT from the cache entry; False when there is none (or it is incomplete)."""
-    src = cache_dir(out_dir, key)
-    if not (src / "manifest.json").is_file():
-        return False
-    wanted = _files(src)
-    for rel in wanted:
-        if rel.name == "manifest.json":
-            continue
-        _place(src / rel, Path(out_dir) / rel)
-    for old in (Path(out_dir) / "parts").glob("*.*"):  # parts the cached design does not have
-        if old.suffix in PART_SUFFIXES and old.relative_to(out_dir) not in wanted:
-            old.unlink()
-    _place(src / "manifest.json", Path(out_dir) / "manifest.json")  # last: a complete OUT is marked complete
-    return True
+def restore(entry: Path, out_dir: Path) -> None:
+    """Fill the (new, empty) folder OUT with the outputs of a cache entry (`cache_dir`), whose
+    manifest the caller has checked against the files' checksums."""
+    for rel in _files(entry):
+        place(entry / rel, Path(out_dir) / rel)
 
 
-__all__ = ["cache_dir", "store", "restore", "CACHE_DIR", "PART_SUFFIXES"]
+__all__ = ["cache_dir", "store", "restore", "place", "CACHE_DIR", "PART_SUFFIXES"]

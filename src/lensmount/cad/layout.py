@@ -141,6 +141,17 @@ def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> floa
                      else float(surf[i].clear_semi_diameter) + edge.allowance_mm for i in group))
 
 
+def _size_keys(part: str) -> list[str]:
+    """The mount.toml keys that set how much of an air gap a part takes along the axis."""
+    if part == "diaphragm":
+        return ["diaphragm.thickness_mm"]
+    if part.startswith("retainer"):
+        return ["retainer.thickness_mm"]
+    if part.startswith("vane"):
+        return ["vanes.thickness_mm"]
+    return ["lens_edge.contact_margin_mm"]  # a lens: where its seat touches
+
+
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     """Place every part, front to back. Raises GeometryError for a mount that cannot be built."""
     from lensmount.optics.apertures import with_clear_semi_diameters
@@ -349,10 +360,13 @@ class _MountPlanner:
             sp = Spacer(fr, fz, fm, br, bz, bm, od, tube, spec.spacers.lip_mm)
             name = f"spacer-{len(self.spacers) + 1}"
             if sp.min_length() < min_t:
+                keys = [k for part in (pa, pb) for k in _size_keys(part)]
+                keys = list(dict.fromkeys(keys))  # in order, once each
                 raise GeometryError(
                     f"{name} between {pa} and {pb} would be {sp.min_length():.3f} mm long (minimum {min_t} mm): "
-                    "the contacts leave no room", field="lens_edge.contact_margin_mm",
-                    valid="a smaller contact margin, a shoulder seat, or a larger air gap")
+                    f"{pa} and {pb} leave no room in the air gap between them (their sizes: "
+                    f"{', '.join(keys)})", field=keys[0],
+                    valid=f"a smaller {' or '.join(keys)}, a shoulder seat, or a larger air gap in the lens")
             if od - max(fr, br) < min_t:
                 raise GeometryError(
                     f"{name} between {pa} and {pb}: radial wall {od - max(fr, br):.3f} mm (minimum {min_t} mm)",

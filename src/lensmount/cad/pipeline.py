@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 import lensmount
-from lensmount.atomic import write_text
+from lensmount.atomic import atomic_dir, checksum_holds, with_checksum, write_text
 from lensmount.cad import cache
 from lensmount.cad.step_parts import StepSource, face_picture
 from lensmount.errors import InputError
@@ -63,16 +64,20 @@ class Manifest:
     mesh: str = MESH
     tessellation: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    checksums: dict[str, str] = field(default_factory=dict)  # sha256 of every output file but manifest.json
     cached: bool = False  # not written: True when this run came from the cache
 
     def to_json(self) -> str:
         d = asdict(self)
         d.pop("cached")
-        return json.dumps(d, indent=2)
+        return json.dumps(with_checksum(d), indent=2)
 
     @classmethod
     def from_json(cls, text: str, cached: bool = False) -> "Manifest":
+        """The manifest; ValueError when its checksum disagrees (damaged: rebuilt, never trusted)."""
         d = json.loads(text)
+        if not checksum_holds(d):
+            raise ValueError("manifest.json does not match its checksum")
         d["parts"] = [PartEntry(**p) for p in d["parts"]]
         return cls(**d, cached=cached)
 
@@ -86,9 +91,22 @@ class Manifest:
 
 
 def _previous(out: Path) -> Manifest | None:
+    """The folder's manifest, when there is one and its files are whole (their checksums agree):
+    a damaged output or cache entry is rebuilt, never trusted."""
     try:
-        return Manifest.from_json((out / MANIFEST).read_text())
+        manifest = Manifest.from_json((out / MANIFEST).read_text())
     except (OSError, ValueError, KeyError, TypeError):
+        return None
+    files = [manifest.assembly, manifest.mesh, BOM] + [f for p in manifest.parts for f in (p.step, p.svg, p.dxf)]
+    if set(files) != set(manifest.checksums) or any(_sha256(out / f) != manifest.checksums[f] for f in files):
+        return None
+    return manifest
+
+
+def _sha256(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
         return None
 
 
@@ -113,7 +131,6 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
 
     design = load_design(design_dir)
     out = Path(out_dir) if out_dir is not None else design.root / "build"
-    out.mkdir(parents=True, exist_ok=True)
     key = design.input_hash
     spec = design.mount
     if tessellation:
@@ -124,18 +141,20 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
                              valid="linear tolerance > 0 mm, angular tolerance in (0, 45] degrees") from None
         spec = spec.model_copy(update={"tessellation": tess})
         key = hashlib.sha256((key + json.dumps(tess.model_dump(), sort_keys=True)).encode()).hexdigest()
+    prev = _previous(out)
     if use_cache:
-        prev = _previous(out)
-        files_ok = prev is not None and prev.input_hash == key and (out / ASSEMBLY).is_file() and \
-            (out / MESH).is_file() and all((out / f).is_file() for p in prev.parts for f in (p.step, p.svg, p.dxf))
-        if files_ok:
+        if prev is not None and prev.input_hash == key:
             prev.cached = True
             return prev
-        if cache.restore(out, key):
-            m = _previous(out)
-            if m is not None:
-                m.cached = True
-                return m
+        entry = cache.cache_dir(out, key)
+        m = _previous(entry)
+        if m is not None:
+            with atomic_dir(out) as new:
+                cache.restore(entry, new)
+            m.cached = True
+            return m
+        if entry.exists():  # damaged or incomplete: built again below
+            shutil.rmtree(entry)
 
     try:
         layout, parts = build_assembly(design.prescription, spec, design.template_paths, progress, design.step_paths)
@@ -143,39 +162,42 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
     except InputError as exc:
         raise located(exc, str(design.mount_path), design.mount.source_text) from None  # with the field's line
 
-    prev = _previous(out)
-    prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
-    prev_drawing = {p.name: p.drawing_hash for p in prev.parts} if prev else {}
-    entries, pictures = [], []
-    for k, bp in enumerate(parts):
-        rel = f"parts/{bp.name}.step"
-        if prev_hash.get(bp.name) != bp.hash or not (out / rel).is_file():
-            write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, out / rel)
-        svg, dxf, d_hash = _drawings(out, bp, layout, spec, prev_drawing.get(bp.name))
-        if isinstance(bp.plan.template, StepSource):  # the face numbers a rule names
-            picture = f"parts/{bp.name}.faces.png"
-            face_picture(mesh.select(np.array([t.part == bp.name for t in mesh.tag_table])[mesh.tags]),
-                         f"{bp.name} from {bp.user_template.name}: STEP face indices", out / picture)
-            pictures.append(picture)
-        entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
-                                 triangles[bp.name], bp.hash, svg, dxf, d_hash))
+    # The new outputs are made beside OUT and swapped in whole: a refused, failed or stopped
+    # regenerate leaves OUT as it was (or absent), never empty or half written.
+    with atomic_dir(out) as new:
+        prev_hash = {p.name: p.hash for p in prev.parts} if prev else {}
+        prev_drawing = {p.name: p.drawing_hash for p in prev.parts} if prev else {}
+        for p in prev.parts if prev else []:  # a part's files are kept while it is unchanged (hard links)
+            if p.name in triangles:
+                for rel in (p.step, p.svg, p.dxf):
+                    cache.place(out / rel, new / rel)
+        entries, pictures = [], []
+        for k, bp in enumerate(parts):
+            rel = f"parts/{bp.name}.step"
+            if prev_hash.get(bp.name) != bp.hash or not (new / rel).is_file():
+                write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, new / rel)
+            svg, dxf, d_hash = _drawings(new, bp, layout, spec, prev_drawing.get(bp.name))
+            if isinstance(bp.plan.template, StepSource):  # the face numbers a rule names
+                picture = f"parts/{bp.name}.faces.png"
+                face_picture(mesh.select(np.array([t.part == bp.name for t in mesh.tag_table])[mesh.tags]),
+                             f"{bp.name} from {bp.user_template.name}: STEP face indices", new / picture)
+                pictures.append(picture)
+            entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
+                                     triangles[bp.name], bp.hash, svg, dxf, d_hash))
+            if progress:
+                progress("export", k + 1, len(parts) + 2)
+        write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], new / ASSEMBLY)
+        mesh.save(new / MESH)
         if progress:
-            progress("export", k + 1, len(parts) + 2)
-    # parts that no longer exist (e.g. fewer vanes) leave the folder, drawings too
-    for old in (out / "parts").glob("*.*"):
-        if old.suffix in cache.PART_SUFFIXES and old.stem not in triangles:
-            old.unlink()
-    write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], out / ASSEMBLY)
-    mesh.save(out / MESH)
-    if progress:
-        progress("export", len(parts) + 2, len(parts) + 2)
-    manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(),
-                        notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes))
-    write_text(out / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume), bp.plan.template)
-                                   for bp in parts], layout.prescription, spec))
-    write_text(out / MANIFEST, manifest.to_json())
-    cache.store(out, key, [ASSEMBLY, MESH, BOM, MANIFEST] + [f for e in entries for f in (e.step, e.svg, e.dxf)]
-                + pictures)
+            progress("export", len(parts) + 2, len(parts) + 2)
+        write_text(new / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume),
+                                        bp.plan.template) for bp in parts], layout.prescription, spec))
+        files = [ASSEMBLY, MESH, BOM] + [f for e in entries for f in (e.step, e.svg, e.dxf)] + pictures
+        manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(),
+                            notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes),
+                            checksums={f: _sha256(new / f) for f in files})
+        write_text(new / MANIFEST, manifest.to_json())
+    cache.store(out, key, files + [MANIFEST])
     return manifest
 
 

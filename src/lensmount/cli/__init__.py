@@ -2,7 +2,9 @@
 
 Each command group lives in its own module and registers itself on `app`; each
 parses its options, calls lensmount.loop (or the layer it fronts) and prints. This
-module only turns user errors into one paragraph on stderr with exit code 2.
+module only turns user errors into one paragraph on stderr with exit code 2, and
+SIGINT / SIGTERM at any moment of any command into one line and exit 130 / 143
+(lensmount.run.signals): never click's bare "Aborted!".
 """
 
 from __future__ import annotations
@@ -11,10 +13,31 @@ import importlib
 import sys
 
 import typer
+from typer.core import TyperGroup
 
-from lensmount.errors import InputError
+from lensmount.errors import InputError, WorkersGone
+from lensmount.run.signals import exit_code, signal_name, stop_on_signals
+
+
+class _Commands(TyperGroup):
+    """Every command runs with SIGINT and SIGTERM raising (also when a script started it in the
+    background with SIGINT ignored); a stop becomes its one line and 130 / 143."""
+
+    def invoke(self, ctx):
+        with stop_on_signals():
+            try:
+                return super().invoke(ctx)
+            except KeyboardInterrupt as stop:
+                typer.echo(str(stop) or f"{signal_name(stop)}: stopped, nothing half-written left; "
+                                        "run the command again", err=True)
+                raise typer.Exit(code=exit_code(stop)) from None
+            except WorkersGone as gone:
+                typer.echo(f"{gone} (exit {WorkersGone.EXIT_CODE}: retry later)", err=True)
+                raise typer.Exit(code=WorkersGone.EXIT_CODE) from None
+
 
 app = typer.Typer(
+    cls=_Commands,
     name="lensmount",
     help="From a lens prescription to a mount in STEP and the stray light it scatters onto the detector.",
     no_args_is_help=True,

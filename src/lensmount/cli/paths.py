@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.atomic import NPZ_DAMAGE
 from lensmount.errors import InputError
 
 
@@ -32,8 +33,8 @@ def paths(
                              valid="the output folder of `lensmount simulate` run by this version")
         try:
             data = read_paths(source)
-        except (KeyError, ValueError, OSError) as error:
-            raise InputError(f"the path data cannot be read ({error})", file=str(source),
+        except NPZ_DAMAGE as error:
+            raise InputError(f"the path data is damaged and cannot be read ({type(error).__name__}: {error})", file=str(source),
                              valid="paths.npz written by `lensmount simulate` of this version") from None
     except InputError as error:
         fail(error)

@@ -6,12 +6,14 @@ Parses, calls lensmount.cad / lensmount.design, prints. No geometry here.
 from __future__ import annotations
 
 import shutil
+import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.simulate import TerminalObserver
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
 
@@ -36,30 +38,22 @@ def regenerate(
     check: bool = typer.Option(False, "--check", help="then run `lensmount check` on the result "
                                "(exit 1 when a lit wall is seen)"),
 ) -> None:
-    """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json."""
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json.
 
-    console = Console(stderr=True)
+    Progress goes to stderr: bars on a terminal, one line per finished CAD step (with its
+    seconds) when stderr is a file or a pipe. The outputs are built beside the folder and
+    swapped in whole: a refused or stopped regenerate leaves it as it was."""
     tess = {k: v for k, v in (("linear_tolerance_mm", linear_tolerance),
                               ("angular_tolerance_deg", angular_tolerance)) if v is not None}
     options = RegenerateOptions(design, out, use_cache=not no_cache, tessellation=tess)
+    observer = TerminalObserver(live=sys.stderr.isatty())
     try:
-        if quiet:
-            result = run(options)
-        else:
-            with Progress(TextColumn("{task.description:<14}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                          TimeElapsedColumn(), console=console, transient=False) as bar:
-                tasks = {}
-
-                def progress(step: str, done: int, total: int) -> None:
-                    if step not in tasks:
-                        tasks[step] = bar.add_task(step, total=total)
-                    bar.update(tasks[step], completed=done, total=total)
-
-                result = run(options, progress)
+        result = run(options, None if quiet else observer.build_step)
     except InputError as error:
+        observer.close()
         fail(error)
+    finally:
+        observer.close()
     manifest, target, tri = result.manifest, result.folder, result.triangles
     how = "from the cache (inputs unchanged)" if manifest.cached else "built"
     typer.echo(f"{target}: {len(manifest.parts)} parts, {tri} triangles, {how}; input hash {manifest.input_hash[:12]}")

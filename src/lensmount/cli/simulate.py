@@ -8,6 +8,8 @@ pass when stdout is a file or a pipe (logs stay readable).
 from __future__ import annotations
 
 import sys
+import threading
+import time
 from pathlib import Path
 from typing import Optional
 
@@ -17,6 +19,7 @@ from lensmount.cli import app, fail
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, PassStatus, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
+from lensmount.run.executor import WORKER_WAIT_S
 
 
 def print_plan(console, block: dict | None) -> None:
@@ -36,8 +39,10 @@ def print_plan(console, block: dict | None) -> None:
             table.add_row("", f"warning: {item['warning']}", style="yellow")
     for item in block["skipped"]:
         table.add_row(f"{item['what']} (skipped)", item["why"], style="dim")
+    for phase, seconds in block.get("wall_time_s", {}).items():
+        table.add_row(f"wall time: {phase}", f"{seconds:.2f} s")
     for phase, seconds in block["time_s"].items():
-        table.add_row(f"time: {phase}", f"{seconds:.2f} s")
+        table.add_row(f"time: {phase}", f"{seconds:.2f} s, summed over passes and workers")
     console.print(table)
 
 
@@ -58,7 +63,7 @@ def describe(s: PassStatus) -> str:
     rel = f"{100 * s.rel_error:.2f} %" if s.rel_error < float("inf") else "—"
     text = f"pass {s.passes} · {s.photons:,} photons · {s.elapsed_s:.0f} s · stray fraction {value} · rel. error {rel}"
     if s.error_slope is not None:
-        text += f" (∝ t^{s.error_slope:+.2f})"
+        text += f" (∝ t^{s.error_slope:+.2f}" + (f" ± {s.error_slope_se:.2f})" if s.error_slope_se else ")")
     if s.largest_over_median is not None:
         text += f" · largest pass {s.largest_over_median:.2f}× median"
     if s.heavy_tail:
@@ -71,6 +76,8 @@ def describe(s: PassStatus) -> str:
 class TerminalObserver(Observer):
     """Stages and passes on stderr: rich on a terminal, one line per event otherwise."""
 
+    HEARTBEAT_S = 10.0  # while the first pass runs (tracer, pilot, view map, photons), a line this often
+
     def __init__(self, live: bool):
         from rich.console import Console
 
@@ -78,18 +85,39 @@ class TerminalObserver(Observer):
         self.console = Console(stderr=True)
         self.bar = None
         self.tasks: dict[str, int] = {}
+        self.step_started: dict[str, float] = {}
+        self.first_pass: threading.Event | None = None
 
     def stage(self, text: str) -> None:
         self._close()
+        self.step_started.clear()
+        self._say(text)
+        if text.startswith("tracing:"):
+            self._wait_for_first_pass(time.monotonic())
+
+    def _say(self, text: str) -> None:
         if self.live:
-            self.console.print(f"[bold]·[/bold] {text}")
+            self.console.print(f"[bold]·[/bold] {text}", markup=True)
         else:
             typer.echo(text, err=True)
 
+    def _wait_for_first_pass(self, start: float) -> None:
+        """A line every HEARTBEAT_S until the first pass is merged: it builds the tracer and runs the
+        pilot and the view map before its photons, and was silent for minutes."""
+        self.first_pass = done = threading.Event()
+
+        def beat():
+            while not done.wait(self.HEARTBEAT_S):
+                self._say(f"  pass 1 still running ({time.monotonic() - start:.0f} s): the first pass also loads "
+                          "the tracer, aims the photons (pilot) and builds the view map")
+
+        threading.Thread(target=beat, daemon=True).start()
+
     def build_step(self, step: str, done: int, total: int) -> None:
+        started = self.step_started.setdefault(step, time.monotonic())
         if not self.live:
             if done == total:
-                typer.echo(f"  CAD {step}: done", err=True)
+                typer.echo(f"  CAD {step}: done ({time.monotonic() - started:.1f} s)", err=True)
             return
         bar = self._bar()
         if step not in self.tasks:
@@ -97,6 +125,8 @@ class TerminalObserver(Observer):
         bar.update(self.tasks[step], completed=done, total=total)
 
     def pass_done(self, s: PassStatus) -> None:
+        if self.first_pass is not None:
+            self.first_pass.set()
         if not self.live:
             typer.echo(describe(s), err=True)
             return
@@ -121,6 +151,8 @@ class TerminalObserver(Observer):
             self.tasks = {}
 
     def close(self) -> None:
+        if self.first_pass is not None:
+            self.first_pass.set()
         self._close()
 
 
@@ -153,7 +185,8 @@ def simulate(
     samples_per_pixel: int = typer.Option(1, "--samples-per-pixel", help="Backward samples per pixel per pass."),
     alpha: float = typer.Option(0.7, "--alpha", help="Radius shrink parameter, 0 < alpha < 1."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
-    resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz (none there: start from the first "
+                                                       "pass, as a batch retry of a run that kept nothing)."),
     geometry: Optional[Path] = typer.Option(None, "--geometry",
                                             help="Regenerate's output folder to reuse (default DESIGN/build)."),
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/runs.sqlite, "
@@ -163,6 +196,9 @@ def simulate(
                                             help="Run the passes on this Dask scheduler (tcp://HOST:8786); "
                                                  "see docs/scale.md."),
     cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a Dask LocalCluster: local:N processes."),
+    worker_wait: float = typer.Option(WORKER_WAIT_S, "--worker-wait",
+                                      help="Seconds a Dask run with no worker left waits for one; then it writes "
+                                           "its checkpoint and exits 75, for a batch script to retry with --resume."),
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
@@ -171,16 +207,15 @@ def simulate(
     """
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
                               photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
-                              not no_record, list(sys.argv), scheduler, cluster)
+                              not no_record, list(sys.argv), scheduler, cluster, worker_wait)
     result = observed(run_simulation, options)
     print_summary(result.summary, result.paths)
     typer.echo(f"one more halving of the error: about {duration(next_halving_s(result.summary['time_s']))} more")
     if result.run_id is not None:
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")
     if result.interrupted:
-        how = "SIGTERM" if result.terminated else "interrupted"
-        typer.echo(f"{how}: results and checkpoint written; continue with --resume", err=True)
-        raise typer.Exit(code=143 if result.terminated else 130)
+        typer.echo(result.stop_message(), err=True)
+        raise typer.Exit(code=result.exit_code)
 
 
 def print_summary(summary: dict, paths: dict) -> None:

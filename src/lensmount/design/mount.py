@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, parse_toml
+from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, parse_toml, read_text
 from lensmount.errors import InputError
 
 ContactStyle = Literal["sharp", "tangent"]
@@ -325,11 +325,7 @@ def parse_mount(data: dict, file: str | None = None, text: str | None = None) ->
 def load_mount(path: str | Path) -> MountSpec:
     """Read and validate mount.toml."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot read the mount file ({exc.strerror})", file=str(path),
-                         valid="a readable mount.toml") from None
+    text = read_text(path, "mount file", "a readable mount.toml")
     return parse_mount(parse_toml(text, str(path)), file=str(path), text=text)
 
 

@@ -54,7 +54,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
-from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml
+from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml, read_text
 from lensmount.errors import InputError
 from lensmount.design.finishes import (TABLES, Finishes, check_coatings, check_finishes, finish_library,
                                        old_layout_error)
@@ -242,10 +242,7 @@ def load_scene(path: str | Path, finishes: Finishes | None = None) -> SceneSpec:
     `[finishes]`, `[coatings]` or `[assign]` (the layout before they moved to the design) is refused
     with how to move them."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("scene file not found", file=str(path), valid="a path to a scenes/*.toml file") from None
+    text = read_text(path, "scene file", "a path to a scenes/*.toml file")
     data = parse_toml(text, str(path))
     held = sorted((table for table in TABLES if table in data), key=lambda t: line_of_key(text, t) or 0)
     if held:

@@ -23,6 +23,7 @@ from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, l
 from lensmount.errors import InputError
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
+from lensmount.run.results import read_summary
 from lensmount.run.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
@@ -45,10 +46,7 @@ class Run:
         if not path.is_file():
             raise InputError("not a results folder (no summary.json)", file=str(folder), field=field,
                              valid="a folder written by `lensmount simulate`, or a design folder with --scene")
-        try:
-            return cls(folder, json.loads(path.read_text()))
-        except ValueError as exc:
-            raise InputError(f"summary.json is not valid JSON ({exc})", file=str(path), field=field) from None
+        return cls(folder, read_summary(path, field))
 
     def measurement(self, metric: str) -> Measurement:
         value, error, bias = METRICS[metric]
@@ -260,6 +258,7 @@ def obtain(source: RunSource, observer: Observer | None) -> Run:
     if source.simulate is None:
         return Run.load(source.folder, "A" if source.role == "old" else "B")
     result = simulate(source.simulate, observer)
+    result.raise_if_stopped("no comparison made: run the same compare again")
     return Run(result.out, result.summary)
 
 
@@ -438,8 +437,9 @@ def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> di
     from lensmount.run.report import comparison_report, write_report
     from lensmount.run.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
 
-    a = read_exr(old.folder / "irradiance.exr")["Y"].astype(np.float64)
-    b = read_exr(new.folder / "irradiance.exr")["Y"].astype(np.float64)
+    a = read_exr(old.folder / "irradiance.exr", old.summary.get("files", {}).get("irradiance.exr"))["Y"]
+    b = read_exr(new.folder / "irradiance.exr", new.summary.get("files", {}).get("irradiance.exr"))["Y"]
+    a, b = a.astype(np.float64), b.astype(np.float64)
     if a.shape != b.shape or (old.summary.get("detector") or new.summary.get("detector")) and \
             old.summary.get("detector") != new.summary.get("detector"):
         raise InputError(f"the detectors differ: {a.shape[1]}×{a.shape[0]} pixels "

@@ -21,7 +21,6 @@ only rather than the sum of all.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 
 from lensmount.errors import InputError
 from lensmount.integrators.registry import INTEGRATORS
+from lensmount.run.results import read_summary
 
 MIN_PASSES_FOR_SLOPE = 4
 
@@ -93,8 +93,8 @@ def read_reference(text: str | None) -> float | None:
             raise InputError("reference not found", file=text, field="--reference",
                              valid="a stray fraction (e.g. 1.5e-6) or a long run's summary.json") from None
         try:
-            value = json.loads(path.read_text())["stray_fraction"]
-        except (ValueError, KeyError, TypeError):
+            value = read_summary(path, "--reference")["stray_fraction"]
+        except (KeyError, TypeError):
             raise InputError("no stray_fraction in this file", file=text, field="--reference",
                              valid="a summary.json written by lensmount simulate") from None
     if value is None or not (math.isfinite(float(value)) and float(value) > 0):
@@ -162,6 +162,7 @@ def converge(o: ConvergeOptions, progress: Callable[[str], None] | None = None) 
         run = simulate(SimulateOptions(o.design, o.scene, method=method, seed=o.seed, out=Path(o.out) / method,
                                        time_s=per_method, photons_per_pass=o.photons_per_pass, workers=o.workers,
                                        record=False), Watch())
+        run.raise_if_stopped("the convergence study stopped: run it again")
         curves.append(_curve(method, statuses, times, run.summary, o.reference))
         last = curves[-1].levels[-1] if curves[-1].levels else None
         if last is not None:

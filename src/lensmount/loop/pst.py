@@ -111,7 +111,8 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     from lensmount.integrators.settings import EstimatorSettings
     from lensmount.loop.prepare import build, read_inputs
     from lensmount.loop.provenance import collect
-    from lensmount.run.runner import PassJob, Runner, Stopping, Terminated, default_workers
+    from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
+    from lensmount.run.signals import Terminated
     from lensmount.scene.build import make_source
     from lensmount.scene.scene import EFFECT_NAMES
 

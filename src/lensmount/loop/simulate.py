@@ -11,15 +11,19 @@ import hashlib
 import math
 import os
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lensmount.errors import InputError
+from lensmount.errors import InputError, WorkersGone
 from lensmount.integrators.registry import check_method
-from lensmount.run.executor import local_cluster_size
+from lensmount.run.executor import WORKER_WAIT_S, local_cluster_size
+from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
 from lensmount.loop.prepare import build
 from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
 
+# What the plan's per-phase seconds are: each pass times its own phases, and passes run side by side
+TIME_SUMMED = "passes and workers: the seconds each pass spent, added up (more than the wall time on several workers)"
 CHECKPOINT = "checkpoint.npz"
 PATHS = "paths.npz"  # per-path and per-face sums for `lensmount paths` (analysis.paths.write_paths)
 
@@ -34,6 +38,7 @@ class SimulateOptions:
     store : results store (default: lensmount.run.store.default_path); record : add the run to it
     argv : the command line recorded in the provenance (default sys.argv)
     scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.run.executor
+    worker_wait_s : with no Dask worker left, wait this long for one, then stop with the checkpoint (exit 75)
     """
 
     design: Path
@@ -56,6 +61,7 @@ class SimulateOptions:
     argv: list[str] | None = None
     scheduler: str | None = None
     cluster: str | None = None
+    worker_wait_s: float = WORKER_WAIT_S
 
 
 @dataclass(frozen=True)
@@ -64,7 +70,9 @@ class PassStatus:
 
     value, std_error : stray fraction and its standard error (None before 2 passes)
     rel_error : relative error of the total (inf when unknown)
-    error_slope : d log(rel error) / d log(time) over the run so far (≈ −0.5 when it converges as 1/√t)
+    error_slope : d log(rel error) / d log(time) over the last half of the run (≈ −0.5 when it converges
+        as 1/√t); None until enough passes make it more than noise (loop.progress.error_trend)
+    error_slope_se : its standard error
     eta_s : seconds to the target relative error at the rate so far (None without a target)
     largest_over_median : the largest pass / the median pass (None before any pass or with a median of 0)
     heavy_tail : one pass dominates the others (`Accumulator.tail`): the error is not the spread's, and
@@ -83,6 +91,7 @@ class PassStatus:
     max_passes: int | None
     largest_over_median: float | None = None
     heavy_tail: bool = False
+    error_slope_se: float | None = None
 
 
 class Observer:
@@ -108,6 +117,31 @@ class SimulateResult:
     run_id: int | None = None
     store_path: Path | None = None
     warnings: list[str] = field(default_factory=list)
+    complete: bool = False  # the signal came after the last pass, while the results were written
+    workers_gone: str | None = None  # stopped because no Dask worker came back in time: why
+
+    @property
+    def exit_code(self) -> int:
+        """0, 130 (SIGINT), 143 (SIGTERM) or 75 (no Dask worker: retry later, with --resume)."""
+        if not self.interrupted:
+            return 0
+        return WorkersGone.EXIT_CODE if self.workers_gone else (143 if self.terminated else 130)
+
+    def stop_message(self, then: str = "continue with the same command and --resume") -> str:
+        """One line for a stopped run: what is kept and how to continue (`then`)."""
+        how = self.workers_gone or ("SIGTERM" if self.terminated else "SIGINT")
+        passes = self.summary.get("passes", 0)
+        if self.complete:
+            return f"{how} after the run was complete ({passes} passes): results written, nothing to continue"
+        return f"{how}: stopped after {passes} passes; results and checkpoint written in {self.out}; {then}"
+
+    def raise_if_stopped(self, then: str) -> None:
+        """For callers with more work after this run (sweep, compare, converge): a stopped run stops
+        them too, with this run's line and `then`, what to do about the caller's own work."""
+        if self.workers_gone:
+            raise WorkersGone(self.stop_message(then))
+        if self.interrupted:
+            raise (Terminated if self.terminated else KeyboardInterrupt)(self.stop_message(then))
 
 
 def check_options(o: SimulateOptions) -> None:
@@ -133,6 +167,9 @@ def check_options(o: SimulateOptions) -> None:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
     if o.cluster is not None:
         local_cluster_size(o.cluster)
+    if not (o.worker_wait_s >= 0 and math.isfinite(o.worker_wait_s)):
+        raise InputError(f"--worker-wait must be a number of seconds >= 0, got {o.worker_wait_s:g}",
+                         field="--worker-wait", valid="seconds >= 0, e.g. --worker-wait 600")
     if o.scheduler is not None and o.cluster is not None:
         raise InputError("give either a scheduler address or a local cluster, not both", field="--cluster",
                          valid="--scheduler ADDRESS (or LENSMOUNT_SCHEDULER) | --cluster local:N")
@@ -202,12 +239,29 @@ def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
 
 def simulate(options: SimulateOptions, observer: Observer | None = None) -> SimulateResult:
     """Run one simulation end to end (see the module docstring). InputError on bad input,
-    raised before anything is built or written."""
+    raised before anything is built or written.
+
+    SIGINT or SIGTERM at any moment: once a pass is complete, the checkpoint and the results
+    of the passes merged so far are written and the result says `interrupted`; before that,
+    nothing is written and KeyboardInterrupt (`Terminated` for SIGTERM) is raised with a line
+    saying so (lensmount.run.signals)."""
+    with stop_on_signals():
+        try:
+            return _simulate(options, observer or Observer())
+        except KeyboardInterrupt as stop:
+            if stop.args:  # already says what happened
+                raise
+            raise type(stop)(f"{signal_name(stop)} before the first pass was complete: nothing written (a checkpoint "
+                             "already there is as it was); run the same command again, with --resume or without"
+                             ) from None
+
+
+def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     from lensmount.analysis.passes import Accumulator
     from lensmount.loop.prepare import read_inputs
 
-    o, obs = options, observer or Observer()
     check_options(o)
+    clock, wall = time.perf_counter(), {}  # the driver's phases in wall-clock seconds (the plan's are summed)
     design, spec = read_inputs(o.design, o.scene, obs.stage)
     scene_path = Path(o.scene)
     out = Path(o.out) if o.out is not None else Path("out") / scene_path.stem
@@ -218,35 +272,34 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
     digest = planned_input_hash(o, design, spec)
     checkpoint = out / CHECKPOINT
     acc = None
-    if o.resume:
-        if not checkpoint.exists():
-            raise InputError("no checkpoint to resume from", file=str(checkpoint), valid="run once without --resume")
-        try:
-            acc, meta = Accumulator.load(checkpoint)
-        except ValueError as error:  # another lensmount version's layout: say so, no traceback
-            raise InputError(f"the checkpoint cannot be resumed: {error}", file=str(checkpoint),
-                             valid="a checkpoint this lensmount version wrote; run again without --resume") from None
+    if o.resume and not checkpoint.exists():  # a run stopped before its first pass kept nothing: a retry starts it
+        obs.stage(f"no checkpoint in {out}: nothing to resume, the run starts at its first pass")
+    elif o.resume:
+        acc, meta = Accumulator.load(checkpoint)  # a damaged one, or another version's: an InputError naming it
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest,
                                     "photons_per_pass": per_pass}, checkpoint)
+    if o.record:  # a locked or damaged store is said now, not after the run
+        from lensmount.run.store import Store, default_path
+
+        Store(default_path(design.root, o.store)).close()
     provenance = collect(design, spec, scene_path, o.argv)
 
+    wall["reading the inputs"] = time.perf_counter() - clock
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
-    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance)
+    wall["geometry and scene"] = time.perf_counter() - clock - sum(wall.values())
+    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall)
 
 
-def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance):
+def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
     from lensmount.analysis.passes import Accumulator
-    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
-    from lensmount.analysis.summary import build_summary
     from lensmount.run.executor import executor_for
     from lensmount.integrators.estimate import film_channels
     from lensmount.integrators.plan import plan
     from lensmount.loop.progress import status_of
-    from lensmount.run.results import write_run
     from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
     from lensmount.scene.scene import EFFECT_NAMES
 
-    design, spec, built, sc = prepared.design, prepared.spec, prepared.built, prepared.scene
+    design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
     warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
 
@@ -272,7 +325,8 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     no_light = sc.source.no_light_enters
     if no_light:
         obs.stage(f"no light enters: {no_light}")
-    executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster)
+    executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster,
+                            worker_wait_s=o.worker_wait_s, say=obs.stage)
     shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
     history: list[tuple[float, float]] = []
 
@@ -283,16 +337,44 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
     runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method,
                                      "photons_per_pass": per_pass}, progress=progress)
+    start = time.perf_counter()
     runner.run(stopping)
+    wall["passes"] = time.perf_counter() - start
+    if acc.n == 0:  # stopped before the first pass: nothing to write
+        if runner.workers_gone:
+            raise WorkersGone(f"{runner.workers_gone}: stopped before the first pass was complete, nothing written; "
+                              "start workers and run the same command again")
+        raise (Terminated if runner.terminated else KeyboardInterrupt)()
+    try:
+        with deferred():  # a signal now waits until the results are whole
+            result = _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance,
+                            seed=seed, photons_per_pass=per_pass, input_hash=digest, settings=settings,
+                            no_light_enters=no_light, effects=effects, wall=wall)
+    except KeyboardInterrupt as stop:  # it came while they were written: `result` is bound, the files whole
+        if not result.interrupted:
+            result.interrupted, result.terminated, result.complete = True, isinstance(stop, Terminated), True
+    result.workers_gone = runner.workers_gone
+    return result
 
+
+def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
+           input_hash, settings, no_light_enters, effects, wall) -> SimulateResult:
+    """summary.json, the images, paths.npz and the store's row of a run that has passes."""
+    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
+    from lensmount.analysis.summary import build_summary
+    from lensmount.run.results import write_run
+
+    design, built, sc = prepared.design, prepared.built, prepared.scene
     tags, areas = scene_tags(sc), face_areas(sc.mesh)
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
                             effects_skipped=[k for k, v in effects.items() if not v], time_s=runner.elapsed,
-                            aperture_flux_mm2=aperture, input_hash=digest, estimator_settings=settings.as_dict(),
+                            aperture_flux_mm2=aperture, input_hash=input_hash, estimator_settings=settings.as_dict(),
                             tag_table=tags,
-                            extra={"photons_per_pass": per_pass, "alpha": o.alpha, "workers": executor.workers,
+                            extra={"photons_per_pass": photons_per_pass, "alpha": o.alpha, "workers": executor.workers,
                                    "provenance": provenance.to_dict(), "warnings": warnings,
-                                   "no_light_enters": no_light, "plan": work.as_dict(acc.diagnostics),
+                                   "no_light_enters": no_light_enters,
+                                   "plan": {**work.as_dict(acc.diagnostics), "time_s_summed_over": TIME_SUMMED,
+                                            "wall_time_s": {k: round(v, 3) for k, v in wall.items()}},
                                    "top_paths": top_paths(acc.paths, tags, aperture),
                                    "ghost_pairs": ghost_pairs(acc.paths, aperture),
                                    "faces": face_report(acc.paths, tags, areas, aperture),

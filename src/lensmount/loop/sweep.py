@@ -124,6 +124,7 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
         obs.stage(f"variant {k + 1}: " + ", ".join(f"{n} = {v}" for n, v in values.items()))
         run = simulate(replace(base, design=design, scene=scene, out=folder / "run", geometry=folder / "build",
                                store=base.store, resume=False), obs)
+        run.raise_if_stopped("the sweep stopped at this variant: run the same sweep again")
         s = run.summary
         variants.append(Variant(k, values, s.get("stray_fraction"), s.get("stray_fraction_std_error"),
                                 s.get("stray_fraction_bias_bound") or 0.0, out=run.out))

@@ -32,10 +32,11 @@ from collections import deque
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
-from lensmount.errors import InputError
+from lensmount.errors import InputError, WorkersGone
 from lensmount.trace import lens_kernel
 
 SCHEDULER_ENV = "LENSMOUNT_SCHEDULER"
+WORKER_WAIT_S = 300.0  # how long a Dask run with no worker left waits for one before it stops (exit 75)
 WORKER_DEATHS = 3  # a pass that kills this many local workers is a fault of the pass, not of a worker
 _PR_SET_PDEATHSIG = 1
 
@@ -142,6 +143,10 @@ class LocalProcesses(Executor):
         self.description = f"{self.workers} local processes"
         self._idle: list[_Worker] = []
         self._busy: dict[_Worker, object] = {}  # worker → the pass it runs
+        # Every worker started and not yet stopped, whatever list it is in: a signal can land between
+        # taking a worker off `_idle` and putting it in `_busy`, and `close` must still stop it (a live
+        # worker ignores SIGTERM, so multiprocessing's exit handler would wait for it forever).
+        self._started: list[_Worker] = []
 
     def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
         super().start(scene, tracer_path, run_pass_path)
@@ -199,19 +204,22 @@ class LocalProcesses(Executor):
         conn, child = context.Pipe()
         process = context.Process(target=_local_worker, daemon=True,
                                   args=(child, self.scene, self.tracer_path, self.run_pass_path))
+        worker = _Worker(process, conn)
+        self._started.append(worker)  # before it starts: `close` stops it even if a signal lands now
         process.start()
         child.close()  # the worker alone holds its end: its death is end-of-file here
-        return _Worker(process, conn)
+        return worker
 
     def _replace(self, worker: "_Worker") -> None:
         worker.stop()
+        self._started.remove(worker)
         self._idle.append(self._spawn())
 
     def close(self) -> None:
         # Passes in flight are not waited for: a stopped run redoes them on resume, identically.
-        for worker in [*self._idle, *self._busy]:
+        for worker in self._started:
             worker.stop()
-        self._idle, self._busy = [], {}
+        self._idle, self._busy, self._started = [], {}, []
         super().close()
 
 
@@ -221,8 +229,9 @@ class _Worker:
     conn: Connection
 
     def stop(self) -> None:
-        self.process.kill()
-        self.process.join()
+        if self.process.pid is not None:  # started
+            self.process.kill()
+            self.process.join()
         self.conn.close()
 
 
@@ -255,15 +264,22 @@ def _local_worker(conn: Connection, scene, tracer_path: str, run_pass_path: str)
 class DaskCluster(Executor):
     """Passes as Dask tasks on an existing cluster (`address`) or a LocalCluster of `local_workers` processes.
 
-    The Scene is scattered to every worker once (`broadcast=True`); each task names it by
-    its future, so only the small PassJob travels per task. Dask re-runs the tasks of a
-    worker that dies; passes are pure functions of (seed, index), so nothing changes.
+    The Scene is scattered to every worker (`broadcast=True`); each task names it by its
+    future, so only the small PassJob travels per task, and a worker that joins later fetches
+    it from one that holds it. Dask re-runs the tasks of a worker that dies; passes are pure
+    functions of (seed, index), so nothing changes. When every holder of the scene is gone (the
+    last worker died), Dask forgets the scene and cancels the passes that need it: the scene is
+    sent again to the workers there are, waiting up to `wait_s` for one to appear (told through
+    `say`), and the passes in flight are submitted again. No worker within `wait_s`:
+    `WorkersGone` (the runner keeps what is merged; the command exits 75).
     """
 
-    def __init__(self, address: str | None = None, local_workers: int | None = None):
+    def __init__(self, address: str | None = None, local_workers: int | None = None,
+                 wait_s: float = WORKER_WAIT_S, say=None):
         self.address, self.local_workers = address, local_workers
         self.workers = local_workers or 1
         self.description = f"Dask ({address or f'LocalCluster of {local_workers} processes'})"
+        self.wait_s, self.say = wait_s, say or (lambda text: None)
         self._client = self._cluster = None
 
     def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
@@ -277,8 +293,21 @@ class DaskCluster(Executor):
                                          dashboard_address=None, silence_logs=logging.ERROR)
             self._client = Client(self._cluster)
             self._client.register_plugin(_die_with_parent_plugin())
+        self._send_scene()
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
-        self._scene = self._client.scatter(scene, broadcast=True, hash=False)
+
+    def _send_scene(self) -> None:
+        """The scene to every worker there is, after waiting up to `wait_s` for one."""
+        if not self._client.scheduler_info().get("workers"):
+            self.say(f"no Dask worker at {self.address or 'the local cluster'}: waiting up to {self.wait_s:g} s "
+                     "for one (start workers: docs/scale.md)")
+            try:
+                self._client.wait_for_workers(1, timeout=self.wait_s)
+            except TimeoutError:
+                raise WorkersGone(f"no Dask worker at {self.address or 'the local cluster'} for {self.wait_s:g} s"
+                                  ) from None
+            self.say("a Dask worker is back: the passes in flight are sent again")
+        self._scene = self._client.scatter(self.scene, broadcast=True, hash=False)
 
     def submit(self, job) -> None:
         future = self._client.submit(_dask_pass, self.run_pass_path, self._scene, self.tracer_path, job,
@@ -287,8 +316,21 @@ class DaskCluster(Executor):
 
     def next_done(self) -> list:
         from distributed import wait as dask_wait
+        from distributed.client import FuturesCancelledError
 
-        done = dask_wait(list(self._jobs), return_when="FIRST_COMPLETED").done
+        try:
+            done = dask_wait(list(self._jobs), return_when="FIRST_COMPLETED").done
+        except FuturesCancelledError:  # the scene went with its last holder: the passes that need it are cancelled
+            done = None
+        if done is None or any(future.status in ("cancelled", "lost") for future in done):
+            jobs = list(self._jobs.values())
+            for future in self._jobs:
+                future.cancel()
+            self._jobs = {}
+            self._send_scene()
+            for job in jobs:
+                self.submit(job)
+            return []
         finished = [future.result() for future in done]
         for future in done:
             del self._jobs[future]
@@ -327,16 +369,18 @@ def local_cluster_size(cluster: str) -> int:
     return int(n)
 
 
-def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | None = None) -> Executor:
-    """The executor the options ask for (see the module docstring)."""
+def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | None = None,
+                 worker_wait_s: float = WORKER_WAIT_S, say=None) -> Executor:
+    """The executor the options ask for (see the module docstring); a Dask one waits up to
+    `worker_wait_s` for a worker when it has none, telling `say(text)`."""
     scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
     if scheduler and cluster:
         raise InputError("give either a scheduler address or a local cluster, not both", field="--cluster",
                          valid=f"--scheduler ADDRESS (or {SCHEDULER_ENV}) | --cluster local:N")
     if scheduler:
-        return DaskCluster(address=scheduler)
+        return DaskCluster(address=scheduler, wait_s=worker_wait_s, say=say)
     if cluster:
-        return DaskCluster(local_workers=local_cluster_size(cluster))
+        return DaskCluster(local_workers=local_cluster_size(cluster), wait_s=worker_wait_s, say=say)
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}", field="--workers",
                          valid="an integer ≥ 1 (0 in the CLI means one per core)")
@@ -345,4 +389,4 @@ def executor_for(workers: int = 1, scheduler: str | None = None, cluster: str | 
 
 __all__ = ["Executor", "InProcess", "LocalProcesses", "DaskCluster", "executor_for", "local_cluster_size",
            "die_with_parent",
-           "resolve", "SCHEDULER_ENV"]
+           "resolve", "SCHEDULER_ENV", "WORKER_WAIT_S"]

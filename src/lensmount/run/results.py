@@ -14,6 +14,7 @@ so a reader never sees half a file and a crash leaves the previous result intact
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -23,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
-from lensmount.atomic import atomic_path
+from lensmount.atomic import atomic_path, checksum_holds, with_checksum
+from lensmount.errors import InputError
 from lensmount.run.report import run_report, write_report
 
 
@@ -65,12 +67,22 @@ def write_exr(path: str | os.PathLike, image: np.ndarray, per_part: np.ndarray, 
     return written
 
 
-def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Channels of an EXR file as float32 arrays (for tests and `compare`)."""
+def read_exr(path: str | os.PathLike, sha256: str | None = None) -> dict[str, np.ndarray]:
+    """Channels of an EXR file as float32 arrays (for tests and `compare`). InputError naming the
+    file when it is damaged: it does not read, or its bytes disagree with `sha256` (the checksum
+    summary.json keeps under `files`: EXR has none of its own, and a flipped bit reads as a pixel)."""
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as f:
-        return {k: np.array(v.pixels) for k, v in f.channels().items()}
+    path = Path(path)
+    try:
+        if sha256 is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha256:
+            raise ValueError("its bytes disagree with the checksum in summary.json")
+        with OpenEXR.File(str(path)) as f:
+            return {k: np.array(v.pixels) for k, v in f.channels().items()}
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise InputError(f"the image is damaged and cannot be read ({exc})", file=str(path),
+                         valid="irradiance.exr as `lensmount simulate` wrote it: simulate again (with --resume "
+                               "while checkpoint.npz is there, the same numbers)") from None
 
 
 @dataclass(frozen=True)
@@ -248,13 +260,34 @@ def display_binning(mean: np.ndarray, std_error: np.ndarray, target_rel_error: f
 
 
 def write_summary(path: str | os.PathLike, summary: dict) -> None:
-    """JSON with sorted keys, refusing NaN/Inf (a bug upstream, never silently written)."""
-    text = json.dumps(summary, indent=2, sort_keys=True, allow_nan=False)
+    """JSON with sorted keys, refusing NaN/Inf (a bug upstream, never silently written), with the
+    checksum `read_summary` checks."""
+    text = json.dumps(with_checksum(summary), indent=2, sort_keys=True, allow_nan=False)
 
     def write(tmp):
         Path(tmp).write_text(text + "\n")
 
     _atomic(Path(path), write)
+
+
+def read_summary(path: str | os.PathLike, field: str | None = None) -> dict:
+    """A summary.json as written; InputError naming it when it is missing, damaged (does not parse, or
+    its checksum disagrees: a flipped digit) or not a summary."""
+    path = Path(path)
+    try:
+        summary = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        raise InputError("not a results folder (no summary.json)", file=str(path.parent), field=field,
+                         valid="a folder written by `lensmount simulate`") from None
+    except (OSError, ValueError) as exc:
+        summary, problem = None, f"it does not parse ({exc})"
+    else:
+        problem = "its checksum disagrees with its content"
+    if summary is None or not checksum_holds(summary):
+        raise InputError(f"summary.json is damaged: {problem}", file=str(path), field=field,
+                         valid="a summary.json as `lensmount simulate` wrote it: simulate again (with --resume "
+                               "while its checkpoint.npz is there, the same numbers)")
+    return summary
 
 
 def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dict, *,
@@ -270,6 +303,7 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
     paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json",
              "html": out / "report.html"}
     write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names)
+    summary["files"] = {paths["exr"].name: hashlib.sha256(paths["exr"].read_bytes()).hexdigest()}  # read_exr checks
     title = f"{summary.get('method', '')} · {summary.get('passes', accumulator.n)} passes"
     scale = shared_scale([(accumulator.mean_image, accumulator.std_error_image)])
     if scale.block > 1:
@@ -282,4 +316,4 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
 
 
 __all__ = ["write_run", "display_binning", "PreviewScale", "preview_scale", "shared_scale", "block_mean",
-           "write_difference", "save_figure", "write_exr", "read_exr", "write_preview", "write_summary", "channel_name"]
+           "write_difference", "save_figure", "write_exr", "read_exr", "write_preview", "write_summary", "read_summary", "channel_name"]

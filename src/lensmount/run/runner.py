@@ -20,17 +20,16 @@ Stopping rules (any that is given; at least one pass always runs):
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from lensmount.analysis.passes import Accumulator
+from lensmount.errors import WorkersGone
 from lensmount.run.executor import Executor, executor_for
+from lensmount.run.signals import Terminated, deferred, stop_on_signals
 from lensmount.integrators.estimate import PassEstimate
 from lensmount.integrators.registry import INTEGRATORS
 from lensmount.integrators.settings import EstimatorSettings
@@ -80,31 +79,6 @@ def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     return INTEGRATORS[job.method](job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (what batch schedulers send) stops a run the way Ctrl-C does: checkpoint, results, exit."""
-
-
-@contextlib.contextmanager
-def _stop_on_signals():
-    """SIGINT and SIGTERM end the run cleanly, also where the shell started us with SIGINT ignored
-    (a background job of a script). Only the main thread can own signal handlers."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum, frame):
-        raise Terminated()
-
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-
-
 # --- driver side -------------------------------------------------------------------------
 
 class Runner:
@@ -139,39 +113,54 @@ class Runner:
         self.tracer_path = tracer_path
         self.interrupted = False
         self.terminated = False  # stopped by SIGTERM rather than Ctrl-C
+        self.workers_gone: str | None = None  # stopped because no Dask worker came back: why
 
     @property
     def elapsed(self) -> float:
         return self.acc.elapsed_s
 
     def save_checkpoint(self) -> None:
-        if self.checkpoint is not None:
+        """The accumulator to the checkpoint, when it holds a pass (a stop before the first one leaves no file)."""
+        if self.checkpoint is not None and self.acc.n:
             self.acc.save(self.checkpoint, **self.meta)
 
     def _merge(self, index: int, estimate: PassEstimate, start: float, base: float) -> None:
-        self.acc.add(estimate, pass_index=index)
-        self.acc.elapsed_s = base + time.perf_counter() - start
-        if self.checkpoint is not None and self.acc.n % self.every == 0:
-            self.save_checkpoint()
-        if self.progress:
-            self.progress(self.acc, self.acc.elapsed_s)
+        with deferred():  # a signal here waits: half a pass in the sums would resume to other numbers
+            self.acc.add(estimate, pass_index=index)
+            self.acc.elapsed_s = base + time.perf_counter() - start
+            if self.checkpoint is not None and self.acc.n % self.every == 0:
+                self.save_checkpoint()
+            if self.progress:
+                self.progress(self.acc, self.acc.elapsed_s)
 
     def run(self, stopping: Stopping) -> Accumulator:
-        """Run until `stopping` holds, Ctrl-C or SIGTERM; the checkpoint is written either way."""
+        """Run until `stopping` holds, Ctrl-C, SIGTERM or the loss of every Dask worker for longer than
+        the executor waits; the checkpoint is written either way (when a pass is complete: a stop
+        before the first leaves none)."""
         start, base = time.perf_counter(), self.acc.elapsed_s
-        try:
-            with _stop_on_signals():
+        with stop_on_signals():
+            try:
                 try:
                     self.executor.start(self.scene, self.tracer_path, RUN_PASS)
                     self._run(stopping, start, base)
                 finally:
                     self.executor.close()
-        except KeyboardInterrupt as stop:
+            except KeyboardInterrupt as stop:
+                self._stopped(stop)
+            except WorkersGone as gone:  # the merged passes are kept as for a signal; a retry resumes
+                self.interrupted, self.workers_gone = True, str(gone)
+            try:
+                with deferred():
+                    self.acc.elapsed_s = base + time.perf_counter() - start
+                    self.save_checkpoint()
+            except KeyboardInterrupt as stop:  # arrived while the checkpoint was written: it is whole
+                self._stopped(stop)
+        return self.acc
+
+    def _stopped(self, stop: KeyboardInterrupt) -> None:
+        if not self.interrupted:
             self.interrupted = True
             self.terminated = isinstance(stop, Terminated)
-        self.acc.elapsed_s = base + time.perf_counter() - start
-        self.save_checkpoint()
-        return self.acc
 
     def _run(self, stopping: Stopping, start: float, base: float) -> None:
         # Keep a window of passes in flight; merge finished ones strictly in pass order.
@@ -195,4 +184,4 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["Runner", "Stopping", "PassJob", "Terminated", "run_pass", "default_workers"]
+__all__ = ["Runner", "Stopping", "PassJob", "run_pass", "default_workers"]

@@ -17,10 +17,12 @@ is the size of all the pass sums and only the live run resumes from it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import sqlite3
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -125,13 +127,36 @@ def default_path(design_dir: str | Path, override: str | Path | None = None) -> 
     return Path(design_dir).resolve() / DEFAULT_NAME
 
 
+def _create(path: Path) -> None:
+    """A new store appears whole, its schema in it (made beside it, then linked into place; of two
+    processes creating it at once, one wins): a store of 0 bytes is damage, never one being made."""
+    if path.exists():
+        return
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        db = sqlite3.connect(tmp)
+        db.execute("PRAGMA journal_mode = WAL")
+        db.executescript(_SCHEMA)
+        db.close()
+        with contextlib.suppress(FileExistsError):
+            os.link(tmp, path)
+    finally:
+        for leftover in (tmp, tmp + "-wal", tmp + "-shm"):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(leftover)
+
+
 class Store:
     """The SQLite file of runs. Use as a context manager or call `close()`."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
+        if self.path.is_file() and self.path.stat().st_size == 0:  # SQLite would take it for a new, empty store
+            raise self._error(sqlite3.DatabaseError("it is empty, 0 bytes: the runs it held are gone"))
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            _create(self.path)
             self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
             self.db.row_factory = sqlite3.Row
             self.db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
@@ -145,9 +170,28 @@ class Store:
                     except sqlite3.OperationalError as exc:  # another process added it a moment ago
                         if "duplicate column" not in str(exc):
                             raise
+            damage = [row[0] for row in self.db.execute("PRAGMA quick_check")]
+        except sqlite3.OperationalError as exc:
+            raise self._error(exc) from None
         except (OSError, sqlite3.Error) as exc:
             raise InputError(f"cannot open the results store ({exc})", file=str(self.path), field="--store",
-                             valid=f"a writable SQLite file path (--store PATH or ${ENV})") from None
+                             valid=f"a writable SQLite file path (--store PATH or ${ENV}), or a store that is not "
+                                   "damaged: move a damaged one aside (its runs' result folders stay as they "
+                                   "are) or run with --no-record") from None
+        if damage != ["ok"]:
+            self.db.close()
+            raise self._error(sqlite3.DatabaseError("; ".join(map(str, damage[:3]))))
+
+    def _error(self, exc: sqlite3.Error) -> InputError:
+        """A store that another process holds locked longer than the busy timeout, or a damaged one."""
+        if "locked" in str(exc) or "busy" in str(exc):
+            return InputError(f"the results store stayed locked by another process for {BUSY_TIMEOUT_MS // 1000} s "
+                              f"({exc})", file=str(self.path), field="--store",
+                              valid="wait for the other lensmount to finish and run again, use another --store, "
+                                    "or --no-record")
+        return InputError(f"the results store is damaged ({exc})", file=str(self.path), field="--store",
+                          valid="move it aside (its runs' result folders stay as they are; history and compare "
+                                "forget them) and run again, or run with --no-record")
 
     def __enter__(self) -> "Store":
         return self
@@ -181,7 +225,10 @@ class Store:
         marks = ", ".join(f":{k}" for k in row)
         # BEGIN IMMEDIATE takes the write lock up front (waiting up to the busy timeout),
         # so the insert and the row's files either land whole or not at all.
-        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            self.db.execute("BEGIN IMMEDIATE")
+        except sqlite3.Error as exc:
+            raise self._error(exc) from None
         try:
             run_id = int(self.db.execute(f"INSERT INTO runs ({keys}) VALUES ({marks})", row).lastrowid)
             kept = self._keep(run_id, paths)
@@ -190,8 +237,10 @@ class Store:
                                              str(kept / Path(paths["exr"]).name),
                                              str(kept / Path(paths["png"]).name), run_id))
             self.db.execute("COMMIT")
-        except BaseException:
+        except BaseException as exc:
             self.db.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.Error):
+                raise self._error(exc) from None
             raise
         return run_id
 
@@ -226,7 +275,10 @@ class Store:
             where.append("(condition_sha256 = ? OR condition_sha256 IS NULL)")
             args.append(condition_sha256)
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
-        return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
+        try:
+            return [RunRecord.from_row(r) for r in self.db.execute(sql, args)]
+        except (sqlite3.Error, ValueError, TypeError) as exc:  # ValueError: a damaged row's JSON
+            raise self._error(sqlite3.DatabaseError(str(exc))) from None
 
 
 __all__ = ["Store", "RunRecord", "default_path", "ENV"]

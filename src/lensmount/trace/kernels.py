@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from lensmount.trace.jit_cache import drop_damaged
+
 # Columns of the per-surface table the sequential step reads (`face_table`); from REACH on, band b of reach
 # as (lo, hi) in columns REACH + 2b, REACH + 2b + 1. One array, not ten: the compiled walk inlines `step_one`
 # on every step, and numba takes and drops an atomic reference on each array passed to it there; ten
@@ -197,3 +199,5 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
         valid[i] = enters and not coplanar
     return t_out, lam, valid
 __all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table"]
+
+drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)

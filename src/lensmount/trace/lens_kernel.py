@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit, prange
 
 from lensmount.physics.interfaces import MGF2_DESIGN_WAVELENGTH_UM, MGF2_INDEX
+from lensmount.trace.jit_cache import drop_damaged
 from lensmount.trace.kernels import step_one
 
 # step_one (with `kernels.face_table`'s column numbers) is compiled into this file's cached walk, and numba
@@ -364,3 +365,5 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
 
 
 __all__ = ["walk", "clear_bore", "axis_distance", "reflectance", "uniform", "COATING_CODES"]
+
+drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
