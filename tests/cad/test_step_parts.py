@@ -53,6 +53,11 @@ def make_design(base: Path, entry: str, solids=None, unit="MM", scenes=True) -> 
     base.mkdir(parents=True, exist_ok=True)
     for f in ("lens.toml", "mount.toml"):
         shutil.copy2(ex / f, base / f)
+    # The design's treatment without its "*" rule: the STEP part's faces keep the finishes its colours
+    # and names give them (a "*" rule in finishes.toml would paint over them, as over any mount finish).
+    treatment = (ex / "finishes.toml").read_text()
+    (base / "finishes.toml").write_text("\n".join(line for line in treatment.splitlines()
+                                                 if not line.startswith('"*"')) + "\n")
     if scenes:
         shutil.copytree(ex / "scenes", base / "scenes")
     if solids is None:
@@ -125,6 +130,7 @@ def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path)
     scene = design / "scenes" / "case2-lambertian.toml"
     doc = tomllib.loads(scene.read_text())
     doc["detector"]["pixels"] = [60, 60]
+    doc["effects"]["scatter"] = True  # every face the design's finishes let scatter (its STEP faces too)
     tiny = design / "scenes" / "case2-tiny.toml"
     tiny.write_text(tomli_w.dumps(doc))
     out = tmp_path / "run"
@@ -312,11 +318,12 @@ def test_the_step_file_is_part_of_the_design(tmp_path):
 
     design = make_design(tmp_path / "d", '[parts.housing]\nstep = "housing.step"\n', [("x", _box(), {}, {}, {})])
     before = load_design(design)
+    record = design_record(before)
     write_step(design / "housing.step", [("x", _box(11.0), {}, {}, {})])  # a new export
     after = load_design(design)
     assert before.input_hash != after.input_hash
-    assert design_changes(design_record(before), design_record(after)) == ["file housing.step: changed"]
-    assert design_changes(design_record(before), design_record(before)) == []
+    assert design_changes(record, design_record(after)) == ["file housing.step: changed"]
+    assert design_changes(record, record) == []
 
 
 def _box(size: float = 10.0):
@@ -424,6 +431,7 @@ def test_compare_between_revisions_that_differ_only_in_the_step_file(step_housin
     shutil.copytree(step_housing[0], design)  # the module's design stays as it is
     doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
     doc["detector"]["pixels"] = [60, 60]
+    doc["effects"]["scatter"] = True  # every face the design's finishes let scatter (its STEP faces too)
     (design / "scenes" / "case2-rev.toml").write_text(tomli_dumps(doc))
     runner = CliRunner()
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, SerializeAsAny, ValidationError, field_validator, model_validator
 
 from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml, read_text
 from lensmount.errors import InputError
@@ -195,7 +195,8 @@ class SceneSpec(ReadFromFile, _Strict):
     `load_scene`; `scene_from_dict` takes them in the table, as scripts and tests build scenes)."""
 
     description: str = ""
-    source: SourceParams  # one of physics.sources.SOURCE_KINDS' parameter models, by `type`
+    # One of physics.sources.SOURCE_KINDS' parameter models, by `type`; dumped with its own keys.
+    source: SerializeAsAny[SourceParams]
     detector: DetectorSpec
     effects: EffectsSpec = EffectsSpec()
     coatings: dict[str, str] = Field(default_factory=lambda: {"default": "perfect-ar"})
