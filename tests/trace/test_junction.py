@@ -57,7 +57,8 @@ def _from_the_land(mesh, n, rng, aimed):
         e2 = np.tile([0.0, 0.0, 1.0], (n, 1))
         e1 = np.cross(e2, inward)
         s, c = np.sqrt(u1), np.sqrt(1.0 - u1)
-        d = c[:, None] * inward + (s * np.cos(2 * math.pi * u2))[:, None] * e1 + (s * np.sin(2 * math.pi * u2))[:, None] * e2
+        d = (c[:, None] * inward + (s * np.cos(2 * math.pi * u2))[:, None] * e1
+             + (s * np.sin(2 * math.pi * u2))[:, None] * e2)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
@@ -99,9 +100,9 @@ def _check(n, seed, kinds):
     for aimed in kinds:
         o, d, normal, own = _from_the_land(mesh, n, rng, aimed)
         bad, t_ref = _through_metal(mesh, tracer, o, d, normal, own)
+        got = tracer.intersect(RayBatch.make(o[bad], d[bad]), normal[bad]).t[:3]
         assert bad.size == 0, (f"{bad.size} of {n} rays ({'aimed at the vane roots' if aimed else 'cosine'}) "
-                               f"disagree with float64: tracer t {tracer.intersect(RayBatch.make(o[bad], d[bad]), normal[bad]).t[:3]}, "
-                               f"reference {t_ref[bad[:3]]}")
+                               f"disagree with float64: tracer t {got}, reference {t_ref[bad[:3]]}")
         if aimed:  # teeth: most aimed rays end within 30 µm of a root
             z = (o + t_ref[:, None] * d)[:, 2]
             assert np.mean(np.min(np.abs(z[:, None] - np.array(Z_VANE)), axis=1) < 0.03) > 0.3
