@@ -58,8 +58,9 @@ def ghost_routes_pass(scene, tracer, film, pass_index: int, seed: int, rays_acro
     (`Film.deposit_route`: the ghosts channel, each route's path signature and flux)."""
     det = scene.detector
     shift = stream(seed, PURPOSE, pass_index).random(4)
-    rays = launch(scene, rays_across, shift, walls=True)
-    for a in trace_routes(scene, rays, max(film.by_routes), Walls(tracer)):
+    walls = Walls(tracer)
+    rays = launch(scene, rays_across, shift, walls)
+    for a in trace_routes(scene, rays, max(film.by_routes), walls):
         pix = det.pixel_of(a.points)
         on = pix >= 0
         if on.any():

@@ -107,7 +107,7 @@ def ghost_report(scene, tracer=None, rays_across: int = RAYS_ACROSS, order: int 
     if d0[2] <= 0.0 or aperture <= 0.0 or reflects.sum() < 2:  # no light enters, or nothing to reflect twice
         return GhostReport([], skipped, 0.0, 0, order)
     walls = None if tracer is None else Walls(tracer)
-    rays = launch(scene, rays_across, CENTRED, walls is not None)
+    rays = launch(scene, rays_across, CENTRED, walls)
     response = scene.detector.spectral_weight
     pairs = [_pair(a.route, a.points, a.directions,
                    a.flux if response is None else a.flux * np.asarray(response, np.float64)[a.wavelength],

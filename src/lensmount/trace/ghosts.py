@@ -15,18 +15,25 @@ instead of S³/2 route by route. A mirror reflects every ray (weight R, not a Fr
 R(1 − a) where its coated face scatters with a finish of albedo a, whose share the photons carry).
 With `effects.absorption` the glass absorbs exp(-a L) along every step, as in the tracer.
 
-What a route does not follow: total internal reflection on one of its steps ends the ray (the tracer
-reflects it without counting a Fresnel reflection, so that light is no ghost of this route; a
-ghost that meets glass beyond the critical angle is rare); a dummy surface (the same medium on
-both sides, e.g. the stop plane in air) is no interface: with the mount it is skipped (the tracer
-has no facets there), without it its clear aperture clips (the stop).
+Total internal reflection: the tracer reflects the ray without counting a Fresnel reflection, so
+the route does the same: the ray turns back with its whole flux and the route's reflections
+unchanged (at most MAX_TIR times a branch, as the tracer ends a ray trapped by it). A photon with
+the route's reflection count and any number of total reflections is the route's.
+
+Walls (`Walls`): the routes see the lens as the tracer does, through the scene's mesh. A surface
+the mesh has no facets for (the stop plane in air) is no interface: the ray goes straight on. A
+faceted surface is one whatever its media (a dummy surface with a coating reflects R, as in the
+tracer). The glass of each surface ends where its faceted face ends: the outer rim of its
+triangles seen along the axis (`GlassRim`), not `mechanical_semi_diameter` (when lens.toml omits
+it that is the clear semi-diameter, while the mesh's glass reaches 1.5–9 mm further: the routes
+lost 0.5–1.1 % of the double Gauss's two-reflection light, which the photons leave to them).
+Without walls, a dummy surface is no interface and its clear aperture clips (the stop), and every
+surface clips at its clear semi-diameter (the lens as the prescription describes it).
 
 Walls (`Walls`): given the scene's tracer, every straight segment of a route is checked against the
 mount's mechanical faces with the tracer's own exact query (`MechanicalFaces.occluded`, then
 `nearest`), the first one from the source's emission plane, so hoods, vanes, spacers and the
-diaphragm vignette ghost light where they vignette photons; the glass then ends at its mechanical
-semi-diameter (where the mesh's optical face ends). Without walls, every surface clips at its clear
-semi-diameter (the lens as the prescription describes it).
+diaphragm vignette ghost light where they vignette photons.
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ from lensmount.physics.sources import disc_radius_fraction, orthonormal_basis
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
 CENTRED = (0.0, 0.0, 0.5, 0.5)  # lattice through the axis, R2 sequence from its usual start: the report's
+MAX_TIR = 8  # total internal reflections a branch follows; beyond, a ray circles a rim (the tracer ends it too)
 
 
 def reflections_of_order(order: int) -> int:
@@ -98,7 +106,7 @@ def reflecting(scene) -> np.ndarray:
     return np.array(out, bool)
 
 
-def launch(scene, rays_across: int, shift=CENTRED, walls: bool = False) -> Launch:
+def launch(scene, rays_across: int, shift=CENTRED, walls: Walls | None = None) -> Launch:
     """A square lattice across the beam (pitch: the first surface's aperture over rays_across) × wavelengths.
 
     The lattice lies in the plane normal to the source's direction through the middle of the first
@@ -108,11 +116,12 @@ def launch(scene, rays_across: int, shift=CENTRED, walls: bool = False) -> Launc
     shift makes the sum an unbiased estimate of the flux (randomised quasi-Monte Carlo), so
     independent shifts give independent passes and an honest error bar. Each ray carries
     pitch² · (d · d0) · p_λ (the irradiance crossing that plane, times the source's spectral share).
-    walls: start on the source's emission plane (so the mount in front of the lens can block), else
-    just outside the cap. A source behind the entrance plane (d0_z ≤ 0) launches nothing.
+    walls: start on the source's emission plane (so the mount in front of the lens can block) over the
+    first surface's faceted face, else just outside the cap over its clear aperture. A source behind the
+    entrance plane (d0_z ≤ 0) launches nothing.
     """
     first = min(scene.optical, key=lambda s: s.index)
-    radius = _clip_radius(first, walls)
+    radius = float(first.clear_semi_diameter) if walls is None else walls.reach(first)
     source = scene.source
     d0 = np.asarray(source.direction, np.float64)
     n_wl = len(scene.wavelengths_um)
@@ -161,13 +170,6 @@ def _directions(source, d0: np.ndarray, n: int, shift) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def _clip_radius(surface, walls: bool) -> float:
-    """Where the glass ends for a route: the mesh's optical face (mechanical semi-diameter) when the
-    mount is there to block the rest, else the clear aperture."""
-    r = surface.mechanical_semi_diameter if walls else surface.clear_semi_diameter
-    return float(r if math.isfinite(r) else surface.clear_semi_diameter)
-
-
 @dataclass
 class _Bundle:
     o: np.ndarray
@@ -195,6 +197,11 @@ class _Context:
         self.max_reflections = int(max_reflections)
         self.lam = np.asarray(scene.wavelengths_um, np.float64)
         self.dummy = [np.array_equal(s.n_before, s.n_after) and not s.mirror for s in surfaces]
+        if walls is not None:  # the tracer's interfaces: the faceted surfaces, a coated dummy one too
+            self.dummy = [walls.rims.get(s.index) is None for s in surfaces]
+            self.reflects = np.array([r or (walls.rims.get(s.index) is not None and not s.mirror
+                                            and s.coating.kind != "perfect-ar")
+                                      for r, s in zip(reflects, surfaces)], bool)
         from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
 
         self.mirror_finish = {i: scene.bsdf_of_tag[t].finish for i, t in scattering_mirror_tags(scene).items()}
@@ -206,8 +213,9 @@ class _Context:
             return 1.0
         return 1.0 - self.mirror_finish[s.index].albedo(-d, facing(nrm, d))
 
-    def walk(self, b: _Bundle, left: int, step: int, route: tuple[int, ...]) -> Iterator[Arrival]:
-        """Bundle b has just left surface `left`, travelling `step` (+1: in sequence order)."""
+    def walk(self, b: _Bundle, left: int, step: int, route: tuple[int, ...], turns: int = 0) -> Iterator[Arrival]:
+        """Bundle b has just left surface `left`, travelling `step` (+1: in sequence order), after `turns`
+        total internal reflections on this branch."""
         if len(b.w) == 0:
             return
         m = left + step
@@ -221,16 +229,16 @@ class _Context:
             return
         s = self.surfaces[m]
         if self.dummy[m] and self.walls is not None:
-            yield from self.walk(b, m, step, route)  # no interface the tracer would see
+            yield from self.walk(b, m, step, route, turns)  # no interface the tracer would see
             return
-        p, nrm, w = self._meet(s, b, self.walls is not None)
+        p, nrm, w = self._meet(s, b)
         if self.dummy[m]:
-            yield from self.walk(_alive(_Bundle(p, b.d, w, b.wl, b.on_glass)), m, step, route)
+            yield from self.walk(_alive(_Bundle(p, b.d, w, b.wl, b.on_glass)), m, step, route, turns)
             return
         glass = np.ones(len(w), bool)
         if s.mirror:
             r = mirror_reflectance(s.coating) * self._specular_share(s, b.d, nrm)
-            yield from self.walk(_alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass)), m, step, route)
+            yield from self.walk(_alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass)), m, step, route, turns)
             return
         forward = np.einsum("ij,ij->i", b.d, nrm) >= 0.0  # media by the side the ray comes from, as the tracer
         n1 = np.where(forward, s.n_before[b.wl], s.n_after[b.wl])
@@ -240,18 +248,23 @@ class _Context:
         trans = np.where(tir, 0.0, w * (1.0 - r))
         if self.reflects[m] and len(route) < self.max_reflections:
             bounced = _alive(_Bundle(p, reflect(b.d, nrm), w * r, b.wl, glass))
-            yield from self.walk(bounced, m, -step, route + (s.index + 1,))
-        yield from self.walk(_alive(_Bundle(p, t_dir, trans, b.wl, glass)), m, step, route)
+            yield from self.walk(bounced, m, -step, route + (s.index + 1,), turns)
+        if turns < MAX_TIR and np.any(tir & (w > 0)):  # back the way it came, every ray's flux, no Fresnel count
+            turned = _alive(_Bundle(p, reflect(b.d, nrm), np.where(tir, w, 0.0), b.wl, glass))
+            yield from self.walk(turned, m, -step, route, turns + 1)
+        yield from self.walk(_alive(_Bundle(p, t_dir, trans, b.wl, glass)), m, step, route, turns)
 
-    def _meet(self, s, b: _Bundle, walls: bool):
+    def _meet(self, s, b: _Bundle):
         """Hit points, normals and the flux that gets there within the glass (and past the walls)."""
         shift = np.array([0.0, 0.0, s.z_vertex])
         local = b.o - shift
         t = s.profile.intersect(local, b.d)
         hit = np.isfinite(t) & (t > 1e-9)
         q = local + np.where(hit, t, 0.0)[:, None] * b.d
-        radius = _clip_radius(s, walls)
-        hit &= q[:, 0] ** 2 + q[:, 1] ** 2 <= radius * radius
+        if self.walls is None:
+            hit &= q[:, 0] ** 2 + q[:, 1] ** 2 <= float(s.clear_semi_diameter) ** 2
+        else:
+            hit &= self.walls.rims[s.index].holds(q[:, :2])
         p = q + shift
         nrm = s.profile.normal(q)
         w = np.where(hit, b.w, 0.0)
@@ -285,13 +298,67 @@ def _alive(b: _Bundle) -> _Bundle:
     return _Bundle(b.o[live], b.d[live], b.w[live], b.wl[live], b.on_glass[live])
 
 
+@dataclass
+class GlassRim:
+    """Where a surface's faceted face ends, seen along the axis: its outer rim polygon, vertices xy (n, 2)
+    in increasing angle `angle` (n,), and the radius of its inner rim (0: a full cap; an annulus's hole
+    is taken as the circle through its rim's farthest vertex)."""
+
+    xy: np.ndarray
+    angle: np.ndarray
+    inner: float
+
+    @classmethod
+    def of_triangles(cls, vertices: np.ndarray, triangles: np.ndarray) -> GlassRim:
+        edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+        uniq, count = np.unique(edges, axis=0, return_counts=True)
+        xy = vertices[np.unique(uniq[count == 1])][:, :2]  # the rim: edges of one triangle only
+        r = np.hypot(xy[:, 0], xy[:, 1])
+        outer = r >= 0.99 * r.max()
+        # A face with a side wall (a cemented interface's ring) has its rim twice, at two z: one vertex an angle.
+        angle, first = np.unique(np.round(np.arctan2(xy[outer, 1], xy[outer, 0]), 12), return_index=True)
+        return cls(xy[outer][first], angle, float(r[~outer].max()) if (~outer).any() else 0.0)
+
+    @property
+    def radius(self) -> float:
+        """The farthest reach of the glass from the axis, mm."""
+        return float(np.hypot(self.xy[:, 0], self.xy[:, 1]).max())
+
+    def holds(self, q: np.ndarray) -> np.ndarray:
+        """(N,) bool: points q (N, 2) (xy, mm) lie on the face: inside the rim polygon (on the axis side of
+        the rim edge at their angle, the polygon being star-shaped about the axis), outside the hole."""
+        k = np.searchsorted(self.angle, np.arctan2(q[:, 1], q[:, 0])) % len(self.angle)
+        a, b = self.xy[k - 1], self.xy[k]
+        inside = (b[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (q[:, 0] - a[:, 0]) >= 0.0
+        return inside & (q[:, 0] ** 2 + q[:, 1] ** 2 >= self.inner ** 2)
+
+
+def glass_rims(scene) -> dict[int, GlassRim]:
+    """Per optical surface (its index) that the scene's mesh has facets for: where that glass ends
+    (`GlassRim`). A surface without facets is absent: the tracer meets no interface there."""
+    mesh = scene.mesh
+    out = {}
+    for s in scene.optical:
+        tags = [k for k, t in enumerate(mesh.tag_table) if t.role == "optical" and t.surface == s.index]
+        tri = mesh.triangles[np.isin(mesh.tags, tags)] if tags else np.zeros((0, 3), np.int64)
+        if len(tri):
+            out[s.index] = GlassRim.of_triangles(mesh.vertices, tri)
+    return out
+
+
 class Walls:
-    """The mount as ghost light meets it: a segment is blocked where a mechanical face of the scene's
-    mesh lies on it, decided by the tracer's own exact query (glass never blocks: routes say where
-    the light meets glass)."""
+    """The mount and the glass as ghost light meets them: a segment is blocked where a mechanical face of
+    the scene's mesh lies on it, decided by the tracer's own exact query (glass never blocks: routes
+    say where the light meets glass); `rims`: where each surface's faceted glass ends (`glass_rims`)."""
 
     def __init__(self, tracer):
         self.faces = tracer.mechanical
+        self.rims = glass_rims(tracer.scene)
+
+    def reach(self, surface) -> float:
+        """How far from the axis `surface`'s glass reaches (its clear semi-diameter without facets)."""
+        rim = self.rims.get(surface.index)
+        return float(surface.clear_semi_diameter) if rim is None else rim.radius
 
     def blocked(self, start: np.ndarray, end: np.ndarray, on_glass: np.ndarray, live: np.ndarray) -> np.ndarray:
         """(N,) bool: a mechanical face lies on the segment start → end of a live ray (a face at the
@@ -311,5 +378,5 @@ class Walls:
         return out
 
 
-__all__ = ["Arrival", "Launch", "Walls", "launch", "reflecting", "reflections_of_order", "route_count", "trace_routes",
-           "CENTRED"]
+__all__ = ["Arrival", "GlassRim", "Launch", "Walls", "glass_rims", "launch", "reflecting", "reflections_of_order",
+           "route_count", "trace_routes", "CENTRED", "MAX_TIR"]

@@ -13,8 +13,12 @@ intersection says so (to ~1e-12 of its size), whatever float32 rounding did:
    intersected too and the nearest float64 hit among them is the answer: at a seam, at a
    knife edge (a 50 µm land and its two faces), at a concave corner.
 3. *Relaunch along the line.* If nothing in the ring is hit near the candidate (the line
-   passes a silhouette edge), the query is relaunched from just beyond the candidate on the
-   same line. The line is never shifted sideways and a hit is never moved.
+   passes a silhouette edge), every triangle whose box comes within the relaunch step of the
+   candidate point is intersected in float64 too (a face that meets the candidate's edge without
+   sharing its vertices: a T-junction, e.g. a vane's root on a spacer's bore wall, whose wall
+   the relaunch would otherwise step over); only if none is hit there is the query relaunched
+   from just beyond the candidate on the same line. The line is never shifted sideways and a
+   hit is never moved.
 4. *The face a ray leaves.* A hit at |t| ≤ `t_tol` (the ray starts on that face) counts only
    when the caller says what the ray left and the ray enters this face (its outward normal
    faces the ray): a ray leaving glass meets metal touching the glass (gap 0); a ray leaving a
@@ -61,6 +65,7 @@ class MechanicalFaces:
         a, b, c = (vertices[tri[:, k]] for k in range(3))
         self._a, self._e1, self._e2 = a, b - a, c - a
         self._n = normals[self.prims]
+        self._box = np.stack([np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)], axis=1)  # (T, 2, 3)
         # Altitudes: distance to edge k = barycentric λ_k × altitude_k (λ_0 opposite edge b–c).
         area2 = np.linalg.norm(np.cross(self._e1, self._e2), axis=1)
         lengths = np.column_stack([np.linalg.norm(c - b, axis=1), np.linalg.norm(c - a, axis=1),
@@ -106,6 +111,17 @@ class MechanicalFaces:
             rows.append(row)
             tris.append(self._vt[np.repeat(start, cnt) + offs])
         return np.concatenate(rows), np.concatenate(tris)
+
+    def _boxes_near(self, points, pad: float):
+        """Local triangles whose bounding box, padded by `pad`, holds each of points (m, 3):
+        (row (k,), triangle (k,)). Brute force over the boxes: it runs only for rays passing a
+        silhouette edge, a few in 10⁴."""
+        rows, tris = [], []
+        for i, q in enumerate(points):
+            near = np.flatnonzero(np.all((self._box[:, 0] - pad <= q) & (q <= self._box[:, 1] + pad), axis=1))
+            rows.append(np.full(len(near), i))
+            tris.append(near)
+        return (np.concatenate(rows), np.concatenate(tris)) if rows else (np.zeros(0, np.int64),) * 2
 
     # ------------------------------------------------------------------ query
 
@@ -174,11 +190,24 @@ class MechanicalFaces:
                 win = good & (tr == best[r])
                 t64[r[win]] = tr[win]
                 loc[r[win]] = tri[win]
+            # 3. Nothing in the ring: any face within the step of the candidate point (a T-junction).
+            beside = np.flatnonzero(hit & ~clear & ~np.isfinite(t64))
+            if beside.size:
+                row, tri = self._boxes_near(oo[beside] + te[beside, None] * dd[beside], 4.0 * step + self.margin)
+                r = beside[row]
+                tr, _, good = self._crossings(tri, oo[r], dd[r], leaving[todo[r]], left_normal[todo[r]])
+                good &= tr <= te[r] + 2.0 * step
+                tr = np.where(good, tr, np.inf)
+                best = np.full(len(todo), np.inf)
+                np.minimum.at(best, r, tr)
+                win = good & (tr == best[r])
+                t64[r[win]] = tr[win]
+                loc[r[win]] = tri[win]
             done = ~hit | np.isfinite(t64)
             idx = todo[done & hit]
             t_hit[idx] = t64[done & hit]
             prim[idx] = self.prims[loc[done & hit]]
-            # 3. Nothing real here: relaunch from just beyond the candidate, on the same line.
+            # Nothing real here: relaunch from just beyond the candidate, on the same line.
             again = ~done
             base[todo[again]] = te[again] + step
             todo = todo[again]
