@@ -12,8 +12,7 @@ from lensmount.cad.layout import plan
 from lensmount.design.lens import load_lens
 from lensmount.design.mount import parse_mount
 
-MOUNT = {"name": "two singlets", "hood": {"length_mm": 10.0}, "vanes": {"count": 1},
-         "housing": {"detector_width_mm": 3.0, "detector_height_mm": 3.0}}
+MOUNT = {"name": "two singlets", "hood": {"length_mm": 10.0}, "housing": {"detector_width_mm": 3.0, "detector_height_mm": 3.0}}
 
 
 def two_singlets(folder: Path, stop: str) -> Path:
@@ -31,7 +30,7 @@ def two_singlets(folder: Path, stop: str) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "lens.toml").write_text("\n".join(lines) + "\n")
     (folder / "mount.toml").write_text(
-        'name = "two singlets"\n[hood]\nlength_mm = 10.0\n[vanes]\ncount = 1\n'
+        'name = "two singlets"\n[hood]\nlength_mm = 10.0\n'
         "[housing]\ndetector_width_mm = 3.0\ndetector_height_mm = 3.0\n")
     return folder
 

@@ -103,10 +103,14 @@ def test_paths_of_a_folder_without_path_data_is_one_paragraph(tmp_path):
     assert "paths.npz" in " ".join(result.output.split()) and "Traceback" not in result.output
 
 
-def test_resume_without_checkpoint_is_an_input_error(tmp_path):
+def test_resume_without_checkpoint_starts_the_run_and_says_so(tmp_path):
+    """A run stopped before its first pass keeps nothing; a batch script's retry with --resume then
+    starts it (docs/scale.md) and says there was nothing to resume."""
     result = CliRunner().invoke(app, ["simulate", str(DESIGN), "--scene", str(SCENE), "--out", str(tmp_path),
-                                      "--resume"])
-    assert result.exit_code == 2 and "checkpoint" in result.output
+                                      "--resume", "--passes", "1", "--photons-per-pass", "500", "--workers", "1",
+                                      "--no-record"])
+    assert result.exit_code == 0, result.output
+    assert "nothing to resume" in result.output and (tmp_path / "summary.json").is_file()
 
 
 @pytest.mark.slow
