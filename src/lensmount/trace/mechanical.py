@@ -99,6 +99,18 @@ class MechanicalFaces:
         return kernels.triangle_crossings(np.asarray(local, np.int64), o, d, np.asarray(leaving, np.bool_),
                                           left_normal, self._a, self._e1, self._e2, self._n, self.t_tol, _BARY_TOL)
 
+    def _nearest_of(self, r, tri, oo, dd, leaving, left_normal, te, step, t64, loc) -> None:
+        """For rays r (one row per triangle tri to try): the nearest float64 crossing not beyond the
+        candidate's neighbourhood (te + 2 step) into t64 and loc, in place."""
+        tr, _, good = self._crossings(tri, oo[r], dd[r], leaving[r], left_normal[r])
+        good &= tr <= te[r] + 2.0 * step
+        tr = np.where(good, tr, np.inf)
+        best = np.full(len(te), np.inf)
+        np.minimum.at(best, r, tr)
+        win = good & (tr == best[r])
+        t64[r[win]] = tr[win]
+        loc[r[win]] = tri[win]
+
     def _ring(self, local):
         """Flattened ring of local triangles (m,): (row (k,), triangle (k,))."""
         rows, tris = [], []
@@ -181,28 +193,12 @@ class MechanicalFaces:
             near = np.flatnonzero(hit & ~clear)
             if near.size:
                 row, tri = self._ring(cand[near])
-                r = near[row]
-                tr, _, good = self._crossings(tri, oo[r], dd[r], leaving[todo[r]], left_normal[todo[r]])
-                good &= tr <= te[r] + 2.0 * step
-                tr = np.where(good, tr, np.inf)
-                best = np.full(len(todo), np.inf)
-                np.minimum.at(best, r, tr)
-                win = good & (tr == best[r])
-                t64[r[win]] = tr[win]
-                loc[r[win]] = tri[win]
+                self._nearest_of(near[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t64, loc)
             # 3. Nothing in the ring: any face within the step of the candidate point (a T-junction).
             beside = np.flatnonzero(hit & ~clear & ~np.isfinite(t64))
             if beside.size:
                 row, tri = self._boxes_near(oo[beside] + te[beside, None] * dd[beside], 4.0 * step + self.margin)
-                r = beside[row]
-                tr, _, good = self._crossings(tri, oo[r], dd[r], leaving[todo[r]], left_normal[todo[r]])
-                good &= tr <= te[r] + 2.0 * step
-                tr = np.where(good, tr, np.inf)
-                best = np.full(len(todo), np.inf)
-                np.minimum.at(best, r, tr)
-                win = good & (tr == best[r])
-                t64[r[win]] = tr[win]
-                loc[r[win]] = tri[win]
+                self._nearest_of(beside[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t64, loc)
             done = ~hit | np.isfinite(t64)
             idx = todo[done & hit]
             t_hit[idx] = t64[done & hit]
