@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import cmath
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -42,6 +43,31 @@ from lensmount.trace.kernels import step_one
 # changes or its cache (__pycache__/lens_kernel.*) is removed (tests/trace failed on one: it and
 # `kernels.sequential_step` disagree). `make install` removes the trace kernels' cache whenever either
 # file changes, before it compiles them again.
+
+class LensTables(NamedTuple):
+    """The lens as the walk reads it, per optical surface (built once by `Tracer`; numba takes a
+    named tuple of arrays as one argument)."""
+
+    faces: np.ndarray  # kernels.face_table: the sequential step's per-surface table
+    curvature: np.ndarray
+    conic: np.ndarray
+    t_min: float  # mm, the smallest step (scene scale)
+    n_before: np.ndarray  # (S, W) index on the -z side
+    n_after: np.ndarray  # (S, W) index on the +z side
+    alpha_before: np.ndarray  # (S, W) bulk absorption, 1/mm
+    alpha_after: np.ndarray
+    absorbs: bool
+    coating_code: np.ndarray  # COATING_CODES
+    coating_r: np.ndarray  # a constant coating's R
+    wavelengths: np.ndarray  # µm
+    mirror: np.ndarray  # bool: left to the Tracer
+
+
+class DetectorPlane(NamedTuple):
+    z: float
+    half_width: float
+    half_height: float
+
 
 COATING_CODES = {"perfect-ar": 0, "uncoated": 1, "mgf2-quarter-wave": 2, "constant": 3}
 # Constants copied from interfaces and sampler on purpose: numba freezes globals into its on-disk cache,
@@ -355,15 +381,13 @@ def walk(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflec
     number); the others are where a step could not be proven, for Embree. On every core of the
     machine unless `one_core_per_process` was called: the rays are independent, so the result is the same.
 
-    lens: (`kernels.face_table`, curvature, conic, t_min, n_before, n_after, alpha_before, alpha_after,
-    absorbs, coating code, coating R, wavelengths, mirror); bore: `clear_bore`;
-    detector: (z, half width, half height).
+    lens: `LensTables`; bore: `clear_bore`; detector: `DetectorPlane`.
     """
     kernel = _walk_one_core if _ONE_CORE[0] or work.shape[0] < THREADED_FROM else _walk_all_cores
     return kernel(work, o, d, w, wl, left_s, leaving, left_n, count, kind, normal, reflections, ghost_pair, lost, keys,
                   ghosts, lens, bore, detector, fresnel_dim, max_optical)
 
 
-__all__ = ["walk", "clear_bore", "axis_distance", "reflectance", "uniform", "COATING_CODES"]
+__all__ = ["walk", "LensTables", "DetectorPlane", "clear_bore", "axis_distance", "reflectance", "uniform", "COATING_CODES"]
 
 drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)

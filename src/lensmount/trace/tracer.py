@@ -198,13 +198,14 @@ class Tracer:
                          tri[optical].astype(np.int32))
         self._faces = self._optical_faces()
         mech = tri[self._tri_surface < 0] if self._has_mesh else np.zeros((0, 3), np.int64)
-        self._walk = ((self._faces, self._curvature, self._conic, self.t_min,
-                       self._n_before, self._n_after, self._alpha_before, self._alpha_after, self._absorbs,
-                       np.array([lens_kernel.COATING_CODES[s.coating.kind] for s in scene.optical] or [0]),
-                       np.array([s.coating.reflectance for s in scene.optical] or [0.0]), self._wavelengths,
-                       self._mirror),
-                      lens_kernel.clear_bore(*(mesh.vertices[mech[:, k]] for k in range(3))),
-                      (float(scene.detector.z), 0.5 * scene.detector.width, 0.5 * scene.detector.height))
+        lens = lens_kernel.LensTables(
+            self._faces, self._curvature, self._conic, self.t_min, self._n_before, self._n_after,
+            self._alpha_before, self._alpha_after, self._absorbs,
+            np.array([lens_kernel.COATING_CODES[s.coating.kind] for s in scene.optical] or [0]),
+            np.array([s.coating.reflectance for s in scene.optical] or [0.0]), self._wavelengths, self._mirror)
+        detector = lens_kernel.DetectorPlane(float(scene.detector.z), 0.5 * scene.detector.width,
+                                             0.5 * scene.detector.height)
+        self._walk = (lens, lens_kernel.clear_bore(*(mesh.vertices[mech[:, k]] for k in range(3))), detector)
         self.mechanical = MechanicalFaces(mesh.vertices, tri, self._tri_n, np.flatnonzero(self._tri_surface < 0),
                                           self.centre, self.extent, self.t_min)
 
