@@ -158,8 +158,9 @@ def test_against_a_revision_uses_the_store_and_reuses_the_current_run(tmp_path, 
                                input_hash=digest), paths(tmp_path / "new"))
     result = _compare(repo, "--scene", SCENE, "--against", "HEAD~1")
     assert result.exit_code == 1, result.output
-    rows = repo / ".lensmount" / "rows"  # each row's own copy of its artefacts
-    report = json.loads((rows / "2" / "compare" / "compare.json").read_text())
+    rows = repo / ".lensmount" / "rows"  # each row's own copy of its artefacts, never written again:
+    assert not (rows / "2" / "compare").exists()  # the comparison goes to the run's own folder
+    report = json.loads((tmp_path / "new" / "compare" / "compare.json").read_text())
     assert report["old_run"] == str(rows / "1") and report["new_run"] == str(rows / "2")
     assert report["old"] == 1e-3 and report["new"] == 2e-3
     assert f"old: stored run 1 (HEAD~1;" in result.output and "new: stored run 2 (same design and test condition;" \

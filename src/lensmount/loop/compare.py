@@ -24,7 +24,7 @@ from lensmount.errors import InputError
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
 from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
 from lensmount.run.results import read_summary
-from lensmount.run.store import RunRecord, Store, default_path
+from lensmount.run.store import ORIGIN, RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
@@ -315,7 +315,7 @@ def compare(options: CompareOptions, observer: Observer | None = None,
                 result.parts_added[name] = new.part(name).value
             else:
                 result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
-    out = Path(o.out) if o.out is not None else new.folder / "compare"
+    out = Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
     result.paths = write_comparison(out, old, new, result)
     return result
 
@@ -370,13 +370,29 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     return result
 
 
+def live_folder(run: Run) -> Path:
+    """Where the run goes on: its own output folder. A store row's copy (rows/ID) names it in
+    `store.ORIGIN` and counts only while that folder still holds this very run (same checksum)."""
+    from lensmount.run.results import read_summary
+
+    origin = run.folder / ORIGIN
+    if not origin.is_file():
+        return run.folder
+    live = Path(origin.read_text().strip())
+    try:
+        same = read_summary(live / "summary.json").get("sha256") == run.summary.get("sha256")
+    except InputError:  # gone or damaged since: the copy stays what there is
+        same = False
+    return live if same else run.folder
+
+
 def resumable(run: Run) -> bool:
     """The run has a checkpoint and its design and scene still hold the inputs it ran on."""
     from lensmount.loop.prepare import read_inputs
     from lensmount.loop.simulate import CHECKPOINT
 
     sim = _resumed_options(run, 0, CompareOptions(run.folder))
-    if not (run.folder / CHECKPOINT).is_file() or sim is None or not sim.design.is_dir() or not sim.scene.is_file():
+    if not (sim and (sim.out / CHECKPOINT).is_file()) or not sim.design.is_dir() or not sim.scene.is_file():
         return False
     return planned_input_hash(sim, *read_inputs(sim.design, sim.scene)) == run.summary.get("input_hash")
 
@@ -388,7 +404,7 @@ def _resumed_options(run: Run, more: int, o: CompareOptions) -> SimulateOptions 
         return None
     settings = s.get("estimator_settings", {})
     return SimulateOptions(Path(prov["design_path"]), Path(prov["scene_path"]), method=s.get("method", o.method),
-                           seed=s.get("seed"), out=run.folder, passes=int(s.get("passes", 0)) + more,
+                           seed=s.get("seed"), out=live_folder(run), passes=int(s.get("passes", 0)) + more,
                            photons_per_pass=s.get("photons_per_pass"),
                            samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
                            alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,

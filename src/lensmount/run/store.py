@@ -33,6 +33,7 @@ ENV = "LENSMOUNT_STORE"
 DEFAULT_NAME = Path(".lensmount") / "runs.sqlite"
 BUSY_TIMEOUT_MS = 60_000
 ROWS = "rows"  # beside the store file: rows/ID/ holds the artefacts a row points at
+ORIGIN = "origin.txt"  # in a row's folder: the run's own output folder, where its checkpoint stays
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -253,6 +254,8 @@ class Store:
         for path in paths.values():
             if Path(path).is_file():
                 shutil.copy2(path, partial / Path(path).name)
+        # Where the run lives on (its checkpoint is not copied): what `compare --until-decided` resumes.
+        (partial / ORIGIN).write_text(str(Path(paths["json"]).resolve().parent) + "\n")
         shutil.rmtree(folder, ignore_errors=True)  # a folder of a rolled-back id that is being reused
         partial.rename(folder)
         return folder
