@@ -22,12 +22,14 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
+from lensmount.atomic import write_npz
 from lensmount.integrators.paths import EMPTY, PassFaces, ghost_of, PassPaths, binned_pixel, binned_shape
+from lensmount.mesh import FaceTag
 
 KEPT_IMAGES = 48  # paths whose images the run keeps (the most flux so far)
 FACE_LIST = 10  # faces per list in the report
@@ -35,7 +37,7 @@ FACE_LIST = 10  # faces per list in the report
 
 def _t_error(total: np.ndarray, total_sq: np.ndarray, n: int) -> np.ndarray:
     """Standard error of the mean from Σx and Σx² over n passes × Student-t (inf below 3 passes)."""
-    from lensmount.analysis.passes import MIN_PASSES, t_factor
+    from lensmount.analysis.passes import MIN_PASSES, t_factor  # here: passes imports this module
 
     if n < MIN_PASSES:
         return np.full(len(total), math.inf)
@@ -251,8 +253,6 @@ def top_paths(sums: PathSums, tag_table, aperture_flux_mm2: float, top: int = 10
 
 def scene_tags(scene) -> list:
     """The mesh's tag table with the finish each face has in this scene (its `[assign]` rules)."""
-    from dataclasses import replace
-
     finishes = scene.finish_of_tag or [t.finish for t in scene.mesh.tag_table]
     return [replace(t, finish=f) for t, f in zip(scene.mesh.tag_table, finishes)]
 
@@ -305,9 +305,6 @@ def face_report(sums: PathSums, tag_table, areas: np.ndarray, aperture_flux_mm2:
 def write_paths(path: str | os.PathLike, sums: PathSums, tag_table, areas: np.ndarray, aperture_flux_mm2: float,
                 extent_mm: tuple[float, float, float, float]) -> None:
     """paths.npz beside summary.json: what `lensmount paths` needs (the sums, the tag table, face areas)."""
-    from lensmount.atomic import write_npz
-    from dataclasses import asdict
-
     write_npz(path, compressed=True, **sums.arrays(), aperture_flux_mm2=np.float64(aperture_flux_mm2),
               extent_mm=np.array(extent_mm, np.float64), face_areas=np.asarray(areas, np.float64),
               tag_table=np.array(json.dumps([asdict(t) for t in tag_table])))
@@ -315,8 +312,6 @@ def write_paths(path: str | os.PathLike, sums: PathSums, tag_table, areas: np.nd
 
 def read_paths(path: str | os.PathLike):
     """(PathSums, tag_table, face areas, aperture flux, extent) from a paths.npz."""
-    from lensmount.mesh import FaceTag
-
     with np.load(path, allow_pickle=False) as z:
         sums = PathSums.from_arrays(z)
         table = [FaceTag(**t) for t in json.loads(str(z["tag_table"]))]

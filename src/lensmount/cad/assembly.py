@@ -106,7 +106,7 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
 
 def _common(a, b):
     """The boolean intersection of two solids (OCC), as a build123d shape."""
-    from build123d import Shape
+    from build123d import Shape  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
 
     op = BRepAlgoAPI_Common(a.wrapped, b.wrapped)

@@ -41,7 +41,9 @@ from matplotlib.path import Path as MplPath
 from lensmount.cad.layout import Envelope, Layout, PartPlan
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
+from lensmount.optics.apertures import ENVELOPE_FIELDS, _beam, _field_samples
 from lensmount.optics.prescription import Prescription
+from lensmount.optics.realrays import pupil_rings
 from lensmount.templates.barrel import Barrel
 from lensmount.templates.cell import Cell, SpiderCell
 from lensmount.templates.lens_element import LensElement, OpticalFace
@@ -93,9 +95,6 @@ class BeamPaths:
     surfaces it runs between; `check` tests mechanical profiles against the unobscured ones."""
 
     def __init__(self, p: Prescription, phys: list[int], z_front: float):
-        from lensmount.optics.apertures import ENVELOPE_FIELDS, _beam, _field_samples
-        from lensmount.optics.realrays import pupil_rings
-
         fields = _field_samples(p, min(ENVELOPE_FIELDS, 5))
         pupil = pupil_rings(12, 24, half=False)
         polys = []

@@ -26,6 +26,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lensmount.atomic import atomic_path
+from lensmount.templates.barrel import Barrel
+from lensmount.templates.cell import Cell, SpiderCell
+from lensmount.templates.diaphragm import Diaphragm
+from lensmount.templates.hood import Hood
+from lensmount.templates.housing import Housing
+from lensmount.templates.lens_element import LensElement
+from lensmount.templates.mirror import MirrorElement
+from lensmount.templates.rear_baffle import RearBaffle
+from lensmount.templates.retainer import Retainer
+from lensmount.templates.spacer import Spacer
+from lensmount.templates.vane import Vane
 
 LAYERS = ("profile", "axis", "dimensions")
 
@@ -81,18 +92,6 @@ def dimensions(plan, tol, prescription=None) -> list[Dimension]:
 
     tol: the `[drawing]` table (diameter_mm, length_mm, land_mm, angle_deg).
     """
-    from lensmount.templates.barrel import Barrel
-    from lensmount.templates.diaphragm import Diaphragm
-    from lensmount.templates.hood import Hood
-    from lensmount.templates.housing import Housing
-    from lensmount.templates.cell import Cell, SpiderCell
-    from lensmount.templates.lens_element import LensElement
-    from lensmount.templates.mirror import MirrorElement
-    from lensmount.templates.rear_baffle import RearBaffle
-    from lensmount.templates.retainer import Retainer
-    from lensmount.templates.spacer import Spacer
-    from lensmount.templates.vane import Vane
-
     t = plan.template
     if isinstance(t, Vane):
         w = min(t.edge_width, t.thickness)
@@ -187,7 +186,7 @@ def dimensions(plan, tol, prescription=None) -> list[Dimension]:
 
 def _half_section(solid, z_front: float):
     """The solid's section in the half plane r >= 0, in drawing coordinates (x = z − z_front, y = r)."""
-    from build123d import Keep, Plane
+    from build123d import Keep, Plane  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     faces = []
     for f in solid.intersect(Plane.XZ).faces():
@@ -209,7 +208,7 @@ class _Sheet:
     texts: list
 
     def line(self, layer, a, b):
-        from build123d import Edge
+        from build123d import Edge  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
         if math.dist(a, b) > 1e-9:
             self.edges[layer].append(Edge.make_line((a[0], a[1], 0.0), (b[0], b[1], 0.0)))
@@ -290,7 +289,7 @@ def _text_box(x, y, h, text, anchor):
 
 def _drawn(exp, sections, sheet: _Sheet):
     """The profile, axis and dimension lines on their layers of an SVG or DXF exporter (same API)."""
-    from build123d import LineType
+    from build123d import LineType  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     exp.add_layer("profile", line_weight=0.35)
     exp.add_layer("axis", line_weight=0.13, line_type=LineType.DASHDOT)
@@ -302,7 +301,7 @@ def _drawn(exp, sections, sheet: _Sheet):
 
 
 def _svg_bytes(sections, sheet: _Sheet) -> bytes:
-    from build123d import ExportSVG
+    from build123d import ExportSVG  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     exp = _drawn(ExportSVG(margin=1.0), sections, sheet)
     buf = io.BytesIO()
@@ -321,7 +320,7 @@ def _svg_bytes(sections, sheet: _Sheet) -> bytes:
 
 
 def _dxf_text(sections, sheet: _Sheet) -> str:
-    import ezdxf
+    import ezdxf  # lazy: ezdxf takes ~1 s to load; only the DXF drawing needs it
     from build123d import ExportDXF
     from ezdxf.enums import TextEntityAlignment
 

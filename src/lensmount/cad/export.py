@@ -8,6 +8,8 @@ temporary name in the target folder and renamed.
 
 from __future__ import annotations
 
+import csv
+import io
 from pathlib import Path
 
 from lensmount.atomic import atomic_path
@@ -31,7 +33,7 @@ def colour_of(kind: str, finish: str) -> tuple[float, float, float]:
 
 
 def _atomic_step(shape, path: Path) -> None:
-    from build123d import export_step
+    from build123d import export_step  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     with atomic_path(path) as tmp:
         if not export_step(shape, str(tmp), timestamp=STEP_TIMESTAMP):
@@ -39,7 +41,7 @@ def _atomic_step(shape, path: Path) -> None:
 
 
 def _labelled(solid, name: str, kind: str, finish: str):
-    from build123d import Color
+    from build123d import Color  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     s = solid.__class__(solid.wrapped)  # a fresh wrapper: labels/parents do not leak between exports
     s.label = name
@@ -54,7 +56,7 @@ def write_part_step(solid, name: str, kind: str, finish: str, path: Path) -> Non
 
 def write_assembly_step(parts, path: Path) -> None:
     """All parts as one assembly (each a named, coloured child). parts: [(solid, name, kind, finish)]."""
-    from build123d import Compound
+    from build123d import Compound  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
 
     children = [_labelled(s, n, k, f) for s, n, k, f in parts]
     assembly = Compound(children=children)
@@ -89,9 +91,6 @@ def bom_csv(rows, prescription, spec) -> str:
 
     rows: (name, kind, finish, volume_mm3, template) per part (materials: `material_of`).
     """
-    import csv
-    import io
-
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["part", "kind", "material", "finish", "volume_mm3", "density_g_cm3", "mass_g", "note"])

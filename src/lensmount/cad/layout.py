@@ -29,6 +29,7 @@ from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, cont
 from lensmount.cad.step_parts import StepSource
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
+from lensmount.optics.apertures import beam_envelope, with_clear_semi_diameters
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.barrel import Barrel
 from lensmount.templates.diaphragm import Diaphragm
@@ -120,8 +121,6 @@ def _envelope_grid(prescription: Prescription, z_min: float, z_max: float, n: in
 
 
 def _exact_envelope(prescription: Prescription, z) -> np.ndarray:
-    from lensmount.optics.apertures import beam_envelope
-
     z = np.atleast_1d(np.asarray(z, dtype=np.float64))
     if not len(z):
         return np.zeros(0)
@@ -154,13 +153,11 @@ def _size_keys(part: str) -> list[str]:
 
 def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     """Place every part, front to back. Raises GeometryError for a mount that cannot be built."""
-    from lensmount.optics.apertures import with_clear_semi_diameters
-
     p = prescription
     if any(s.clear_semi_diameter is None for s in p.surfaces):
         p = with_clear_semi_diameters(p)
     if p.has_mirrors:
-        from lensmount.cad.catadioptric import plan_catadioptric   # lazy: it builds on this module's Layout
+        from lensmount.cad.catadioptric import plan_catadioptric  # here: catadioptric imports this module
 
         return plan_catadioptric(p, spec)
     mount = _MountPlanner(p, spec)

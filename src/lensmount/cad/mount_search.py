@@ -34,6 +34,9 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from lensmount.cad.checks import check_layout
+from lensmount.cad.layout import group_rim, plan
+from lensmount.design.mount import parse_mount
 from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription
 
@@ -60,10 +63,6 @@ class Refusal:
 def refusal(p: Prescription, mount: dict) -> Refusal | None:
     """What `regenerate` would refuse in this mount.toml at its layout and profile checks (None: it
     builds that far)."""
-    from lensmount.cad.checks import check_layout
-    from lensmount.cad.layout import plan
-    from lensmount.design.mount import parse_mount
-
     try:
         spec = parse_mount(mount)
         layout = plan(p, spec)
@@ -132,9 +131,6 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     """The planner's options for the lens groups the refusal involves, most specific first:
     (what was changed, the changed mount.toml). None for a lens with mirrors: its cells in a straight
     barrel (cad.catadioptric) have no seats or rims to choose."""
-    from lensmount.cad.layout import group_rim
-    from lensmount.design.mount import parse_mount
-
     if p.has_mirrors:
         return []
 

@@ -30,7 +30,11 @@ import numpy as np
 import lensmount
 from lensmount.atomic import atomic_dir, checksum_holds, with_checksum, write_text
 from lensmount.cad import cache
+from lensmount.cad.assembly import build_assembly, tessellate
+from lensmount.cad.drawing import dimensions, title_block, write_drawing
+from lensmount.cad.export import bom_csv, material_of, write_assembly_step, write_part_step
 from lensmount.cad.step_parts import StepSource, face_picture
+from lensmount.design.folder import load_design
 from lensmount.errors import InputError
 from lensmount.validation import located
 
@@ -125,10 +129,6 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
         The Manifest (also written as OUT/manifest.json); `.cached` tells whether the
         CAD kernel ran.
     """
-    from lensmount.cad.assembly import build_assembly, tessellate
-    from lensmount.cad.export import bom_csv, write_assembly_step, write_part_step
-    from lensmount.design.folder import load_design
-
     design = load_design(design_dir)
     out = Path(out_dir) if out_dir is not None else design.root / "build"
     key = design.input_hash
@@ -207,9 +207,6 @@ def _drawings(out: Path, bp, layout, spec, previous_hash: str | None) -> tuple[s
     A user-template part is drawn as its section with no template dimensions: the template's
     numbers describe the built-in part it replaces, not the user's solid.
     """
-    from lensmount.cad.drawing import dimensions, title_block, write_drawing
-    from lensmount.cad.export import material_of
-
     material = material_of(bp.plan.kind, bp.plan.template, layout.prescription, spec)[0]
     payload = json.dumps([bp.hash, material, spec.drawing.model_dump()], sort_keys=True)
     d_hash = hashlib.sha256(payload.encode()).hexdigest()

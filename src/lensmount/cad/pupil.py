@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from embreex import rtcore_scene as rtcs
+from embreex.mesh_construction import TriangleMesh
 
 from lensmount.mesh import TaggedMesh
 from lensmount.optics.paraxial import paraxial
@@ -45,9 +47,6 @@ class MountHits:
     """Embree scene of every non-optical triangle; `blocked(a, b)`: does segment a→b meet one?"""
 
     def __init__(self, mesh: TaggedMesh):
-        from embreex import rtcore_scene as rtcs
-        from embreex.mesh_construction import TriangleMesh
-
         optical = np.array([t.role == "optical" for t in mesh.tag_table])[mesh.tags]
         self.tri = np.flatnonzero(~optical)
         self.part = np.array([t.part for t in mesh.tag_table])[mesh.tags[self.tri]]

@@ -15,7 +15,10 @@ import numpy as np
 
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
+from lensmount.optics.apertures import beam_envelope
+from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
+from lensmount.optics.realrays import trace
 from lensmount.templates.diaphragm import Diaphragm
 
 if TYPE_CHECKING:
@@ -83,10 +86,6 @@ def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float
     entrance pupil (primary wavelength), wherever the land sits: on a dummy stop plane,
     or next to a curved stop surface where the paraxial stop height no longer applies.
     """
-    from lensmount.optics.apertures import beam_envelope
-    from lensmount.optics.paraxial import paraxial
-    from lensmount.optics.realrays import trace
-
     if prescription.object_telecentric:   # the object-space NA is the aperture: the stop passes every field's beam
         return float(beam_envelope(prescription, np.linspace(z0, z1, 9)).max())
     h = 0.5 * paraxial(prescription).epd

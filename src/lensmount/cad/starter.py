@@ -49,12 +49,16 @@ import math
 
 import numpy as np
 
-from lensmount.design.mount import MountSpec
+from lensmount.cad.layout import Envelope, group_rim
+from lensmount.cad.lens_groups import lens_group, seat_of_group
+from lensmount.cad.mount_search import find_mount
+from lensmount.design.mount import LensEdge, MountSpec
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import chief_ray
 from lensmount.design.finishes import surface_rule
+from lensmount.templates.lens_element import LensElement, OpticalFace
 
 SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
 MIN_EDGE_FRACTION = 0.25     # edge thickness at least this fraction of the centre thickness
@@ -103,11 +107,6 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     below the front retainer's wall above the beam: a lens that is too thin even there
     is left to `regenerate` to report (the lens file's own edge is).
     """
-    from lensmount.cad.layout import Envelope, group_rim
-    from lensmount.cad.lens_groups import lens_group, seat_of_group
-    from lensmount.design.mount import LensEdge
-    from lensmount.templates.lens_element import LensElement, OpticalFace
-
     surf, zv = p.surfaces, p.vertex_z
     clear = [float(s.clear_semi_diameter) for s in surf]
 
@@ -291,8 +290,6 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     its refusal points (cad.mount_search: seats, rims, flat faces, margins). When nothing builds,
     the first seating is returned with the refusals met on the way.
     """
-    from lensmount.cad.mount_search import find_mount
-
     gap = _faces_curling_toward_the_stop(p)
     base: dict[bool, dict] = {}   # each seating's mount.toml made once (0.5-1 s), when it is needed
 
@@ -324,8 +321,6 @@ def _why_not(refused: list) -> str:
 
 
 def _mount(p: Prescription, name: str, widen: bool) -> dict:
-    from lensmount.cad.layout import Envelope
-
     a = max(float(s.clear_semi_diameter) for s in p.surfaces)
     allowance = _allowance(p)
     chamfer = _round(min(0.1, allowance / 8), 3)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lensmount.atomic import atomic_path
 from lensmount.design.mount import MountSpec, StepPart
 from lensmount.errors import GeometryError, InputError
 
@@ -73,6 +74,7 @@ def _field(name: str, key: str = "step") -> str:
 
 
 def _label_name(label) -> str:
+    # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.TCollection import TCollection_AsciiString
     from OCP.TDataStd import TDataStd_Name
 
@@ -83,13 +85,14 @@ def _label_name(label) -> str:
 
 
 def _hex(colour) -> str:
-    from OCP.Quantity import Quantity_TOC_sRGB
+    from OCP.Quantity import Quantity_TOC_sRGB  # lazy: build123d/OCP take seconds to load; only STEP parts need them
 
     r, g, b = colour.Values(Quantity_TOC_sRGB)
     return "#" + "".join(f"{int(round(min(max(c, 0.0), 1.0) * 255)):02x}" for c in (r, g, b))
 
 
 def file_unit(reader) -> str:
+    # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.TColStd import TColStd_SequenceOfAsciiString
 
     lengths, angles, solid_angles = (TColStd_SequenceOfAsciiString() for _ in range(3))
@@ -101,7 +104,7 @@ def file_unit(reader) -> str:
 
 def read_step(path: Path, name: str) -> StepFile:
     """Every solid of the file (assembly locations applied), mm, with face names, colours, layers."""
-    from build123d import Location, Shape
+    from build123d import Location, Shape  # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.IFSelect import IFSelect_ReturnStatus
     from OCP.Interface import Interface_Static
     from OCP.Quantity import Quantity_Color
@@ -197,7 +200,7 @@ def read_step(path: Path, name: str) -> StepFile:
 
 def free_edges(shape) -> list[tuple[np.ndarray, list[int]]]:
     """(midpoint, indices of the faces it bounds) of every edge that bounds one face only."""
-    from OCP.BRep import BRep_Tool
+    from OCP.BRep import BRep_Tool  # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
     from OCP.TopExp import TopExp
@@ -225,7 +228,7 @@ def free_edges(shape) -> list[tuple[np.ndarray, list[int]]]:
 def closed_solids(shape, path: Path, name: str, solid_name: str) -> list:
     """The solids of `shape`, and its free shells made solid when closed; InputError where one is open
     (naming the free edges' positions and faces) or invalid."""
-    from build123d import Solid
+    from build123d import Solid  # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid
     from OCP.BRepCheck import BRepCheck_Analyzer
     from OCP.TopAbs import TopAbs_SHELL, TopAbs_SOLID
@@ -262,7 +265,7 @@ def closed_solids(shape, path: Path, name: str, solid_name: str) -> list:
 
 def datum_z(datum: str, layout) -> float:
     """z of a named datum on the optical axis: a surface's vertex, the image plane, the barrel's ends."""
-    from lensmount.cad.checks import outline
+    from lensmount.cad.checks import outline  # here: a circle (checks -> layout -> step_parts)
 
     p = layout.prescription
     if datum == "image-plane":
@@ -279,7 +282,7 @@ def datum_z(datum: str, layout) -> float:
 
 def placement(entry: StepPart, z0: float):
     """The file frame → assembly frame: rotate about x, then y, then z, then move to the datum + offset."""
-    from build123d import Location
+    from build123d import Location  # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
     from OCP.TopLoc import TopLoc_Location
 
@@ -407,6 +410,7 @@ def read_entry(spec: MountSpec, name: str, path: Path) -> StepFile:
 def sliver_to_glass(solid, lenses, clearance: float) -> tuple[str, float, tuple] | None:
     """(lens, gap, point) where the part runs closer to a lens's glass than half the clearance without
     touching it (the generated parts' rule, cad.checks.slivers), else None."""
+    # lazy: build123d/OCP take seconds to load; only STEP parts need them
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 
     box = solid.bounding_box()
@@ -438,13 +442,11 @@ def raise_sliver(name: str, found, clearance: float) -> None:
 def face_picture(mesh, title: str, path: Path) -> None:
     """parts/NAME.faces.png: the part from the side (z across) and from the front (x across), each
     face shaded and numbered with its STEP face index (the numbers a `faces = [...]` rule takes)."""
-    import matplotlib
+    import matplotlib  # lazy: pyplot takes ~1 s to load; only the face picture needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
-
-    from lensmount.atomic import atomic_path
 
     v, tri, tags = mesh.vertices, mesh.triangles, mesh.tags
     fig, axes = plt.subplots(1, 2, figsize=(14, 7))

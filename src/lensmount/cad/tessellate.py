@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import manifold3d
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -27,7 +28,7 @@ class MeshError(RuntimeError):
 
 def face_triangulations(solid, linear_mm: float, angular_deg: float):
     """[(face_index, vertices (n,3), triangles (m,3))] in `solid.faces()` order."""
-    from OCP.BRep import BRep_Tool
+    from OCP.BRep import BRep_Tool  # lazy: build123d/OCP take seconds to load; only solid modelling needs them
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.TopAbs import TopAbs_REVERSED
     from OCP.TopLoc import TopLoc_Location
@@ -68,8 +69,6 @@ def merge_vertices(vertices: np.ndarray, triangles: np.ndarray, tol: float = MER
 
 def check_watertight(name: str, vertices: np.ndarray, triangles: np.ndarray) -> None:
     """manifold3d accepts only closed, oriented 2-manifolds: raise MeshError otherwise."""
-    import manifold3d
-
     mesh = manifold3d.Mesh(vert_properties=np.ascontiguousarray(vertices, dtype=np.float32),
                            tri_verts=np.ascontiguousarray(triangles, dtype=np.uint32))
     status = manifold3d.Manifold(mesh).status()

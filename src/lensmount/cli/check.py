@@ -13,8 +13,14 @@ from typing import Optional
 
 import typer
 
+from lensmount.atomic import write_text
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.design.folder import load_design
 from lensmount.errors import InputError
+from lensmount.loop.regenerate import RegenerateOptions, regenerate as build
+from lensmount.loop.sightlines import VIEWS, file_stem, lit_walls_seen, plot_report
+from lensmount.mesh import TaggedMesh
+from lensmount.optics.paraxial import paraxial
 
 
 def exclusion_of(spec, prescription, override: float | None) -> float:
@@ -30,12 +36,8 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
     """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
     (lensmount.loop.sightlines.VIEWS); True when it passes."""
-    from lensmount.loop.sightlines import file_stem, lit_walls_seen, plot_report
-    from lensmount.atomic import write_text
-    from lensmount.mesh import TaggedMesh
+    # lazy: keeps lensmount --help from loading cad and matplotlib
     from lensmount.cad.pupil import realised_entrance_pupil
-    from lensmount.design.folder import load_design
-    from lensmount.optics.paraxial import paraxial
 
     d = load_design(design)
     p, spec = d.prescription, d.mount
@@ -95,9 +97,6 @@ def check(
     mesh) against the design's. With --from aperture, the walls seen from the entrance aperture
     instead (the classic vane criterion; lit vane edges are listed, not counted). Exit 1 when
     a lit wall is seen, 0 when none is."""
-    from lensmount.loop.sightlines import VIEWS
-    from lensmount.loop.regenerate import RegenerateOptions, regenerate as build
-
     try:
         if seen_from not in VIEWS:
             raise InputError(f"unknown view '{seen_from}'", field="--from", valid=" or ".join(VIEWS))

@@ -11,6 +11,8 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.console import Console
+from rich.table import Table
 
 from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
@@ -81,9 +83,6 @@ def compare(
     removed. Before anything runs it says which stored run each side takes, or what it must
     simulate and about how long (stored runs match by design and test condition, whatever their length).
     """
-    from rich.console import Console
-    from rich.table import Table
-
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,

@@ -10,6 +10,7 @@ import typer
 from lensmount.cli import app, fail
 from lensmount.cli.simulate import duration
 from lensmount.errors import InputError
+from lensmount.loop.converge import ConvergeOptions, converge as run, read_reference, write_converge
 
 
 @app.command()
@@ -31,8 +32,6 @@ def converge(
     at doubling times; writes converge.csv (time, photons, relative standard error, bias bound,
     error against the reference) and converge.png (error against time, log-log, with the
     1/√t slope drawn), and prints how long the next halving of the error takes per method."""
-    from lensmount.loop.converge import ConvergeOptions, converge as run, read_reference, write_converge
-
     out = Path(out) if out else Path("out") / f"converge-{Path(scene).stem}"
     try:
         ref = read_reference(reference)

@@ -5,10 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.design.brdf_data import read_brdf
 from lensmount.errors import InputError
+from lensmount.run.results import save_figure
 
 
 POOR_FIT_DECADES = 0.2  # rms error of log10 BRDF above which the fit is called poor (a factor 1.6)
@@ -24,8 +27,7 @@ def fit_abg_command(
     """Fit A/(B + |β − β0|^g) to the measurement (least squares in log BRDF) and check both the fit and the
     measured table for energy (TIS ≤ 1). Prints the fit's rms error in decades of BRDF (a warning above
     0.2, a factor 1.6: then use the measured table) and the finish lines to paste into \\[finishes]."""
-    from lensmount.design.brdf_data import read_brdf
-    from lensmount.physics.bsdf import make_bsdf
+    from lensmount.physics.bsdf import make_bsdf  # lazy: keeps lensmount --help from loading the BSDF models (~0.2 s)
     from lensmount.physics.bsdf.tabulated import fit_abg, measured_profile
 
     try:
@@ -52,13 +54,10 @@ def fit_abg_command(
 
 
 def _plot(path: Path, rho, f, table, abg) -> None:
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
-
-    from lensmount.run.results import save_figure
 
     a, b, g = abg
     x = np.geomspace(max(float(rho.min()), 1e-6), 2.0, 300)

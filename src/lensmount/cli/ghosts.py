@@ -6,10 +6,18 @@ import json
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import typer
+from rich.console import Console
+from rich.table import Table
 
+from lensmount.atomic import write_text
 from lensmount.cli import app, fail
 from lensmount.errors import InputError
+from lensmount.loop.ghosts import ghost_report
+from lensmount.loop.prepare import prepare
+from lensmount.run.results import write_exr, write_preview
+from lensmount.trace.tracer import Tracer
 
 
 @app.command()
@@ -26,10 +34,6 @@ def ghosts(
     """Trace every two-reflection ghost path (with order 3 the four-reflection ones too) deterministically
     (real rays, real Fresnel or coating reflectance per wavelength) and rank them by peak irradiance on the
     detector: the ghost that makes a visible spot first. Writes ghosts.json, ghosts.csv, ghosts.exr (a channel per pair) and one PNG per pair."""
-    from lensmount.loop.ghosts import ghost_report
-    from lensmount.loop.prepare import prepare
-    from lensmount.trace.tracer import Tracer
-
     try:
         prepared = prepare(design, scene, stage=lambda text: typer.echo(text, err=True))
         effects = prepared.scene.effects
@@ -44,11 +48,6 @@ def ghosts(
 
 
 def _write(out: Path, report, det, top: int) -> list[Path]:
-    import numpy as np
-
-    from lensmount.atomic import write_text
-    from lensmount.run.results import write_exr, write_preview
-
     rows = ["rank,surfaces,first,second,fraction,share,peak_irradiance,focus_from_detector_mm,centroid_x_mm,"
             "centroid_y_mm,radius90_mm"]
     for k, g in enumerate(report.pairs, 1):
@@ -71,9 +70,6 @@ def _write(out: Path, report, det, top: int) -> list[Path]:
 
 
 def _print(report, top: int) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
     console = Console()
     if not report.pairs:
         console.print("no ghost reaches the detector" + (f" ({len(report.skipped)} pairs have no reflectance)"

@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.console import Console
+from rich.table import Table
 
 from lensmount.cli import app, fail
 from lensmount.errors import InputError
@@ -26,9 +28,6 @@ def history(
 
     'test' is the run's test condition (a hash of the scene's source, detector, effects and objects;
     not its run length): runs with different ones are different tests, which `compare` refuses."""
-    from rich.console import Console
-    from rich.table import Table
-
     try:
         if not Path(design).is_dir():
             raise InputError("design folder not found", file=str(design), valid="a design folder")

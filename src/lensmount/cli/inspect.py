@@ -11,9 +11,17 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich import box
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
 
-from lensmount.cli import app  # defined before lensmount.cli imports this module
+from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.design.edges import clip_warnings
+from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 from lensmount.errors import InputError
+from lensmount.optics.glass import refractive_index
+from lensmount.optics.paraxial import paraxial
 
 
 def inspect_document(prescription, notes=None, clips=()) -> dict:
@@ -22,10 +30,6 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
     notes: for a .zmx, the import notes (kind imported/substituted/ignored, where, what).
     clips: the elements edged inside the beam (design.edges.EdgeClip): a row "clipped" per clip.
     """
-    from lensmount.design.edges import clip_warnings
-    from lensmount.optics.glass import refractive_index
-    from lensmount.optics.paraxial import paraxial
-
     par = paraxial(prescription)
     wl = prescription.primary_wavelength_um
     z = prescription.vertex_z
@@ -91,11 +95,6 @@ def _recomputed(prescription, note, clipped) -> str:
 
 
 def _print_tables(doc: dict) -> None:
-    from rich import box
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.table import Table
-
     console = Console()
     if doc.get("import_notes"):
         imp = Table(title="what the import did with the file", title_justify="left", box=box.SIMPLE_HEAD)
@@ -159,8 +158,6 @@ def inspect_command(
     """Show a lens: what the import of a .zmx did (imported, substituted, ignored; where each glass
     was found), the surfaces with their clear semi-diameters, and the paraxial data (for an afocal
     system its angular magnification instead of a focal length)."""
-    from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
-
     try:
         prescription, clips = load_lens_and_clips(lens, margin_mm=margin, glass_catalogs=glass_catalog,
                                                   afocal_ok=True)
@@ -171,8 +168,6 @@ def inspect_command(
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
         doc = inspect_document(prescription, import_notes(lens, glass_catalog), clips)
     except InputError as error:
-        from lensmount.cli import fail  # defined after the command modules are imported
-
         fail(error)
         return
     if as_json:

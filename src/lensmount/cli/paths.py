@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
 import typer
+from rich.console import Console
+from rich.table import Table
 
+from lensmount.analysis.paths import face_measures, face_report, read_paths, signature_from_hex, top_paths
 from lensmount.cli import app, fail
 from lensmount.atomic import NPZ_DAMAGE
 from lensmount.errors import InputError
+from lensmount.loop.simulate import PATHS
+from lensmount.run.results import write_exr, write_preview
 
 
 @app.command()
@@ -23,9 +30,6 @@ def paths(
     irradiance of that path alone) and paths.exr (a channel per path). With --faces: critical ∩ illuminated
     faces ranked by étendue × irradiance / π, then critical-but-unlit and lit-but-not-critical, with
     RESULT/paths/face-NN.png (the detector's view of the face, lit as measured, as a white Lambertian)."""
-    from lensmount.analysis.paths import read_paths
-    from lensmount.loop.simulate import PATHS
-
     source = Path(result) / PATHS
     try:
         if not source.is_file():
@@ -46,11 +50,6 @@ def paths(
 
 
 def _paths(out: Path, data, top: int) -> list[Path]:
-    from rich.console import Console
-    from rich.table import Table
-
-    from lensmount.analysis.paths import signature_from_hex, top_paths
-
     sums, table_of_tags, _, aperture, extent = data
     report = top_paths(sums, table_of_tags, aperture, top)
     table = Table(title=f"stray paths by flux ({report['distinct_paths']} paths, {report['passes']} passes; total "
@@ -77,10 +76,6 @@ def _paths(out: Path, data, top: int) -> list[Path]:
 
 def _write_images(out: Path, exr_name: str, pictures, extent) -> list[Path]:
     """One PNG per (name, image, title) and one EXR holding them all as layers (their sum as RGB)."""
-    import numpy as np
-
-    from lensmount.run.results import write_exr, write_preview
-
     written = []
     for name, image, title in pictures:
         written.append(out / f"{name}.png")
@@ -93,13 +88,6 @@ def _write_images(out: Path, exr_name: str, pictures, extent) -> list[Path]:
 
 
 def _faces(out: Path, data, top: int) -> list[Path]:
-    import math
-
-    from rich.console import Console
-    from rich.table import Table
-
-    from lensmount.analysis.paths import face_measures, face_report
-
     sums, table_of_tags, areas, aperture, extent = data
     report = face_report(sums, table_of_tags, areas, aperture, top)
     console = Console(width=max(Console().width, 120))

@@ -9,6 +9,7 @@ import typer
 
 from lensmount.cli import app, fail
 from lensmount.errors import InputError
+from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
 
 @app.command()
@@ -31,8 +32,6 @@ def pst(
     plane) against off-axis angle: pst.csv, pst.png (log scale, error bars, field edge
     marked) and report.html. Inside the field with `direct` on in the scene the direct image
     dominates; outside it, the stray light. The geometry is built once for all angles."""
-    from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
-
     try:
         options = PstOptions(Path(design), Path(scene), tuple(parse_angles(angles)), azimuth, method, passes,
                              photons_per_pass, seed, workers=workers)

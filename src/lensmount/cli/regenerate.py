@@ -10,10 +10,14 @@ import sys
 from pathlib import Path
 from typing import Optional
 
+import tomli_w
 import typer
 
+from lensmount.atomic import atomic_path, write_text
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.check import run_check
 from lensmount.cli.simulate import TerminalObserver
+from lensmount.design.lens import load_lens
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
 
@@ -60,8 +64,6 @@ def regenerate(
     for note in manifest.notes:
         typer.echo(f"note: {note}")
     if check:
-        from lensmount.cli.check import run_check
-
         try:
             passed = run_check(design, target, None)
         except InputError as error:
@@ -115,10 +117,7 @@ def _init_from_lens(directory: Path, lens: Path) -> None:
     """Copy the lens, write the derived mount.toml, finishes.toml (mirrors: their scatter included) and
     case-2 scene, and for a finite object the object-lambertian scene (everything checked before
     writing). InputError, with nothing written, when no mount that builds was found."""
-    import tomli_w
-
-    from lensmount.atomic import atomic_path, write_text
-    from lensmount.design.lens import load_lens
+    # lazy: keeps lensmount --help from loading cad and matplotlib
     from lensmount.cad.starter import case2_scene, object_scene, starter_finishes, starter_mount
 
     prescription = load_lens(lens)

@@ -14,6 +14,9 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
 
 from lensmount.cli import app, fail
 from lensmount.errors import InputError
@@ -24,8 +27,6 @@ from lensmount.run.executor import WORKER_WAIT_S
 
 def print_plan(console, block: dict | None) -> None:
     """The plan block of summary.json: what ran, what was skipped and why, seconds per phase."""
-    from rich.table import Table
-
     if not block:
         return
     table = Table(title="plan: what ran, what was skipped and why", title_justify="left", show_header=False)
@@ -79,8 +80,6 @@ class TerminalObserver(Observer):
     HEARTBEAT_S = 10.0  # while the first pass runs (tracer, pilot, view map, photons), a line this often
 
     def __init__(self, live: bool):
-        from rich.console import Console
-
         self.live = live
         self.console = Console(stderr=True)
         self.bar = None
@@ -137,8 +136,6 @@ class TerminalObserver(Observer):
 
     def _bar(self):
         if self.bar is None:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
             self.bar = Progress(TextColumn("{task.description:<16}"), BarColumn(bar_width=24),
                                 TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=self.console)
             self.bar.start()
@@ -220,9 +217,6 @@ def simulate(
 
 def print_summary(summary: dict, paths: dict) -> None:
     """The figures an engineer reads first: the stray level with its error bar, then who carries it."""
-    from rich.console import Console
-    from rich.table import Table
-
     def pm(value, error):
         return f"{value:.4g} ± {error:.2g}" if error is not None else f"{value:.4g}"
 

@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+from rich.console import Console
+from rich.table import Table
 
 from lensmount.cli import app, fail
 from lensmount.cli.simulate import observed
@@ -54,9 +56,6 @@ def sweep(
 
 
 def _print(result, params) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
     table = Table(title="sweep: lowest stray fraction first; equal ranks are ties within the noise",
                   title_justify="left")
     for column in ["rank", "variant", *(p.name for p in params), "stray fraction", "tied with"]:

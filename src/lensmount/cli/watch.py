@@ -12,6 +12,8 @@ from lensmount.cli import app, fail
 from lensmount.cli.compare import _fraction
 from lensmount.cli.simulate import TerminalObserver, duration
 from lensmount.errors import InputError
+from lensmount.loop.compare import verdict_sentence
+from lensmount.loop.watch import WatchOptions, watch as watch_design
 
 
 @app.command()
@@ -36,9 +38,6 @@ def watch(
     """Keep the loop warm: on every save of a design file, regenerate what changed, simulate the
     scene and print the verdict against the baseline (also in OUT/watch.html, which reloads
     itself). A revision that does not build is explained and watching goes on. Ctrl-C stops."""
-    from lensmount.loop.compare import verdict_sentence
-    from lensmount.loop.watch import WatchOptions, watch as watch_design
-
     observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         options = WatchOptions(design, scene, against, _fraction(tolerance, "--tolerance"),

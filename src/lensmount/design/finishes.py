@@ -48,6 +48,7 @@ from pathlib import Path
 
 from pydantic import ConfigDict, Field, ValidationError, field_validator
 
+from lensmount.design.brdf_data import read_brdf
 from lensmount.errors import InputError
 from lensmount.mesh import FaceTag
 from lensmount.physics.interfaces import parse_coating
@@ -128,7 +129,7 @@ def check_coatings(coatings: dict[str, str]) -> dict[str, str]:
 def check_finishes(finishes: dict[str, dict], assign: dict[str, str], base_dir: str | Path) -> dict[str, dict]:
     """InputError for a finish whose model or parameters are not valid, or a rule naming an undefined
     finish; the finishes with every measured one's file read into its table (relative to base_dir)."""
-    from lensmount.physics.bsdf import make_bsdf  # lazy: the BSDF models pull in numba (start-up time)
+    from lensmount.physics.bsdf import make_bsdf  # lazy: keeps lensmount --help from loading the BSDF models (~0.2 s)
 
     resolved = {}
     for name, params in finishes.items():
@@ -149,7 +150,7 @@ def check_finishes(finishes: dict[str, dict], assign: dict[str, str], base_dir: 
 
 def _measured_table(name: str, params: dict, base_dir: str | Path) -> dict:
     """`{ model = "tabulated", file = "paint.bsdf" }` → the model with the measurement's table."""
-    from lensmount.design.brdf_data import read_brdf
+    # lazy: keeps lensmount --help from loading the BSDF models (~0.2 s)
     from lensmount.physics.bsdf.tabulated import measured_profile
 
     extra = sorted(set(params) - {"model", "file"})

@@ -7,6 +7,7 @@ angles in degrees (as everywhere in files).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Literal
 
@@ -220,8 +221,6 @@ class StepPart(_Strict):
     @field_validator("datum")
     @classmethod
     def _datum(cls, v):
-        import re
-
         if v in ("image-plane", "barrel-front", "barrel-back") or re.fullmatch(r"surface-[1-9][0-9]*", v):
             return v
         raise ValueError(f"unknown datum {v!r}; valid: surface-N (N a surface number), image-plane, "
@@ -230,8 +229,6 @@ class StepPart(_Strict):
     @field_validator("colours")
     @classmethod
     def _colours(cls, v):
-        import re
-
         for key in v:
             if not re.fullmatch(r"#[0-9a-fA-F]{6}", key):
                 raise ValueError(f"colour {key!r} is not #rrggbb")

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.integrators.exit_sampler import sample_toward_exit
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import stream
 from lensmount.trace.tracer import FACE
@@ -222,8 +223,6 @@ def learned_rim(scene, tracer, det, broad: np.ndarray, seed: int, rim, n_rays: i
 
 
 def _pilot(scene, tracer, det, broad, seed, rim, n_rays):
-    from lensmount.integrators.exit_sampler import sample_toward_exit
-
     tags = edge_tags(scene, broad)
     if rim is None or len(tags) == 0:
         return None

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.photon_gather import HitPoints
@@ -47,8 +48,6 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
     speckle. Measuring the k-th neighbour in a fixed, deterministic subsample (every m-th hit
     point) keeps r_0 at the scale the paraxial rim's few hundred hit points gave (~1 mm).
     """
-    from scipy.spatial import cKDTree
-
     r = radius.copy()
     for t in faces:
         idx = np.flatnonzero(tag == t)

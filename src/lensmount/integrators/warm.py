@@ -13,10 +13,10 @@ import time
 
 import numpy as np
 
+from lensmount.integrators.radius import FaceBoundaries
+
 
 def main() -> None:
-    from lensmount.integrators.radius import FaceBoundaries
-
     start = time.perf_counter()
     square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
     fb = FaceBoundaries(square, np.array([[0, 1, 2], [0, 2, 3]]), np.zeros(2, np.int64), 1)

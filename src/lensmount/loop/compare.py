@@ -20,10 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
+from lensmount.analysis.passes import Accumulator
 from lensmount.errors import InputError
-from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
-from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
-from lensmount.run.results import read_summary
+from lensmount.loop.prepare import read_inputs
+from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes, resolve_revision
+from lensmount.loop.simulate import CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate
+from lensmount.run.report import comparison_report, write_report
+from lensmount.run.results import (
+    read_exr, read_summary, shared_scale, write_difference, write_exr, write_preview, write_summary)
 from lensmount.run.store import ORIGIN, RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
@@ -171,8 +175,6 @@ def _usable(runs: list[RunRecord]) -> list[RunRecord]:
 def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new") -> RunSource:
     """The design folder's current state on `scene`: a stored run of the same design and test
     condition (any length, the longest), else the run to simulate and its estimated time."""
-    from lensmount.loop.prepare import read_inputs
-
     scene_path = _scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s)
@@ -215,8 +217,6 @@ def stored_run(design: Path, scene: str, against: str, new: RunSource, o: Compar
     elif against == "best":
         pick = min((r for r in runs if r.stray_fraction is not None), key=lambda r: r.stray_fraction, default=None)
     else:  # a revision: git's name for it (HEAD~1, a tag) or a prefix of a stored commit id
-        from lensmount.loop.provenance import resolve_revision
-
         commit = resolve_revision(design, against) or against.lower()
         matches = [r for r in runs if r.git_commit and r.git_commit.startswith(commit)]
         pick = max(matches, key=lambda r: (not r.git_dirty, r.id)) if matches else None  # clean runs first
@@ -364,8 +364,6 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
-    from lensmount.run.results import write_summary
-
     write_summary(result.paths["json"], result.to_dict())  # compare.json with the looks' notes
     return result
 
@@ -373,8 +371,6 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
 def live_folder(run: Run) -> Path:
     """Where the run goes on: its own output folder. A store row's copy (rows/ID) names it in
     `store.ORIGIN` and counts only while that folder still holds this very run (same checksum)."""
-    from lensmount.run.results import read_summary
-
     origin = run.folder / ORIGIN
     if not origin.is_file():
         return run.folder
@@ -388,9 +384,6 @@ def live_folder(run: Run) -> Path:
 
 def resumable(run: Run) -> bool:
     """The run has a checkpoint and its design and scene still hold the inputs it ran on."""
-    from lensmount.loop.prepare import read_inputs
-    from lensmount.loop.simulate import CHECKPOINT
-
     sim = _resumed_options(run, 0, CompareOptions(run.folder))
     if not (sim and (sim.out / CHECKPOINT).is_file()) or not sim.design.is_dir() or not sim.scene.is_file():
         return False
@@ -425,9 +418,6 @@ def resume(run: Run, more: int, o: CompareOptions, observer: Observer | None = N
 def _std_error_image(run: Run, shape) -> np.ndarray:
     """Per-pixel standard error from the run's checkpoint (the pass sums), zeros when it has none
     (or one this version cannot read): it only sets the preview's pixel binning."""
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.loop.simulate import CHECKPOINT
-
     path = run.folder / CHECKPOINT
     if path.is_file():
         try:
@@ -450,9 +440,6 @@ def _extent(run: Run, shape) -> tuple[float, float, float, float]:
 def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> dict[str, Path]:
     """difference.exr (Y = new − old, channels old and new), old.png and new.png on one colour scale,
     difference.png (signed scale), compare.json and report.html."""
-    from lensmount.run.report import comparison_report, write_report
-    from lensmount.run.results import read_exr, shared_scale, write_difference, write_exr, write_preview, write_summary
-
     a = read_exr(old.folder / "irradiance.exr", old.summary.get("files", {}).get("irradiance.exr"))["Y"]
     b = read_exr(new.folder / "irradiance.exr", new.summary.get("files", {}).get("irradiance.exr"))["Y"]
     a, b = a.astype(np.float64), b.astype(np.float64)

@@ -28,9 +28,11 @@ from typing import Callable
 
 import numpy as np
 
+from lensmount.atomic import write_text
 from lensmount.errors import InputError
 from lensmount.integrators.registry import INTEGRATORS
-from lensmount.run.results import read_summary
+from lensmount.loop.simulate import Observer, SimulateOptions, simulate
+from lensmount.run.results import read_summary, save_figure
 
 MIN_PASSES_FOR_SLOPE = 4
 
@@ -141,8 +143,6 @@ def check(o: ConvergeOptions) -> None:
 
 def converge(o: ConvergeOptions, progress: Callable[[str], None] | None = None) -> list[MethodCurve]:
     """Run each method for budget/len(methods) seconds and read it at the doubling levels."""
-    from lensmount.loop.simulate import Observer, SimulateOptions, simulate
-
     check(o)
     say = progress or (lambda text: None)
     per_method = o.budget_s / len(o.methods)
@@ -207,8 +207,6 @@ def _pct(x: float | None) -> str:
 
 def write_converge(out: Path, curves: list[MethodCurve], reference: float | None = None) -> dict[str, Path]:
     """converge.csv and converge.png (log-log error against time, 1/√t drawn) in out."""
-    from lensmount.atomic import write_text
-
     out = Path(out)
     paths = {"csv": out / "converge.csv", "png": out / "converge.png"}
     cols = ["method", "level", "time_s", "passes", "photons", "stray_fraction", "std_error", "rel_std_error",
@@ -225,13 +223,11 @@ def write_converge(out: Path, curves: list[MethodCurve], reference: float | None
 
 
 def plot_converge(path: Path, curves: list[MethodCurve], reference: float | None) -> None:
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
-
-    from lensmount.run.results import save_figure
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6), dpi=100)
     for c, color in zip(curves, ("tab:blue", "tab:orange", "tab:green")):

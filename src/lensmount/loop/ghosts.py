@@ -140,7 +140,7 @@ def _pair(route: tuple[int, ...], p, d, w, det, aperture: float) -> GhostPair:
 
 def _peak(image: np.ndarray, counts: np.ndarray) -> float:
     """Largest irradiance after smoothing with the smallest box that holds ≥ MIN_RAYS_PER_PEAK rays at the peak."""
-    from scipy.ndimage import uniform_filter
+    from scipy.ndimage import uniform_filter  # lazy: keeps lensmount --help from loading scipy.ndimage
 
     for size in (1, 3, 5, 9, 17, 33, 65):
         if size == 1:

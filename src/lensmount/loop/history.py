@@ -40,7 +40,7 @@ def history(options: HistoryOptions) -> list[RunRecord]:
 
 def write_history_plot(path: Path, runs: list[RunRecord], title: str = "") -> None:
     """Stray fraction per run with error bars (±2 std errors + bias bound), labelled by commit."""
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

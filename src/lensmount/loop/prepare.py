@@ -11,9 +11,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from lensmount.design.folder import Design
-from lensmount.design.scene import SceneSpec
-from lensmount.loop.regenerate import RegenerateResult
+from lensmount.design.finishes import check_mount_finishes
+from lensmount.design.folder import Design, load_design
+from lensmount.design.mount import check_finish_parts
+from lensmount.design.scene import SceneSpec, fit_detector_to_housing, load_scene
+from lensmount.loop.regenerate import RegenerateOptions, RegenerateResult, regenerate
+from lensmount.mesh import TaggedMesh
 from lensmount.scene.scene import Scene
 
 
@@ -28,10 +31,6 @@ class Prepared:
 def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None] | None = None):
     """The validated design folder and scene file, (Design, SceneSpec); nothing built yet, so a
     caller can refuse bad options and unwritable outputs before the slow part."""
-    from lensmount.design.folder import load_design
-    from lensmount.design.finishes import check_mount_finishes
-    from lensmount.design.scene import fit_detector_to_housing, load_scene
-
     (stage or (lambda text: None))("reading the design and the scene")
     design = load_design(design_dir)
     spec = load_scene(Path(scene_path), design.finishes)
@@ -42,9 +41,7 @@ def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None]
 def build(design, spec, geometry: Path | None = None, stage: Callable[[str], None] | None = None,
           build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
     """Regenerate (cached) into `geometry` (default DESIGN/build) and build the Scene."""
-    from lensmount.mesh import TaggedMesh
-    from lensmount.design.mount import check_finish_parts
-    from lensmount.loop.regenerate import RegenerateOptions, regenerate
+    # lazy: keeps lensmount --help from loading scene.build and the BSDF models
     from lensmount.scene.build import build_scene
 
     say = stage or (lambda text: None)

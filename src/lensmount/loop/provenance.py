@@ -16,6 +16,7 @@ import math
 import shlex
 import subprocess
 import sys
+import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -128,8 +129,6 @@ def user_files(design) -> list[Path]:
 
 def _finish_tables(design) -> dict:
     """finishes.toml's [finishes] as written (a measured finish: its file name, not its table)."""
-    import tomllib
-
     path = design.finishes_path
     return tomllib.loads(path.read_text(encoding="utf-8")).get("finishes", {}) if path else {}
 
@@ -138,8 +137,6 @@ def design_record(design) -> dict:
     """What a run's design was, flat, for `compare` to list what changed: each lens surface's
     prescription ('lens.surface 3.radius'), every mount key ('mount.vanes.count'), the treatment
     ('finishes.black-paint.reflectance', 'coatings.default', 'assign.*') and each user file's hash."""
-    import tomllib
-
     def number(x):  # a flat surface's radius is infinite: JSON has no inf, summary.json none
         return x if x is None or math.isfinite(x) else str(x)
 

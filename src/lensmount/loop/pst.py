@@ -27,8 +27,19 @@ from typing import Callable
 
 import numpy as np
 
+from lensmount.analysis.passes import Accumulator
+from lensmount.atomic import write_text
 from lensmount.errors import InputError
+from lensmount.integrators.registry import INTEGRATORS
+from lensmount.integrators.settings import EstimatorSettings
+from lensmount.loop.prepare import build, read_inputs
+from lensmount.loop.provenance import collect
 from lensmount.loop.simulate import SimulateOptions, check_options
+from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
+from lensmount.run.results import save_figure
+from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
+from lensmount.run.signals import Terminated
+from lensmount.scene.scene import EFFECT_NAMES
 
 
 
@@ -106,15 +117,8 @@ def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: f
 
 def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> PstResult:
     """Run the sweep; progress(text) after each angle."""
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.integrators.registry import INTEGRATORS
-    from lensmount.integrators.settings import EstimatorSettings
-    from lensmount.loop.prepare import build, read_inputs
-    from lensmount.loop.provenance import collect
-    from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
-    from lensmount.run.signals import Terminated
+    # lazy: keeps lensmount --help from loading scene.build and the BSDF models
     from lensmount.scene.build import make_source
-    from lensmount.scene.scene import EFFECT_NAMES
 
     o = options
     say = progress or (lambda text: None)
@@ -164,9 +168,6 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
 
 def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
     """pst.csv, pst.png (log scale, error bars, field edge) and report.html, atomically."""
-    from lensmount.atomic import write_text
-    from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
-
     out = Path(out)
     paths = {"csv": out / "pst.csv", "png": out / "pst.png", "html": out / "report.html"}
     lines = ["angle_deg,pst,std_error,in_field,passes,photons,time_s"]
@@ -191,12 +192,10 @@ def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
 
 def plot_pst(path: Path, result: PstResult) -> None:
     """Log-scale PST with 1σ error bars; zero values (nothing reached the detector) drawn at the axis floor."""
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from lensmount.run.results import save_figure
 
     a = np.array([p.angle_deg for p in result.points])
     v = np.array([p.pst for p in result.points])

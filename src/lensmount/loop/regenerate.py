@@ -37,6 +37,7 @@ class RegenerateResult:
 def regenerate(options: RegenerateOptions, progress: Callable[[str, int, int], None] | None = None
                ) -> RegenerateResult:
     """Build (or restore from the cache) the mount's CAD outputs; progress(step, done, total)."""
+    # lazy: keeps lensmount --help from loading cad and matplotlib
     from lensmount.cad.pipeline import regenerate as build
 
     folder = Path(options.out) if options.out is not None else Path(options.design) / "build"

@@ -32,9 +32,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lensmount.design.scene import scene_from_dict
 from lensmount.mesh import TaggedMesh
+from lensmount.optics.apertures import with_clear_semi_diameters
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
+from lensmount.optics.profiles import Profile
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sources import orthonormal_basis, source_direction
+from lensmount.run.results import save_figure
+from lensmount.trace.tracer import FACE, Tracer
 
 CELL_MM = 0.2
 DETECTOR_GRID = (15, 11)
@@ -87,7 +94,7 @@ class SightlineReport:
 
 
 def _scene(prescription: Prescription, mesh: TaggedMesh, width: float, height: float, exclusion_deg: float):
-    from lensmount.design.scene import scene_from_dict
+    # lazy: keeps lensmount --help from loading scene.build and the BSDF models
     from lensmount.scene.build import build_scene
 
     spec = scene_from_dict({"source": {"type": "collimated", "off_axis_deg": exclusion_deg},
@@ -98,9 +105,6 @@ def _scene(prescription: Prescription, mesh: TaggedMesh, width: float, height: f
 
 def _first_faces(tracer, origins, directions):
     """(tags, points) of the rays whose first event is a mechanical face."""
-    from lensmount.physics.rays import RayBatch
-    from lensmount.trace.tracer import FACE
-
     ev = tracer.next_event(RayBatch.make(origins, directions))
     hit = ev.kind == FACE
     return ev.tag[hit], ev.position[hit]
@@ -115,8 +119,6 @@ def _aperture_rays(prescription: Prescription):
     """(origins, directions): a grid over surface 1's clear aperture, just in front of it, looking
     into object space: every direction on the air side of the surface's tangent plane there (a
     chord across a convex front surface would look through the glass, not into the hood)."""
-    from lensmount.optics.profiles import Profile
-
     s = prescription.surfaces[0]
     prof = Profile(s.curvature, s.conic, tuple(s.aspheric))
     rho = np.sqrt((np.arange(APERTURE_RINGS) + 0.5) / APERTURE_RINGS) * float(s.clear_semi_diameter)
@@ -139,9 +141,6 @@ def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tu
     detector (through the lens) or the entrance aperture (VIEWS; module docstring). Seen from
     the aperture, lit vane edges are unavoidable (every edge is both): they are listed in
     `report.edges`, not as failures."""
-    from lensmount.optics.apertures import with_clear_semi_diameters
-    from lensmount.trace.tracer import Tracer
-
     if view not in VIEWS:
         raise ValueError(f"view {view!r} is not one of {VIEWS}")
     p = prescription
@@ -178,8 +177,6 @@ def _detector_rays(scene, par, w: float, h: float):
 
 def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_rays) -> SightlineReport:
     """Trace the sun at and beyond the exclusion angle; the faces both lit and seen, per (r, z) cell."""
-    from lensmount.physics.sources import orthonormal_basis, source_direction
-
     # ---- lit: the sun at and beyond the exclusion angle --------------------------------
     opening = scene.front_opening
     reach = float(np.linalg.norm(mesh.vertices - [0.0, 0.0, opening.z], axis=1).max()) + 1.0
@@ -231,12 +228,10 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
 
 def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     """check.png (`file_stem`): the mount's (r, z) section, seen points, lit points and the lit walls seen."""
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from lensmount.run.results import save_figure
 
     fig, ax = plt.subplots(figsize=(11, 4.5), dpi=110)
     v = mesh.vertices

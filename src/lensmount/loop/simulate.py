@@ -15,12 +15,22 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from lensmount.analysis.passes import Accumulator
+from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
+from lensmount.analysis.summary import build_summary
 from lensmount.errors import InputError, WorkersGone
+from lensmount.integrators.estimate import film_channels
+from lensmount.integrators.plan import plan
 from lensmount.integrators.registry import check_method
-from lensmount.run.executor import WORKER_WAIT_S, local_cluster_size
+from lensmount.integrators.settings import EstimatorSettings
+from lensmount.run.executor import WORKER_WAIT_S, executor_for, local_cluster_size
 from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
-from lensmount.loop.prepare import build
+from lensmount.loop.prepare import build, read_inputs
 from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
+from lensmount.run.results import write_run
+from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
+from lensmount.run.store import Store, default_path
+from lensmount.scene.scene import EFFECT_NAMES
 
 # What the plan's per-phase seconds are: each pass times its own phases, and passes run side by side
 TIME_SUMMED = "passes and workers: the seconds each pass spent, added up (more than the wall time on several workers)"
@@ -217,8 +227,6 @@ def planned_input_hash(o: SimulateOptions, design, spec) -> str:
 
 def estimator_settings(o: SimulateOptions):
     """The estimator's knobs these options set (the rest at their defaults)."""
-    from lensmount.integrators.settings import EstimatorSettings
-
     return EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
 
 
@@ -257,9 +265,6 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 
 
 def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.loop.prepare import read_inputs
-
     check_options(o)
     clock, wall = time.perf_counter(), {}  # the driver's phases in wall-clock seconds (the plan's are summed)
     design, spec = read_inputs(o.design, o.scene, obs.stage)
@@ -279,8 +284,6 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest,
                                     "photons_per_pass": per_pass}, checkpoint)
     if o.record:  # a locked or damaged store is said now, not after the run
-        from lensmount.run.store import Store, default_path
-
         Store(default_path(design.root, o.store)).close()
     provenance = collect(design, spec, scene_path, o.argv)
 
@@ -291,13 +294,7 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
 
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
-    from lensmount.analysis.passes import Accumulator
-    from lensmount.run.executor import executor_for
-    from lensmount.integrators.estimate import film_channels
-    from lensmount.integrators.plan import plan
-    from lensmount.loop.progress import status_of
-    from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
-    from lensmount.scene.scene import EFFECT_NAMES
+    from lensmount.loop.progress import status_of  # here: progress imports this module
 
     design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
@@ -360,10 +357,6 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
            input_hash, settings, no_light_enters, effects, wall) -> SimulateResult:
     """summary.json, the images, paths.npz and the store's row of a run that has passes."""
-    from lensmount.analysis.paths import face_areas, face_report, ghost_pairs, scene_tags, top_paths, write_paths
-    from lensmount.analysis.summary import build_summary
-    from lensmount.run.results import write_run
-
     design, built, sc = prepared.design, prepared.built, prepared.scene
     tags, areas = scene_tags(sc), face_areas(sc.mesh)
     summary = build_summary(acc, method=o.method, seed=seed, effects_ran=[k for k, v in effects.items() if v],
@@ -389,8 +382,6 @@ def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, pr
     write_paths(paths["paths"], acc.paths, tags, areas, aperture, (-det.width / 2, det.width / 2, -det.height / 2, det.height / 2))
     result = SimulateResult(out, summary, paths, runner.interrupted, runner.terminated, warnings=warnings)
     if o.record and not runner.interrupted:
-        from lensmount.run.store import Store, default_path
-
         result.store_path = default_path(design.root, o.store)
         with Store(result.store_path) as store:
             result.run_id = store.record(summary, paths)
@@ -405,7 +396,7 @@ OBJECT_SOURCE_UNITS = {"irradiance": "E/E_ref (E_ref: the source's mean irradian
 
 def _field_radius(prescription) -> float | None:
     """Image height of the full field (the real chief ray's; finite objects included), for the preview outline."""
-    from lensmount.cad.starter import image_height
+    from lensmount.cad.starter import image_height  # lazy: keeps lensmount --help from loading cad and matplotlib
 
     r = image_height(prescription)
     return r if math.isfinite(r) and r > 0 else None

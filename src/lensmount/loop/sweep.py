@@ -27,7 +27,10 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import tomli_w
+
 from lensmount.atomic import atomic_path, write_text
+from lensmount.design.folder import load_design
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, SimulateOptions, simulate
 
@@ -137,8 +140,6 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
 
 def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict) -> tuple[Path, Path]:
     """A copy of the design folder and the scene with the variant's keys set."""
-    import tomli_w
-
     target = folder / "design"
     if target.exists():
         shutil.rmtree(target)
@@ -164,8 +165,7 @@ def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict
 def refuse_identical_layouts(params, grid: list[dict], designs: list[Path]) -> None:
     """InputError naming a mount parameter two of whose values lay out the same parts (templates,
     sizes, finishes) with everything else equal: those variants differ only by noise."""
-    from lensmount.cad.layout import plan
-    from lensmount.design.folder import load_design
+    from lensmount.cad.layout import plan  # lazy: keeps lensmount --help from loading cad and matplotlib
 
     layouts: dict[int, str] = {}
 
@@ -195,7 +195,7 @@ def rank(variants: list[Variant], confidence: float) -> None:
     Two variants differ when |a − b| exceeds z·√(σa² + σb²) plus both bias bounds, z the
     two-sided normal quantile at `confidence`. Unknown values rank last.
     """
-    from scipy.stats import norm
+    from scipy.stats import norm  # lazy: keeps lensmount --help from loading scipy.stats
 
     z = float(norm.ppf(0.5 + confidence / 2))
     known = sorted((v for v in variants if v.stray_fraction is not None), key=lambda v: v.stray_fraction)
@@ -238,7 +238,7 @@ def _num(x) -> str:
 
 def _plot(variants: list[Variant], params, path: Path) -> Path | None:
     """sweep.png (`figure`)."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: keeps lensmount --help from loading matplotlib
 
     fig = figure(variants, params)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
@@ -253,7 +253,7 @@ def figure(variants: list[Variant], params):
     Honest at a glance: the axis starts at 0 (a 0.002 % difference is no steep drop), the scale
     sits in the axis label (no offset text over the title), a parameter of whole numbers gets whole
     ticks, and variants without an error bar say so on the plot."""
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.optics.io.agf import read_agf
 from lensmount.optics.prescription import AIR
 
 CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita", "Hikari")
@@ -65,8 +66,6 @@ def register_catalogue(path) -> str:
     catalogue's name, by which `NAME:GLASS` selects one of them: the file's stem, upper case (with
     a digest of the path added when another file of that stem is already known in this process,
     so that each name means one file). The same file again is a no-op."""
-    from lensmount.optics.io.agf import read_agf
-
     path = Path(path).resolve()
     glasses = read_agf(path)
     name = path.stem.upper()
@@ -140,7 +139,7 @@ def _model(nd, vd) -> str:
 
 @functools.lru_cache(maxsize=None)
 def _catalogue_glass(name: str, catalogue: str):
-    from opticalglass import glassfactory
+    from opticalglass import glassfactory  # lazy: keeps lensmount --help from loading opticalglass and pandas
 
     logging.getLogger("opticalglass").setLevel(logging.ERROR)
     with warnings.catch_warnings():  # the catalogue loader's pandas deprecation notices are not the user's business
@@ -215,6 +214,7 @@ def successor(name: str) -> str | None:
     with another prefix (N-, P-, S-, J-, ...) in one catalogue, N- ("new", the lead-free
     successor) preferred. None when there is no such glass or it is ambiguous.
     """
+    # lazy: keeps lensmount --help from loading opticalglass and pandas
     from opticalglass.glass import decode_glass_name
 
     name = re.sub(r"_MOLD(ED)?$", "", name.strip().upper())  # Zemax's moulded-variant names
@@ -234,6 +234,7 @@ def successor(name: str) -> str | None:
 
 
 def _decoded(glass: str):
+    # lazy: keeps lensmount --help from loading opticalglass and pandas
     from opticalglass.glass import decode_glass_name
 
     try:
@@ -245,7 +246,7 @@ def _decoded(glass: str):
 
 @functools.lru_cache(maxsize=None)
 def _catalogue_names(catalogue: str) -> tuple[str, ...]:
-    from opticalglass import glassfactory
+    from opticalglass import glassfactory  # lazy: keeps lensmount --help from loading opticalglass and pandas
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -265,7 +266,7 @@ _T10 = "internal transmission mm, 10"
 def _absorption(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     """(wavelengths µm, ascending; absorption coefficient 1/mm) from the catalogue's internal
     transmittance of a 10 mm sample; None where the material has no catalogue data."""
-    import pandas as pd
+    import pandas as pd  # lazy: keeps lensmount --help from loading pandas
 
     if name.strip().upper() == AIR or MODEL_GLASS.match(name) or name.strip().upper() in _FUSED_SILICA_NAMES:
         return None

@@ -284,7 +284,7 @@ class DaskCluster(Executor):
 
     def start(self, scene, tracer_path: str, run_pass_path: str) -> None:
         super().start(scene, tracer_path, run_pass_path)
-        from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster  # lazy: keeps lensmount --help from loading dask
 
         if self.address:
             self._client = Client(self.address, timeout="20s")
@@ -315,7 +315,7 @@ class DaskCluster(Executor):
         self._jobs[future] = job
 
     def next_done(self) -> list:
-        from distributed import wait as dask_wait
+        from distributed import wait as dask_wait  # lazy: keeps lensmount --help from loading dask
         from distributed.client import FuturesCancelledError
 
         try:
@@ -349,7 +349,7 @@ class DaskCluster(Executor):
 
 def _die_with_parent_plugin():
     """A Dask worker plugin: LocalCluster workers are our children; they must not outlive us."""
-    from distributed import WorkerPlugin
+    from distributed import WorkerPlugin  # lazy: keeps lensmount --help from loading dask
 
     class DieWithParent(WorkerPlugin):
         name = "lensmount-die-with-parent"

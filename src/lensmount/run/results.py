@@ -44,7 +44,7 @@ def write_exr(path: str | os.PathLike, image: np.ndarray, per_part: np.ndarray, 
               only_contributing: bool = True) -> list[str]:
     """Write Y + one channel per part (parts with zero everywhere are left out when
     `only_contributing`). Returns the part channels written."""
-    import OpenEXR
+    import OpenEXR  # lazy: keeps lensmount --help from loading OpenEXR
 
     path = Path(path)
     channels = {"Y": np.ascontiguousarray(np.nan_to_num(image, nan=0.0, posinf=0.0, neginf=0.0), np.float32)}
@@ -71,7 +71,7 @@ def read_exr(path: str | os.PathLike, sha256: str | None = None) -> dict[str, np
     """Channels of an EXR file as float32 arrays (for tests and `compare`). InputError naming the
     file when it is damaged: it does not read, or its bytes disagree with `sha256` (the checksum
     summary.json keeps under `files`: EXR has none of its own, and a flipped bit reads as a pixel)."""
-    import OpenEXR
+    import OpenEXR  # lazy: keeps lensmount --help from loading OpenEXR
 
     path = Path(path)
     try:
@@ -135,7 +135,7 @@ def shared_scale(runs: list[tuple[np.ndarray, np.ndarray]], target_rel_error: fl
 
 def _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm) -> None:
     """Axes labels, the field of view outlined, and limits that show the whole outline."""
-    from matplotlib.patches import Circle, Rectangle
+    from matplotlib.patches import Circle, Rectangle  # lazy: keeps lensmount --help from loading matplotlib
 
     if field_radius_mm:
         ax.add_patch(Circle((0, 0), field_radius_mm, fill=False, ec="cyan", lw=1, ls="--", label="field of view"))
@@ -156,7 +156,7 @@ def _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm) -> None:
 
 def save_figure(fig, path) -> None:
     """Save a matplotlib figure as PNG atomically and close it."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: keeps lensmount --help from loading matplotlib
 
     def write(tmp):
         fig.savefig(tmp, format="png")
@@ -179,7 +179,7 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
     scale : colour range and block size; None fits them to this image alone. Pass one
         scale (from `shared_scale`) to every preview meant to be compared.
     """
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -212,7 +212,7 @@ def write_difference(path: str | os.PathLike, new: np.ndarray, old: np.ndarray,
     colour bar symmetric about zero (red: brighter in new, blue: darker). The colour
     limit is the largest |difference|, at least `scale.vmin` so that noise-free equal
     runs show white rather than an empty range. Returns the block-mean difference."""
-    import matplotlib
+    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

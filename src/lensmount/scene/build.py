@@ -24,17 +24,18 @@ from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
 from lensmount.design.finishes import finish_library, finish_of
+from lensmount.optics.paraxial import paraxial
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
+from lensmount.physics.bsdf import make_bsdf
 from lensmount.physics.bsdf.mirror_finish import MirrorFinish
 from lensmount.physics.detector import Detector
+from lensmount.physics.interfaces import parse_coating
 from lensmount.physics.sources import SOURCE_KINDS, Placement, Source, SourceParams
 
 
 def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
     """Analytic surfaces of a prescription; coating_of(i, lens_coating) -> Coating (default: lens file
     coating, else perfect-ar)."""
-    from lensmount.physics.interfaces import parse_coating
-
     coating_of = coating_of or (lambda i, c: parse_coating(c))
     zs = prescription.vertex_z
     travel = (1,) + prescription.travel
@@ -96,7 +97,7 @@ def _load_mesh_file(path: Path, o, field: str) -> TaggedMesh:
     if not path.exists():
         raise InputError(f"mesh file '{path}' not found", field=field, valid="an existing .stl/.step file")
     if path.suffix.lower() == ".stl":
-        import trimesh
+        import trimesh  # lazy: trimesh and build123d take seconds to load; only .stl and .step objects need them
 
         m = trimesh.load(path, force="mesh")
         v, t = np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
@@ -121,7 +122,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
     that matches no face; `Scene.warnings` lists what is legal but suspicious.
     """
     if bsdf_factory is None:
-        from lensmount.physics.bsdf import make_bsdf as bsdf_factory
+        bsdf_factory = make_bsdf
     wavelengths = np.asarray(prescription.wavelengths_um, np.float64)
     library = finish_library(spec.finishes)
     treatment = spec.finishes_source  # finishes.toml: where a rule or coating error is
@@ -200,8 +201,6 @@ def imaged_field_deg(prescription: Prescription, detector: Detector) -> float:
     """The largest off-axis angle the detector images, degrees: the lens's field, or the angle whose
     paraxial image lands at the detector's corner (half diagonal / focal length), the larger;
     180 for a lens without a finite focal length."""
-    from lensmount.optics.paraxial import paraxial
-
     try:
         efl = abs(float(paraxial(prescription).efl))
     except (ArithmeticError, ValueError):  # InputError included: no paraxial image, nothing to bound
@@ -258,8 +257,6 @@ def check_scatterers(effects: Effects, mesh: TaggedMesh, finishes: list[str]) ->
 
 def _pupil(prescription: Prescription):
     """The paraxial data, or an InputError when the lens has none (no stop, no power)."""
-    from lensmount.optics.paraxial import paraxial
-
     try:
         return paraxial(prescription)
     except (ArithmeticError, ValueError) as exc:  # InputError included: the lens is what is wrong

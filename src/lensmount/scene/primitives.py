@@ -67,7 +67,7 @@ def box(lo, hi, *, part: str = "box", kind: str = "housing", role: str = "mount"
 def sphere(centre, radius: float, *, subdivisions: int = 3, part: str = "sphere", finish: str = "absorber",
            kind: str = "housing", role: str = "mount") -> TaggedMesh:
     """A closed icosphere (trimesh), vertices on the sphere."""
-    import trimesh
+    import trimesh  # lazy: trimesh takes ~1 s to load; only the sphere needs it
 
     m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return _single(np.asarray(m.vertices) + np.asarray(centre, float), m.faces, FaceTag(part, kind, role, finish))

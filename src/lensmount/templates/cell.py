@@ -55,6 +55,7 @@ class SpiderCell(Cell):
         return [(r_in, r_out, 360.0 * k / self.vanes) for k in range(self.vanes)]
 
     def build(self):
+        # lazy: build123d/OCP take seconds to load; planning a layout does without them
         from build123d import Box, Location, Rotation
 
         solid = revolve(self.segments())

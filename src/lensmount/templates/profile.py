@@ -10,7 +10,7 @@ of user-template parts that follow the built-in profile, and `mount` otherwise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Protocol
 
 import numpy as np
@@ -111,6 +111,7 @@ def polygon(points, roles=None) -> list[Segment]:
 
 def revolve(segments: list[Segment]):
     """A build123d Solid: the closed profile revolved 360° about the z axis."""
+    # lazy: build123d/OCP take seconds to load; planning a layout does without them
     from build123d import Axis, Edge, Face, Solid, Wire
 
     edges = []
@@ -183,7 +184,6 @@ class RevolvedPart:
 
     def params(self) -> dict:
         """The template's parameters (for hashing and for user templates)."""
-        from dataclasses import asdict
         return asdict(self)
 
 

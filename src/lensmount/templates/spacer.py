@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from lensmount.templates.profile import RevolvedPart, Segment, polygon
 
 
@@ -56,7 +58,6 @@ class Spacer(RevolvedPart):
 
     def inner_radius_at(self, z):
         """Bore radius at z (for vanes inside and beam checks)."""
-        import numpy as np
         z = np.asarray(z, dtype=np.float64)
         if self.tube_radius is not None:
             r = np.full(z.shape, float(self.tube_radius))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import importlib.util
 import hashlib
+import math
 from pathlib import Path
 
 from lensmount.errors import InputError
@@ -59,8 +60,6 @@ USER_ROLES = ("vane-edge", "diaphragm-edge", "bevel", "lens-edge", "mount")
 
 def declared_roles(solid, face_role, name: str, params: dict, fallback, path: Path, kind: str):
     """(role, surface) per face of `solid`: the template's `face_role` where it names one, else fallback."""
-    import math
-
     out = []
     for f, default in zip(solid.faces(), fallback):
         p = f.position_at(0.5, 0.5)
@@ -81,6 +80,7 @@ def declared_roles(solid, face_role, name: str, params: dict, fallback, path: Pa
 
 def to_solid(obj, path: Path, kind: str):
     """Convert a build123d or CadQuery result to one build123d Solid (via OCP)."""
+    # lazy: build123d/OCP take seconds to load; planning a layout does without them
     from build123d import Compound, Shape
 
     wrapped = None

@@ -47,6 +47,7 @@ import numpy as np
 from lensmount.optics.snell import reflect, refract
 from lensmount.physics.interfaces import facing, mirror_reflectance, reflectance
 from lensmount.physics.sources import disc_radius_fraction, orthonormal_basis
+from lensmount.scene.scene import scattering_mirror_tags
 
 _R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's generators (plastic number)
 CENTRED = (0.0, 0.0, 0.5, 0.5)  # lattice through the axis, R2 sequence from its usual start: the report's
@@ -202,8 +203,6 @@ class _Context:
             self.reflects = np.array([r or (walls.rims.get(s.index) is not None and not s.mirror
                                             and s.coating.kind != "perfect-ar")
                                       for r, s in zip(reflects, surfaces)], bool)
-        from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
-
         self.mirror_finish = {i: scene.bsdf_of_tag[t].finish for i, t in scattering_mirror_tags(scene).items()}
 
     def _specular_share(self, s, d: np.ndarray, nrm: np.ndarray) -> np.ndarray | float:

@@ -52,7 +52,7 @@ class MechanicalFaces:
     """
 
     def __init__(self, vertices, triangles, normals, prims, centre, extent, t_tol):
-        from embreex import rtcore_scene as rtcs
+        from embreex import rtcore_scene as rtcs  # lazy: keeps lensmount --help from loading embreex
         from embreex.mesh_construction import TriangleMesh
 
         self.prims = np.asarray(prims, np.int64)

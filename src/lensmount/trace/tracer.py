@@ -38,6 +38,7 @@ from lensmount.physics.interfaces import facing, mirror_reflectance, reflectance
 from lensmount.trace.mechanical import MechanicalFaces
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import ray_streams
+from lensmount.scene.scene import scattering_mirror_tags
 
 GONE, FACE, DETECTOR = 0, 1, 2  # Events.kind: the one set of event codes (the integrators use these)
 FRESNEL_DIM = 1 << 20  # Streams dimensions of the Fresnel branch: FRESNEL_DIM + interface count in the call
@@ -130,7 +131,7 @@ class Tracer:
     """
 
     def __init__(self, scene):
-        from embreex import rtcore_scene as rtcs
+        from embreex import rtcore_scene as rtcs  # lazy: keeps lensmount --help from loading embreex
         from embreex.mesh_construction import TriangleMesh
 
         self.scene = scene
@@ -299,8 +300,6 @@ class Tracer:
         """(K, 2) per optical surface: (tag, triangle) of its coated face where the scene lets it
         scatter (a mirror with a finish, `scene.scattering_mirror_tags`), else (-1, -1). The triangle is the
         face's one nearest the axis: an event found by the sequential step has none of its own."""
-        from lensmount.scene.scene import scattering_mirror_tags  # here: lensmount.scene imports the trace package
-
         out = np.full((max(len(self._profiles), 1), 2), -1, np.int64)
         tag_of = scattering_mirror_tags(self.scene)
         for k, s in enumerate(self.scene.optical):

@@ -16,18 +16,18 @@ import time
 
 import numpy as np
 
+from lensmount.design.scene import scene_from_dict
+from lensmount.mesh import TaggedMesh
+from lensmount.optics.prescription import Aperture, Prescription, Surface
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import Streams
+from lensmount.scene import primitives
+from lensmount.scene.build import build_scene
+from lensmount.trace import lens_kernel
+from lensmount.trace.tracer import Tracer
+
 
 def main() -> None:
-    from lensmount.mesh import TaggedMesh
-    from lensmount.design.scene import scene_from_dict
-    from lensmount.optics.prescription import Aperture, Prescription, Surface
-    from lensmount.scene import primitives
-    from lensmount.scene.build import build_scene
-    from lensmount.physics.rays import RayBatch
-    from lensmount.physics.sampler import Streams
-    from lensmount.trace import lens_kernel
-    from lensmount.trace.tracer import Tracer
-
     start = time.perf_counter()
     sd = dict(clear_semi_diameter=20.0, mechanical_semi_diameter=20.0)
     lens = Prescription((Surface(thickness=5.0, material="SCHOTT:N-BK7", **sd), Surface(thickness=50.0, **sd)),

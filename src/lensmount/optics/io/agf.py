@@ -72,7 +72,7 @@ class AgfGlass:
 
 def read_agf(path) -> dict[str, AgfGlass]:
     """The glasses of an .agf file by upper-case name."""
-    from lensmount.optics.io.zemax import read_text
+    from lensmount.optics.io.zemax import read_text  # here: a circle (zemax -> glass -> agf)
 
     path = Path(path)
     return parse_agf(read_text(path), str(path))

@@ -45,12 +45,13 @@ with a BOM), UTF-8 or Latin-1.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from lensmount.errors import InputError
 from lensmount.optics.glass import CATALOGUES, register_catalogue
 from lensmount.optics.io import zemax_glass
+from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
@@ -304,8 +305,6 @@ def to_prescription(lens: ZmxLens, file: str = "lens.zmx") -> Prescription:
 def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[Prescription, list[ImportNote]]:
     """The Prescription and the notes on what was imported, substituted and ignored.
     glass_catalogs: the user's .agf files, searched first for a GLAS name."""
-    from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
-
     if len(lens.surfaces) < 3:
         raise InputError("fewer than three SURF blocks (object, one surface, image)", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
@@ -424,8 +423,6 @@ def _glass_name(zs: ZmxSurface) -> str:
 
 def _add_gap(surfaces: list[Surface], gap: float) -> None:
     if gap:
-        from dataclasses import replace
-
         surfaces[-1] = replace(surfaces[-1], thickness=surfaces[-1].thickness + gap)
 
 
@@ -512,8 +509,6 @@ def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes
     chip zone (OEMA) over the element's faces. With no chip zone that is the clear semi-diameter
     itself, which leaves no edge to hold the glass by; and where a face's clear semi-diameter is
     left to real rays the sum is not known here: both are left to the mount's edge allowance."""
-    from dataclasses import replace
-
     zmx = {i: zs for i, zs in enumerate(body)}
     out = list(surfaces)
     p = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0))

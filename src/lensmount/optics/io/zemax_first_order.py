@@ -15,8 +15,9 @@ from dataclasses import replace
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.optics.paraxial import marginal_start, paraxial, surface_matrices
+from lensmount.optics.paraxial import marginal_heights, marginal_start, paraxial, surface_matrices
 from lensmount.optics.prescription import Aperture, Prescription
+from lensmount.optics.realrays import chief_ray
 
 _FIELD_TYPES = {0: "angles (deg)", 1: "object heights", 2: "paraxial image heights", 3: "real image heights"}
 _REAL_HEIGHT_STEPS = 30
@@ -24,7 +25,7 @@ _REAL_HEIGHT_STEPS = 30
 
 def apply_aperture_and_fields(base: Prescription, lens, numbers, notes, file) -> Prescription:
     """`base` (surfaces, wavelengths, object distance) completed with the file's aperture and fields."""
-    from lensmount.optics.io.zemax import ImportNote
+    from lensmount.optics.io.zemax import ImportNote  # here: zemax imports this module
 
     stops = [i for i, s in enumerate(base.surfaces) if s.is_stop]
     if not stops:
@@ -77,8 +78,6 @@ def _with_aperture(p: Prescription, lens, notes, file, note) -> Prescription:
 
 def _image_marginal_slope(p: Prescription) -> float:
     """n'u' of the paraxial marginal ray after the last surface (p's aperture)."""
-    from lensmount.optics.paraxial import marginal_heights
-
     refr, trans = surface_matrices(p, p.primary_wavelength_um)
     v = np.array([marginal_heights(p)[0], _start_slope(p, paraxial(p))])
     for i in range(len(p.surfaces)):
@@ -144,8 +143,6 @@ def _paraxial_scale(p: Prescription, par) -> float:
 
 def _real_image_height_fields(p: Prescription, heights, par, file, line) -> list[float]:
     """Field values whose real chief rays land at the given image heights (secant iteration)."""
-    from lensmount.optics.realrays import chief_ray
-
     target = np.asarray(heights, dtype=np.float64)
     guess = (np.degrees(np.arctan(target / abs(par.efl))) if not p.finite_object
              else target / _paraxial_scale(p, par))

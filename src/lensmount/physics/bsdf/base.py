@@ -183,7 +183,7 @@ class TabulatedAlbedo:
         wi, n = as_rows(wi, "wi"), as_rows(n, "n")
         ci = dot(wi, n)
         if self._table is None:
-            from scipy.interpolate import CubicSpline
+            from scipy.interpolate import CubicSpline  # lazy: keeps lensmount --help from loading scipy.interpolate
             log_e = np.linspace(math.log(self._ELEVATION_MIN), math.log(0.5 * math.pi), 48 * 10)
             log_e = np.union1d(log_e[log_e < math.log(0.25)], np.log(np.linspace(0.25, 0.5 * math.pi, 128)))
             values = self._albedo_exact(np.sin(np.exp(log_e)))

@@ -106,7 +106,7 @@ def measured_profile(rho: np.ndarray, f: np.ndarray, bins_per_decade: int = 10) 
 
 def fit_abg(rho: np.ndarray, f: np.ndarray) -> tuple[float, float, float, float]:
     """Least-squares ABg fit in log f: returns (A, B, g, rms error of log10 f)."""
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # lazy: keeps lensmount --help from loading scipy.optimize
 
     rho, f = np.asarray(rho, np.float64), np.asarray(f, np.float64)
     keep = (rho > 0.0) & (f > 0.0) & np.isfinite(rho) & np.isfinite(f)
