@@ -39,6 +39,8 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
             "n_primary": float(refractive_index(s.material, wl)),
             "conic": s.conic,
             "aspheric": list(s.aspheric),
+            "qtype": None if s.qtype is None else {"form": s.qtype.form, "norm_radius_mm": s.qtype.norm_radius,
+                                                   "coefficients_mm": list(s.qtype.coefficients)},
             "clear_semi_diameter_mm": s.clear_semi_diameter,
             "mechanical_semi_diameter_mm": s.mechanical_semi_diameter,
             "is_stop": s.is_stop,

@@ -118,7 +118,7 @@ def _aperture_rays(prescription: Prescription):
     from lensmount.optics.profiles import Profile
 
     s = prescription.surfaces[0]
-    prof = Profile(s.curvature, s.conic, tuple(s.aspheric))
+    prof = Profile.of(s)
     rho = np.sqrt((np.arange(APERTURE_RINGS) + 0.5) / APERTURE_RINGS) * float(s.clear_semi_diameter)
     phi = np.arange(APERTURE_SPOKES) * 2 * np.pi / APERTURE_SPOKES
     rr, pp = (g.ravel() for g in np.meshgrid(rho, phi))

@@ -6,6 +6,7 @@ What a lens file holds and how it is read:
                                  even terms r^4..r^8 are imported and whose odd terms are an error)
     TYPE XASPHERE|XOSPHERE       the extended aspheres: XDAT 1 N, XDAT 2 r0, XDAT k+2 the term on
                                  (r/r0)^(2k) (even) or (r/r0)^k (odd; even powers only, as ODDASPH)
+    TYPE QED_TYPE                a Forbes Q-type asphere, Qbfs or Qcon (lensmount.optics.io.zemax_qtype)
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
@@ -51,10 +52,11 @@ from pathlib import Path
 from lensmount.errors import InputError
 from lensmount.optics.glass import CATALOGUES, register_catalogue
 from lensmount.optics.io import zemax_glass
+from lensmount.optics.io.zemax_qtype import qtype_of
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
-_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "COORDBRK")
+_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "QED_TYPE", "COORDBRK")
 # surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
 _IDEAL = ("an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no element to "
           "mount or to scatter light", "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (a real lens in place of "
@@ -248,7 +250,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         if cur.type not in _SUPPORTED_TYPES:
             raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
                       "symmetric or not supported by lensmount", ln,
-                      "TYPE STANDARD, EVENASPH, ODDASPH, or a COORDBRK that the next breaks undo")
+                      "TYPE STANDARD, EVENASPH, ODDASPH, XASPHERE, XOSPHERE, QED_TYPE, or a COORDBRK that the "
+                      "next breaks undo")
     elif cmd == "CURV":
         cur.curvature = arg(args, 0, ln, "curvature")
         if len(args) > 2 and args[1] == "4":  # solve type 4: pickup from surface args[2]
@@ -383,7 +386,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
             thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
             clear_semi_diameter=clear, mechanical_semi_diameter=mech, is_stop=zs.stop,
-            mirror=zs.mirror))
+            mirror=zs.mirror, qtype=qtype_of(zs, s, file)))
         numbers.append(zs.number)
         medium = material
     if tilt is not None:
