@@ -4,18 +4,21 @@ Two forms (G. W. Forbes, "Shape specification for axially symmetric optical surf
 15, 5218 (2007)), with u = r / r_n (r_n the normalisation radius) and x = u²:
 
     Qcon:  z = c r² / (1 + sqrt(1 - (1+k) c² r²))  +  u⁴ Σ a_m Q^con_m(x)
-    Qbfs:  z = c r² / (1 + sqrt(1 - (1+k) c² r²))  +  u² (1 - u²) / sqrt(1 - (1+k) c² r²) Σ a_m Q^bfs_m(x)
+    Qbfs:  z = c r² / (1 + sqrt(1 - (1+k) c² r²))  +  φ(r) u² (1 - u²) Σ a_m Q^bfs_m(x),
+           φ = sqrt((1 - k c² r²) / (1 - (1+k) c² r²))
 
 Q^con_m(x) = P_m^(0,4)(2x - 1), a Jacobi polynomial (orthogonal in sag). Q^bfs_m are orthonormal in
-slope along the normal of the best-fit sphere, Forbes's base (k = 0). OpticStudio's Q-type surface also
-carries a conic on a Qbfs face (Thorlabs' ASL5040-UV: k = -0.68, R = 17.4 mm, semi-diameter 22.9 mm,
-beyond the sphere's reach); the conic's own square root then takes the sphere's in the departure, so
-the face is defined wherever its base is and is Forbes's for k = 0. Evidence that the file is Qbfs,
-not Qcon: Qbfs's u² term changes the paraxial power, and with it the file's back focus (19.6875 mm,
-written to full precision) is the paraxial focus at its primary 405 nm to 0.5 µm; read as Qcon it is
-3 mm off. How the conic enters the Qbfs departure is inferred, not documented: a different choice
-changes the marginal zone's sag, not the paraxial data. The sums are
-evaluated as Forbes prescribes for production ("Robust, efficient computational methods for
+slope; the departure they sum is measured along the base's normal, which φ projects onto the axis:
+Forbes's 2007 form has a sphere for base (k = 0, φ = 1/sqrt(1 - c² r²)); his generalisation to a
+conic base ("Manufacturability estimates for optical aspheres", Opt. Express 19, 9923 (2011)) is the
+φ above, and OpticStudio's Q-type surface carries a conic on a Qbfs face too. Evidence for both
+readings from Thorlabs' ASL5040-UV as OpticStudio wrote it (XDAT 1 = 0, k = -0.68): read as Qbfs with
+this φ, every zone from 0.5 to 22.86 mm focuses within 0.5 µm of the file's image plane at its 405 nm
+and the EFL is 40.000 mm, the catalogue's; read with the sphere's φ the rays beyond r = 17.4 mm find
+no surface, with the conic's own 1/sqrt(1 - (1+k) c² r²) the zones spread over 0.6 mm, and read as
+Qcon the paraxial focus is 3 mm short.
+
+The sums are evaluated as Forbes prescribes for production ("Robust, efficient computational methods for
 axially symmetric optical aspheres", Opt. Express 18, 19700 (2010)): Qbfs's coefficients are
 changed once to the basis P_m (P_0 = 2, P_1 = 6 - 8x, P_(m+1) = (2 - 4x) P_m - P_(m-1)) and the sum
 and its x-derivative come from one Clenshaw recurrence; Qcon's from the Clenshaw recurrence of the
@@ -53,8 +56,8 @@ class QType:
 
     def departure(self, r2: np.ndarray, curvature: float, conic: float) -> tuple[np.ndarray, np.ndarray]:
         """(Δz, (dΔz/dr) / r) at squared radius r2 (n,): the Q-type part of the sag, and of its slope
-        divided by r (finite at r = 0). Qbfs's factor 1/sqrt(1 - (1+k) c² r²) is inf beyond the base
-        conic's reach (where the base sag is inf too); never NaN."""
+        divided by r (finite at r = 0). Qbfs's φ is inf beyond the base conic's reach (where the
+        base sag is inf too); never NaN."""
         r2 = np.asarray(r2, dtype=np.float64)
         rn2 = self.norm_radius * self.norm_radius
         x = r2 / rn2
@@ -69,16 +72,17 @@ class QType:
             # z = x² S(x): dz/dx = 2x S + x² S', dx/dr = 2r / r_n²
             return x * x * s, 2.0 * x * (2.0 * s + x * ds) / rn2
         s, ds = _clenshaw_bfs(self.coefficients, x)
-        c2 = (1.0 + conic) * curvature * curvature
-        arg = 1.0 - c2 * r2
-        ok = arg > 0.0
-        inv = np.where(ok, 1.0 / np.sqrt(np.where(ok, arg, 1.0)), np.inf)
+        c2 = curvature * curvature
+        base = 1.0 - (1.0 + conic) * c2 * r2  # > 0 inside the base conic's reach
+        ok = base > 0.0
+        base = np.where(ok, base, 1.0)
+        phi = np.sqrt((1.0 - conic * c2 * r2) / base)
         poly = x * (1.0 - x) * s
         dpoly = (1.0 - 2.0 * x) * s + x * (1.0 - x) * ds
-        # d/dr [poly(x) / phi] / r = (2 / r_n²) poly'(x) / phi + poly (1+k) c² / phi³; beyond the
-        # reach (phi imaginary) both are inf wholesale.
-        dz = np.where(ok, poly * inv, np.inf)
-        g = np.where(ok, 2.0 * dpoly * inv / rn2 + poly * c2 * inv**3, np.inf)
+        # d/dr [poly(x) φ] / r = (2 / r_n²) poly'(x) φ + poly φ' / r, with φ' / r = c² / (φ base²)
+        # (d φ² / dr = 2 c² r / base²). Beyond the reach both are inf wholesale.
+        dz = np.where(ok, poly * phi, np.inf)
+        g = np.where(ok, 2.0 * dpoly * phi / rn2 + poly * c2 / (phi * base * base), np.inf)
         return dz, g
 
 
