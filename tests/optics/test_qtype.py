@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from lensmount.errors import InputError
+from lensmount.optics.glass import medium
 from lensmount.optics.io.lens_toml import format_lens_toml, parse_lens_toml
 from lensmount.optics.io.zemax import read_zmx
 from lensmount.optics.paraxial import paraxial
@@ -224,6 +225,12 @@ def test_asl5040_is_the_corrected_asphere_thorlabs_sells():
     the zones spread over 0.6 mm and 5 mm)."""
     lens = read_zmx(ASL5040)
     fo = paraxial(lens)
+    face = lens.surfaces[0]
+    q = face.qtype
+    at_vertex = sum(mp.mpf(a) * row[0] for a, row in zip(q.coefficients, qbfs_reference(len(q.coefficients))))
+    c_vertex = face.curvature + 2 * float(at_vertex) / q.norm_radius**2  # z ≈ (c + 2 S(0)/r_n²) r²/2
+    n = float(medium(face.material)(np.array([lens.primary_wavelength_um]))[0])
+    assert fo.efl == pytest.approx(1.0 / ((n - 1.0) * c_vertex), rel=1e-9)  # plano-convex: the front's power
     assert fo.efl == pytest.approx(40.0, abs=2e-3)
     assert fo.image_z == pytest.approx(lens.image_z, abs=1e-3)
     ys = np.linspace(0.1, lens.surfaces[0].clear_semi_diameter, 50)

@@ -1,6 +1,6 @@
 """OpticStudio's Q-type asphere surface (TYPE QED_TYPE) as a Forbes departure (lensmount.optics.qtype).
 
-How OpticStudio writes one (Thorlabs' ASL5040-UV, saved by OpticStudio 20.3):
+How OpticStudio writes one (Thorlabs' ASL5040-UV, saved by OpticStudio in 2020, VERS 200914):
 
     TYPE QED_TYPE
     CURV c ...          the base curvature, CONI k the base conic
