@@ -251,3 +251,66 @@ def test_lens_toml_round_trip_and_refusals():
         with pytest.raises(InputError) as err:
             parse_lens_toml(text.replace(bad, field, 1))
         assert "surface" in str(err.value) and "qtype" in str(err.value)
+
+
+def _qed_file(tmp_path, xdat: dict, parm: dict | None = None, semi_diameter: float = 5.0):
+    """A one-element lens whose front face is OpticStudio's Q-type surface."""
+    lines = ["VERS 200914", "MODE SEQ", "UNIT MM X W X CM MR CPMM", "ENPD 8", "WAVM 1 0.5875618 1", "PWAV 1",
+             "SURF 0", "  TYPE STANDARD", "  CURV 0.0", "  DISZ INFINITY",
+             "SURF 1", "  STOP", "  TYPE QED_TYPE", "  CURV 0.04", "  CONI -0.5", "  DISZ 4", "  GLAS N-BK7",
+             f"  DIAM {semi_diameter} 1 0 0 1 \"\""]
+    lines += [f"  XDAT {k} {v} 0 0 1 0 0 \"\"" for k, v in xdat.items()]
+    lines += [f"  PARM {k} {v}" for k, v in (parm or {}).items()]
+    lines += ["SURF 2", "  TYPE STANDARD", "  CURV -0.01", "  DISZ 40", f"  DIAM {semi_diameter} 1 0 0 1 \"\"",
+              "SURF 3", "  TYPE STANDARD", "  CURV 0.0", "  DISZ 0"]
+    path = tmp_path / "qed.zmx"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def test_qed_type_reads_both_forms_in_lens_units(tmp_path):
+    qcon = read_zmx(_qed_file(tmp_path, {1: 1, 2: 3, 3: 6.0, 4: 0.01, 5: -0.002, 6: 3e-4}))
+    assert qcon.surfaces[0].qtype == QType("qcon", 6.0, (0.01, -0.002, 3e-4))
+    assert qcon.surfaces[0].vertex_curvature == 0.04  # u⁴: no paraxial change
+    text = _qed_file(tmp_path, {1: 0, 2: 2, 3: 6.0, 4: 0.01, 5: -0.002}).read_text().replace("UNIT MM", "UNIT CM")
+    (tmp_path / "cm.zmx").write_text(text)
+    qbfs = read_zmx(tmp_path / "cm.zmx")
+    assert qbfs.surfaces[0].qtype == QType("qbfs", 60.0, (0.1, -0.02))
+
+
+@pytest.mark.parametrize("xdat, parm, says", [
+    ({1: 2, 2: 1, 3: 6.0, 4: 0.01}, None, "form 2"),
+    ({1: 0, 2: 1, 3: 0.0, 4: 0.01}, None, "normalisation radius 0"),
+    ({1: 0, 2: 1.5, 3: 6.0, 4: 0.01}, None, "1.5 terms"),
+    ({1: 0, 2: 1, 3: 6.0, 4: 0.01, 5: 0.3}, None, "extra data 5"),
+    ({1: 0, 2: 1, 3: 6.0, 4: 0.01}, {1: 2.0}, "parameter 1"),
+])
+def test_qed_type_it_cannot_read_is_refused_naming_surface_and_line(tmp_path, xdat, parm, says):
+    with pytest.raises(InputError) as err:
+        read_zmx(_qed_file(tmp_path, xdat, parm))
+    msg = str(err.value)
+    assert "surface 1 (Q-type asphere, QED_TYPE)" in msg and says in msg and err.value.line is not None
+
+
+def test_q_type_face_beyond_its_base_s_reach_is_refused_naming_the_surface(tmp_path):
+    """Domain: the base conic (R 25 mm, k -0.5) reaches 35.4 mm; a 40 mm semi-diameter is an error."""
+    from lensmount.design.lens import load_lens
+
+    path = _qed_file(tmp_path, {1: 0, 2: 1, 3: 40.0, 4: 0.01}, semi_diameter=40.0)
+    with pytest.raises(InputError) as err:
+        load_lens(path)
+    assert "Q-type face of surface 1" in str(err.value) and "r = 35.36 mm" in str(err.value)
+
+
+def test_lens_solid_follows_the_q_type_face():
+    """The element's revolved profile (templates.lens_element) is sampled from the Q-type sag, not the
+    base conic's: its optical segment lies on Profile.sag to rounding, and the conic is 0.1 mm away."""
+    from lensmount.templates.lens_element import OpticalFace
+
+    lens = read_zmx(ASL5040)
+    face = OpticalFace.of(0, 0.0, lens.surfaces[0])
+    seg = face.segment(22.86)
+    r, z = np.array(seg.points).T
+    assert seg.kind == "spline"
+    assert np.max(np.abs(z - Profile.of(lens.surfaces[0]).sag(r * r))) < 1e-12
+    assert np.max(np.abs(z - Profile(face.curvature, face.conic).sag(r * r))) > 0.1
