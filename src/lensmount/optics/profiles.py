@@ -42,6 +42,11 @@ class Profile:
         return self.curvature == 0.0 and self.is_conic
 
     @property
+    def vertex_curvature(self) -> float:
+        """The paraxial curvature (1/mm): the base's plus what a Q-type departure adds at the vertex."""
+        return self.curvature + (0.0 if self.qtype is None else self.qtype.vertex_curvature)
+
+    @property
     def is_conic(self) -> bool:
         """No polynomial departure: the ray crossing is a quadratic's root (else Newton finds it)."""
         return not any(self.aspheric) and self.qtype is None
