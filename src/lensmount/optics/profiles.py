@@ -148,7 +148,8 @@ class Profile:
             f = p[:, 2] - self.sag(r2)
             g = self.slope(r2)
             df = d[live, 2] - g * (p[:, 0] * d[live, 0] + p[:, 1] * d[live, 1])
-            step = np.where(np.isfinite(f) & (np.abs(df) > 1e-15), f / _safe(df), np.inf)
+            with np.errstate(invalid="ignore"):  # beyond a Q-type's reach f and df are both inf: masked
+                step = np.where(np.isfinite(f) & (np.abs(df) > 1e-15), f / _safe(df), np.inf)
             idx = np.flatnonzero(live)
             t[idx] = t[idx] - step
             done = np.abs(step) < _NEWTON_TOL
