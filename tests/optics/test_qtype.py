@@ -314,3 +314,12 @@ def test_lens_solid_follows_the_q_type_face():
     assert seg.kind == "spline"
     assert np.max(np.abs(z - Profile.of(lens.surfaces[0]).sag(r * r))) < 1e-12
     assert np.max(np.abs(z - Profile(face.curvature, face.conic).sag(r * r))) > 0.1
+
+
+def test_a_face_used_beyond_its_normalisation_radius_is_said_in_the_import_notes(tmp_path):
+    from lensmount.optics.io.zemax import read_zmx_with_notes
+
+    lens, notes = read_zmx_with_notes(_qed_file(tmp_path, {1: 1, 2: 1, 3: 4.0, 4: 0.001}, semi_diameter=5.0))
+    said = [n.what for n in notes if n.where == "SURF 1" and "Q-type" in n.what]
+    assert said and "beyond it (u up to 1.25)" in said[0] and "extrapolation" in said[0]
+    assert np.isfinite(Profile.of(lens.surfaces[0]).sag(np.array([25.0]))).all()

@@ -52,7 +52,7 @@ from pathlib import Path
 from lensmount.errors import InputError
 from lensmount.optics.glass import CATALOGUES, register_catalogue
 from lensmount.optics.io import zemax_glass
-from lensmount.optics.io.zemax_qtype import qtype_of
+from lensmount.optics.io.zemax_qtype import qtype_note, qtype_of
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
@@ -379,6 +379,9 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
         clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
+        qtype = qtype_of(zs, s, file)
+        if qtype is not None:
+            notes.append(ImportNote("imported", f"SURF {zs.number}", qtype_note(qtype, max(clear or 0.0, mech or 0.0))))
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -386,7 +389,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
             thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
             clear_semi_diameter=clear, mechanical_semi_diameter=mech, is_stop=zs.stop,
-            mirror=zs.mirror, qtype=qtype_of(zs, s, file)))
+            mirror=zs.mirror, qtype=qtype))
         numbers.append(zs.number)
         medium = material
     if tilt is not None:

@@ -50,4 +50,14 @@ def qtype_of(zs, unit: float, file) -> QType | None:
     return QType(FORMS[int(form)], r_n * unit, coefficients)
 
 
-__all__ = ["qtype_of"]
+def qtype_note(q: QType, semi_diameter: float) -> str:
+    """What the import note says of a Q-type face; semi_diameter: the largest the file gives (mm)."""
+    what = (f"Forbes Q-type asphere ({'Qbfs' if q.form == 'qbfs' else 'Qcon'}, {len(q.coefficients)} terms, "
+            f"normalisation radius {q.norm_radius:g} mm)")
+    if semi_diameter > q.norm_radius:
+        what += (f"; the file's semi-diameter {semi_diameter:g} mm lies beyond it (u up to "
+                 f"{semi_diameter / q.norm_radius:.3g}), where the face is the polynomials' extrapolation")
+    return what
+
+
+__all__ = ["qtype_of", "qtype_note"]
