@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from lensmount.optics.profiles import Profile
 from lensmount.optics.qtype import QType
 
 AIR = "AIR"
@@ -61,7 +62,7 @@ class Surface:
     @property
     def vertex_curvature(self) -> float:
         """The paraxial curvature (1/mm): the base's, plus what a Q-type departure adds at the vertex."""
-        return self.curvature + (0.0 if self.qtype is None else self.qtype.vertex_curvature)
+        return Profile.of(self).vertex_curvature
 
     @property
     def is_plane(self) -> bool:
