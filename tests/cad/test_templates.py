@@ -110,3 +110,26 @@ def test_asphere_spline_face_follows_the_sag():
     v = mesh.vertices[np.unique(mesh.triangles[np.isin(mesh.tags, k)])]
     sag = Profile(1 / 40.0, -0.6, (2e-6,)).sag(v[:, 0] ** 2 + v[:, 1] ** 2)
     assert np.abs(v[:, 2] - sag).max() < 1e-4  # the tracer refines hits analytically anyway
+
+
+def test_steep_q_type_face_is_tagged_optical_and_follows_its_sag():
+    """Thorlabs' ASL5040-UV: a Qbfs face 20 mm deep over its 24 mm rim. Its solid is valid, the face is
+    `optical` surface 0 (its 41 sag samples' chords lie 5.6e-3 mm inside it, more than face_roles'
+    1e-3 mm: matched against the cubic the solid interpolates) and its mesh lies on the Q-type sag."""
+    from pathlib import Path
+
+    from lensmount.optics.io.zemax import read_zmx
+    from lensmount.optics.profiles import Profile
+
+    p = read_zmx(Path(__file__).parents[1] / "optics" / "corpus" / "thorlabs-ASL5040-UV-qbfs-utf16.zmx")
+    el = LensElement(OpticalFace.of(0, 0.0, p.surfaces[0]), OpticalFace.of(1, p.vertex_z[1], p.surfaces[1]),
+                     24.0, 0.1, 0.1)
+    solid = el.build()
+    assert solid.is_valid
+    roles = face_roles(solid, el.segments())
+    assert ("optical", 0) in roles and ("optical", 1) in roles
+    mesh = tessellate_part(solid, "asl", "lens", "ground-glass", roles, 0.02, 5.0)
+    k = [i for i, t in enumerate(mesh.tag_table) if t.role == "optical" and t.surface == 0]
+    v = mesh.vertices[np.unique(mesh.triangles[np.isin(mesh.tags, k)])]
+    assert np.hypot(v[:, 0], v[:, 1]).max() > 23.0
+    assert np.abs(v[:, 2] - Profile.of(p.surfaces[0]).sag(v[:, 0] ** 2 + v[:, 1] ** 2)).max() < 1e-3

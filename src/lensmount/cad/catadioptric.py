@@ -61,7 +61,8 @@ def physical_surfaces(p: Prescription) -> list[int]:
     for i, s in enumerate(p.surfaces):
         twin = next((j for j in range(i) if abs(zv[j] - zv[i]) < 1e-9 and not s.mirror
                      and not p.surfaces[j].mirror and p.surfaces[j].curvature == s.curvature
-                     and p.surfaces[j].conic == s.conic and p.surfaces[j].aspheric == s.aspheric), i)
+                     and p.surfaces[j].conic == s.conic and p.surfaces[j].aspheric == s.aspheric
+                     and p.surfaces[j].qtype == s.qtype), i)
         out.append(twin)
     return out
 
@@ -237,7 +238,7 @@ class _CatadioptricPlanner:
 
     def _face(self, i: int) -> OpticalFace:
         s = self.surf[i]
-        return OpticalFace(i, float(self.zv[i]), s.curvature, s.conic, tuple(s.aspheric))
+        return OpticalFace.of(i, float(self.zv[i]), s)
 
     def _clear_of(self, j: int) -> float:   # a physical surface's clear semi-diameter over all its passes
         return max(self.clear[i] for i in range(len(self.surf)) if self.phys[i] == j)

@@ -219,7 +219,7 @@ class _MountPlanner:
 
     def _face(self, i: int) -> OpticalFace:
         s = self.p.surfaces[i]
-        return OpticalFace(i, float(self.p.vertex_z[i]), s.curvature, s.conic, tuple(s.aspheric))
+        return OpticalFace.of(i, float(self.p.vertex_z[i]), s)
 
     def lens_groups(self) -> None:
         """Every lens element, group by group (cemented elements share their group's rim): its outline, the

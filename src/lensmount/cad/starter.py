@@ -111,7 +111,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
     clear = [float(s.clear_semi_diameter) for s in surf]
 
     def face(i: int) -> OpticalFace:
-        return OpticalFace(i, float(zv[i]), surf[i].curvature, surf[i].conic, tuple(surf[i].aspheric))
+        return OpticalFace.of(i, float(zv[i]), surf[i])
 
     step = 0.05 * allowance
     groups = p.lens_groups()

@@ -43,6 +43,10 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
             "n_primary": float(refractive_index(s.material, wl)),
             "conic": s.conic,
             "aspheric": list(s.aspheric),
+            "qtype": None if s.qtype is None else {
+                "form": s.qtype.form, "norm_radius_mm": s.qtype.norm_radius,
+                "coefficients_mm": list(s.qtype.coefficients),
+                "vertex_radius_mm": None if s.vertex_curvature == 0.0 else 1.0 / s.vertex_curvature},
             "clear_semi_diameter_mm": s.clear_semi_diameter,
             "mechanical_semi_diameter_mm": s.mechanical_semi_diameter,
             "is_stop": s.is_stop,
@@ -114,6 +118,13 @@ def _print_tables(doc: dict) -> None:
                   s["material"] + (" (mirror)" if s["mirror"] else ""), f"{s['n_primary']:.6f}",
                   csd, f"{s['z_mm']:.3f}", "STOP" if s["is_stop"] else "")
     console.print(t)
+    for s in doc["surfaces"]:
+        if s["qtype"] is not None:
+            q = s["qtype"]
+            vertex = "inf" if q["vertex_radius_mm"] is None else f"{q['vertex_radius_mm']:.4f} mm"
+            console.print(f"surface {s['number']}: Forbes Q-type ({'Qbfs' if q['form'] == 'qbfs' else 'Qcon'}) on the "
+                          f"radius and conic {s['conic']:g} above, {len(q['coefficients_mm'])} terms on normalisation "
+                          f"radius {q['norm_radius_mm']:g} mm; vertex (paraxial) radius {vertex}")
     p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
     p.add_column("quantity")
     p.add_column("value", justify="right")

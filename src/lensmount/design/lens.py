@@ -193,10 +193,17 @@ def _check_radii(p: Prescription, file: str, given_only: bool) -> None:
         if h > reach * (1.0 + 1e-12):
             which = "clear" if s.mechanical_semi_diameter is None else "mechanical"
             src = "given" if given_only else "needed by the beam"
+            if s.conic == 0.0 and s.qtype is None:
+                raise InputError(
+                    f"radius {s.radius:g} mm of surface {i + 1} is smaller than its {which} semi-diameter "
+                    f"{h:.4g} mm ({src})", file=file, field=f"surface[{i + 1}].radius",
+                    valid=f"|radius| >= {h:.4g} mm for this semi-diameter, or a smaller semi-diameter")
+            face = "Q-type face" if s.qtype is not None else "face"
             raise InputError(
-                f"radius {s.radius:g} mm of surface {i + 1} is smaller than its {which} semi-diameter "
-                f"{h:.4g} mm ({src})", file=file, field=f"surface[{i + 1}].radius",
-                valid=f"|radius| >= {h:.4g} mm for this semi-diameter, or a smaller semi-diameter")
+                f"the {face} of surface {i + 1} (radius {s.radius:g} mm, conic {s.conic:g}) exists out to "
+                f"r = {reach:.4g} mm only, less than its {which} semi-diameter {h:.4g} mm ({src})", file=file,
+                field=f"surface[{i + 1}].radius",
+                valid=f"a radius and conic whose surface reaches {h:.4g} mm, or a smaller semi-diameter")
 
 
 def _check_crossings(p: Prescription, file: str, given=None) -> None:

@@ -192,7 +192,7 @@ def paraxial_trace(surfaces, y: float, nu: float, z: float) -> tuple[float, floa
         n1, n2 = float(np.atleast_1d(s.n_before)[0]), float(np.atleast_1d(s.n_after)[0])
         y = y + (s.z_vertex - z) * nu / n1
         z = s.z_vertex
-        nu = nu - y * (n2 - n1) * s.profile.curvature
+        nu = nu - y * (n2 - n1) * s.profile.vertex_curvature
     return y, nu, z
 
 

@@ -144,6 +144,9 @@ def design_record(design) -> dict:
                                  "material": s.material, "conic": s.conic, "aspheric": list(s.aspheric),
                                  "clear_semi_diameter": number(s.clear_semi_diameter), "stop": s.is_stop,
                                  "coating": s.coating, "mirror": s.mirror}
+                                | ({} if s.qtype is None else {"qtype": {"form": s.qtype.form,
+                                                                         "norm_radius": s.qtype.norm_radius,
+                                                                         "coefficients": list(s.qtype.coefficients)}})
             for i, s in enumerate(design.prescription.surfaces)}
     treatment = design.finishes.tables() | {"finishes": _finish_tables(design)}
     files = {str(p.relative_to(design.root)) if p.is_relative_to(design.root) else str(p): file_sha256(p)

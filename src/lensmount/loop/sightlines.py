@@ -120,7 +120,7 @@ def _aperture_rays(prescription: Prescription):
     into object space: every direction on the air side of the surface's tangent plane there (a
     chord across a convex front surface would look through the glass, not into the hood)."""
     s = prescription.surfaces[0]
-    prof = Profile(s.curvature, s.conic, tuple(s.aspheric))
+    prof = Profile.of(s)
     rho = np.sqrt((np.arange(APERTURE_RINGS) + 0.5) / APERTURE_RINGS) * float(s.clear_semi_diameter)
     phi = np.arange(APERTURE_SPOKES) * 2 * np.pi / APERTURE_SPOKES
     rr, pp = (g.ravel() for g in np.meshgrid(rho, phi))

@@ -85,7 +85,7 @@ def surface_matrices(prescription: Prescription, wavelength_um: float) -> tuple[
     n = indices(prescription, wavelength_um, signed=True)
     refr, trans = [], []
     for i, s in enumerate(prescription.surfaces):
-        phi = (n[i + 1] - n[i]) * s.curvature
+        phi = (n[i + 1] - n[i]) * s.vertex_curvature
         refr.append(np.array([[1.0, 0.0], [-phi, 1.0]]))
         trans.append(np.array([[1.0, s.thickness / n[i + 1]], [0.0, 1.0]]))
     return refr, trans

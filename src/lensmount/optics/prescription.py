@@ -14,6 +14,9 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from lensmount.optics.profiles import Profile
+from lensmount.optics.qtype import QType
+
 AIR = "AIR"
 
 
@@ -30,6 +33,7 @@ class Surface:
             For a mirror it is the medium the light returns into (the one in front).
         conic: conic constant k (0 sphere, -1 paraboloid).
         aspheric: even-asphere coefficients (A4, A6, A8, ...) of r^4, r^6, ... in mm units.
+        qtype: a Forbes Q-type departure (Qbfs or Qcon) added to the base conic, or None.
         clear_semi_diameter: semi-diameter the light uses, mm; None = computed
             from the real-ray trace (lensmount.optics.apertures).
         mechanical_semi_diameter: outer semi-diameter of the glass, mm; None =
@@ -49,14 +53,20 @@ class Surface:
     is_stop: bool = False
     coating: str | None = None
     mirror: bool = False
+    qtype: QType | None = None
 
     @property
     def curvature(self) -> float:
         return 0.0 if math.isinf(self.radius) else 1.0 / self.radius
 
     @property
+    def vertex_curvature(self) -> float:
+        """The paraxial curvature (1/mm): the base's, plus what a Q-type departure adds at the vertex."""
+        return Profile.of(self).vertex_curvature
+
+    @property
     def is_plane(self) -> bool:
-        return math.isinf(self.radius) and not any(self.aspheric)
+        return math.isinf(self.radius) and not any(self.aspheric) and self.qtype is None
 
     @property
     def is_air_after(self) -> bool:

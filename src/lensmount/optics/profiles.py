@@ -4,7 +4,9 @@ One `Profile` per optical surface in its local frame: vertex at the origin, axis
 The same code serves the sequential real-ray trace and the non-sequential tracer's
 analytic refinement, so both agree to rounding.
 
-    sag(r) = c r^2 / (1 + sqrt(1 - (1+k) c^2 r^2)) + sum_i A_(2i+4) r^(2i+4)
+    sag(r) = c r^2 / (1 + sqrt(1 - (1+k) c^2 r^2)) + sum_i A_(2i+4) r^(2i+4) [+ a Q-type departure]
+
+A Forbes Q-type face (lensmount.optics.qtype) adds its departure to the same base conic.
 """
 
 from __future__ import annotations
@@ -13,13 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.optics.qtype import QType
+
 _NEWTON_STEPS = 30
 _NEWTON_TOL = 1e-12  # mm
 
 
 @dataclass(frozen=True)
 class Profile:
-    """Rotationally symmetric surface: curvature c (1/mm), conic k, even-asphere terms.
+    """Rotationally symmetric surface: curvature c (1/mm), conic k, even-asphere terms, a Q-type departure.
 
     Array arguments are shaped (n,) for radii and (n, 3) for points/directions.
     """
@@ -27,14 +31,25 @@ class Profile:
     curvature: float = 0.0
     conic: float = 0.0
     aspheric: tuple[float, ...] = ()
+    qtype: QType | None = None
 
     @classmethod
     def of(cls, surface) -> "Profile":
-        return cls(surface.curvature, surface.conic, tuple(surface.aspheric))
+        return cls(surface.curvature, surface.conic, tuple(surface.aspheric), surface.qtype)
 
     @property
     def is_plane(self) -> bool:
-        return self.curvature == 0.0 and not any(self.aspheric)
+        return self.curvature == 0.0 and self.is_conic
+
+    @property
+    def vertex_curvature(self) -> float:
+        """The paraxial curvature (1/mm): the base's plus what a Q-type departure adds at the vertex."""
+        return self.curvature + (0.0 if self.qtype is None else self.qtype.vertex_curvature)
+
+    @property
+    def is_conic(self) -> bool:
+        """No polynomial departure: the ray crossing is a quadratic's root (else Newton finds it)."""
+        return not any(self.aspheric) and self.qtype is None
 
     def max_radius(self) -> float:
         """Largest r where the conic part is defined (inf for planes and hyperboloids)."""
@@ -52,6 +67,8 @@ class Profile:
         for a in self.aspheric:
             z = z + a * rn
             rn = rn * r2
+        if self.qtype is not None:
+            z = z + self.qtype.departure(r2, c, k)[0]
         return z
 
     def slope(self, r2: np.ndarray) -> np.ndarray:
@@ -64,6 +81,8 @@ class Profile:
         for i, a in enumerate(self.aspheric):
             g = g + (2 * i + 4) * a * rn
             rn = rn * r2
+        if self.qtype is not None:
+            g = g + self.qtype.departure(r2, c, k)[1]
         return g
 
     def normal(self, p: np.ndarray) -> np.ndarray:
@@ -83,7 +102,7 @@ class Profile:
         o = np.asarray(o, dtype=np.float64)
         d = np.asarray(d, dtype=np.float64)
         t = self._intersect_conic(o, d)
-        if any(self.aspheric):
+        if not self.is_conic:
             t = self._newton(o, d, np.where(np.isfinite(t), t, -o[:, 2] / _safe(d[:, 2])))
         return t
 
@@ -129,7 +148,8 @@ class Profile:
             f = p[:, 2] - self.sag(r2)
             g = self.slope(r2)
             df = d[live, 2] - g * (p[:, 0] * d[live, 0] + p[:, 1] * d[live, 1])
-            step = np.where(np.isfinite(f) & (np.abs(df) > 1e-15), f / _safe(df), np.inf)
+            with np.errstate(invalid="ignore"):  # beyond a Q-type's reach f and df are both inf: masked
+                step = np.where(np.isfinite(f) & (np.abs(df) > 1e-15), f / _safe(df), np.inf)
             idx = np.flatnonzero(live)
             t[idx] = t[idx] - step
             done = np.abs(step) < _NEWTON_TOL

@@ -4,7 +4,7 @@ radius R - b straight to the edge cylinder, b inside the surface's own edge heig
 (45° on a flat face).
 
 Spherical faces are exact arcs (so the STEP face is a true sphere), planes are
-lines, conics and aspheres a spline through sag samples. Cemented interfaces get
+lines, conics, aspheres and Q-type faces a spline through sag samples. Cemented interfaces get
 no chamfer: both elements of a cemented group end on the same radius there.
 A flat bevel (`front_flat_from`, `back_flat_from`) turns a face into a flat annulus from
 that radius out (at the face's z there): a meniscus whose faces close in toward the rim
@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lensmount.optics.profiles import Profile
+from lensmount.optics.qtype import QType
 from lensmount.templates.profile import RevolvedPart, Segment
 
 _SPLINE_POINTS = 41
@@ -32,7 +33,7 @@ class OpticalFace:
     Args:
         index: 0-based prescription surface index.
         z_vertex: vertex z, mm (assembly frame).
-        curvature: 1/mm. conic: k. aspheric: (A4, A6, ...).
+        curvature: 1/mm. conic: k. aspheric: (A4, A6, ...). qtype: a Forbes Q-type departure or None.
     """
 
     index: int
@@ -40,10 +41,16 @@ class OpticalFace:
     curvature: float = 0.0
     conic: float = 0.0
     aspheric: tuple[float, ...] = ()
+    qtype: QType | None = None
+
+    @classmethod
+    def of(cls, index: int, z_vertex: float, surface) -> "OpticalFace":
+        """The face of prescription surface `surface` (index `index`) with its vertex at z_vertex."""
+        return cls(index, z_vertex, surface.curvature, surface.conic, tuple(surface.aspheric), surface.qtype)
 
     @property
     def profile(self) -> Profile:
-        return Profile(self.curvature, self.conic, tuple(self.aspheric))
+        return Profile(self.curvature, self.conic, tuple(self.aspheric), self.qtype)
 
     def z(self, r) -> np.ndarray:
         """z of the surface at radius r (array), mm."""
@@ -60,10 +67,10 @@ def face_piece(face: OpticalFace, r0: float, r1: float, role: str = "optical") -
     """The face's profile from radius r0 to r1 (either order): a line, an exact arc or a spline."""
     prof = face.profile
     surface = face.index if role == "optical" else -1
-    if prof.is_plane or (abs(face.curvature) < 1e-9 and not any(face.aspheric)):
+    if prof.is_plane or (abs(face.curvature) < 1e-9 and prof.is_conic):
         pts = [(r0, float(face.z(r0))), (r1, float(face.z(r1)))]
         return Segment("line", tuple(pts), role, surface)
-    if face.conic == 0.0 and not any(face.aspheric):
+    if face.conic == 0.0 and prof.is_conic:
         rm = 0.5 * (r0 + r1)
         pts = [(r0, float(face.z(r0))), (rm, float(face.z(rm))), (r1, float(face.z(r1)))]
         return Segment("arc", tuple(pts), role, surface)
@@ -162,9 +169,19 @@ class LensElement(RevolvedPart):
 
     def params(self) -> dict:
         d = super().params()
-        d["front"]["aspheric"] = list(d["front"]["aspheric"])
-        d["back"]["aspheric"] = list(d["back"]["aspheric"])
+        for side in ("front", "back"):
+            face_params(d[side])
         return d
+
+
+def face_params(d: dict) -> None:
+    """An `OpticalFace`'s asdict in place as plain lists; no `qtype` key on a face without one (the
+    parameters, and the parts cached under them, of every other face stay as they were)."""
+    d["aspheric"] = list(d["aspheric"])
+    if d["qtype"] is None:
+        del d["qtype"]
+    else:
+        d["qtype"]["coefficients"] = list(d["qtype"]["coefficients"])
 
 
 @dataclass(frozen=True)

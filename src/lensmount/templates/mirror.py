@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.templates.lens_element import OpticalFace, face_piece
+from lensmount.templates.lens_element import OpticalFace, face_params, face_piece
 from lensmount.templates.profile import RevolvedPart, Segment
 
 
@@ -83,7 +83,7 @@ class MirrorElement(RevolvedPart):
         d = super().params()
         for key in ("front", "back"):
             if d[key] is not None:
-                d[key]["aspheric"] = list(d[key]["aspheric"])
+                face_params(d[key])
         return d
 
 

@@ -280,7 +280,7 @@ class Tracer:
             a, b = mesh.vertices[rim[:, 0], :2], mesh.vertices[rim[:, 1], :2]
             r = np.hypot(v[:, 0], v[:, 1])
             r_rim = np.hypot(*mesh.vertices[np.unique(rim)][:, :2].T) if len(rim) else r
-            if any(self._profiles[k].aspheric) or not len(rim) or r_rim.min() < 0.99 * r_rim.max():
+            if not self._profiles[k].is_conic or not len(rim) or r_rim.min() < 0.99 * r_rim.max():
                 continue  # an asphere, or an annulus (a second, inner rim): Embree decides
             # Distance from the axis to each rim edge (as a segment in xy).
             ab = b - a
@@ -333,7 +333,7 @@ class Tracer:
         with the facet hit are kept. Aspheres: Newton from the facet hit. inf = not a real hit.
         """
         prof = self._profiles[k]
-        if any(prof.aspheric):
+        if not prof.is_conic:
             ol = o - np.array([0.0, 0.0, self._z_vertex[k]])
             t = _newton_asphere(prof, ol, d, t_guess)
             z = ol[:, 2] + np.where(np.isfinite(t), t, 0.0) * d[:, 2]

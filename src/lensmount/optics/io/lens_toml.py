@@ -22,6 +22,9 @@ Format (documented for users in docs/lens-toml.md; unknown keys are errors):
     material = "N-SSK2"                    # after the surface; AIR by default
     conic = 0.0                            # optional
     aspheric = [0.0, 0.0]                  # optional even-asphere A4, A6, ... (mm^-3, mm^-5, ...)
+    qtype = { form = "qcon", norm_radius = 27.0, coefficients = [0.01, -0.002] }
+                                           # optional Forbes Q-type departure on the base conic: form
+                                           # "qbfs" or "qcon", normalisation radius (mm), a_0, a_1, ... (mm)
     clear_semi_diameter = 45.0             # optional; omitted = automatic
     mechanical_semi_diameter = 48.0        # optional
     stop = true                            # exactly one surface
@@ -46,6 +49,7 @@ from lensmount.validation import keys_at, line_of_key, parse_toml
 from lensmount.errors import InputError
 from lensmount.optics.glass import register_catalogue, resolve_glass
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
+from lensmount.optics.qtype import QType
 
 
 _INF_WORDS = ("inf", "+inf", "infinity", "+infinity", "-inf", "-infinity", "plane", "flat")
@@ -101,6 +105,24 @@ class FieldModel(_Strict):
         return v
 
 
+class QTypeModel(_Strict):
+    """A Forbes Q-type departure (lensmount.optics.qtype)."""
+
+    form: Literal["qbfs", "qcon"]
+    norm_radius: float = Field(gt=0)
+    coefficients: list[float] = Field(min_length=1)
+
+    @field_validator("norm_radius", "coefficients")
+    @classmethod
+    def _finite(cls, v):
+        if not all(math.isfinite(x) for x in (v if isinstance(v, list) else [v])):
+            raise ValueError("must be finite numbers")
+        return v
+
+    def to_qtype(self) -> QType:
+        return QType(self.form, self.norm_radius, tuple(self.coefficients))
+
+
 class SurfaceModel(_Strict):
     radius: Union[float, str, None] = None
     curvature: float | None = None
@@ -108,6 +130,7 @@ class SurfaceModel(_Strict):
     material: str = AIR
     conic: float = 0.0
     aspheric: list[float] = Field(default_factory=list)
+    qtype: QTypeModel | None = None
     clear_semi_diameter: float | None = Field(default=None, gt=0)
     mechanical_semi_diameter: float | None = Field(default=None, gt=0)
     stop: bool = False
@@ -145,6 +168,7 @@ class SurfaceModel(_Strict):
             radius = math.inf if self.radius is None else float(self.radius)
         return Surface(radius=radius, thickness=self.thickness, material=self.material.strip(),
                        conic=self.conic, aspheric=tuple(self.aspheric),
+                       qtype=None if self.qtype is None else self.qtype.to_qtype(),
                        clear_semi_diameter=self.clear_semi_diameter,
                        mechanical_semi_diameter=self.mechanical_semi_diameter,
                        is_stop=self.stop, coating=self.coating)
@@ -314,6 +338,10 @@ def format_lens_toml(prescription: Prescription, margin_mm: float = 0.0, header:
             out.append(f"conic = {_num(s.conic)}")
         if any(s.aspheric):
             out.append("aspheric = [" + ", ".join(_num(a) for a in s.aspheric) + "]")
+        if s.qtype is not None:
+            q = s.qtype
+            out.append(f"qtype = {{ form = {_str(q.form)}, norm_radius = {_num(q.norm_radius)}, coefficients = ["
+                       + ", ".join(_num(a) for a in q.coefficients) + "] }")
         if s.clear_semi_diameter is not None:
             out.append(f"clear_semi_diameter = {_num(s.clear_semi_diameter)}")
         if s.mechanical_semi_diameter is not None:

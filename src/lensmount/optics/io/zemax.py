@@ -6,6 +6,7 @@ What a lens file holds and how it is read:
                                  even terms r^4..r^8 are imported and whose odd terms are an error)
     TYPE XASPHERE|XOSPHERE       the extended aspheres: XDAT 1 N, XDAT 2 r0, XDAT k+2 the term on
                                  (r/r0)^(2k) (even) or (r/r0)^k (odd; even powers only, as ODDASPH)
+    TYPE QED_TYPE                a Forbes Q-type asphere, Qbfs or Qcon (lensmount.optics.io.zemax_qtype)
     TYPE COORDBRK                a break that is zero, or that the next breaks undo before
                                  any optical surface, is dropped; one that leaves a mirror,
                                  lens or stop on a decentred or tilted axis is an error
@@ -52,10 +53,11 @@ from lensmount.errors import InputError
 from lensmount.optics.glass import CATALOGUES, register_catalogue
 from lensmount.optics.io import zemax_glass
 from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
+from lensmount.optics.io.zemax_qtype import qtype_note, qtype_of
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 
 _UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "METER": 1000.0, "M": 1000.0}
-_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "COORDBRK")
+_SUPPORTED_TYPES = ("STANDARD", "EVENASPH", "ODDASPH", "XASPHERE", "XOSPHERE", "QED_TYPE", "COORDBRK")
 # surface types whose refusal has a reason of its own (others: not rotationally symmetric or not supported)
 _IDEAL = ("an ideal thin lens (Zemax's paraxial surface), which focuses without glass: there is no element to "
           "mount or to scatter light", "real surfaces: TYPE STANDARD, EVENASPH or ODDASPH (a real lens in place of "
@@ -249,7 +251,8 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         if cur.type not in _SUPPORTED_TYPES:
             raise err(f"surface {cur.number} has type {cur.type or '(none)'}, which is not rotationally "
                       "symmetric or not supported by lensmount", ln,
-                      "TYPE STANDARD, EVENASPH, ODDASPH, or a COORDBRK that the next breaks undo")
+                      "TYPE STANDARD, EVENASPH, ODDASPH, XASPHERE, XOSPHERE, QED_TYPE, or a COORDBRK that the "
+                      "next breaks undo")
     elif cmd == "CURV":
         cur.curvature = arg(args, 0, ln, "curvature")
         if len(args) > 2 and args[1] == "4":  # solve type 4: pickup from surface args[2]
@@ -375,6 +378,9 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
         clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
+        qtype = qtype_of(zs, s, file)
+        if qtype is not None:
+            notes.append(ImportNote("imported", f"SURF {zs.number}", qtype_note(qtype, max(clear or 0.0, mech or 0.0))))
         if zs.coating:  # a name in the vendor's COATING.DAT, which the .zmx does not carry
             notes.append(ImportNote("ignored", f"SURF {zs.number}", f"coating {zs.coating} (defined in a "
                                     "coating file the lens file does not carry): the scene's coatings apply"))
@@ -382,7 +388,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             radius=math.inf if zs.curvature == 0 else 1.0 / (zs.curvature / s),
             thickness=zs.thickness * s, material=material, conic=zs.conic, aspheric=_aspheric(zs, s, file),
             clear_semi_diameter=clear, mechanical_semi_diameter=mech, is_stop=zs.stop,
-            mirror=zs.mirror))
+            mirror=zs.mirror, qtype=qtype))
         numbers.append(zs.number)
         medium = material
     if tilt is not None:
