@@ -20,7 +20,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 LM = [str(Path(sys.executable).parent / "lensmount")]
 VOLATILE = re.compile(r"time|second|wall|cpu|date|commit|command|host|python|version|elapsed|rate|path|store|out|"
-                      r"created|_s$|eta|throughput|workers|geometry", re.I)
+                      r"created|_s$|eta|throughput|workers|geometry|sha256", re.I)  # sha256 covers times too
 
 
 def stable(value):
