@@ -13,6 +13,7 @@ from typing import Optional
 import typer
 
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import TerminalObserver
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
@@ -37,6 +38,7 @@ def regenerate(
         None, "--angular-tolerance", help="tessellation angular deflection, degrees (overrides mount.toml)"),
     check: bool = typer.Option(False, "--check", help="then run `lensmount check` on the result "
                                "(exit 1 when a lit wall is seen)"),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json.
 
@@ -79,6 +81,7 @@ def init(
         "finishes.toml and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), "
         "checked as regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Scaffold a design folder (lens file, mount.toml, finishes.toml, scenes/) from an example or from a lens file.
 
@@ -91,8 +94,10 @@ def init(
                              valid="a new or empty folder, or --force")
         if lens is not None:
             _init_from_lens(directory, Path(lens))
+            again = "".join(f" --glass-catalog {c}" for c in glass_catalog)   # the lens file cannot name them
             typer.echo(f"{directory}: design folder from {lens} (mount.toml, finishes.toml and "
-                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate {directory}")
+                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate "
+                       f"{directory}{again}")
             return
         root = examples_root()
         names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())
