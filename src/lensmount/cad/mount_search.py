@@ -1,8 +1,9 @@
 """`lensmount init`'s search for a mount that builds: the planner's own alternatives, tried where
 its refusal points.
 
-A starting mount.toml (cad.starter) is checked as `regenerate` checks it, with the layout planner
-(cad.layout) and the profile checks (cad.checks), no CAD. When they refuse it, the refusal names
+A starting mount.toml (cad.starter) is checked as `regenerate` checks it: the layout planner
+(cad.layout) and the profile checks (cad.checks), then the solids and their tessellation
+(cad.assembly) for a plan those pass. When they refuse it, the refusal names
 what it refused: a field (`seats.element.4`, `lens_edge.semi_diameter_mm.3`,
 `spacers.aperture_margin_mm`, ...) and, in its sentence, the elements, surfaces and parts
 involved (`lens-3`, `element 4`, `surface 6`, the diaphragm). The alternatives tried are the
@@ -58,8 +59,11 @@ class Refusal:
 
 
 def refusal(p: Prescription, mount: dict) -> Refusal | None:
-    """What `regenerate` would refuse in this mount.toml at its layout and profile checks (None: it
-    builds that far)."""
+    """What `regenerate` would refuse in this mount.toml (None: it builds): its layout and profile
+    checks, and when they pass, the CAD kernel's solids and their tessellation, as regenerate makes
+    them (cad.assembly; init writes no user template or STEP part, the rest of regenerate's assembly).
+    Only a plan the checks pass reaches the kernel, so a search builds solids about once."""
+    from lensmount.cad.assembly import build_parts, tessellate
     from lensmount.cad.checks import check_layout
     from lensmount.cad.layout import plan
     from lensmount.design.mount import parse_mount
@@ -69,6 +73,10 @@ def refusal(p: Prescription, mount: dict) -> Refusal | None:
         layout = plan(p, spec)
         check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
     except InputError as error:
+        return Refusal(error.field or "", error.detail, error.paragraph(), error.valid or "")
+    try:
+        tessellate(build_parts(layout, spec), spec, layout)
+    except InputError as error:   # the solids: the kernel's own refusals (an invalid solid, ...)
         return Refusal(error.field or "", error.detail, error.paragraph(), error.valid or "")
     return None
 
