@@ -240,3 +240,14 @@ def test_glass_catalog_on_init_supplies_the_glass_for_that_command_only(tmp_path
     assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(_sellmeier_by_hand(D_LINE)), rel=1e-12)
     after = CliRunner().invoke(app, ["inspect", str(zmx)])
     assert after.exit_code == 2 and "MYCROWN" in after.output
+
+
+def test_a_reformulated_glass_is_found_under_its_new_name_and_a_dropped_one_in_the_table():
+    """Schott marks a glass melted to a changed formula with an A (N-PK52 -> N-PK52A); a glass its
+    current catalogue dropped (N-SK15) is in the table of legacy glasses, with Schott's own data
+    (refractiveindex.info, CC0: n_d 1.62296), not another maker's look-alike (Sumita K-SK15, 1.62299)."""
+    from lensmount.optics.glass import resolve_glass, successor
+
+    assert successor("N-PK52") == "SCHOTT:N-PK52A"
+    found = resolve_glass("N-SK15")
+    assert "table of legacy" in found.step and found.material.startswith("1.62296/")

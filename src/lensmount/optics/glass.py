@@ -210,11 +210,11 @@ def _fused_silica(wl):
 def successor(name: str) -> str | None:
     """The catalogue glass that replaced a legacy name: BK7 -> N-BK7 (lead-free), E-LAFH3 -> J-LAFH3,
     the catalogue glass of a moulding variant: L-TIM28_MOLD -> S-TIM28, and a glass melted again
-    to a changed formula, which keeps its name with a letter added: N-FK51 -> N-FK51A.
+    to a changed formula, which keeps its name with a letter added: N-PK52 -> N-PK52A.
 
     Uses opticalglass's name decoder: the same composition group, number and suffix
     with another prefix (N-, P-, S-, J-, ...) in one catalogue, N- ("new", the lead-free
-    successor) preferred; failing that, the same prefix, group and number with the suffix A
+    successor) preferred; failing that, the same name with the suffix A
     (Schott's and CDGM's mark of a reformulated glass). None when there is no such glass or it is
     ambiguous.
     """
