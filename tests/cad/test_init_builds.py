@@ -192,6 +192,19 @@ def test_a_plan_whose_solids_are_refused_is_passed_over_for_the_next_alternative
     assert mount is not None and mount != first and tried[-1][1] is None and len(built) >= 2
 
 
+def test_an_element_too_thin_at_its_edge_is_tried_with_smaller_chamfers():
+    """Thorlabs 354710-C (tests/optics/corpus): its BK7 window is 0.25 mm thick, and the starter's two
+    protective chamfers left 0.176 mm of edge, under the 0.2 mm minimum at every rim; halved, they
+    leave enough (init exited 2 before)."""
+    from lensmount.cad.starter import _mount, starter_mount
+    from lensmount.design.lens import load_lens
+
+    p = load_lens(CORPUS / "thorlabs-354710-C-utf16.zmx")
+    mount, why = starter_mount(p, "354710-C")
+    assert why is None
+    assert mount["lens_edge"]["chamfer_mm"] < _mount(p, "354710-C", True)["lens_edge"]["chamfer_mm"]
+
+
 def test_alternatives_follow_what_the_refusal_names():
     """A spacer refused between two elements: that gap's seat is tried first (a shoulder, as the
     refusal suggests), then the rims and faces of those two elements, never another gap's seat."""

@@ -16,8 +16,10 @@ planner's options for those lens groups, most specific first:
   (and all the groups named wider together: a spacer's bore follows the narrower neighbour);
 - its outer faces ground flat from their clear semi-diameter (`lens_edge.flat_faces`);
 - the field's own number halved where the planner asks for a smaller or thinner one (a margin, a
-  ring), and where the diaphragm is involved, its plate thinner (never below `checks.min_thickness_mm`)
-  and its knife edge bevelled on the other side.
+  ring), an element too thin at its edge with its chamfers halved (`lens_edge.chamfer_mm`: a flat
+  window a quarter of a millimetre thick loses most of its edge to them), and where the diaphragm is
+  involved, its plate thinner (never below `checks.min_thickness_mm`) and its knife edge bevelled on
+  the other side.
 
 The search goes depth first: an alternative refused for a reason not met on its way there (another
 part, element or kind of fault: the sentence with its measurements left out) mended what was
@@ -214,6 +216,8 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     table, _, key = why.field.partition(".")
     if re.search(r"\b(smaller|thinner)\b", why.valid) and isinstance(mount.get(table, {}).get(key), float):
         margin_move(table, key, min_t if "thickness" in key else 0.05)   # the planner asks for less of it
+    if " is too thin" in why.message:   # an element's edge: its protective chamfers take glass from it
+        margin_move("lens_edge", "chamfer_mm", 0.0)
     if "diaphragm" in why.message:   # its plate thinner, its knife edge's bevel on the other side
         margin_move("diaphragm", "thickness_mm", min_t)
         side = "front" if mount["diaphragm"].get("bevel_side", "rear") == "rear" else "rear"
