@@ -1,7 +1,9 @@
 """Write src/lensmount/optics/legacy_glasses.csv from the refractiveindex.info database (CC0).
 
 The glasses lens files name that the built-in catalogues (opticalglass) lack: Schott's technical
-glasses (B 270, D 263 T eco), Schott's obsolete LF7, and the LZOS catalogue. n_d and V_d are
+glasses (B 270, D 263 T eco), Schott's obsolete LF7, the LZOS catalogue, and the Schott optical glasses
+the database keeps that the built-in Schott catalogue has dropped (N-SK15, N-FK51, ...: Zemax's SCHOTT
+catalogue still carries them, and lens files name them). n_d and V_d are
 computed from the database's data (tabulated n, or its formulas 1 and 2, Sellmeier) at the d, F and C
 lines; the import uses them as a model glass and says so.
 
@@ -19,7 +21,8 @@ import numpy as np
 import yaml
 
 FOLDERS = {"database/data/specs/schott/misc": "Schott", "database/data/specs/schott/obsolete": "Schott (obsolete)",
-           "database/data/specs/lzos/optical": "LZOS"}
+           "database/data/specs/lzos/optical": "LZOS", "database/data/specs/schott/optical": "Schott (dropped)"}
+DROPPED_ONLY = "database/data/specs/schott/optical"   # only the glasses the built-in Schott catalogue lacks
 ALIASES = {"B270": "B 270", "D263TECO": "D263T D263 D263T_ECO D263TE"}
 D, F, C = 0.5875618, 0.4861327, 0.6562725
 
@@ -45,11 +48,16 @@ def index(data: dict, wl: float) -> float:
 
 
 def main(repo: str, commit: str) -> None:
+    from opticalglass import glassfactory
+
+    built_in = {str(g).strip().upper() for g in glassfactory.get_glass_catalog("Schott").get_glass_names()}
     rows = []
     for folder, maker in FOLDERS.items():
         names = subprocess.run(["git", "--git-dir", repo, "ls-tree", "--name-only", commit, folder + "/"],
                                capture_output=True, text=True, check=True).stdout.split()
         for path in names:
+            if folder == DROPPED_ONLY and Path(path).stem.upper() in built_in:
+                continue
             text = subprocess.run(["git", "--git-dir", repo, "show", f"{commit}:{path}"],
                                   capture_output=True, text=True, check=True).stdout
             data = yaml.safe_load(text)

@@ -1,8 +1,8 @@
 """`lensmount init --lens` never hands over a mount that `regenerate` rejects, and no traceback on the way.
 
-Either init exits 0 and the mount.toml it wrote passes regenerate's layout planner and profile checks
-(read back from the design folder, as regenerate reads it), or it exits 2 with one paragraph and writes
-nothing. The judge is the planner and the checks themselves, not the starter that chose the mount.
+Either init exits 0 and the mount.toml it wrote passes regenerate's layout planner, profile checks and
+solids (read back from the design folder, as regenerate reads it), or it exits 2 with one paragraph and
+writes nothing. The judge is the planner and the checks themselves, not the starter that chose the mount.
 
 Fast: Zemax's sample double Gauss (28° field) written here with automatic semi-diameters and no MEMA
 lines (its cemented flint's back face, R 22.27 mm, ends inside the crown's rim: it was evaluated beyond
@@ -59,16 +59,16 @@ def write_zmx(path: Path, rows, stop: int, enpd: float, fields=(0.0, 10.0, 14.0)
 
 
 def regenerate_refusal(design: Path) -> str | None:
-    """What regenerate's layout and profile checks say of the design folder (None: they pass)."""
-    from lensmount.cad.checks import check_layout
-    from lensmount.cad.layout import plan
+    """What regenerate's layout, profile checks and solids say of the design folder (None: they
+    pass): its own assembly and tessellation, without the STEP export."""
+    from lensmount.cad.assembly import build_assembly, tessellate
     from lensmount.design.folder import load_design
     from lensmount.errors import InputError
 
     try:
         d = load_design(design)
-        layout = plan(d.prescription, d.mount)
-        check_layout(layout, d.mount, {pp.name: pp.template.segments() for pp in layout.parts})
+        layout, parts = build_assembly(d.prescription, d.mount, d.template_paths, None, d.step_paths)
+        tessellate(parts, d.mount, layout)
     except InputError as error:
         return error.paragraph()
     return None
@@ -164,6 +164,45 @@ def test_a_refused_first_plan_is_mended_by_the_planners_alternatives():
     mount, tried = find_mount(p, [tight])
     assert mount is not None and refusal(p, mount) is None
     assert tried[0][1] == first and tried[-1][1] is None      # refused, then an alternative that builds
+
+
+def test_a_plan_whose_solids_are_refused_is_passed_over_for_the_next_alternative(monkeypatch):
+    """init builds the solids of a plan the layout checks pass (cad.mount_search.refusal): when the CAD
+    kernel refuses them, as regenerate would, the search goes on to the planner's alternatives."""
+    import lensmount.cad.assembly as assembly
+    from lensmount.cad.mount_search import find_mount
+    from lensmount.cad.starter import starter_mount
+    from lensmount.design.lens import load_lens
+
+    p = load_lens(CORPUS / "thorlabs-LA1131-A.zmx")
+    first, why = starter_mount(p, "LA1131-A")
+    assert why is None
+    kernel, built = assembly.build_parts, []
+
+    def refusing_the_first(layout, spec, *args, **kwargs):   # the kernel refuses the first plan's solids
+        built.append(spec)
+        if len(built) == 1:
+            raise GeometryError("lens-1: the CAD kernel built an invalid solid", field="lens",
+                                valid="parameters giving a simple closed profile")
+        return kernel(layout, spec, *args, **kwargs)
+
+    monkeypatch.setattr(assembly, "build_parts", refusing_the_first)
+    mount, tried = find_mount(p, [first])
+    assert tried[0][1] is not None and "invalid solid" in tried[0][1].message
+    assert mount is not None and mount != first and tried[-1][1] is None and len(built) >= 2
+
+
+def test_an_element_too_thin_at_its_edge_is_tried_with_smaller_chamfers():
+    """Thorlabs 354710-C (tests/optics/corpus): its BK7 window is 0.25 mm thick, and the starter's two
+    protective chamfers left 0.176 mm of edge, under the 0.2 mm minimum at every rim; halved, they
+    leave enough (init exited 2 before)."""
+    from lensmount.cad.starter import _mount, starter_mount
+    from lensmount.design.lens import load_lens
+
+    p = load_lens(CORPUS / "thorlabs-354710-C-utf16.zmx")
+    mount, why = starter_mount(p, "354710-C")
+    assert why is None
+    assert mount["lens_edge"]["chamfer_mm"] < _mount(p, "354710-C", True)["lens_edge"]["chamfer_mm"]
 
 
 def test_alternatives_follow_what_the_refusal_names():

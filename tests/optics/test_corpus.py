@@ -163,6 +163,8 @@ REFUSED_BECAUSE = {
     "zemax-double-gauss-experimental-paraxial": "ideal thin lens",
     "deeplens-ef35mm_f2.0-floating-stop": "the stop has no semi-diameter",
     "optiland-flat_transmission_grating": "diffraction grating",
+    "forms-microscope-objective-20x-cover-glass": "the image lies inside N-K5",
+    "cots-0002-12-1-optosigma-water-immersion": "the image lies inside 1.33304/55.7943",
 }
 
 

@@ -221,3 +221,33 @@ def test_a_catalogue_the_gcat_line_names_is_read_from_beside_the_file(tmp_path):
     lens, notes = read_zmx_with_notes(path)
     assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(_sellmeier_by_hand(D_LINE)), rel=1e-12)
     assert any(n.where == "glass catalogues" and "myvendor.agf" in n.what for n in notes)
+
+
+def test_glass_catalog_on_init_supplies_the_glass_for_that_command_only(tmp_path):
+    """`--glass-catalog` is one option shared by every command that reads a lens (lensmount.cli.options):
+    init reads a singlet whose glass only the .agf written here holds; without the option it is refused,
+    with it the design is derived; the next command without the option no longer sees the catalogue."""
+    agf = tmp_path / "MYVENDOR.AGF"
+    agf.write_text(AGF)
+    zmx = tmp_path / "singlet.zmx"
+    zmx.write_text(_zmx(glass1="MYCROWN 0 0 1.5 40 0 0 0 0 0 0"))
+    refused = CliRunner().invoke(app, ["init", str(tmp_path / "without"), "--lens", str(zmx)])
+    assert refused.exit_code == 2 and "MYCROWN" in refused.output
+    made = CliRunner().invoke(app, ["init", str(tmp_path / "with"), "--lens", str(zmx), "--glass-catalog", str(agf)])
+    assert made.exit_code == 0, made.output
+    assert (tmp_path / "with" / "mount.toml").is_file()
+    lens = load_lens(tmp_path / "with" / "lens.zmx", glass_catalogs=[agf])
+    assert paraxial(lens, D_LINE).efl == pytest.approx(_thick_lens_efl(_sellmeier_by_hand(D_LINE)), rel=1e-12)
+    after = CliRunner().invoke(app, ["inspect", str(zmx)])
+    assert after.exit_code == 2 and "MYCROWN" in after.output
+
+
+def test_a_reformulated_glass_is_found_under_its_new_name_and_a_dropped_one_in_the_table():
+    """Schott marks a glass melted to a changed formula with an A (N-PK52 -> N-PK52A); a glass its
+    current catalogue dropped (N-SK15) is in the table of legacy glasses, with Schott's own data
+    (refractiveindex.info, CC0: n_d 1.62296), not another maker's look-alike (Sumita K-SK15, 1.62299)."""
+    from lensmount.optics.glass import resolve_glass, successor
+
+    assert successor("N-PK52") == "SCHOTT:N-PK52A"
+    found = resolve_glass("N-SK15")
+    assert "table of legacy" in found.step and found.material.startswith("1.62296/")

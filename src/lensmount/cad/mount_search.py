@@ -1,8 +1,9 @@
 """`lensmount init`'s search for a mount that builds: the planner's own alternatives, tried where
 its refusal points.
 
-A starting mount.toml (cad.starter) is checked as `regenerate` checks it, with the layout planner
-(cad.layout) and the profile checks (cad.checks), no CAD. When they refuse it, the refusal names
+A starting mount.toml (cad.starter) is checked as `regenerate` checks it: the layout planner
+(cad.layout) and the profile checks (cad.checks), then the solids and their tessellation
+(cad.assembly) for a plan those pass. When they refuse it, the refusal names
 what it refused: a field (`seats.element.4`, `lens_edge.semi_diameter_mm.3`,
 `spacers.aperture_margin_mm`, ...) and, in its sentence, the elements, surfaces and parts
 involved (`lens-3`, `element 4`, `surface 6`, the diaphragm). The alternatives tried are the
@@ -15,8 +16,10 @@ planner's options for those lens groups, most specific first:
   (and all the groups named wider together: a spacer's bore follows the narrower neighbour);
 - its outer faces ground flat from their clear semi-diameter (`lens_edge.flat_faces`);
 - the field's own number halved where the planner asks for a smaller or thinner one (a margin, a
-  ring), and where the diaphragm is involved, its plate thinner (never below `checks.min_thickness_mm`)
-  and its knife edge bevelled on the other side.
+  ring), an element too thin at its edge with its chamfers halved (`lens_edge.chamfer_mm`: a flat
+  window a quarter of a millimetre thick loses most of its edge to them), and where the diaphragm is
+  involved, its plate thinner (never below `checks.min_thickness_mm`) and its knife edge bevelled on
+  the other side.
 
 The search goes depth first: an alternative refused for a reason not met on its way there (another
 part, element or kind of fault: the sentence with its measurements left out) mended what was
@@ -61,13 +64,21 @@ class Refusal:
 
 
 def refusal(p: Prescription, mount: dict) -> Refusal | None:
-    """What `regenerate` would refuse in this mount.toml at its layout and profile checks (None: it
-    builds that far)."""
+    """What `regenerate` would refuse in this mount.toml (None: it builds): its layout and profile
+    checks, and when they pass, the CAD kernel's solids and their tessellation, as regenerate makes
+    them (cad.assembly; init writes no user template or STEP part, the rest of regenerate's assembly).
+    Only a plan the checks pass reaches the kernel, so a search builds solids about once."""
+    from lensmount.cad.assembly import build_parts, tessellate  # lazy: the CAD kernel loads only for a plan that passes its checks
+
     try:
         spec = parse_mount(mount)
         layout = plan(p, spec)
         check_layout(layout, spec, {part.name: part.template.segments() for part in layout.parts})
     except InputError as error:
+        return Refusal(error.field or "", error.detail, error.paragraph(), error.valid or "")
+    try:
+        tessellate(build_parts(layout, spec), spec, layout)
+    except InputError as error:   # the solids: the kernel's own refusals (an invalid solid, ...)
         return Refusal(error.field or "", error.detail, error.paragraph(), error.valid or "")
     return None
 
@@ -202,6 +213,8 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     table, _, key = why.field.partition(".")
     if re.search(r"\b(smaller|thinner)\b", why.valid) and isinstance(mount.get(table, {}).get(key), float):
         margin_move(table, key, min_t if "thickness" in key else 0.05)   # the planner asks for less of it
+    if " is too thin" in why.message:   # an element's edge: its protective chamfers take glass from it
+        margin_move("lens_edge", "chamfer_mm", 0.0)
     if "diaphragm" in why.message:   # its plate thinner, its knife edge's bevel on the other side
         margin_move("diaphragm", "thickness_mm", min_t)
         side = "front" if mount["diaphragm"].get("bevel_side", "rear") == "rear" else "rear"

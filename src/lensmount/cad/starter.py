@@ -285,9 +285,10 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     The starting seatings are spacers with widened edges, then shoulders and rings where a spacer
     cannot reach; if faces beside the stop curl toward it, both again with those faces ground flat
     from their clear semi-diameter (lens_edge.flat_faces: room for the diaphragm between deep inner
-    faces). Each is checked with the layout planner and the profile checks that `regenerate` runs
-    (no CAD); the first that passes wins. When none does, the planner's alternatives are tried where
-    its refusal points (cad.mount_search: seats, rims, flat faces, margins). When nothing builds,
+    faces). Each is checked as `regenerate` checks it (the layout planner, the profile checks, then
+    the solids: cad.mount_search.refusal); the first that passes wins. When none does, the planner's
+    alternatives are tried where its refusal points (cad.mount_search: seats, rims, flat faces,
+    margins). When nothing builds,
     the first seating is returned with the refusals met on the way.
     """
     gap = _faces_curling_toward_the_stop(p)

@@ -16,6 +16,7 @@ import typer
 from lensmount.atomic import write_text
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
 from lensmount.design.folder import load_design
+from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as build
 from lensmount.loop.sightlines import VIEWS, file_stem, lit_walls_seen, plot_report
@@ -89,6 +90,7 @@ def check(
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="geometry folder (default DESIGN/build)"),
     seen_from: str = typer.Option("detector", "--from", help="whose view: 'detector' (through the lens) or "
                                   "'aperture' (the entrance aperture: lit hood walls the vanes must hide)"),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Geometric stray-light check, no Monte Carlo: is any mount face both lit by the sun (at the
     exclusion angle or beyond, straight in or through the lens) and seen by the detector (over its

@@ -16,6 +16,7 @@ from rich.table import Table
 
 from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import duration, observed
 from lensmount.errors import InputError
 from lensmount.loop.compare import CompareOptions, RunSource, compare as run_compare, part_rows, plan, verdict_row
@@ -72,6 +73,7 @@ def compare(
                                             "it and look again; each look's interval is wider so that all looks "
                                             "together keep --confidence."),
     budget: float = typer.Option(3600.0, "--budget", help="Seconds of further tracing --until-decided may spend."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Is the new run worse than the old one? Old, new, change with its interval, per part, and the verdict.
 

@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import duration
 from lensmount.errors import InputError
 from lensmount.loop.converge import ConvergeOptions, converge as run, read_reference, write_converge
@@ -27,6 +28,7 @@ def converge(
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed (default: the scene's)."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/converge-<scene name>)."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """What accuracy costs in time: each method runs for its share of the budget and is read
     at doubling times; writes converge.csv (time, photons, relative standard error, bias bound,

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from lensmount.atomic import write_text
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.ghosts import ghost_report
 from lensmount.loop.prepare import prepare
@@ -30,6 +31,7 @@ def ghosts(
                                                                      "aperture (per wavelength)."),
     order: Optional[int] = typer.Option(None, "--order", min=2, max=3, help="2: two-reflection ghosts; 3: four-"
                                         "reflection ones too (default: the scene's [effects] ghosts order, else 2)."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Trace every two-reflection ghost path (with order 3 the four-reflection ones too) deterministically
     (real rays, real Fresnel or coating reflectance per wavelength) and rank them by peak irradiance on the

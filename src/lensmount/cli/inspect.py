@@ -17,6 +17,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.options import GlassCatalogs
 from lensmount.design.edges import clip_warnings
 from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 from lensmount.errors import InputError
@@ -162,22 +163,19 @@ def inspect_command(
     save_toml: Optional[Path] = typer.Option(None, "--save-toml", help="Also write the lens as lens.toml "
                                              "(e.g. to convert a .zmx); automatic semi-diameters stay automatic "
                                              "(a lens with vignetting factors: written out)."),
-    glass_catalog: list[Path] = typer.Option([], "--glass-catalog", help="A Zemax .agf glass catalogue searched "
-                                             "for the lens's glass names before the built-in catalogues "
-                                             "(repeatable; after a lens.toml's own glass_catalogs)."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Show a lens: what the import of a .zmx did (imported, substituted, ignored; where each glass
     was found), the surfaces with their clear semi-diameters, and the paraxial data (for an afocal
     system its angular magnification instead of a focal length)."""
     try:
-        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, glass_catalogs=glass_catalog,
-                                                  afocal_ok=True)
+        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, afocal_ok=True)
         if save_toml is not None:
-            raw = load_lens(lens, auto_clear_apertures=False, glass_catalogs=glass_catalog, afocal_ok=True)
+            raw = load_lens(lens, auto_clear_apertures=False, afocal_ok=True)
             # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give
             save_lens_toml(prescription if raw.vignetting else raw, save_toml, margin_mm=margin or 0.0,
                            header=f"{raw.name}\nconverted by `lensmount inspect --save-toml` from {lens}")
-        doc = inspect_document(prescription, import_notes(lens, glass_catalog), clips)
+        doc = inspect_document(prescription, import_notes(lens), clips)
     except InputError as error:
         fail(error)
         return

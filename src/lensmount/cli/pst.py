@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
@@ -27,6 +28,7 @@ def pst(
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's run table seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/pst-<scene name>)."),
     workers: int = typer.Option(0, "--workers", help="Worker processes for each angle's passes (0 = one per core)."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Point source transmittance (detector irradiance over the irradiance on the entrance
     plane) against off-axis angle: pst.csv, pst.png (log scale, error bars, field edge

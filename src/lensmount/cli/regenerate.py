@@ -16,6 +16,7 @@ import typer
 from lensmount.atomic import atomic_path, write_text
 from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
 from lensmount.cli.check import run_check
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import TerminalObserver
 from lensmount.design.lens import load_lens
 from lensmount.errors import InputError
@@ -41,6 +42,7 @@ def regenerate(
         None, "--angular-tolerance", help="tessellation angular deflection, degrees (overrides mount.toml)"),
     check: bool = typer.Option(False, "--check", help="then run `lensmount check` on the result "
                                "(exit 1 when a lit wall is seen)"),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Build the mount: assembly.step, parts/NAME.step, mesh.npz (tagged triangles), manifest.json.
 
@@ -81,6 +83,7 @@ def init(
         "finishes.toml and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), "
         "checked as regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Scaffold a design folder (lens file, mount.toml, finishes.toml, scenes/) from an example or from a lens file.
 
@@ -93,8 +96,10 @@ def init(
                              valid="a new or empty folder, or --force")
         if lens is not None:
             _init_from_lens(directory, Path(lens))
+            again = "".join(f" --glass-catalog {c}" for c in glass_catalog)   # the lens file cannot name them
             typer.echo(f"{directory}: design folder from {lens} (mount.toml, finishes.toml and "
-                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate {directory}")
+                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate "
+                       f"{directory}{again}")
             return
         root = examples_root()
         names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())

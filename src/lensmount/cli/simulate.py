@@ -19,6 +19,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.simulate import Observer, PassStatus, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
@@ -196,6 +197,7 @@ def simulate(
     worker_wait: float = typer.Option(WORKER_WAIT_S, "--worker-wait",
                                       help="Seconds a Dask run with no worker left waits for one; then it writes "
                                            "its checkpoint and exits 75, for a batch script to retry with --resume."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 

@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import observed
 from lensmount.errors import InputError
 from lensmount.loop.simulate import SimulateOptions
@@ -39,6 +40,7 @@ def sweep(
     cluster: Optional[str] = typer.Option(None, "--cluster", help="Start a Dask LocalCluster: local:N processes."),
     confidence: float = typer.Option(0.95, "--confidence", help="Variants closer than this confidence allows "
                                                                 "are ties."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Regenerate and simulate every combination of the parameters; rank the variants, ties within the noise.
 

@@ -9,6 +9,7 @@ from typing import Optional
 import typer
 
 from lensmount.cli import app, fail
+from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.compare import _fraction
 from lensmount.cli.simulate import TerminalObserver, duration
 from lensmount.errors import InputError
@@ -34,6 +35,7 @@ def watch(
                                                                "runs.sqlite or $LENSMOUNT_STORE)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder of watch.html and the comparisons "
                                                            "(default DESIGN/.lensmount/watch)."),
+    glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Keep the loop warm: on every save of a design file, regenerate what changed, simulate the
     scene and print the verdict against the baseline (also in OUT/watch.html, which reloads

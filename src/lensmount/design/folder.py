@@ -73,12 +73,15 @@ class Design:
 
 
 def content_hash(lens_path: Path, mount_path: Path, templates: dict[str, Path],
-                 steps: dict[str, Path] | None = None) -> str:
+                 steps: dict[str, Path] | None = None, glass_catalogs=()) -> str:
+    """glass_catalogs: the .agf files the lens's glasses were looked up in (their indices move the
+    automatic semi-diameters, and so the mount)."""
     h = hashlib.sha256()
     h.update(f"lensmount {lensmount.__version__}\n".encode())
     for label, path in [("lens", lens_path), ("mount", mount_path)] + sorted(
             (f"template:{k}", v) for k, v in templates.items()) + sorted(
-            (f"step:{k}", v) for k, v in (steps or {}).items()):
+            (f"step:{k}", v) for k, v in (steps or {}).items()) + [
+            (f"glass catalogue {k}", Path(c)) for k, c in enumerate(glass_catalogs)]:
         data = path.read_bytes()
         h.update(f"{label} {len(data)}\n".encode())
         h.update(data)
@@ -130,7 +133,8 @@ def load_design(directory: str | Path) -> Design:
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
-                  content_hash(lens_path, mount_path, templates, steps), tuple(clip_warnings(clips)), steps,
+                  content_hash(lens_path, mount_path, templates, steps, prescription.glass_catalogs),
+                  tuple(clip_warnings(clips)), steps,
                   load_finishes(root))
 
 

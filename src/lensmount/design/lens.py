@@ -33,6 +33,17 @@ from lensmount.optics.profiles import Profile
 
 _CROSS_SAMPLES = 64
 _CROSS_TOL = 1e-9  # mm: touching (zero edge thickness) is allowed, crossing is not
+# The .agf catalogues the running command was given (`--glass-catalog`, lensmount.cli.options): every
+# lens that command loads, however deep in the loop (a design folder's lens.zmx in simulate, compare,
+# check, ...), searches them after its own (a lens.toml's glass_catalogs). Set for one command only.
+_command_catalogs: tuple[str, ...] = ()
+
+
+def use_command_glass_catalogs(paths) -> None:
+    """Make `paths` (.agf files) the catalogues every lens loaded from now on searches after its own;
+    () ends that (the CLI calls it when the command closes)."""
+    global _command_catalogs
+    _command_catalogs = tuple(str(Path(p)) for p in paths)
 
 
 def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
@@ -55,11 +66,13 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
         margin_mm: margin added to automatic semi-diameters; defaults to the file's
             `clear_aperture_margin_mm` (0 for .zmx).
         glass_catalogs: the user's Zemax .agf glass catalogues, searched for a glass name
-            before the built-in ones (after a lens.toml's own `glass_catalogs`).
+            before the built-in ones (after a lens.toml's own `glass_catalogs`; the command's
+            `--glass-catalog` ones after these).
         afocal_ok: accept an afocal system (for `inspect`); otherwise it is an InputError.
     """
     path = _resolve(Path(path))
     file = str(path)
+    glass_catalogs = (*glass_catalogs, *_command_catalogs)
     if path.suffix.lower() == ".zmx":
         prescription, file_margin = read_zmx(path, glass_catalogs), 0.0
     else:
@@ -80,6 +93,7 @@ def import_notes(path, glass_catalogs=()) -> list:
     """What reading a .zmx imported, substituted and ignored (ImportNote rows); for lens.toml, the
     glasses found elsewhere than under their name in a built-in catalogue."""
     path = _resolve(Path(path))
+    glass_catalogs = (*glass_catalogs, *_command_catalogs)
     if path.suffix.lower() != ".zmx":
         return _glass_notes(read_lens_toml(path, glass_catalogs)[0])
     return read_zmx_with_notes(path, glass_catalogs)[1]
@@ -278,4 +292,5 @@ def _resolve(path: Path) -> Path:
     return path
 
 
-__all__ = ["load_lens", "load_lens_and_clips", "import_notes", "save_lens_toml", "validate", "find_lens", "LENS_NAMES"]
+__all__ = ["load_lens", "load_lens_and_clips", "import_notes", "save_lens_toml", "validate", "find_lens", "LENS_NAMES",
+           "use_command_glass_catalogs"]

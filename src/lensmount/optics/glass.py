@@ -208,11 +208,14 @@ def _fused_silica(wl):
 
 def successor(name: str) -> str | None:
     """The catalogue glass that replaced a legacy name: BK7 -> N-BK7 (lead-free), E-LAFH3 -> J-LAFH3,
-    and the catalogue glass of a moulding variant: L-TIM28_MOLD -> S-TIM28.
+    the catalogue glass of a moulding variant: L-TIM28_MOLD -> S-TIM28, and a glass melted again
+    to a changed formula, which keeps its name with a letter added: N-PK52 -> N-PK52A.
 
     Uses opticalglass's name decoder: the same composition group, number and suffix
     with another prefix (N-, P-, S-, J-, ...) in one catalogue, N- ("new", the lead-free
-    successor) preferred. None when there is no such glass or it is ambiguous.
+    successor) preferred; failing that, the same name with the suffix A
+    (Schott's and CDGM's mark of a reformulated glass). None when there is no such glass or it is
+    ambiguous.
     """
     # lazy: keeps lensmount --help from loading opticalglass and pandas
     from opticalglass.glass import decode_glass_name
@@ -230,6 +233,10 @@ def successor(name: str) -> str | None:
         for pick in (new, found):
             if len(pick) == 1:
                 return f"{cat.upper()}:{pick[0]}"
+    if not suffix:
+        for cat in CATALOGUES:
+            if name + "A" in _catalogue_names(cat):
+                return f"{cat.upper()}:{name}A"
     return None
 
 

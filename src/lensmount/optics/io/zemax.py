@@ -396,6 +396,13 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
+    if medium.upper() != AIR:
+        last = next(z for z in reversed(body) if z.number == numbers[-1])
+        raise InputError(
+            f"the image lies inside {medium} (the GLAS of surface {last.number}), not in air: an immersion "
+            "objective's medium or a cover glass the image is formed in; lensmount's detector, mount and tracer "
+            "take the image in air", file=file, line=last.glass_line or last.line,
+            valid="an image space in air (no GLAS on the last surface before the image)")
     surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s)
     waves, weights = _wavelengths(lens)
     if not waves:
