@@ -192,7 +192,7 @@ def test_light_the_detector_cannot_see_is_never_gathered():
     tracer = PlanarTracer(scene)
     for i in range(3):
         e = bidirectional_pass(scene, tracer, 20_000, 2, i, 1.0, samples_per_pixel=4)
-        assert e.flux == 0.0 and np.all(e.part_flux_half == 0.0)
+        assert e.flux == 0.0 and np.all(e.part_flux_ladder == 0.0)
 
 
 def test_radius_at_passes_1_and_10000_on_a_face_crossing_the_detector_plane():
