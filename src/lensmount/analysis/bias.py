@@ -36,7 +36,7 @@ import numpy as np
 
 from lensmount.integrators.photon_gather import BIAS_LADDER
 
-SHAPE_P = 0.05  # a ladder whose shape the model c·ρ^k, k ≥ 1, explains with p below this: no bound
+SHAPE_P = 0.1  # a ladder whose shape the model c·ρ^k, k ≥ 1, explains with p below this: no bound
 SQRT2 = math.sqrt(2.0)  # the ratio of successive √2 steps at k = 1; steeper curves have more
 _RUNG = {m: i for i, m in enumerate(BIAS_LADDER)}
 _INNER, _R, _MID, _OUTER = (_RUNG[math.sqrt(0.5)], _RUNG[1.0], _RUNG[math.sqrt(2.0)], _RUNG[2.0])
