@@ -28,8 +28,9 @@ from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 
 # A lit spot 0.01 wide in a seen window 0.1 wide, the radius 1 (100× the spot): the disc dilutes it.
 SPOT = LineScene(lit=((-0.005, 0.005, 0.5), (-100.0, 100.0, 0.5)), seen=(-0.05, 0.05), radius=1.0)
-# Light on the left of an edge, the window on its right: a bias exactly first order in ρ (ρ/4 per unit).
-EDGE = LineScene(lit=((-2.0, 0.0, 2.0),), seen=(0.0, 2.0), radius=0.2, photons=20_000)
+# Light on the left of an edge, the window on its right (and uniform light in it): a bias exactly first
+# order in ρ, −5 % at r_0 = 0.5 (8 standard errors).
+EDGE = LineScene(lit=((-2.0, 0.0, 2.0), (0.0, 2.0, 2.0)), seen=(0.0, 2.0), radius=0.5, photons=100_000, hits=4000)
 # The same edge (first order, +) and a dome of light in the window (second order, −).
 MIXED = {r: LineScene(lit=((-2.0, 0.0, 2.0),), dome=(1.0, 1.0, 1.0), seen=(0.0, 2.0), radius=r)
          for r in (0.2, 0.3, 0.4)}
@@ -89,20 +90,20 @@ def test_a_run_that_cannot_bound_its_bias_decides_nothing():
 def test_a_first_order_bias_is_bounded_and_the_bound_is_not_vacuous():
     """The edge's bias is 11 standard errors; the outward step is the bias itself at first order. A
     first-order bias sits on the edge of the model (k = 1), so the shape check refuses a few per cent of
-    runs (9 of 400 measured): 18 of 20 seeds at least must give a bound, all but one holding the error
-    (a 2σ interval misses 1 in 20), none wider than 1.5× it."""
+    runs (8 of 100 measured): 17 of 20 seeds at least must give a bound, all but one holding the error
+    (a 2σ interval misses 1 in 20), no bound above 1.5× the bias."""
     truth = EDGE.truth()
+    runs = [_run(EDGE, seed) for seed in range(20)]
+    kernel_bias = np.mean([acc.flux for acc in runs]) - truth  # the bias itself: 20 runs' noise averages out
     bounded = held = 0
-    for seed in range(20):
-        acc = _run(EDGE, seed)
+    for seed, acc in enumerate(runs):
         bias, _ = acc.bias_bound()
-        error = acc.flux - truth
-        assert error > 5 * acc.flux_std_error  # a real bias, far beyond the noise
+        assert abs(kernel_bias) > 4 * acc.flux_std_error  # a real bias, far beyond the noise
         if bias.bounded:
             bounded += 1
-            held += abs(error) <= 2 * acc.flux_std_error + bias.bound
-            assert 2 * acc.flux_std_error + bias.bound <= 1.5 * abs(error), seed
-    assert bounded >= 18 and held >= bounded - 1, (bounded, held)
+            held += abs(acc.flux - truth) <= 2 * acc.flux_std_error + bias.bound
+            assert bias.bound <= 1.5 * abs(kernel_bias), seed
+    assert bounded >= 17 and held >= bounded - 1, (bounded, held)
 
 
 def test_passes_without_a_density_estimate_have_no_bias():
