@@ -87,6 +87,17 @@ def test_a_run_that_cannot_bound_its_bias_decides_nothing():
     assert v.verdict == UNDECIDED and "cannot bound its kernel bias" in v.note and why in v.note
 
 
+def test_a_sweep_cannot_rank_a_variant_that_cannot_bound_its_bias():
+    from lensmount.loop.sweep import Variant, rank
+
+    a, b = Variant(0, {}, 1.0, 0.01), Variant(1, {}, 2.0, 0.01)
+    rank([a, b], 0.95)
+    assert a.rank != b.rank
+    b.bias_unbounded = "diluted"
+    rank([a, b], 0.95)
+    assert a.rank == b.rank and b.tied_with == [0]
+
+
 def test_a_first_order_bias_is_bounded_and_the_bound_is_not_vacuous():
     """The edge's bias is 11 standard errors; the outward step is the bias itself at first order. A
     first-order bias sits on the edge of the model (k = 1), so the shape check refuses a few per cent of

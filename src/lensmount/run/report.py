@@ -23,6 +23,7 @@ from lensmount.atomic import write_text
 
 # Keys the headline and the part table show; every other scalar goes to "Inputs and provenance".
 _SHOWN = {"stray_fraction", "stray_fraction_std_error", "stray_fraction_rel_error", "stray_fraction_bias_bound",
+          "stray_fraction_bias_unbounded",
           "per_part", "units", "method", "passes", "photons", "time_s"}
 
 _CSS = """
