@@ -13,14 +13,16 @@ kernel bias is b(r) = E[F(r)] − truth; what the ladder can say about it, and w
   |D| ≥ 3|b|), with its own standard error se* over the passes. |flux − truth| ≤ |D̄| + 2 se* whenever
   the corrected estimate's ±2 se* holds the truth, so the bound is |D̄| + 2·max(se* − se, 0): the
   step's noise enters in quadrature with the photons' (D shares them), not added to the whole error.
-- **The model check.** c·ρ^k with 1 ≤ k ≤ 2 fixes the shape of the ladder: its steps
-  F(r) − F(r/√2), F(√2 r) − F(r), F(2r) − F(√2 r) are a, a·g, a·g² with g = 2^{k/2} ∈ [√2, 2]. A
-  run whose steps are not (a t-test over the passes of each step against the others, at every g
-  of the range, `SHAPE_P`) has a bias the outward step cannot bound: light concentrated on a
+- **The model check.** c·ρ^k with k ≥ 1 fixes the shape of the ladder: its steps F(r) − F(r/√2),
+  F(√2 r) − F(r), F(2r) − F(√2 r) are a, a·g, a·g² with g = 2^{k/2} ≥ √2, in each pass's own scale
+  (`_shape_p`). A run gives no bound (`bounded = False`, and why) when (a) the steps are significantly
+  not of that shape (one-sided: a curve steepening outward only makes D larger than the bias), (b)
+  the first outward step is measured and the second barely grows on it (g ≤ MIN_GROWTH; below √2
+  the bound is widened by 1/(g² − 1) instead, `_flattening`), or (c) the estimate moves by more than
+  MAX_STEP between r and 2r (a bias of the order of the value). That is light concentrated on a
   feature far smaller than r inside a narrow seen window (F ∝ 1/ρ: the estimate diluted by the disc),
-  two orders of opposite sign, a disc wider than its face. Such a run reports `bounded = False`
-  and why, never a number (issue 29, item 2): `compare` and the stopping rule take its error as
-  unknown, not as zero.
+  two orders of opposite sign, a disc wider than its face (issue 29, item 2): `compare` and the
+  stopping rule take such a run's error as unknown, not as zero.
 
 What no ladder of radii ≥ r/√2 can see is a bias that appears only below r/√2 and is flat above it;
 the radius caps (`radius.radius_caps`: r_0 below the face's half width and its bend's chord) are
@@ -54,8 +56,9 @@ class BiasBound:
 
     bound : what the run's interval needs beyond ±2 standard errors to hold the bias (|D̄| + 2·max(se* −
         se, 0), module docstring); inf when unknown (too few passes), None when `bounded` is False
-    step : D̄, the mean outward step F(2r) − F(r): the bias itself for a first-order bias, 3× it at second
-    bounded : False when the ladder's shape is not c·ρ^k with 1 ≤ k ≤ 2 (then no bound is honest)
+    step : D̄, the mean outward step F(2r) − F(r) (the bias itself for a first-order bias, 3× it at second),
+        times the flattening factor when one applies
+    bounded : False when the ladder says the bias is not c·ρ^k with k ≥ 1 (then no bound is honest)
     reason : why not, in the optics engineer's words ("" when bounded)
     shape_p : p-value of the model check (1 when it was not made: no density estimate, too few passes)
     """

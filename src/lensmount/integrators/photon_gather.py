@@ -29,7 +29,8 @@ from lensmount.integrators.settings import EstimatorSettings
 # the same photons (`Gatherer.radiance_ladder`): the curve Ê(ρ) near ρ = r that the bias estimate reads
 # (`analysis.bias`). Wider than r, where the discs hold more photons and hit points, so that the curve's
 # steps are far less noisy than a step to r/2 (whose quarter of the photons made the old bound as noisy as
-# the estimate itself: issue 28). Index 0 is r itself.
+# the estimate itself: issue 28; r/2 stays on the ladder so a run can still be compared with that bound).
+# Index 0 is r itself.
 BIAS_LADDER = (1.0, math.sqrt(2.0), 2.0, math.sqrt(0.5), 0.5)
 
 
