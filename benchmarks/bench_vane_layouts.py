@@ -82,7 +82,7 @@ def run(design: Path, passes: int, off_axis_deg: float, black: tuple[str, ...] =
     hood = hood_parts(scene)
     baffle = sum(f for n, f in zip(names, acc.part_flux) if n in hood)
     series = np.asarray(acc.pass_flux) / aperture
-    return len(hood) - 1, acc.flux / aperture, acc.flux_std_error / aperture, acc.bias_bound()[0] / aperture, \
+    return len(hood) - 1, acc.flux / aperture, acc.flux_std_error / aperture, (acc.bias_bound()[0].bound or math.inf) / aperture, \
         baffle / max(acc.flux, 1e-300), series
 
 

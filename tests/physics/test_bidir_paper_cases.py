@@ -64,7 +64,9 @@ def _run(scene, method, passes, photons, seed=1, schedule=False, **kw):
     for i, e in enumerate(est):
         acc.add(e, i)
     assert np.isfinite(acc.flux)
-    return acc.flux, acc.flux_std_error, dict(zip(acc.part_names, acc.part_flux)), acc.bias_bound()[0]
+    bias = acc.bias_bound()[0]
+    assert bias.bounded, bias.reason
+    return acc.flux, acc.flux_std_error, dict(zip(acc.part_names, acc.part_flux)), bias.bound
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,9 @@ the whole 2 r w (0.21 of the truth at R = 2 mm). Here the face is tessellated as
 does (≤ 6° per facet, ≤ 20 µm sag), photons lie on a fine regular grid over its facets with
 equal flux (uniform irradiance E, known exactly from the grid cell), and a Lambertian edge
 (ρ) must read L = ρ E / π at every hit point, at the code's own radius cap (`radius_caps`)
-times the radius scales of passes 1 to 10 000, for the full radius and the half radius the
-bias estimate uses. No tracer: the area, the radius cap and the normal test are what is tested.
+times the radius scales of passes 1 to 10 000, for the full radius and every radius of the
+bias estimate's ladder (r/2 to 2r; beyond r the curvature's own kernel bias, computed). No tracer:
+the area, the radius cap and the normal test are what is tested.
 """
 
 import math
@@ -16,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
+from lensmount.integrators.photon_gather import BIAS_LADDER, Gatherer, HitPoints, PhotonHits
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.physics.bsdf import make_bsdf
 
@@ -74,7 +75,8 @@ def test_thin_cylindrical_edge_reads_the_truth_at_every_radius(R):
     fn = np.array([_facet_normal(phi[q], phi[q] + 2 * math.pi / m) for q in q_hit])
     zs = np.array([0.0, 0.012, -0.02])
     pos = np.column_stack([R * math.cos(math.pi / m) * np.cos(ang), R * math.cos(math.pi / m) * np.sin(ang), zs])
-    span = math.ceil((cap + 0.1) / (2 * R * math.sin(math.pi / m))) + 1  # facets a disc of radius cap reaches
+    reach = cap * max(BIAS_LADDER)  # the widest disc of the bias ladder
+    span = math.ceil((reach + 0.1) / (2 * R * math.sin(math.pi / m))) + 1  # facets a disc of radius reach reaches
     quads = np.unique(np.concatenate([(q + np.arange(-span, span + 1)) % m for q in q_hit]))
     photons, cell = _photons(R, phi, quads)
     rho = 0.05
@@ -86,8 +88,15 @@ def test_thin_cylindrical_edge_reads_the_truth_at_every_radius(R):
         hits = HitPoints(position=pos, normal=fn, omega_o=fn, weight=np.ones(3), pixel=np.zeros(3, np.int64),
                          tag=np.zeros(3, np.int32), wavelength=np.zeros(3, np.int32), radius=r,
                          area=fb.inside_area(pos, fn, np.zeros(3, np.int32), r),
-                         area_half=fb.inside_area(pos, fn, np.zeros(3, np.int32), 0.5 * r))
+                         area_ladder=np.column_stack([fb.inside_area(pos, fn, np.zeros(3, np.int32), m * r)
+                                                      for m in BIAS_LADDER]))
         g = Gatherer(hits, [bsdf])
         g.gather(photons)
         np.testing.assert_allclose(g.radiance / truth, 1.0, atol=0.02, err_msg=f"R={R} r={r[0]:.3g}")
-        np.testing.assert_allclose(g.radiance_half / truth, 1.0, atol=0.02, err_msg=f"R={R} r/2={r[0] / 2:.3g}")
+        for rung, m in enumerate(BIAS_LADDER):  # the bias ladder's discs, up to 2r: a ball of radius ρ on the
+            # arc holds the arc 4R·asin(ρ/2R), the on-face area counts 2ρ of it (+3.1 % at 2r): a kernel bias
+            # of the wider disc, which the ladder is there to see, and nothing more (no photon lost to the normal band)
+            rho_m = m * r[0]
+            arc = 2 * R / rho_m * math.asin(rho_m / (2 * R))
+            np.testing.assert_allclose(g.radiance_ladder[:, rung] / truth, arc, atol=0.02,
+                                       err_msg=f"R={R} {m:.3g} r={rho_m:.3g}")

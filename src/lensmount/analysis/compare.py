@@ -49,7 +49,9 @@ class Measurement:
     """A Monte Carlo figure: value, standard error as the summaries give it (the passes' spread,
     Student-t widened by `passes.t_factor`; None = unknown, fewer than 3 passes), bias bound,
     what it cost (passes, photons, seconds), and the 95 % no-signal bound: what the figure lies
-    below when it read exactly zero in every pass (None: not known; a zero then decides nothing)."""
+    below when it read exactly zero in every pass (None: not known; a zero then decides nothing).
+    bias_unbounded : why the run could not bound its kernel bias (`analysis.bias`; None: bounded): its
+    error is then unknown and nothing is decided on it."""
 
     value: float
     std_error: float | None
@@ -58,6 +60,7 @@ class Measurement:
     photons: int = 0
     time_s: float = 0.0
     no_signal_bound: float | None = None
+    bias_unbounded: str | None = None
 
     @property
     def no_signal(self) -> bool:
@@ -168,6 +171,8 @@ def to_decide(old: Measurement, new: Measurement, threshold: float, confidence: 
     change lies (module docstring), cheapest by each run's time (else photons) per pass; None when
     no number of passes would (the bias bounds alone reach the threshold, or the change is on it).
     grows : which runs may take more passes (a stored run of an earlier revision cannot)."""
+    if old.bias_unbounded or new.bias_unbounded:
+        return None  # the error is unknown, not small: more passes of the same radii do not bound it
     above = new.value - old.value > threshold
     cost = [(m.time_s or m.photons or 1.0) / max(m.passes, 1) for m in (old, new)]
 
@@ -216,6 +221,11 @@ def judge(old: Measurement, new: Measurement, tolerance: float = 0.05, confidenc
     if old.std_error is None or new.std_error is None:
         return Verdict(UNDECIDED, old.value, new.value, change, rel, -math.inf, math.inf, threshold, confidence,
                        note="a run with fewer than 3 passes has no error bar; run more passes")
+    unbounded = [f"the {name} run cannot bound its kernel bias ({m.bias_unbounded})"
+                 for name, m in (("old", old), ("new", new)) if m.bias_unbounded]
+    if unbounded:
+        return Verdict(UNDECIDED, old.value, new.value, change, rel, -math.inf, math.inf, threshold, confidence,
+                       note="; ".join(unbounded) + ": its error is unknown, so nothing is decided on it")
     low, high = interval(old, new, confidence)
     if low > threshold:
         return Verdict(REGRESSION, old.value, new.value, change, rel, low, high, threshold, confidence)

@@ -17,9 +17,9 @@ What the error bar includes (docs/bidirectional.md, "What the error bar includes
   (`t_factor`: ±2 standard errors cover 95 % for normal passes at any n) and unknown
   (inf, null in the summary) below `MIN_PASSES`;
 - the kernel bias is NOT in it. `bias_bound()` estimates it from every pass's own
-  estimate at half its gather radius (`PassEstimate.part_flux_half`): with a bias
-  c·r^k, k ∈ [1, 2], the pass's bias is (Ê(r) − Ê(r/2)) / (1 − 2^−k) ≤ 2 (Ê(r) − Ê(r/2)).
-  The bound is |2 D̄| plus one standard error of it (D̄ the mean difference);
+  estimates on a ladder of gather radii (`PassEstimate.part_flux_ladder`, `analysis.bias`): the
+  step outward F(2r) − F(r) bounds a bias c·r^k, k ∈ [1, 2], its noise counted in quadrature
+  with the passes' spread; a ladder whose shape is not that model gives no bound (`BiasBound`);
 - a run whose passes are all exactly zero has no error bar: `upper_bound()` gives the
   95 % bound from the photons traced (none of them reached the detector, and none carried
   more than the heaviest emitted weight); `no_signal_bound()` is the same bound for any part
@@ -43,16 +43,19 @@ from pathlib import Path
 import numpy as np
 from scipy.special import stdtrit  # Student's t quantile; scipy.stats' t.ppf is ~70x slower per call
 
+from lensmount.analysis.bias import BiasBound, ladder_bias
 from lensmount.analysis.paths import PathSums
 from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
 from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
 from lensmount.integrators.paths import EMPTY
+from lensmount.integrators.photon_gather import BIAS_LADDER
 from lensmount.integrators.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
-_STATE_VERSION = 7  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
-# scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess
+_STATE_VERSION = 8  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
+# scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess;
+# 8: each pass's flux on the ladder of radii instead of at half the radius
 MIN_PASSES = 3  # below this the spread of the passes is no error bar (std error: inf)
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
 TAIL_P = 0.01  # the largest pass is an outlier below this p-value: 1 % of runs with normal passes are flagged
@@ -108,8 +111,9 @@ class Accumulator:
     sum_parts : (P, ny, nx) Σ of the per-part images
     pass_flux : list of each pass's total flux (mm², normalised), in pass order
     pass_part_flux : list of each pass's (P,) per-part flux
-    pass_part_flux_half : list of each pass's (P,) per-part flux at half the gather radius
-        (equal to `pass_part_flux` for passes without a density estimate)
+    pass_part_flux_ladder : list of each pass's (L, P) per-part flux with its gather radii on the
+        ladder (`photon_gather.BIAS_LADDER`; every rung equal to `pass_part_flux` for passes without a
+        density estimate)
     pass_radius_scale : list of each pass's radius scale s_i (0 without a density estimate)
     photons, lost_flux : totals over the passes
     ledger : Σ over the passes of each energy-ledger entry (mm², `PassEstimate.ledger`)
@@ -135,7 +139,7 @@ class Accumulator:
     pass_part_flux: list[np.ndarray] = field(default_factory=list)
     ledger: dict[str, float] = field(default_factory=dict)
     diagnostics: dict[str, float] = field(default_factory=dict)
-    pass_part_flux_half: list[np.ndarray] = field(default_factory=list)
+    pass_part_flux_ladder: list[np.ndarray] = field(default_factory=list)
     pass_radius_scale: list[float] = field(default_factory=list)
     paths: PathSums = field(default_factory=PathSums)
     pass_excess_path: list[int] = field(default_factory=list)
@@ -172,11 +176,12 @@ class Accumulator:
             self.diagnostics[key] = self.diagnostics.get(key, 0.0) + float(value)
         self.pass_flux.append(float(image.sum() * self.pixel_area_mm2))
         part_flux = parts.sum(axis=(1, 2)) * self.pixel_area_mm2
-        half = part_flux if estimate.part_flux_half is None else np.asarray(estimate.part_flux_half, np.float64)
-        if half.shape != part_flux.shape or not np.isfinite(half).all():
-            raise ValueError("pass half-radius flux has the wrong shape or is not finite")
+        rungs = (np.tile(part_flux, (len(BIAS_LADDER), 1)) if estimate.part_flux_ladder is None
+                 else np.asarray(estimate.part_flux_ladder, np.float64))
+        if rungs.shape != (len(BIAS_LADDER), len(part_flux)) or not np.isfinite(rungs).all():
+            raise ValueError("pass flux on the ladder of radii has the wrong shape or is not finite")
         self.pass_part_flux.append(part_flux)
-        self.pass_part_flux_half.append(half)
+        self.pass_part_flux_ladder.append(rungs)
         self.pass_radius_scale.append(float(estimate.radius_scale))
         self.pass_excess_path.append(EMPTY if estimate.paths is None else _excess_path(self.paths, estimate.paths))
         if estimate.paths is not None:
@@ -229,20 +234,17 @@ class Accumulator:
         series = np.asarray(self.pass_part_flux)
         return np.array([_std_error(series[:, p]) for p in range(series.shape[1])])
 
-    def bias_bound(self) -> tuple[float, np.ndarray]:
-        """(total, (P,) per part) bound on |kernel bias| of `flux` and `part_flux`, mm².
-
-        From each pass's difference D_i = Ê_i(r) − Ê_i(r/2) (same photons, same hit
-        points, so the noise largely cancels): the bias of the mean is at most 2 D̄ for a
-        bias c·r^k with 1 ≤ k ≤ 2 (first order at a kink of the detector's importance,
-        second order on smooth irradiance). Bound = |2 D̄| + 2·(standard error of D̄).
-        inf below MIN_PASSES; 0 for passes without a density estimate (forward)."""
+    def bias_bound(self) -> tuple[BiasBound, list[BiasBound]]:
+        """(total, per part) kernel bias of `flux` and `part_flux` (`analysis.bias.BiasBound`, mm²): a
+        bound from each pass's flux on the ladder of radii (same photons, same hit points), or none
+        with the reason when the ladder's shape is not a bias c·r^k with 1 ≤ k ≤ 2. bound inf below
+        MIN_PASSES; 0 for passes without a density estimate (forward)."""
         if self.n < MIN_PASSES:
-            return math.inf, np.full(len(self.part_names), math.inf)
-        d = 2.0 * (np.asarray(self.pass_part_flux) - np.asarray(self.pass_part_flux_half))
-        per_part = np.array([abs(d[:, p].mean()) + _std_error(d[:, p]) for p in range(d.shape[1])])
-        total = d.sum(axis=1)
-        return float(abs(total.mean()) + _std_error(total)), per_part
+            return BiasBound(math.inf), [BiasBound(math.inf) for _ in self.part_names]
+        ladder = np.asarray(self.pass_part_flux_ladder)  # (n, L, P)
+        parts = np.asarray(self.pass_part_flux)
+        per_part = [ladder_bias(parts[:, p], ladder[:, :, p], t_factor) for p in range(len(self.part_names))]
+        return ladder_bias(np.asarray(self.pass_flux), ladder.sum(axis=2), t_factor), per_part
 
     def upper_bound(self) -> float | None:
         """95 % upper bound on `flux` (mm²) when every pass was exactly zero, else None
@@ -267,14 +269,15 @@ class Accumulator:
 
     def rel_error(self) -> float:
         """Relative uncertainty of the total flux for the stopping rule: (standard error +
-        bias bound) / |flux|. inf when unknown (n < MIN_PASSES) and when there is no signal
-        (a zero mean: more passes are what could show light, never a reason to stop)."""
+        bias bound) / |flux|. inf when unknown: n < MIN_PASSES, no signal (a zero mean: more passes
+        are what could show light, never a reason to stop), and a bias the ladder cannot bound."""
         if self.n < MIN_PASSES:
             return math.inf
         mean = abs(self.flux)
-        if mean == 0:
+        bias = self.bias_bound()[0]
+        if mean == 0 or bias.bound is None:
             return math.inf
-        return (self.flux_std_error + self.bias_bound()[0]) / mean
+        return (self.flux_std_error + bias.bound) / mean
 
     def tail(self) -> Tail:
         """The largest pass against the others (`Tail`, Grubbs's test on the passes' totals)."""
@@ -340,7 +343,8 @@ class Accumulator:
             ledger_values=np.array([self.ledger[k] for k in sorted(self.ledger)], dtype=np.float64),
             diagnostics_keys=np.array(sorted(self.diagnostics), dtype=str),
             diagnostics_values=np.array([self.diagnostics[k] for k in sorted(self.diagnostics)], dtype=np.float64),
-            pass_part_flux_half=np.asarray(self.pass_part_flux_half, dtype=np.float64).reshape(-1, len(self.part_names)),
+            pass_part_flux_ladder=np.asarray(self.pass_part_flux_ladder, dtype=np.float64).reshape(
+                -1, len(BIAS_LADDER), len(self.part_names)),
             pass_radius_scale=np.asarray(self.pass_radius_scale, dtype=np.float64),
             pass_excess_path=np.asarray(self.pass_excess_path, dtype=np.int64),
             **self.paths.arrays(),
@@ -362,7 +366,7 @@ class Accumulator:
             raise InputError(f"the checkpoint is damaged and cannot be resumed ({type(e).__name__}: {e})",
                              file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
                                                    "it and run again without --resume (its passes are lost)") from None
-        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_half, acc.pass_radius_scale)
+        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_ladder, acc.pass_radius_scale)
         shapes = {acc.sum_image.shape, acc.sumsq_image.shape, acc.sum_parts.shape[1:]}
         if any(len(x) != acc.n for x in series) or len(shapes) != 1 or acc.n < 0 or not all(
                 np.isfinite(a).all() for a in (acc.sum_image, acc.sumsq_image, acc.sum_parts)):
@@ -387,7 +391,7 @@ class Accumulator:
                       pass_part_flux=[row.copy() for row in z["pass_part_flux"]],
                       ledger={str(k): float(v) for k, v in zip(z["ledger_keys"], z["ledger_values"])},
                       diagnostics={str(k): float(v) for k, v in zip(z["diagnostics_keys"], z["diagnostics_values"])},
-                      pass_part_flux_half=[row.copy() for row in z["pass_part_flux_half"]],
+                      pass_part_flux_ladder=[rungs.copy() for rungs in z["pass_part_flux_ladder"]],
                       pass_radius_scale=[float(v) for v in z["pass_radius_scale"]],
                       paths=PathSums.from_arrays(z),
                       pass_excess_path=[int(v) for v in z["pass_excess_path"]])

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lensmount.analysis.bias import BiasBound
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
 from lensmount.analysis.passes import TAIL_P, Accumulator
 from lensmount.analysis.paths import describe_event
@@ -24,7 +25,9 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
 
     The error bar is `stray_fraction_std_error` (spread of the passes, Student-t widened) plus
     `stray_fraction_bias_bound` (kernel bias, `Accumulator.bias_bound`); `stray_fraction_rel_error`
-    is their sum over the value. With no signal at all `stray_fraction_upper_bound` is the 95 %
+    is their sum over the value. A bias the ladder of radii cannot bound has no bound (null) and
+    `stray_fraction_bias_unbounded` says why (null when bounded; per part `bias_unbounded`): its error is
+    unknown, and `compare` and the stopping rule take it so, never as zero. With no signal at all `stray_fraction_upper_bound` is the 95 %
     bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null;
     `stray_fraction_no_signal_bound` is that bound for any figure that read zero (a part too), what
     `compare` takes for a zero instead of 0 ± 0. `tail` says whether one pass dominates the others
@@ -38,7 +41,8 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     per_part = {
         name: {"fraction": finite_or_none(stray_fraction(float(f), aperture_flux_mm2)),
                "std_error": finite_or_none(float(s) * scale) if np.isfinite(s) else None,
-               "bias_bound": finite_or_none(float(b) * scale) if np.isfinite(b) else None,
+               "bias_bound": _bound(b, scale),
+               "bias_unbounded": None if b.bounded else b.reason,
                "flux_mm2": finite_or_none(float(f))}
         for name, f, s, b in zip(acc.part_names, part_flux, part_se, part_bias)
     }
@@ -56,8 +60,10 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "aperture_flux_mm2": finite_or_none(aperture_flux_mm2),
         "stray_fraction": finite_or_none(stray_fraction(flux, aperture_flux_mm2)),
         "stray_fraction_std_error": finite_or_none(se * scale),
-        "stray_flux_bias_bound_mm2": finite_or_none(bias),
-        "stray_fraction_bias_bound": finite_or_none(bias * scale),
+        "stray_flux_bias_bound_mm2": _bound(bias, 1.0),
+        "stray_fraction_bias_bound": _bound(bias, scale),
+        "stray_fraction_bias_unbounded": None if bias.bounded else bias.reason,
+        "bias": {"outward_step": finite_or_none(bias.step * scale), "shape_p": finite_or_none(bias.shape_p)},
         "stray_fraction_upper_bound": None if upper is None else finite_or_none(upper * scale),
         "stray_fraction_no_signal_bound": finite_or_none(acc.no_signal_bound() * scale),
         "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
@@ -79,6 +85,11 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     if extra:
         summary.update(extra)
     return summary
+
+
+def _bound(bias: BiasBound, scale: float) -> float | None:
+    """A bias bound in the summary's units: null when unknown (inf) or when there is none (not bounded)."""
+    return None if bias.bound is None or not np.isfinite(bias.bound) else finite_or_none(bias.bound * scale)
 
 
 def tail_block(acc: Accumulator, tag_table=None) -> dict:

@@ -242,6 +242,8 @@ def print_summary(summary: dict, paths: dict) -> None:
     bias = summary.get("stray_fraction_bias_bound")
     if bias:
         table.add_row("kernel bias (bound)", f"± {bias:.2g}")
+    if summary.get("stray_fraction_bias_unbounded"):
+        table.add_row("kernel bias", f"cannot be bounded: {summary['stray_fraction_bias_unbounded']}")
     rel = summary.get("stray_fraction_rel_error")
     table.add_row("relative error (std + bias)", f"{100 * rel:.2f} %" if rel is not None else "—")
     drift = summary.get("stray_fraction_drift")

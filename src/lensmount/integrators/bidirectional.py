@@ -178,10 +178,11 @@ class Bidirectional:
         _, parts_g = gatherer.image(film.detector.shape, film.channel_of_tag, len(film.channels))
         film.add_images(parts_g)
         estimate = film.estimate(photons, ledger, diagnostics)
-        # The same pass with every gather radius halved (only the gathered part changes): the bias estimate.
+        # The same pass with every gather radius on the ladder (only the gathered part changes): the bias estimate.
         estimate.radius_scale = scale
-        estimate.part_flux_half = (estimate.part_flux - parts_g.sum(axis=(1, 2)) * film.detector.pixel_area
-                                   + gatherer.part_flux_half(film.channel_of_tag, len(film.channels)) * film.detector.pixel_area)
+        estimate.part_flux_ladder = (estimate.part_flux - parts_g.sum(axis=(1, 2)) * film.detector.pixel_area
+                                     + gatherer.part_flux_ladder(film.channel_of_tag, len(film.channels))
+                                     * film.detector.pixel_area)
         return estimate
 
 

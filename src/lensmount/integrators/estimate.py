@@ -40,9 +40,9 @@ class PassEstimate:
         (backward rays ended by the tracer's numerical guards), and `time/<phase>` seconds
         (`phase_times`; the plan's times, kept out of summary.json's diagnostics)
     radius_scale : s_i, the pass's gather radius relative to r_0 (0: no density estimate, no kernel bias)
-    part_flux_half : (P,) per-part flux (mm²) of the same pass with every gather radius halved
-        (same photons and hit points; None when the pass has no density estimate). The
-        difference to `part_flux` measures the kernel bias (`Accumulator.bias_bound`).
+    part_flux_ladder : (L, P) per-part flux (mm²) of the same pass with every gather radius r taken as
+        r · BIAS_LADDER[l] (`photon_gather`; same photons and hit points; None when the pass has no
+        density estimate). How it changes with the radius measures the kernel bias (`analysis.bias`).
     paths : the same light by path signature (`integrators.paths`: ordered scatter faces, ghosts)
     faces : light per CAD face: flux arriving (illuminated), étendue seen by the detector (critical)
     """
@@ -55,7 +55,7 @@ class PassEstimate:
     ledger: dict[str, float] = field(default_factory=dict)
     diagnostics: dict[str, float] = field(default_factory=dict)
     radius_scale: float = 0.0
-    part_flux_half: np.ndarray | None = None
+    part_flux_ladder: np.ndarray | None = None
     paths: PassPaths | None = None
     faces: PassFaces | None = None
 

@@ -25,6 +25,14 @@ from scipy.spatial import cKDTree
 
 from lensmount.integrators.settings import EstimatorSettings
 
+# The radii, relative to a pass's r, at which the gather also estimates each hit point's radiance from
+# the same photons (`Gatherer.radiance_ladder`): the curve Ê(ρ) near ρ = r that the bias estimate reads
+# (`analysis.bias`). Wider than r, where the discs hold more photons and hit points, so that the curve's
+# steps are far less noisy than a step to r/2 (whose quarter of the photons made the old bound as noisy as
+# the estimate itself: issue 28; r/2 stays on the ladder so a run can still be compared with that bound).
+# Index 0 is r itself.
+BIAS_LADDER = (1.0, math.sqrt(2.0), 2.0, math.sqrt(0.5), 0.5)
+
 
 @dataclass
 class HitPoints:
@@ -39,7 +47,8 @@ class HitPoints:
     wavelength : (H,) int32 wavelength index
     radius : (H,) mm, gather radius of this pass (r_0 · s_i)
     area : (H,) mm², the part of the gather disc on the hit point's face (π r² away from boundaries)
-    area_half : (H,) mm², the same for the disc of radius r/2 (the bias estimate, `Gatherer`)
+    area_ladder : (H, L) mm², the same for the discs of radius r · BIAS_LADDER[l] (the bias estimate,
+        `Gatherer.radiance_ladder`)
     """
 
     position: np.ndarray
@@ -51,13 +60,14 @@ class HitPoints:
     wavelength: np.ndarray
     radius: np.ndarray
     area: np.ndarray | None = None
-    area_half: np.ndarray | None = None
+    area_ladder: np.ndarray | None = None
 
     def __post_init__(self):
+        r = np.asarray(self.radius, np.float64)
         if self.area is None:
-            self.area = np.pi * np.asarray(self.radius, np.float64) ** 2
-        if self.area_half is None:
-            self.area_half = np.pi * (0.5 * np.asarray(self.radius, np.float64)) ** 2
+            self.area = np.pi * r ** 2
+        if self.area_ladder is None:
+            self.area_ladder = np.pi * (r[:, None] * np.asarray(BIAS_LADDER)) ** 2
 
     def __len__(self) -> int:
         return len(self.weight)
@@ -66,7 +76,7 @@ class HitPoints:
     def empty(cls) -> "HitPoints":
         z3, z = np.zeros((0, 3)), np.zeros(0)
         return cls(z3, z3.copy(), z3.copy(), z, np.zeros(0, np.int64), np.zeros(0, np.int32),
-                   np.zeros(0, np.int32), z.copy(), z.copy(), z.copy())
+                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))))
 
     def subset(self, index) -> "HitPoints":
         return HitPoints(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -148,9 +158,9 @@ class Gatherer:
     paths : a `paths.PathTally` that gets every photon–hit-point contribution to the detector
         irradiance (τ f Φ / A into the hit point's pixel) under the photon's signature; None: not kept.
 
-    `radiance_half` is the same estimate over the disc of radius r/2 (same photons, area
-    `area_half`): the difference between the two measures the kernel bias of the pass
-    (`analysis.passes.Accumulator.bias_bound`).
+    `radiance_ladder` (H, L) is the same estimate over the discs of radius r · BIAS_LADDER[l] (same
+    photons, areas `area_ladder`): how it changes with the radius measures the kernel bias of the pass
+    (`analysis.bias`).
     """
 
     def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = EstimatorSettings.normal_limit_deg, chunk: int = 100_000,
@@ -161,9 +171,15 @@ class Gatherer:
         self.bsdf_of_tag = bsdf_of_tag
         self.core_of_tag = core_of_tag
         self.cos_max = math.cos(math.radians(max_normal_deg))
+        # The ladder's wider discs take a normal band as much wider: r_0 is capped at the chord of the
+        # face's tightest bend that keeps max_normal_deg (`radius.radius_caps`), so a disc m times
+        # wider spans m times the turn; with the plain band it lost the photons beyond it on a curved
+        # edge (0.80 of the truth at √2 r on a 2 mm cylinder) and read a bias that is not the run's.
+        self._cos_ladder = np.cos(np.radians(np.minimum(max_normal_deg * np.maximum(BIAS_LADDER, 1.0), 89.0)))
         self.detector_z = math.inf if detector_z is None else float(detector_z)
         self.radiance = np.zeros(len(hits))  # Σ f Φ / A per hit point, units E_sun/sr
-        self.radiance_half = np.zeros(len(hits))
+        self.radiance_ladder = np.zeros((len(hits), len(BIAS_LADDER)))
+        self._reach = max(BIAS_LADDER)  # the widest disc the pair search must find
         self.pairs_tested = 0
         self.groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
         if len(hits) == 0:
@@ -176,7 +192,8 @@ class Gatherer:
         for k, s, e in zip(uniq, starts, ends):
             idx = order[s:e]
             tag = int(k // 4096)
-            self.groups.setdefault(tag, []).append((idx, cKDTree(hits.position[idx]), float(hits.radius[idx].max())))
+            self.groups.setdefault(tag, []).append((idx, cKDTree(hits.position[idx]),
+                                                    self._reach * float(hits.radius[idx].max())))
 
     def gather(self, photons: PhotonHits) -> None:
         """Deposit one bounce of photons into the hit points within their radius on the same face."""
@@ -203,35 +220,41 @@ class Gatherer:
             self.pairs_tested += len(pairs)
             n_h = h.normal[hi]
             wi = -photons.direction[pj]
-            keep = ((pairs["v"] < h.radius[hi])
+            keep = ((pairs["v"] < self._reach * h.radius[hi])
                     & (h.wavelength[hi] == photons.wavelength[pj])
-                    & (np.einsum("ij,ij->i", n_h, photons.normal[pj]) > self.cos_max)
+                    & (np.einsum("ij,ij->i", n_h, photons.normal[pj]) > self._cos_ladder.min())
                     & (np.einsum("ij,ij->i", n_h, wi) > 0.0))
             if not keep.any():
                 continue
             hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
+            cos_n = np.einsum("ij,ij->i", n_h, photons.normal[pj])
             f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
             core = 0.0 if self.core_of_tag is None else float(self.core_of_tag[tag])
             if core > 0:  # the lobe's core is the photons' to count (glossy rule): gather the rest only
                 f = np.where(outside_core(wi, h.omega_o[hi], n_h, core), f, 0.0)
             contrib = np.maximum(f, 0.0) * photons.flux[pj]
-            half = pairs["v"][keep] < 0.5 * h.radius[hi]
-            value, value_half = contrib / h.area[hi], contrib[half] / h.area_half[hi[half]]
-            if not (np.all(np.isfinite(value)) and np.all(np.isfinite(value_half))):  # never zeroed: it hides light
+            distance = pairs["v"][keep] / h.radius[hi]
+            ladder = ((distance[:, None] < np.asarray(BIAS_LADDER)) & (cos_n[:, None] > self._cos_ladder)
+                      ) / h.area_ladder[hi]
+            if not np.all(np.isfinite(contrib[:, None] * ladder)):  # never zeroed: it hides light
                 raise FloatingPointError(f"non-finite gather value on face tag {tag} at "
-                                         f"{int(np.sum(~np.isfinite(value)))} photon-hit pairs (the finish's "
+                                         f"{int(np.sum(~np.isfinite(contrib)))} photon-hit pairs (the finish's "
                                          f"BSDF value or the hit point's area is not finite)")
-            self.radiance += np.bincount(hi, weights=value, minlength=len(h))
+            inside = (distance < 1.0) & (cos_n > self.cos_max)
+            hi_r, value = hi[inside], contrib[inside] / h.area[hi[inside]]
+            self.radiance += np.bincount(hi_r, weights=value, minlength=len(h))
             if self.paths is not None:
-                self.paths.add(photons.signature[pj], h.pixel[hi], h.weight[hi] * value)
-            self.radiance_half += np.bincount(hi[half], weights=value_half, minlength=len(h))
+                self.paths.add(photons.signature[pj[inside]], h.pixel[hi_r], h.weight[hi_r] * value)
+            for rung in range(len(BIAS_LADDER)):
+                self.radiance_ladder[:, rung] += np.bincount(hi, weights=contrib * ladder[:, rung], minlength=len(h))
 
-    def part_flux_half(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
-        """(C,) Σ τ L_o per channel with the r/2 estimate, as a sum over pixels (multiply by the pixel area)."""
+    def part_flux_ladder(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
+        """(L, C) Σ τ L_o per channel at each radius of BIAS_LADDER, as a sum over pixels (multiply by the
+        pixel area)."""
         h = self.hits
-        ch = channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
-        return np.bincount(ch.astype(np.int64), weights=h.weight * self.radiance_half,
-                           minlength=n_channels)[:n_channels]
+        ch = (channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)).astype(np.int64)
+        return np.array([np.bincount(ch, weights=h.weight * self.radiance_ladder[:, rung], minlength=n_channels)
+                         [:n_channels] for rung in range(len(BIAS_LADDER))])
 
     def image(self, shape: tuple[int, int], channel_of_tag: np.ndarray, n_channels: int):
         """(ny, nx) image and (C, ny, nx) per-channel images of Σ τ L_o per pixel (channel_of_tag:
@@ -250,4 +273,4 @@ class Gatherer:
         return image, per_channel.reshape(n_channels, ny, nx)
 
 
-__all__ = ["HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
+__all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
-from lensmount.integrators.photon_gather import HitPoints
+from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
 from lensmount.integrators.media import air_radiance_factor
@@ -192,16 +192,18 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         radius = dense_face_radii(pos, tg, edge_tags(scene, broad), half_widths, radius, k=neighbours,
                                   cap_mm=radius_cap_mm)
     radius = radius * float(radius_scale)
-    area = area_half = None
+    area = area_ladder = None
     if boundaries is not None:
-        area, area_half = boundaries.inside_areas(pos, nrm, tg, (radius, 0.5 * radius), detector_z=det.z)
+        area, *ladder = boundaries.inside_areas(pos, nrm, tg, (radius, *(m * radius for m in BIAS_LADDER)),
+                                                detector_z=det.z)
+        area_ladder = np.column_stack(ladder)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
     direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
     tau = tau[ok] * air_radiance_factor(scene, direction, tg, hit["prim"][ok], wavelength)
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
                      pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=wavelength.astype(np.int32), radius=radius, area=area,
-                     area_half=area_half)
+                     area_ladder=area_ladder)
 
 
 def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarray, targets, weights,

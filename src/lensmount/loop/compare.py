@@ -62,7 +62,8 @@ class Run:
         if bound is not None and metric == "stray_flux_mm2":
             bound *= float(s.get("aperture_flux_mm2") or math.inf)
         return Measurement(float(s[value]), s.get(error), float(s.get(bias) or 0.0) if bias else 0.0,
-                           int(s.get("passes", 2)), int(s.get("photons", 0)), float(s.get("time_s", 0.0)), bound)
+                           int(s.get("passes", 2)), int(s.get("photons", 0)), float(s.get("time_s", 0.0)), bound,
+                           s.get("stray_fraction_bias_unbounded"))
 
     def no_signal_bound(self) -> float | None:
         """The stray fraction's 95 % bound for a figure that read zero in every pass (older summaries
@@ -74,7 +75,7 @@ class Run:
         p = self.summary.get("per_part", {}).get(name, {"fraction": 0.0, "std_error": 0.0})
         return Measurement(float(p.get("fraction") or 0.0), p.get("std_error"), float(p.get("bias_bound") or 0.0),
                            int(self.summary.get("passes", 2)), int(self.summary.get("photons", 0)),
-                           float(self.summary.get("time_s", 0.0)), self.no_signal_bound())
+                           float(self.summary.get("time_s", 0.0)), self.no_signal_bound(), p.get("bias_unbounded"))
 
 
 @dataclass(frozen=True)

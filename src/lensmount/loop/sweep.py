@@ -90,6 +90,7 @@ class Variant:
     stray_fraction: float | None = None
     std_error: float | None = None
     bias_bound: float = 0.0
+    bias_unbounded: str | None = None  # why the run could not bound its kernel bias (`analysis.bias`)
     rank: int = 0
     tied_with: list[int] = field(default_factory=list)
     out: Path | None = None
@@ -130,7 +131,8 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
         run.raise_if_stopped("the sweep stopped at this variant: run the same sweep again")
         s = run.summary
         variants.append(Variant(k, values, s.get("stray_fraction"), s.get("stray_fraction_std_error"),
-                                s.get("stray_fraction_bias_bound") or 0.0, out=run.out))
+                                s.get("stray_fraction_bias_bound") or 0.0, s.get("stray_fraction_bias_unbounded"),
+                                out=run.out))
     rank(variants, options.confidence)
     table = Path(options.out) / "sweep.csv"
     write_text(table, _csv(variants, options.params))
@@ -212,8 +214,8 @@ def rank(variants: list[Variant], confidence: float) -> None:
 
 def _same(a: Variant, b: Variant, z: float) -> bool:
     sa, sb = a.std_error, b.std_error
-    if sa is None or sb is None:
-        return True  # no error bar: nothing can be told apart
+    if sa is None or sb is None or a.bias_unbounded or b.bias_unbounded:
+        return True  # no error bar, or a bias it cannot bound: nothing can be told apart
     return abs(a.stray_fraction - b.stray_fraction) <= z * math.hypot(sa, sb) + a.bias_bound + b.bias_bound
 
 
@@ -227,6 +229,7 @@ def _csv(variants: list[Variant], params) -> str:
                 "tied_with", "results", "note"])
     for v in variants:
         note = NO_ERROR_BAR if v.stray_fraction is not None and v.std_error is None else ""
+        note = f"cannot bound its kernel bias: {v.bias_unbounded}" if v.bias_unbounded else note
         w.writerow([v.index, *(v.values[p.name] for p in params), _num(v.stray_fraction), _num(v.std_error),
                     _num(v.bias_bound), v.rank, " ".join(map(str, v.tied_with)), str(v.out), note])
     return buf.getvalue()

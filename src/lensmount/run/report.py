@@ -23,6 +23,7 @@ from lensmount.atomic import write_text
 
 # Keys the headline and the part table show; every other scalar goes to "Inputs and provenance".
 _SHOWN = {"stray_fraction", "stray_fraction_std_error", "stray_fraction_rel_error", "stray_fraction_bias_bound",
+          "stray_fraction_bias_unbounded",
           "per_part", "units", "method", "passes", "photons", "time_s"}
 
 _CSS = """
@@ -89,6 +90,8 @@ def headline_rows(summary: dict) -> list[list]:
     rows.append(["relative standard error", f"{100 * rel:.2f} %" if rel is not None else "—"])
     if summary.get("stray_fraction_bias_bound") is not None:
         rows.append(["bias bound", fmt(summary["stray_fraction_bias_bound"])])
+    if summary.get("stray_fraction_bias_unbounded"):
+        rows.append(["bias bound", f"none: {summary['stray_fraction_bias_unbounded']}"])
     for key, label in (("method", "method"), ("passes", "passes"), ("photons", "photons"), ("time_s", "time (s)")):
         if summary.get(key) is not None:
             rows.append([label, f"{summary[key]:,}" if isinstance(summary[key], int) else summary[key]])
