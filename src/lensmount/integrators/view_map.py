@@ -24,6 +24,7 @@ import numpy as np
 
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.photon_gather import HitPoints
+from lensmount.integrators.neighbours import kth_distance
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
 from lensmount.integrators.media import air_radiance_factor
@@ -47,8 +48,6 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
     speckle. Measuring the k-th neighbour in a fixed, deterministic subsample (every m-th hit
     point) keeps r_0 at the scale the paraxial rim's few hundred hit points gave (~1 mm).
     """
-    from scipy.spatial import cKDTree
-
     r = radius.copy()
     for t in faces:
         idx = np.flatnonzero(tag == t)
@@ -56,9 +55,9 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
             continue
         m = -(-len(idx) // RADIUS_SUBSAMPLE)
         sub = position[idx[::m]]
-        d, _ = cKDTree(sub).query(position[idx], k=[min(k + 1, len(sub))])
+        d = kth_distance(sub, position[idx], min(k + 1, len(sub)))
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
-        r[idx] = np.clip(d[:, -1], min(floor_mm, limit), limit)
+        r[idx] = np.clip(d, min(floor_mm, limit), limit)
     return r
 
 
