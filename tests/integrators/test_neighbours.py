@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from lensmount.integrators.neighbours import k_nearest, kth_distance
+from lensmount.integrators.neighbours import FEW_POINTS, _k_nearest, _k_nearest_grouped, k_nearest, kth_distance
+
+# Both searches, whichever k_nearest would pick for the cloud's size.
+SEARCHES = {"grid": lambda p, q, k: _k_nearest(p, q, k, 2.0), "grouped": lambda p, q, k: _k_nearest_grouped(p, q, k, 32.0)}
 
 
 def _brute(points, queries, k):
@@ -42,8 +45,9 @@ def test_kth_distance_is_the_kd_trees_to_the_bit(name):
     assert np.array_equal(kth_distance(points, points, k), cKDTree(points).query(points, k=[k])[0][:, 0])
 
 
+@pytest.mark.parametrize("search", list(SEARCHES))
 @pytest.mark.parametrize("name", list(_clouds()))
-def test_k_nearest_are_the_kd_trees_and_ties_go_to_the_smaller_index(name):
+def test_k_nearest_are_the_kd_trees_and_ties_go_to_the_smaller_index(name, search):
     points = _clouds()[name]
     rng = np.random.default_rng(5)
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -51,7 +55,8 @@ def test_k_nearest_are_the_kd_trees_and_ties_go_to_the_smaller_index(name):
     # Queries inside, around and far outside the cloud (the grid clamps them to its border cells).
     queries = np.concatenate([points[:200], lo + span * rng.uniform(-2.0, 3.0, size=(200, 3))])
     k = min(24, len(points))
-    d, idx = k_nearest(points, queries, k)
+    d2, idx = SEARCHES[search](np.ascontiguousarray(points), queries, k)
+    d = np.sqrt(d2)
     d_ref, idx_ref = cKDTree(points).query(queries, k=k)
     d_ref, idx_ref = d_ref.reshape(len(queries), k), idx_ref.reshape(len(queries), k)
     assert np.array_equal(d, d_ref)  # every distance, nearest first
@@ -66,9 +71,19 @@ def test_k_nearest_are_the_kd_trees_and_ties_go_to_the_smaller_index(name):
 @pytest.mark.parametrize("per_cell", [0.5, 2.0, 8.0, 64.0])
 def test_the_grids_cell_size_changes_the_work_not_the_answer(per_cell):
     points = _clouds()["crowded"]
-    d, idx = k_nearest(points, points[::7], 9, per_cell)
     d_b, idx_b = _brute(points, points[::7], 9)
-    assert np.array_equal(d, d_b) and np.array_equal(idx, idx_b)
+    for search in (_k_nearest, _k_nearest_grouped):
+        d2, idx = search(points, points[::7], 9, per_cell)
+        assert np.array_equal(np.sqrt(d2), d_b) and np.array_equal(idx, idx_b)
+
+
+def test_k_nearest_answers_as_the_kd_tree_on_both_sides_of_few_points():
+    rng = np.random.default_rng(11)
+    for n in (FEW_POINTS, FEW_POINTS + 1):
+        points = rng.normal(size=(n, 3))
+        d, idx = k_nearest(points, points[:300], 24)
+        d_ref, idx_ref = cKDTree(points).query(points[:300], k=24)
+        assert np.array_equal(d, d_ref) and np.array_equal(idx, idx_ref)
 
 
 def test_k_outside_one_to_n_is_refused():

@@ -1,4 +1,5 @@
-"""The k nearest of a set of points, compiled: a uniform grid (cell list) searched ring by ring.
+"""The k nearest of a set of points, compiled: a uniform grid (cell list) searched ring by ring,
+or for few points, queries grouped by cell sharing one list of possible neighbours.
 
 The view map asks two neighbour questions of every hit point each pass: r_0, the distance to its
 k-th neighbour on the same face (`radius.initial_radii`), and the 24 boundary segments whose
@@ -14,7 +15,10 @@ case-2 pass's ~3.5 s; this grid answers them with the same numbers:
 The grid: points sorted by cell (counting sort); the cell size makes about PER_CELL points a cell
 over the extents that are not flat (a face's hit points fill a 2-D sheet of a 3-D box). A query
 visits its own cell, then the shells of cells around it one ring at a time, and stops when its
-k-th distance is smaller than the distance to any cell not yet visited.
+k-th distance is smaller than the distance to any cell not yet visited. Against a few hundred
+points (a face's rim segments, 480 on case 2's faces, queried by up to 7 × 10⁴ hit points) the
+queries are grouped instead, by cell of their own grid: one scan of the points a group, then
+each query checks only the group's possible neighbours (`_k_nearest_grouped`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ import numpy as np
 from numba import njit
 
 PER_CELL = 2  # points per occupied cell of the grid, on average
+FEW_POINTS = 1024  # up to this many points, queries share the search in groups of ~QUERIES_PER_GROUP
+QUERIES_PER_GROUP = 32
 MAX_CELLS_PER_POINT = 16  # the grid's size limit
 
 
@@ -111,18 +117,23 @@ def _scan(row, x, y, z, points, order, start, bd, bi, found, k):
         p = order[s]
         dx, dy, dz = x - points[p, 0], y - points[p, 1], z - points[p, 2]
         d2 = (dx * dx + dy * dy) + dz * dz  # cKDTree's order of summation
-        if found == k and (d2 > bd[k - 1] or (d2 == bd[k - 1] and p > bi[k - 1])):
-            continue
-        m = found if found < k else k - 1
-        while m > 0 and (bd[m - 1] > d2 or (bd[m - 1] == d2 and bi[m - 1] > p)):
-            bd[m] = bd[m - 1]
-            bi[m] = bi[m - 1]
-            m -= 1
-        bd[m] = d2
-        bi[m] = p
-        if found < k:
-            found += 1
+        found = _offer(d2, p, bd, bi, found, k)
     return found
+
+
+@njit(cache=True, inline="always")
+def _offer(d2, p, bd, bi, found, k):
+    """Point p at squared distance d2 into a query's k best (bd, bi ascending by (d², index)); the new count."""
+    if found == k and (d2 > bd[k - 1] or (d2 == bd[k - 1] and p > bi[k - 1])):
+        return found
+    m = found if found < k else k - 1
+    while m > 0 and (bd[m - 1] > d2 or (bd[m - 1] == d2 and bi[m - 1] > p)):
+        bd[m] = bd[m - 1]
+        bi[m] = bi[m - 1]
+        m -= 1
+    bd[m] = d2
+    bi[m] = p
+    return found + 1 if found < k else found
 
 
 @njit(cache=True)
@@ -189,18 +200,80 @@ def _k_nearest(points, queries, k, per_cell):
     return best_d, best_i
 
 
-def k_nearest(points: np.ndarray, queries: np.ndarray, k: int, per_cell: float = PER_CELL) -> tuple[np.ndarray, np.ndarray]:
+@njit(cache=True)
+def _k_nearest_grouped(points, queries, k, per_group):
+    """`_k_nearest` for few points and many queries (a face's rim segments and its hit points): the
+    queries grouped by cell of their own grid (~per_group a cell); a group's possible neighbours,
+    found once by a scan of all points, are the points within D + 2h of the group's centre (D: the
+    centre's k-th distance, h: the group's farthest query from it); each query then scans those."""
+    n = points.shape[0]
+    q_n = queries.shape[0]
+    best_d = np.empty((q_n, k))
+    best_i = np.empty((q_n, k), np.int64)
+    if q_n == 0:
+        return best_d, best_i
+    _, _, _, order, start = _grid(queries, per_group)
+    scale = max(np.abs(points).max(), np.abs(queries).max())
+    d_centre = np.empty(n)
+    near = np.empty(n, np.int64)
+    for g in range(start.size - 1):
+        first, last = start[g], start[g + 1]
+        if first == last:
+            continue
+        lo = queries[order[first]].copy()
+        hi = lo.copy()
+        for s in range(first + 1, last):
+            for a in range(3):
+                lo[a] = min(lo[a], queries[order[s], a])
+                hi[a] = max(hi[a], queries[order[s], a])
+        cx, cy, cz = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])
+        h = 0.0
+        for s in range(first, last):
+            q = order[s]
+            dx, dy, dz = queries[q, 0] - cx, queries[q, 1] - cy, queries[q, 2] - cz
+            h = max(h, math.sqrt((dx * dx + dy * dy) + dz * dz))
+        for p in range(n):
+            dx, dy, dz = points[p, 0] - cx, points[p, 1] - cy, points[p, 2] - cz
+            d_centre[p] = math.sqrt((dx * dx + dy * dy) + dz * dz)
+        reach = np.partition(d_centre, k - 1)[k - 1]
+        # Margins over the triangle inequality's reach for the rounding of every distance above.
+        reach = (reach + 2.0 * h) * (1.0 + 1e-9) + 1e-14 * scale
+        m = 0
+        for p in range(n):
+            if d_centre[p] <= reach or not math.isfinite(d_centre[p]):
+                near[m] = p
+                m += 1
+        # Nearest the centre first: a query's k best fill early and the rest mostly fail one comparison.
+        near[:m] = near[:m][np.argsort(d_centre[near[:m]])]
+        for s in range(first, last):
+            q = order[s]
+            x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+            bd = best_d[q]
+            bi = best_i[q]
+            found = 0
+            for j in range(m):
+                p = near[j]
+                dx, dy, dz = x - points[p, 0], y - points[p, 1], z - points[p, 2]
+                d2 = (dx * dx + dy * dy) + dz * dz
+                found = _offer(d2, p, bd, bi, found, k)
+    return best_d, best_i
+
+
+def k_nearest(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """(distance (Q, k), index (Q, k)) of the k points (N, 3) nearest each query (Q, 3), nearest
     first (ties: the smaller index first); cKDTree(points).query(queries, k)'s numbers. 1 ≤ k ≤ N.
 
-    per_cell : the grid's points per occupied cell. Queries among the points themselves search
-        least with ~2; queries far from sparse points (a face's hit points against its rim's
-        segments) with coarser cells, fewer to cross (`radius.FaceBoundaries`: 8)."""
+    Up to FEW_POINTS points (a face's rim segments, a subsample) the queries share the work in
+    groups (`_k_nearest_grouped`); more (a face's hit points among themselves), each searches the
+    points' grid (`_k_nearest`). Both give the same answer; the choice is speed alone."""
     points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
     queries = np.ascontiguousarray(queries, np.float64).reshape(-1, 3)
     if not 1 <= k <= len(points):
         raise ValueError(f"k must lie in [1, {len(points)}], got {k}")
-    d2, idx = _k_nearest(points, queries, int(k), float(per_cell))
+    if len(points) <= FEW_POINTS:
+        d2, idx = _k_nearest_grouped(points, queries, int(k), float(QUERIES_PER_GROUP))
+    else:
+        d2, idx = _k_nearest(points, queries, int(k), float(PER_CELL))
     return np.sqrt(d2), idx
 
 
@@ -210,4 +283,4 @@ def kth_distance(points: np.ndarray, queries: np.ndarray, k: int) -> np.ndarray:
     return k_nearest(points, queries, k)[0][:, -1]
 
 
-__all__ = ["PER_CELL", "k_nearest", "kth_distance"]
+__all__ = ["FEW_POINTS", "PER_CELL", "QUERIES_PER_GROUP", "k_nearest", "kth_distance"]

@@ -185,8 +185,6 @@ def _cap(d: np.ndarray, r: np.ndarray) -> np.ndarray:
 class FaceBoundaries:
     """Boundary segments of every face, indexed by tag, for the on-face gather area."""
 
-    GRID_PER_CELL = 8  # segments per cell of the grid their midpoints are searched in (`neighbours.k_nearest`)
-
     def __init__(self, vertices, triangles, tags, n_tags: int, k: int = 24):
         a, b, t, inward = boundary_segments(vertices, triangles, tags, with_inward=True)
         hw = face_half_widths(vertices, triangles, tags, n_tags)
@@ -226,7 +224,7 @@ class FaceBoundaries:
             idx = np.flatnonzero(tag == t)
             a, b, inward, middle = self.by_tag[int(t)]
             k = min(self.k, len(a))
-            _, cand = k_nearest(middle, position[idx], k, self.GRID_PER_CELL)
+            _, cand = k_nearest(middle, position[idx], k)
             hw = self.half_width.get(int(t), np.inf)
             d1, u1, d2, far, on_face = _nearest_boundaries(position[idx], normal[idx], cand.reshape(len(idx), k),
                                                            a, b, inward, hw)
