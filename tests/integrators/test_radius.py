@@ -123,15 +123,18 @@ def test_a_disc_wholly_on_a_coarse_annulus_keeps_its_whole_area():
 
 def _inside_area_numpy(fb, position, normal, tag, radius, detector_z):
     """The on-face area as the (H, k, 3) numpy formulas computed it before the nearest boundaries were
-    compiled (radius._nearest_boundaries): the reference the compiled search must equal to the bit."""
+    compiled (radius._nearest_boundaries), with the candidates from scipy's KD-tree before the grid
+    (`neighbours.k_nearest`) found them: the reference the compiled search must equal to the bit."""
+    from scipy.spatial import cKDTree
+
     from lensmount.integrators.radius import _cap, _cut_by_plane
 
     area = np.pi * radius**2
     for t in np.unique(tag):
         idx = np.flatnonzero(tag == t)
-        a, b, inward, tree = fb.by_tag[int(t)]
+        a, b, inward, middle = fb.by_tag[int(t)]
         k = min(fb.k, len(a))
-        cand = tree.query(position[idx], k=k)[1].reshape(len(idx), k)
+        cand = cKDTree(middle).query(position[idx], k=k)[1].reshape(len(idx), k)
         p = position[idx][:, None, :]
         sa, ab = a[cand], b[cand] - a[cand]
         s = np.clip(np.einsum("hkj,hkj->hk", p - sa, ab) / np.maximum(np.einsum("hkj,hkj->hk", ab, ab), 1e-300), 0, 1)

@@ -28,8 +28,8 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
 
+from lensmount.integrators.neighbours import k_nearest, kth_distance
 from lensmount.integrators.settings import EstimatorSettings
 
 DEFAULT_ALPHA = 0.7
@@ -190,11 +190,11 @@ class FaceBoundaries:
         hw = face_half_widths(vertices, triangles, tags, n_tags)
         self.half_width = {int(k): float(hw[k]) for k in range(n_tags) if np.isfinite(hw[k])}
         self.k = k
-        self.by_tag: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, cKDTree]] = {}
+        self.by_tag: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         for tag in np.unique(t):
             m = t == tag
             aa, bb = a[m], b[m]
-            self.by_tag[int(tag)] = (aa, bb, inward[m], cKDTree(0.5 * (aa + bb)))
+            self.by_tag[int(tag)] = (aa, bb, inward[m], 0.5 * (aa + bb))
 
     def inside_area(self, position: np.ndarray, normal: np.ndarray, tag: np.ndarray, radius: np.ndarray,
                     detector_z: float | None = None) -> np.ndarray:
@@ -222,9 +222,9 @@ class FaceBoundaries:
             if int(t) not in self.by_tag:
                 continue
             idx = np.flatnonzero(tag == t)
-            a, b, inward, tree = self.by_tag[int(t)]
+            a, b, inward, middle = self.by_tag[int(t)]
             k = min(self.k, len(a))
-            _, cand = tree.query(position[idx], k=k)
+            _, cand = k_nearest(middle, position[idx], k)
             hw = self.half_width.get(int(t), np.inf)
             d1, u1, d2, far, on_face = _nearest_boundaries(position[idx], normal[idx], cand.reshape(len(idx), k),
                                                            a, b, inward, hw)
@@ -343,9 +343,7 @@ def initial_radii(position: np.ndarray, tag: np.ndarray, cap: np.ndarray, k: int
         idx = np.flatnonzero(tag == t)
         if len(idx) > 1:
             kk = min(k, len(idx) - 1)
-            # Only the (kk+1)-th distance (the point itself is the first): the nearer ones are not needed.
-            d, _ = cKDTree(position[idx]).query(position[idx], k=[kk + 1])
-            r[idx] = d[:, 0]
+            r[idx] = kth_distance(position[idx], position[idx], kk + 1)  # the point itself is the first
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
         r[idx] = np.clip(r[idx], min(floor_mm, limit), limit)
     return r

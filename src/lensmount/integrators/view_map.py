@@ -21,9 +21,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
+from lensmount.integrators.neighbours import kth_distance
 from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
@@ -55,9 +55,9 @@ def dense_face_radii(position, tag, faces, cap, radius, k: int = 8, floor_mm: fl
             continue
         m = -(-len(idx) // RADIUS_SUBSAMPLE)
         sub = position[idx[::m]]
-        d, _ = cKDTree(sub).query(position[idx], k=[min(k + 1, len(sub))])
+        d = kth_distance(sub, position[idx], min(k + 1, len(sub)))
         limit = min(cap_mm, float(cap[t]) if t < len(cap) else cap_mm)
-        r[idx] = np.clip(d[:, -1], min(floor_mm, limit), limit)
+        r[idx] = np.clip(d, min(floor_mm, limit), limit)
     return r
 
 

@@ -1,10 +1,11 @@
-"""Compile the integrators' numba kernel (the gather area's nearest-boundary search,
-`radius._nearest_boundaries`) into its cache once: `python -m lensmount.integrators.warm`
+"""Compile the integrators' numba kernels (the gather area's nearest-boundary search,
+`radius._nearest_boundaries`, and the grid's k nearest, `neighbours._k_nearest`, which r_0 and
+the boundary candidates share) into their cache once: `python -m lensmount.integrators.warm`
 (`make install` runs it after `lensmount.trace.warm`).
 
 Why: cold, it takes 2-7 s to compile on the 2-core machine, which the first `simulate` (each of
 its workers that starts before the cache is written) would pay in its first view map. The call
-below goes through `FaceBoundaries.inside_areas`, so the kernel gets a real run's argument types.
+below goes through `FaceBoundaries.inside_areas`, so the kernels get a real run's argument types.
 """
 
 from __future__ import annotations

@@ -201,3 +201,29 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
 __all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table"]
 
 drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
+
+
+@njit(cache=True)
+def boxes_near(points, box, pad):
+    """(row (k,), triangle (k,)): the triangles whose bounding box (box (T, 2, 3): lo, hi), padded by
+    pad, holds each of points (m, 3); rows in order, triangles ascending within a row. The same
+    comparisons as the numpy test (lo - pad <= q <= hi + pad), one box at a time: the (T, 3)
+    temporaries per point cost ~3 ms against a case-2 mount's 5 × 10⁴ faces."""
+    m, t_n = points.shape[0], box.shape[0]
+    count = 0
+    for pass_ in range(2):  # count, then fill
+        if pass_ == 1:
+            row = np.empty(count, np.int64)
+            tri = np.empty(count, np.int64)
+            count = 0
+        for i in range(m):
+            qx, qy, qz = points[i, 0], points[i, 1], points[i, 2]
+            for t in range(t_n):
+                if (box[t, 0, 0] - pad <= qx and qx <= box[t, 1, 0] + pad and box[t, 0, 1] - pad <= qy
+                        and qy <= box[t, 1, 1] + pad and box[t, 0, 2] - pad <= qz and qz <= box[t, 1, 2] + pad):
+                    if pass_ == 1:
+                        row[count] = i
+                        tri[count] = t
+                    count += 1
+    return row, tri
+

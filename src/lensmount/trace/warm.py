@@ -23,7 +23,7 @@ from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
 from lensmount.scene import primitives
 from lensmount.scene.build import build_scene
-from lensmount.trace import lens_kernel
+from lensmount.trace import kernels, lens_kernel
 from lensmount.trace.tracer import Tracer
 
 
@@ -58,6 +58,8 @@ def main() -> None:
         tracer.intersect(rays)
         few = rays.subset(slice(0, 64))  # fewer than THREADED_FROM: the walk on one core
         tracer.next_event(few, Streams(0, "warm", np.arange(64)))
+    # Only rays past a silhouette edge ask for the boxes near a point; the rays above may meet none.
+    kernels.boxes_near(np.zeros((1, 3)), np.zeros((1, 2, 3)), 0.0)
     print(f"lensmount: tracer kernels compiled and cached ({time.perf_counter() - start:.1f} s)")
 
 
