@@ -21,8 +21,9 @@ import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
 from lensmount.errors import InputError
+from lensmount.loop.progress import expected_s
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes
-from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate
+from lensmount.loop.simulate import Observer, SimulateOptions, planned_input_hash, simulate, stopping, stored_like
 from lensmount.run.results import read_summary
 from lensmount.run.store import ORIGIN, RunRecord, Store, default_path
 
@@ -79,8 +80,8 @@ class CompareOptions:
     (a design folder) and the old run comes from the store: "last", "best" or a git revision.
     tolerance : relative to the old value; confidence : of the interval on the change.
     out : folder for difference.exr/png and compare.json (default NEW/compare).
-    method, workers, passes, photons_per_pass, time_s : for runs that must be simulated (unset: the
-        scene's [run] table); a stored run is reused when its input hash matches.
+    method, workers, passes, photons_per_pass, time_s, quick : for runs that must be simulated (unset:
+        the scene's [run] table, or the QUICK preset); a stored run is reused when its input hash matches.
     until_decided : while the verdict is undecided, resume the runs by the passes that would decide
         it and look again, within `budget_s` seconds of further tracing (`compare_until_decided`)."""
 
@@ -100,6 +101,7 @@ class CompareOptions:
     time_s: float | None = None
     until_decided: bool = False
     budget_s: float = 3600.0
+    quick: bool = False  # runs that must be simulated take the QUICK preset (loop.simulate)
 
 
 @dataclass
@@ -175,23 +177,22 @@ def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new")
 
     scene_path = _scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
-                          photons_per_pass=o.photons_per_pass, time_s=o.time_s)
+                          photons_per_pass=o.photons_per_pass, time_s=o.time_s, quick=o.quick)
     loaded, spec = read_inputs(design, scene_path)
     digest = planned_input_hash(sim, loaded, spec)
     condition = condition_sha256(spec)
     with Store(default_path(design, o.store)) as store:
         stored = _usable(store.runs(input_hash=digest))
-        same_scene = [r for r in _usable(store.runs(design_path=design, scene_name=scene_path.stem)) if r.photons]
     if stored:
         best = max(stored, key=lambda r: (r.photons, r.id))  # the longest: the smallest error for the same inputs
         return RunSource(role, _stored_folder(best), best, digest, condition, "same design and test condition")
-    passes = o.passes or spec.run.passes
+    rule = stopping(sim, spec.run)
     per_pass = o.photons_per_pass or spec.run.photons
-    rate = sum(r.time_s for r in same_scene) / sum(r.photons for r in same_scene) if same_scene else None
-    estimate = o.time_s if o.time_s is not None else (rate * passes * per_pass if rate else None)
+    expected = expected_s(rule, per_pass, stored_like(sim, loaded, spec, digest))
     out = Path(design).resolve() / ".lensmount" / "runs" / f"{scene_path.stem}-{digest[:12]}"
     return RunSource(role, out, input_hash=digest, condition=condition, simulate=replace(sim, out=out),
-                     passes=passes, photons_per_pass=per_pass, estimate_s=estimate)
+                     passes=expected[1] if expected else rule.max_passes, photons_per_pass=per_pass,
+                     estimate_s=expected[0] if expected else o.time_s)
 
 
 def stored_run(design: Path, scene: str, against: str, new: RunSource, o: CompareOptions) -> RunSource:
