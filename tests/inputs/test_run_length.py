@@ -23,7 +23,7 @@ SCENES = sorted(EXAMPLES.glob("*/scenes/*.toml"))
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: f"{p.parent.parent.name}/{p.stem}")
 def test_every_example_scene_stops_at_a_target_within_a_time_cap(path):
     run = load_scene(path).run
-    assert run.target_rel_error is not None and run.time_s <= 120
+    assert run.target_rel_error is not None and run.time_s <= 300
     rule = stopping(SimulateOptions(path.parent.parent, path), run)
     assert (rule.target_rel_error, rule.time_s, rule.max_passes) == (run.target_rel_error, run.time_s, run.passes)
     if path.stem.startswith("case"):  # 10⁶ photons per pass made one case-2 regression check take 6–7 minutes
