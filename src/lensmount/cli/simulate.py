@@ -23,7 +23,7 @@ from lensmount.run.executor import WORKER_WAIT_S
 
 
 QUICK_HELP = (f"Iterate: stop at {100 * QUICK.target_rel_error:g} % (after {QUICK.min_passes} passes) or "
-              f"{QUICK.time_s:g} s of tracing, instead of the scene's [run] rules. Only the length differs: the "
+              f"{QUICK.time_s:g} s of tracing, instead of the scene's run table. Only the length differs: the "
               "same test condition and input hash as a full run, so the store and compare take it as a shorter "
               "run of the same test (compare's interval is wider for it), and --resume without --quick "
               "continues it to the scene's target.")
@@ -212,7 +212,7 @@ def simulate(
 
     The mount geometry comes from DESIGN/build (what `lensmount regenerate DESIGN` writes),
     rebuilt only when the design changed. Progress goes to stderr. How long: the rules given here
-    (--photons, --time, --target-rel-error, --passes), else --quick, else the scene's [run] table:
+    (--photons, --time, --target-rel-error, --passes), else --quick, else the scene's run table:
     its target_rel_error after 8 passes, capped by its time_s (default 600 s) and its passes.
     Before tracing it says about how long that will take (from a stored run of the scene, else the
     first passes), and the progress line refines it.
