@@ -32,9 +32,22 @@ def test_every_example_scene_stops_at_a_target_within_a_time_cap(path):
 
 def test_a_scene_without_time_s_is_still_capped_and_explicit_rules_replace_the_scene():
     run = RunSpec(passes=5)
-    assert stopping(SimulateOptions(Path("d"), Path("s")), run) == Stopping(time_s=600.0, max_passes=5)
+    assert stopping(SimulateOptions(Path("d"), Path("s")), run) == Stopping(time_s=600.0, max_passes=5,
+                                                                            time_after_passes=3)
     explicit = stopping(SimulateOptions(Path("d"), Path("s"), passes=3), RunSpec(target_rel_error=0.01, time_s=9))
     assert (explicit.target_rel_error, explicit.time_s, explicit.max_passes) == (None, None, 3)
+
+
+def test_a_cap_stops_no_run_before_it_has_an_error_bar():
+    from lensmount.analysis.passes import Accumulator
+
+    acc = Accumulator.empty((1, 1), ["total"], 1.0)
+    cap = stopping(SimulateOptions(Path("d"), Path("s"), quick=True), RunSpec())
+    for passes, done in ((1, False), (2, False), (3, True)):
+        acc.n = passes
+        assert cap.done(acc, elapsed=10 * QUICK.time_s) is done
+    acc.n = 1
+    assert Stopping(time_s=1.0).done(acc, 2.0)  # --time given: a hard stop, as before
 
 
 def test_quick_changes_the_length_only():

@@ -84,7 +84,8 @@ def forecast(rule: Stopping, photons_per_pass: int, stored: list, done_passes: i
     goal = f"{100 * rule.target_rel_error:g} %" if rule.target_rel_error is not None else f"{rule.max_passes} passes"
     expected = expected_s(rule, photons_per_pass, stored, done_passes)
     if expected is None:
-        return f"estimate: {goal}{cap}; no stored run of this scene to go by, the first passes will tell"
+        return f"estimate: {goal}{cap}; no stored run of this scene with an error bar to go by, the first " \
+               "passes will tell"
     seconds, passes, r = expected
     rel = ((r.stray_fraction_std_error + (r.stray_fraction_bias_bound or 0.0)) / r.stray_fraction)
     basis = f"from stored run {r.id}: {r.passes} passes × {r.photons // r.passes:,} photons, {100 * rel:.1f} % " \

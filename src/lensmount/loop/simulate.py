@@ -81,6 +81,7 @@ class Preset:
 # first passes of the full one: the same test condition and input hash in the store and `compare` (whose
 # interval widens with its fewer passes), and `--resume` without --quick continues it to the scene's target.
 QUICK = Preset(target_rel_error=0.10, time_s=30.0, min_passes=4)
+ERROR_BAR_PASSES = 3  # the fewest passes with a standard error (analysis.passes)
 
 
 def stopping(o: SimulateOptions, run) -> Stopping:
@@ -91,10 +92,13 @@ def stopping(o: SimulateOptions, run) -> Stopping:
     if any(v is not None for v in (o.photons, o.time_s, o.target_rel_error, o.passes)):
         return Stopping(photons=o.photons, time_s=o.time_s, target_rel_error=o.target_rel_error,
                         max_passes=o.passes or 10_000, min_passes=least)
+    # a cap stops no run before it has an error bar: a loaded machine's 30 s held one pass, which no
+    # verdict can use (compare --until-decided then started the run again for its third)
     if o.quick:
         return Stopping(time_s=QUICK.time_s, target_rel_error=QUICK.target_rel_error, max_passes=run.passes,
-                        min_passes=least)
-    return Stopping(time_s=run.time_s, target_rel_error=run.target_rel_error, max_passes=run.passes)
+                        min_passes=least, time_after_passes=ERROR_BAR_PASSES)
+    return Stopping(time_s=run.time_s, target_rel_error=run.target_rel_error, max_passes=run.passes,
+                    time_after_passes=ERROR_BAR_PASSES)
 
 
 @dataclass(frozen=True)
