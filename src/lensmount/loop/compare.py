@@ -292,9 +292,10 @@ def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
 
 
 def compare(options: CompareOptions, observer: Observer | None = None,
-            sources: tuple[RunSource, RunSource] | None = None) -> CompareResult:
+            sources: tuple[RunSource, RunSource] | None = None, write: bool = True) -> CompareResult:
     """Compare two runs (see CompareOptions; `sources`: `plan(options)`, made here when not given);
-    writes difference.exr, difference.png, compare.json and report.html."""
+    writes difference.exr, difference.png, compare.json and report.html (`write`: the looks of
+    --until-decided before the last write nothing)."""
     o = options
     if o.until_decided:
         return compare_until_decided(o, observer)
@@ -316,9 +317,13 @@ def compare(options: CompareOptions, observer: Observer | None = None,
                 result.parts_added[name] = new.part(name).value
             else:
                 result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
-    out = Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
-    result.paths = write_comparison(out, old, new, result)
+    if write:
+        result.paths = write_comparison(comparison_folder(o, new), old, new, result)
     return result
+
+
+def comparison_folder(o: CompareOptions, new: Run) -> Path:
+    return Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
 
 
 MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
@@ -334,7 +339,8 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     if not o.budget_s >= 0:
         raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
     look, spent, steps = 1, 0.0, []
-    result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer)
+    result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer, write=False)
+    out = comparison_folder(o, result.new)  # where look 1 would have written: the new run's live folder
     while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
         runs = (result.old, result.new)
         m = [r.measurement(o.metric) for r in runs]
@@ -359,15 +365,13 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
         spent += sum(r.summary.get("time_s", 0.0) - x.time_s for r, x in zip(resumed, m))
         look += 1
         steps.append(f"look {look}: +{more[0]} passes of the old run, +{more[1]} of the new")
+        # a look that is not the last writes no images (4 previews and an EXR a look, seconds each)
         result = compare(replace(o, a=resumed[0].folder, b=resumed[1].folder, against=None, scene=None,
-                                 confidence=look_confidence(o.confidence, look), out=o.out or result.paths["json"].parent),
-                         observer)
+                                 confidence=look_confidence(o.confidence, look), out=out), observer, write=False)
     result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
-    from lensmount.run.results import write_summary
-
-    write_summary(result.paths["json"], result.to_dict())  # compare.json with the looks' notes
+    result.paths = write_comparison(out, result.old, result.new, result)  # compare.json with the looks' notes
     return result
 
 
