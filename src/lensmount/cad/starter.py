@@ -406,7 +406,7 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
                    "limb_darkening": False},
         "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
         "effects": {"scatter": True, "ghosts": False, "direct": False, "absorption": True},
-        "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05},
+        "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05, "time_s": 120},
     }
 
 

@@ -17,7 +17,7 @@ from rich.table import Table
 from lensmount.analysis.compare import UNDECIDED, parse_fraction
 from lensmount.cli import app, fail
 from lensmount.cli.options import GlassCatalogs
-from lensmount.cli.simulate import duration, observed
+from lensmount.cli.simulate import QUICK_HELP, duration, observed
 from lensmount.errors import InputError
 from lensmount.loop.compare import CompareOptions, RunSource, compare as run_compare, part_rows, plan, verdict_row
 
@@ -39,10 +39,11 @@ def announce(source: RunSource) -> str:
     if source.simulate is None:
         return f"{source.role}: {source.folder}"
     length = f"for {duration(source.estimate_s)}" if source.simulate.time_s is not None else (
-        f"{source.passes} passes × {source.photons_per_pass:,} photons, about "
-        + duration(source.estimate_s, "an unknown time (no stored run of this scene to go by)"))
+        f"about {source.passes} passes × {source.photons_per_pass:,} photons, {duration(source.estimate_s)}"
+        if source.estimate_s is not None else f"at most {source.passes} passes × {source.photons_per_pass:,} "
+        "photons, an unknown time (no stored run of this scene to go by)")
     return (f"{source.role}: no stored run of this design and test condition: simulating {length} "
-            f"into {source.folder} (--passes, --photons-per-pass or --time shorten it)")
+            f"into {source.folder} (--quick, --passes, --photons-per-pass or --time shorten it)")
 
 
 @app.command()
@@ -74,6 +75,7 @@ def compare(
                                             "together keep --confidence."),
     budget: float = typer.Option(3600.0, "--budget", help="Seconds of further tracing --until-decided may spend."),
     glass_catalog: GlassCatalogs = [],
+    quick: bool = typer.Option(False, "--quick", help="Runs that must be simulated: " + QUICK_HELP),
 ) -> None:
     """Is the new run worse than the old one? Old, new, change with its interval, per part, and the verdict.
 
@@ -88,7 +90,7 @@ def compare(
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,
-                                 photons_per_pass, time_s, until_decided, budget)
+                                 photons_per_pass, time_s, until_decided, budget, quick)
         sources = plan(options)
     except InputError as error:
         fail(error)

@@ -22,7 +22,11 @@ def pst(
     azimuth: Optional[float] = typer.Option(None, "--azimuth",
                                             help="Direction of the tilt in degrees (default: the scene's)."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
-    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per angle (default: the scene's run table)."),
+    passes: Optional[int] = typer.Option(None, "--passes", help="At most this many passes per angle (default: the "
+                                                                "scene's run table; alone: exactly this many)."),
+    target_rel_error: Optional[float] = typer.Option(None, "--target-rel-error",
+                                                     help="Each angle stops at this relative error of its PST "
+                                                          "(std + bias bound; default: the scene's run table)."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
                                                    help="Photons per pass (default: the scene's run table)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed, >= 0 (default: the scene's run table seed)."),
@@ -36,7 +40,7 @@ def pst(
     dominates; outside it, the stray light. The geometry is built once for all angles."""
     try:
         options = PstOptions(Path(design), Path(scene), tuple(parse_angles(angles)), azimuth, method, passes,
-                             photons_per_pass, seed, workers=workers)
+                             photons_per_pass, seed, workers=workers, target_rel_error=target_rel_error)
         result = sweep(options, progress=lambda text: typer.echo(text, err=True))
         paths = write_pst(Path(out) if out else Path("out") / f"pst-{Path(scene).stem}", result)
     except InputError as error:

@@ -21,9 +21,16 @@ from rich.table import Table
 from lensmount.cli import app, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
-from lensmount.loop.simulate import Observer, PassStatus, SimulateOptions, simulate as run_simulation
+from lensmount.loop.simulate import QUICK, Observer, PassStatus, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
 from lensmount.run.executor import WORKER_WAIT_S
+
+
+QUICK_HELP = (f"Iterate: stop at {100 * QUICK.target_rel_error:g} % (after {QUICK.min_passes} passes) or "
+              f"{QUICK.time_s:g} s of tracing, instead of the scene's run table. Only the length differs: the "
+              "same test condition and input hash as a full run, so the store and compare take it as a shorter "
+              "run of the same test (compare's interval is wider for it), and --resume without --quick "
+              "continues it to the scene's target.")
 
 
 def print_plan(console, block: dict | None) -> None:
@@ -198,17 +205,24 @@ def simulate(
                                       help="Seconds a Dask run with no worker left waits for one; then it writes "
                                            "its checkpoint and exits 75, for a batch script to retry with --resume."),
     glass_catalog: GlassCatalogs = [],
+    quick: bool = typer.Option(False, "--quick", help=QUICK_HELP),
 ) -> None:
     """Simulate the stray light on the detector: irradiance.exr, preview.png, summary.json, a row in the store.
 
     The mount geometry comes from DESIGN/build (what `lensmount regenerate DESIGN` writes),
-    rebuilt only when the design changed. Progress goes to stderr.
+    rebuilt only when the design changed. Progress goes to stderr. How long: the rules given here
+    (--photons, --time, --target-rel-error, --passes), else --quick, else the scene's run table:
+    its target_rel_error after 8 passes, capped by its time_s (default 600 s) and its passes.
+    Before tracing it says about how long that will take (from a stored run of the scene, else the
+    first passes), and the progress line refines it.
     """
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
                               photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
-                              not no_record, list(sys.argv), scheduler, cluster, worker_wait)
+                              not no_record, list(sys.argv), scheduler, cluster, worker_wait, quick)
     result = observed(run_simulation, options)
     print_summary(result.summary, result.paths)
+    if result.stopped_short:
+        typer.echo(f"note: {result.stopped_short}", err=True)
     typer.echo(f"one more halving of the error: about {duration(next_halving_s(result.summary['time_s']))} more")
     if result.run_id is not None:
         typer.echo(f"recorded as run {result.run_id} in {result.store_path}")

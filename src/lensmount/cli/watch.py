@@ -26,9 +26,10 @@ def watch(
                                                "(default: the design as it is when watching starts)."),
     tolerance: str = typer.Option("5%", "--tolerance", help="Allowed increase, relative to the baseline."),
     confidence: str = typer.Option("0.99", "--confidence", help="Confidence of the interval on the change."),
-    time_s: Optional[float] = typer.Option(None, "--time", help="Seconds of tracing per revision "
-                                                               "(default: the scene's run table)."),
-    passes: Optional[int] = typer.Option(None, "--passes", help="Passes per revision (default: the scene's)."),
+    time_s: Optional[float] = typer.Option(None, "--time", help="Seconds of tracing of a revision's first look "
+                                                               "(default: simulate --quick's rules)."),
+    passes: Optional[int] = typer.Option(None, "--passes", help="Passes of a revision's first look "
+                                                                "(default: simulate --quick's rules)."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass", help="Photons per pass."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
     store: Optional[Path] = typer.Option(None, "--store", help="Results store (default DESIGN/.lensmount/"
@@ -36,15 +37,19 @@ def watch(
     out: Optional[Path] = typer.Option(None, "--out", help="Folder of watch.html and the comparisons "
                                                            "(default DESIGN/.lensmount/watch)."),
     glass_catalog: GlassCatalogs = [],
+    budget: float = typer.Option(600.0, "--budget", help="Seconds of further tracing per revision after its first "
+                                                         "look, while the verdict is undecided."),
 ) -> None:
     """Keep the loop warm: on every save of a design file, regenerate what changed, simulate the
     scene and print the verdict against the baseline (also in OUT/watch.html, which reloads
-    itself). A revision that does not build is explained and watching goes on. Ctrl-C stops."""
+    itself). Each revision is first looked at after a quick run (simulate --quick), then resumed
+    by the passes that would decide it (compare --until-decided) within --budget. A revision that
+    does not build is explained and watching goes on. Ctrl-C stops."""
     observer = TerminalObserver(live=sys.stderr.isatty())
     try:
         options = WatchOptions(design, scene, against, _fraction(tolerance, "--tolerance"),
                                _fraction(confidence, "--confidence"), time_s, passes, photons_per_pass, workers,
-                               store, out)
+                               store, out, budget_s=budget)
         for revision in watch_design(options, observer):
             observer.close()  # the revision's progress bars end; its verdict follows
             if revision.number == 0:

@@ -40,10 +40,11 @@ tilt_deg = [0.0, 0.0]        # about x, then about y
 finish = "ground-glass"       # a finish of the design (finishes.toml) or a built-in one
 
 [run]
-photons = 1_000_000
-passes = 32
+photons = 100_000            # per pass
+passes = 32                  # at most this many
 seed = 1
-target_rel_error = 0.05
+target_rel_error = 0.05      # stop at this relative error (std + bias bound; after 8 passes at least)
+time_s = 600                 # or after this many seconds of tracing, whichever comes first (the default)
 ```
 """
 
@@ -157,10 +158,15 @@ class EffectsSpec(_Strict):
 
 
 class RunSpec(_Strict):
+    """The run length `simulate` takes when its command line sets none (loop.simulate.stopping): photons
+    per pass; at most `passes` passes; the target error when given; never more than time_s seconds of
+    tracing (a longer run is a batch job: say so with a larger time_s)."""
+
     photons: int = Field(default=1_000_000, ge=1)
     passes: int = Field(default=32, ge=1)
     seed: int = Field(default=1, ge=0)
     target_rel_error: float | None = Field(default=None, gt=0.0)
+    time_s: float = Field(default=600.0, gt=0.0)
 
 
 class ObjectSpec(_Strict):

@@ -23,8 +23,10 @@ from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, l
 from lensmount.analysis.passes import Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs
+from lensmount.loop.progress import expected_s
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes, resolve_revision
-from lensmount.loop.simulate import CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate
+from lensmount.loop.simulate import (CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate, stopping,
+                                    stored_like)
 from lensmount.run.report import comparison_report, write_report
 from lensmount.run.results import (
     read_exr, read_summary, shared_scale, write_difference, write_exr, write_preview, write_summary)
@@ -84,8 +86,8 @@ class CompareOptions:
     (a design folder) and the old run comes from the store: "last", "best" or a git revision.
     tolerance : relative to the old value; confidence : of the interval on the change.
     out : folder for difference.exr/png and compare.json (default NEW/compare).
-    method, workers, passes, photons_per_pass, time_s : for runs that must be simulated (unset: the
-        scene's [run] table); a stored run is reused when its input hash matches.
+    method, workers, passes, photons_per_pass, time_s, quick : for runs that must be simulated (unset:
+        the scene's [run] table, or the QUICK preset); a stored run is reused when its input hash matches.
     until_decided : while the verdict is undecided, resume the runs by the passes that would decide
         it and look again, within `budget_s` seconds of further tracing (`compare_until_decided`)."""
 
@@ -105,6 +107,7 @@ class CompareOptions:
     time_s: float | None = None
     until_decided: bool = False
     budget_s: float = 3600.0
+    quick: bool = False  # runs that must be simulated take the QUICK preset (loop.simulate)
 
 
 @dataclass
@@ -178,23 +181,22 @@ def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new")
     condition (any length, the longest), else the run to simulate and its estimated time."""
     scene_path = _scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
-                          photons_per_pass=o.photons_per_pass, time_s=o.time_s)
+                          photons_per_pass=o.photons_per_pass, time_s=o.time_s, quick=o.quick)
     loaded, spec = read_inputs(design, scene_path)
     digest = planned_input_hash(sim, loaded, spec)
     condition = condition_sha256(spec)
     with Store(default_path(design, o.store)) as store:
         stored = _usable(store.runs(input_hash=digest))
-        same_scene = [r for r in _usable(store.runs(design_path=design, scene_name=scene_path.stem)) if r.photons]
     if stored:
         best = max(stored, key=lambda r: (r.photons, r.id))  # the longest: the smallest error for the same inputs
         return RunSource(role, _stored_folder(best), best, digest, condition, "same design and test condition")
-    passes = o.passes or spec.run.passes
+    rule = stopping(sim, spec.run)
     per_pass = o.photons_per_pass or spec.run.photons
-    rate = sum(r.time_s for r in same_scene) / sum(r.photons for r in same_scene) if same_scene else None
-    estimate = o.time_s if o.time_s is not None else (rate * passes * per_pass if rate else None)
+    expected = expected_s(rule, per_pass, stored_like(sim, loaded, spec, digest))
     out = Path(design).resolve() / ".lensmount" / "runs" / f"{scene_path.stem}-{digest[:12]}"
     return RunSource(role, out, input_hash=digest, condition=condition, simulate=replace(sim, out=out),
-                     passes=passes, photons_per_pass=per_pass, estimate_s=estimate)
+                     passes=expected[1] if expected else rule.max_passes, photons_per_pass=per_pass,
+                     estimate_s=expected[0] if expected else o.time_s)
 
 
 def stored_run(design: Path, scene: str, against: str, new: RunSource, o: CompareOptions) -> RunSource:
@@ -292,9 +294,10 @@ def check_comparable(old: Run, new: Run, metric: str) -> list[str]:
 
 
 def compare(options: CompareOptions, observer: Observer | None = None,
-            sources: tuple[RunSource, RunSource] | None = None) -> CompareResult:
+            sources: tuple[RunSource, RunSource] | None = None, write: bool = True) -> CompareResult:
     """Compare two runs (see CompareOptions; `sources`: `plan(options)`, made here when not given);
-    writes difference.exr, difference.png, compare.json and report.html."""
+    writes difference.exr, difference.png, compare.json and report.html (`write`: the looks of
+    --until-decided before the last write nothing)."""
     o = options
     if o.until_decided:
         return compare_until_decided(o, observer)
@@ -316,9 +319,13 @@ def compare(options: CompareOptions, observer: Observer | None = None,
                 result.parts_added[name] = new.part(name).value
             else:
                 result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
-    out = Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
-    result.paths = write_comparison(out, old, new, result)
+    if write:
+        result.paths = write_comparison(comparison_folder(o, new), old, new, result)
     return result
+
+
+def comparison_folder(o: CompareOptions, new: Run) -> Path:
+    return Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
 
 
 MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
@@ -334,7 +341,8 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     if not o.budget_s >= 0:
         raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
     look, spent, steps = 1, 0.0, []
-    result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer)
+    result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer, write=False)
+    out = comparison_folder(o, result.new)  # where look 1 would have written: the new run's live folder
     while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
         runs = (result.old, result.new)
         m = [r.measurement(o.metric) for r in runs]
@@ -359,13 +367,13 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
         spent += sum(r.summary.get("time_s", 0.0) - x.time_s for r, x in zip(resumed, m))
         look += 1
         steps.append(f"look {look}: +{more[0]} passes of the old run, +{more[1]} of the new")
+        # a look that is not the last writes no images (4 previews and an EXR a look, seconds each)
         result = compare(replace(o, a=resumed[0].folder, b=resumed[1].folder, against=None, scene=None,
-                                 confidence=look_confidence(o.confidence, look), out=o.out or result.paths["json"].parent),
-                         observer)
+                                 confidence=look_confidence(o.confidence, look), out=out), observer, write=False)
     result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
-    write_summary(result.paths["json"], result.to_dict())  # compare.json with the looks' notes
+    result.paths = write_comparison(out, result.old, result.new, result)  # compare.json with the looks' notes
     return result
 
 

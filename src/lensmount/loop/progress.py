@@ -13,6 +13,7 @@ import numpy as np
 
 from lensmount.analysis.metrics import stray_fraction
 from lensmount.loop.simulate import PassStatus
+from lensmount.run.runner import Stopping
 
 
 def time_to_error(elapsed_s: float, rel_error: float, target: float) -> float | None:
@@ -55,10 +56,52 @@ def error_slope(history: list[tuple[float, float]]) -> float | None:
     return None if trend is None else trend[0]
 
 
+def expected_s(rule: Stopping, photons_per_pass: int, stored: list, done_passes: int = 0):
+    """(seconds, passes, the stored run it goes by) that `rule` will take, or None without a stored run
+    with an error to go by (`stored`: RunRecords of the same scene, newest last; see
+    simulate.stored_like): the newest one's error at the 1/√photons rate, its seconds per pass scaled
+    to this run's photons per pass; within the minimum and maximum passes and the time cap."""
+    usable = [r for r in stored if r.passes and r.photons and r.time_s > 0 and r.stray_fraction
+              and r.stray_fraction_std_error is not None]
+    if not usable:
+        return None
+    r = usable[-1]
+    # a pass's cost grows slower than its photons (the view map's share is fixed): √ is the rough middle
+    per_pass_s = r.time_s / r.passes * (photons_per_pass / (r.photons / r.passes)) ** 0.5
+    passes = rule.max_passes
+    if rule.target_rel_error is not None:
+        rel = (r.stray_fraction_std_error + (r.stray_fraction_bias_bound or 0.0)) / r.stray_fraction
+        needed = math.ceil(r.photons * (rel / rule.target_rel_error) ** 2 / photons_per_pass)
+        passes = min(max(needed, rule.min_passes), rule.max_passes)
+    seconds = max(passes - done_passes, 0) * per_pass_s
+    return min(seconds, rule.time_s) if rule.time_s is not None else seconds, passes, r
+
+
+def forecast(rule: Stopping, photons_per_pass: int, stored: list, done_passes: int = 0) -> str:
+    """What `simulate` says before it starts: about how long its stopping rule will take (`expected_s`);
+    without a stored run to go by, that the first passes will tell (the progress line does)."""
+    cap = f"; stops at {rule.time_s:.0f} s of tracing at the latest" if rule.time_s is not None else ""
+    goal = f"{100 * rule.target_rel_error:g} %" if rule.target_rel_error is not None else f"{rule.max_passes} passes"
+    expected = expected_s(rule, photons_per_pass, stored, done_passes)
+    if expected is None:
+        return f"estimate: {goal}{cap}; no stored run of this scene with an error bar to go by, the first " \
+               "passes will tell"
+    seconds, passes, r = expected
+    rel = ((r.stray_fraction_std_error + (r.stray_fraction_bias_bound or 0.0)) / r.stray_fraction)
+    basis = f"from stored run {r.id}: {r.passes} passes × {r.photons // r.passes:,} photons, {100 * rel:.1f} % " \
+            f"in {r.time_s:.0f} s"
+    if rule.time_s is not None and seconds >= rule.time_s:
+        return f"estimate: {goal} would take about {passes} passes, more than the time cap: it stops at " \
+               f"{rule.time_s:.0f} s first ({basis})"
+    return f"estimate: {goal} in about {seconds:.0f} s, {passes} passes{cap} ({basis})"
+
+
 def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | None, max_passes: int | None,
-              history: list[tuple[float, float]]) -> PassStatus:
-    """The PassStatus of an Accumulator; appends (elapsed, rel error) to `history`."""
+              history: list[tuple[float, float]], min_passes: int = Stopping.min_passes) -> PassStatus:
+    """The PassStatus of an Accumulator; appends (elapsed, rel error) to `history`. Before the error
+    is known (fewer than 3 passes) the ETA is the minimum passes' at the speed so far: the least it takes."""
     rel = acc.rel_error()
+    least = max(min_passes - acc.n, 0) * elapsed / max(acc.n, 1)
     history.append((elapsed, rel))
     trend = error_trend(history)
     se = acc.flux_std_error
@@ -67,8 +110,8 @@ def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | Non
         passes=acc.n, photons=acc.photons, elapsed_s=elapsed, value=stray_fraction(acc.flux, aperture_flux_mm2),
         std_error=stray_fraction(se, aperture_flux_mm2) if math.isfinite(se) else None, rel_error=rel,
         error_slope=trend and trend[0], error_slope_se=trend and trend[1], target_rel_error=target,
-        eta_s=time_to_error(elapsed, rel, target) if target else None, max_passes=max_passes,
+        eta_s=max(time_to_error(elapsed, rel, target) or 0.0, least) if target else None, max_passes=max_passes,
         largest_over_median=tail.over_median, heavy_tail=tail.heavy)
 
 
-__all__ = ["status_of", "time_to_error", "next_halving_s", "error_slope", "error_trend"]
+__all__ = ["expected_s", "forecast", "status_of", "time_to_error", "next_halving_s", "error_slope", "error_trend"]

@@ -66,7 +66,9 @@ def parse_angles(text: str) -> list[float]:
 
 @dataclass(frozen=True)
 class PstOptions:
-    """A PST sweep. Per angle: `passes` passes of `photons_per_pass` (default: the scene's [run])."""
+    """A PST sweep. Per angle: passes of `photons_per_pass` until the PST has `target_rel_error`
+    (std + bias; after 8 passes), at most `passes` (defaults: the scene's [run]; `passes` given
+    without a target: that many passes, as before targets)."""
 
     design: Path
     scene: Path
@@ -80,6 +82,7 @@ class PstOptions:
     alpha: float = 0.7
     geometry: Path | None = None
     workers: int = 0  # processes running an angle's passes (0: one per core)
+    target_rel_error: float | None = None
 
 
 @dataclass(frozen=True)
@@ -123,6 +126,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     o = options
     say = progress or (lambda text: None)
     check_options(SimulateOptions(o.design, o.scene, method=o.method, seed=o.seed, passes=o.passes,
+                                  target_rel_error=o.target_rel_error,
                                   photons_per_pass=o.photons_per_pass, samples_per_pixel=o.samples_per_pixel,
                                   alpha=o.alpha, geometry=o.geometry, workers=o.workers))
     design, spec = read_inputs(o.design, o.scene)
@@ -133,6 +137,9 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     seed = spec.run.seed if o.seed is None else o.seed
     passes = o.passes or spec.run.passes
     per_pass = o.photons_per_pass or spec.run.photons
+    # an angle stops at its target: far outside the field few passes do, inside it many
+    target = o.target_rel_error if o.target_rel_error is not None else (
+        spec.run.target_rel_error if o.passes is None else None)
     azimuth = spec.source.azimuth_deg if o.azimuth_deg is None else float(o.azimuth_deg)
     provenance = collect(design, spec, o.scene).to_dict()
 
@@ -152,7 +159,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
         acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
         runner = Runner(scene, lambda i: PassJob(o.method, per_pass, seed, i, settings), acc,
                         workers=o.workers or default_workers())
-        runner.run(Stopping(max_passes=passes))
+        runner.run(Stopping(target_rel_error=target, max_passes=passes))
         if runner.interrupted:  # the sweep stops with the signal, as the passes did
             raise Terminated() if runner.terminated else KeyboardInterrupt()
         value, se = pst_of(acc.flux, acc.flux_std_error, area, scene.source.entering_fraction)

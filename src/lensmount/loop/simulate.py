@@ -49,6 +49,7 @@ class SimulateOptions:
     argv : the command line recorded in the provenance (default sys.argv)
     scheduler, cluster : run the passes on a Dask cluster (an address, or "local:N"); see lensmount.run.executor
     worker_wait_s : with no Dask worker left, wait this long for one, then stop with the checkpoint (exit 75)
+    quick : the QUICK preset instead of the scene's [run] rules (see `stopping`)
     """
 
     design: Path
@@ -72,6 +73,41 @@ class SimulateOptions:
     scheduler: str | None = None
     cluster: str | None = None
     worker_wait_s: float = WORKER_WAIT_S
+    quick: bool = False
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A stopping rule by name: the target error, the time cap and the fewest passes that may stop."""
+
+    target_rel_error: float
+    time_s: float
+    min_passes: int
+
+
+# For iteration: a first number with an honest error bar within half a minute of tracing. Only the run's
+# length differs from the scene's rules (photons per pass, seed, estimator unchanged), so a quick run is the
+# first passes of the full one: the same test condition and input hash in the store and `compare` (whose
+# interval widens with its fewer passes), and `--resume` without --quick continues it to the scene's target.
+QUICK = Preset(target_rel_error=0.10, time_s=30.0, min_passes=4)
+ERROR_BAR_PASSES = 3  # the fewest passes with a standard error (analysis.passes)
+
+
+def stopping(o: SimulateOptions, run) -> Stopping:
+    """When the run stops. Rules set on the command line (photons, time, target, passes) replace the
+    scene's; none set: the QUICK preset (o.quick) or the scene's [run] table (run: its RunSpec), its
+    target error after the minimum passes, capped by its time_s and its passes."""
+    least = QUICK.min_passes if o.quick else Stopping.min_passes
+    if any(v is not None for v in (o.photons, o.time_s, o.target_rel_error, o.passes)):
+        return Stopping(photons=o.photons, time_s=o.time_s, target_rel_error=o.target_rel_error,
+                        max_passes=o.passes or 10_000, min_passes=least)
+    # a cap stops no run before it has an error bar: a loaded machine's 30 s held one pass, which no
+    # verdict can use (compare --until-decided then started the run again for its third)
+    if o.quick:
+        return Stopping(time_s=QUICK.time_s, target_rel_error=QUICK.target_rel_error, max_passes=run.passes,
+                        min_passes=least, time_after_passes=ERROR_BAR_PASSES)
+    return Stopping(time_s=run.time_s, target_rel_error=run.target_rel_error, max_passes=run.passes,
+                    time_after_passes=ERROR_BAR_PASSES)
 
 
 @dataclass(frozen=True)
@@ -129,6 +165,7 @@ class SimulateResult:
     warnings: list[str] = field(default_factory=list)
     complete: bool = False  # the signal came after the last pass, while the results were written
     workers_gone: str | None = None  # stopped because no Dask worker came back in time: why
+    stopped_short: str | None = None  # a cap (time, passes) stopped it before its target error: what it reached
 
     @property
     def exit_code(self) -> int:
@@ -294,17 +331,14 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
 
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
-    from lensmount.loop.progress import status_of  # here: progress imports this module
+    from lensmount.loop.progress import forecast, status_of  # here: progress imports this module
 
     design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
     warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
 
-    photons, time_s, target, passes = o.photons, o.time_s, o.target_rel_error, o.passes
-    if not any(v is not None for v in (photons, time_s, target, passes)):
-        target = spec.run.target_rel_error
-        passes = spec.run.passes if target is None else None
-    stopping = Stopping(photons=photons, time_s=time_s, target_rel_error=target, max_passes=passes or 10_000)
+    rule = stopping(o, spec.run)
+    target = rule.target_rel_error
 
     work = plan(sc, settings)  # what is traced and what is skipped (integrators.plan); its scene is what the passes trace
     obs.stage("plan: " + "; ".join(f"{d.what} {'yes' if d.ran else 'skipped'}" for d in work.decisions))
@@ -324,18 +358,19 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         obs.stage(f"no light enters: {no_light}")
     executor = executor_for(workers=o.workers or default_workers(), scheduler=o.scheduler, cluster=o.cluster,
                             worker_wait_s=o.worker_wait_s, say=obs.stage)
-    shown_max = stopping.max_passes if (photons is None and time_s is None and target is None) else None
+    shown_max = rule.max_passes if (rule.photons is None and rule.time_s is None and target is None) else None
     history: list[tuple[float, float]] = []
 
     def progress(a, elapsed):
-        obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history))
+        obs.pass_done(status_of(a, elapsed, aperture, target, shown_max, history, rule.min_passes))
 
+    obs.stage(forecast(rule, per_pass, stored_like(o, design, spec, digest), acc.n))
     obs.stage(f"tracing: {o.method}, {per_pass:,} photons per pass, on {executor.description}")
     runner = Runner(work.scene, job, acc, executor=executor, checkpoint=out / CHECKPOINT,
                     checkpoint_meta={"seed": seed, "input_hash": digest, "method": o.method,
                                      "photons_per_pass": per_pass}, progress=progress)
     start = time.perf_counter()
-    runner.run(stopping)
+    runner.run(rule)
     wall["passes"] = time.perf_counter() - start
     if acc.n == 0:  # stopped before the first pass: nothing to write
         if runner.workers_gone:
@@ -351,7 +386,27 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         if not result.interrupted:
             result.interrupted, result.terminated, result.complete = True, isinstance(stop, Terminated), True
     result.workers_gone = runner.workers_gone
+    rel = result.summary.get("stray_fraction_rel_error")
+    if target is not None and not runner.interrupted and rel is not None and rel > target:
+        caps = f"{rule.max_passes} passes" + (f", {rule.time_s:.0f} s" if rule.time_s is not None else "")
+        result.stopped_short = (f"stopped at {100 * rel:.2f} % before the target {100 * target:g} % ({acc.n} passes, "
+                                f"{runner.elapsed:.0f} s; caps: {caps}): --resume with a longer --time or more "
+                                "--passes continues it")
     return result
+
+
+def stored_like(o: SimulateOptions, design, spec, digest: str) -> list:
+    """Stored runs to foresee this one's time by: of the same inputs, else of the same scene and test
+    condition on this design (another revision), newest last; none when there is no store yet."""
+    from lensmount.run.store import Store, default_path
+
+    path = default_path(design.root, o.store)
+    if not path.is_file():
+        return []
+    with Store(path) as store:
+        same = store.runs(input_hash=digest)
+        return same or store.runs(design_path=design.root, scene_name=Path(o.scene).stem,
+                                  condition_sha256=condition_sha256(spec))
 
 
 def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
@@ -402,5 +457,5 @@ def _field_radius(prescription) -> float | None:
     return r if math.isfinite(r) and r > 0 else None
 
 
-__all__ = ["SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
+__all__ = ["QUICK", "Preset", "stopping", "stored_like", "SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
            "planned_input_hash"]

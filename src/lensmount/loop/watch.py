@@ -3,7 +3,8 @@
 One long-lived process watches the design folder. When a file of the design is saved (lens,
 mount.toml, finishes, user templates, STEP parts, the scene) it regenerates what changed (the CAD
 cache rebuilds only the parts whose inputs changed), simulates the scene and judges the result
-against the baseline: by default the design as it was when `watch` started, or a stored run
+against the baseline, progressively: a first look after the QUICK preset's run (loop.simulate), then
+`compare --until-decided`'s looks, each adding the passes that would decide it. The baseline: by default the design as it was when `watch` started, or a stored run
 (`against`: last, best or a git revision). The CAD kernel, the compiled tracer kernels and
 the imports are paid for once, at start; worker processes are forked from this warm process.
 
@@ -34,7 +35,8 @@ REFRESH_S = 3
 class WatchOptions:
     """design, scene : what to watch and simulate; against : None (the design when watching
     starts) or a stored run (last, best, a git revision); tolerance, confidence : the verdict's;
-    time_s, passes, photons_per_pass, workers : each revision's run (unset: the scene's [run]);
+    time_s, passes, photons_per_pass, workers : each revision's first look (unset: the QUICK preset; the
+    baseline, when simulated: the scene's [run]); budget_s : further tracing per revision until decided;
     out : watch.html and the comparisons (default DESIGN/.lensmount/watch); poll_s : how often the
     files are looked at; settle_s : how long they must stay unchanged (editors save in steps)."""
 
@@ -51,6 +53,7 @@ class WatchOptions:
     out: Path | None = None
     poll_s: float = 0.5
     settle_s: float = 0.3
+    budget_s: float = 600.0
 
 
 @dataclass(frozen=True)
@@ -114,7 +117,9 @@ def watch(options: WatchOptions, observer: Observer | None = None,
     out = Path(o.out) if o.out is not None else design / ".lensmount" / "watch"
     settings = CompareOptions(design, scene=o.scene, against=o.against, tolerance=o.tolerance,
                               confidence=o.confidence, store=o.store, workers=o.workers, passes=o.passes,
-                              photons_per_pass=o.photons_per_pass, time_s=o.time_s)
+                              photons_per_pass=o.photons_per_pass, time_s=o.time_s, budget_s=o.budget_s)
+    # a revision: a quick first look unless its length is given, then looks until decided
+    judging = replace(settings, until_decided=True, quick=o.time_s is None and o.passes is None)
     history: list[Revision] = []
     files = snapshot(design)
     baseline: Run | None = None
@@ -134,10 +139,10 @@ def watch(options: WatchOptions, observer: Observer | None = None,
         target = out / f"revision-{number:03d}"
         try:
             if baseline is None:
-                result = compare(replace(settings, out=target), observer)
+                result = compare(replace(judging, out=target), observer)
             else:
-                new = obtain(plan_current(design, o.scene, settings), observer)
-                result = compare(replace(settings, a=baseline.folder, b=new.folder, scene=None, against=None,
+                new = obtain(plan_current(design, o.scene, judging), observer)
+                result = compare(replace(judging, a=baseline.folder, b=new.folder, scene=None, against=None,
                                          out=target), observer)
             revision = Revision(number, changed, result, None, time.perf_counter() - start)
         except InputError as error:  # the edit does not build: say so and keep watching

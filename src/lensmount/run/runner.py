@@ -47,6 +47,7 @@ class Stopping:
     target_rel_error: float | None = None
     max_passes: int = 10_000
     min_passes: int = 8
+    time_after_passes: int = 1  # the time rule stops no run before this many passes (a cap: 3, an error bar)
 
     def done(self, acc: Accumulator, elapsed: float) -> bool:
         if acc.n >= self.max_passes:
@@ -55,7 +56,7 @@ class Stopping:
             return False
         if self.photons is not None and acc.photons >= self.photons:
             return True
-        if self.time_s is not None and elapsed >= self.time_s:
+        if self.time_s is not None and elapsed >= self.time_s and acc.n >= self.time_after_passes:
             return True
         if self.target_rel_error is not None and acc.n >= self.min_passes:
             return acc.converged(self.target_rel_error)
