@@ -398,7 +398,6 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
 def stored_like(o: SimulateOptions, design, spec, digest: str) -> list:
     """Stored runs to foresee this one's time by: of the same inputs, else of the same scene and test
     condition on this design (another revision), newest last; none when there is no store yet."""
-
     path = default_path(design.root, o.store)
     if not path.is_file():
         return []
