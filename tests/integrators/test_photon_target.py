@@ -181,3 +181,47 @@ def test_band_photons_started_beside_the_source_disc_carry_nothing():
     area = math.pi * ((disc.radius - 0.2) ** 2 - (disc.radius - 0.4) ** 2)
     w = np.where(ring, rays.weight, 0.0)
     assert abs(w.sum() - area) < 5 * w.std() * math.sqrt(n)
+
+
+def _pilot_rays(rings, n=200_000, seed=4):
+    """Pilot photons along d₀ crossing P uniformly over the annulus 9…13 mm, and which met the edge:
+    those within ±0.02 mm of one of `rings` ((φ → ρ, share of the photons there that meet it))."""
+    rng = np.random.default_rng(seed)
+    e1, e2 = orthonormal_basis(D0)
+    rho, phi = rng.uniform(9.0, 13.0, n), rng.uniform(-math.pi, math.pi, n)
+    p = np.asarray(CENTRE) + (rho * np.cos(phi))[:, None] * e1 + (rho * np.sin(phi))[:, None] * e2
+    rays = PT.RayBatch.make(p - 50.0 * D0, np.tile(D0, (n, 1)), wavelength=np.zeros(n, np.int64),
+                            ids=np.arange(n))
+    hit = np.zeros(n, bool)
+    for ring, rate in rings:
+        hit |= (np.abs(rho - ring(phi)) <= 0.02) & (rng.random(n) < rate)
+    return rays, hit
+
+
+def test_an_edge_lit_through_two_rings_gets_both():
+    """Issue 29, 1: hits on a second, dimmer ring were dropped by the single-valued fit's rejection;
+    now the pilot's fit keeps a ring for each, shares by their hits, and a density that is the
+    mixture's. (Two rings about equally lit are not separated: the first fit runs between them.)"""
+    first, second = (lambda f: 10.0 + 0.3 * np.cos(f)), (lambda f: 12.0 + 0.1 * np.sin(2 * f))
+    rays, hit = _pilot_rays([(first, 1.0), (second, 0.04)])
+    fit = PT._fit(rays, hit, CENTRE, D0, 1, per_wavelength=True)
+    assert isinstance(fit, PT.EdgeRings) and len(fit.rings) == 2
+    f = np.linspace(-3, 3, 7)
+    got = sorted((r.radius(f, np.zeros(7, int)) for r in fit.rings), key=lambda x: x[0])
+    assert np.allclose(got[0], first(f), atol=0.005) and np.allclose(got[1], second(f), atol=0.015)  # ~80 hits
+    assert fit.share[1] == pytest.approx(0.48 / 10.48, abs=0.02)  # hits ∝ length × rate: 10 : 12 · 0.04
+    # its samples have the density it reports: E[1/q] over them is the two bands' area
+    u = np.random.default_rng(5).random((200_000, 3))
+    p = fit.sample(u[:, 1:], np.zeros(len(u), int), u[:, 0])
+    rho, phi = fit.crossing(p - D0, np.tile(D0, (len(u), 1)))
+    inv = 1.0 / fit.density(rho, phi, np.zeros(len(u), int))
+    want = sum(2 * r.half_width[0] * 2 * math.pi * r.coef[0, 0] for r in fit.rings)
+    assert abs(inv.mean() - want) < 5 * inv.std() / math.sqrt(len(inv))
+
+
+def test_one_ring_stays_one_band():
+    """A single lit ring (its own residual tails beyond 4σ included) gives the EdgeBand, as before."""
+    rays, hit = _pilot_rays([(lambda f: 10.0 + 0.3 * np.cos(f), 1.0)])
+    rng = np.random.default_rng(6)
+    hit |= rng.random(len(hit)) < 5e-5  # a few stray hits anywhere: scattered, not a ring
+    assert isinstance(PT._fit(rays, hit, CENTRE, D0, 1, per_wavelength=True), PT.EdgeBand)

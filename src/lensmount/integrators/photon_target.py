@@ -61,6 +61,9 @@ PILOT_PHOTONS = 100_000  # per pilot stage (stage 1: per round)
 PILOT_ROUNDS = 8  # stage 1's rounds at most, while fewer than MIN_HITS met the edge
 DARK_ROUNDS = 4  # rounds without a single hit after which the edge counts as unlit
 MIN_HITS = 40  # per wavelength, to fit the 9 coefficients; fewer: no learned target
+MAX_RINGS = 3  # rings through which the pilot may find the edge lit
+RING_SIGMAS = 4.0  # hits beyond this many residual spreads of a ring belong to another (as `targets.robust_fit`)
+RING_SPREAD = 2.0  # a further ring's spread at most this many times the first's: hits on a ring, not the first ring's tails
 _K = 4  # harmonics of φ
 _PLANE_SHIFTS = np.linspace(-40.0, 40.0, 21)  # mm along d₀ from the paraxial entrance pupil, tried by the fit
 _SCAN_HITS = 2000  # hits (every m-th) the plane's place is fitted from
@@ -113,9 +116,9 @@ class EdgeBand:
         inside = (np.abs(rho - self.radius(phi, wavelength)) <= h) & (rho > 0)
         return np.where(inside, self.pmf[b] * (N_PHI / (2 * math.pi)) / (2.0 * h * np.where(rho > 0, rho, 1.0)), 0.0)
 
-    def sample(self, u: np.ndarray, wavelength) -> np.ndarray:
+    def sample(self, u: np.ndarray, wavelength, pick: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) points of P for uniforms u (N, 2): φ from the histogram, ρ uniform in ρ* ± h; the
-        density of the points is `density` wherever ρ > 0."""
+        density of the points is `density` wherever ρ > 0. `pick` chooses a ring (`EdgeRings`): one here."""
         cdf = np.cumsum(self.pmf)
         cdf[-1] = 1.0
         b = np.minimum(np.searchsorted(cdf, u[:, 1], side="right"), N_PHI - 1)
@@ -128,7 +131,44 @@ class EdgeBand:
         return np.asarray(self.centre) + (rho * np.cos(phi))[:, None] * e1 + (rho * np.sin(phi))[:, None] * e2
 
 
-def guided_photons(scene, band: EdgeBand | None, seed: int, purpose: str, first: int, n: int) -> RayBatch:
+@dataclass(frozen=True)
+class EdgeRings:
+    """Several rings on the same plane P through which the edge is lit (`_more_rings`), one EdgeBand
+    each; a band photon takes ring r with probability `share[r]` (its share of the pilot's hits), and
+    its density is the mixture Σ share_r · density_r, so any overlap of the rings is counted exactly."""
+
+    rings: tuple[EdgeBand, ...]
+    share: tuple[float, ...]
+
+    @property
+    def centre(self):
+        return self.rings[0].centre
+
+    @property
+    def d0(self):
+        return self.rings[0].d0
+
+    def crossing(self, origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.rings[0].crossing(origin, direction)
+
+    def widened(self, factor: float) -> "EdgeRings":
+        return EdgeRings(tuple(r.widened(factor) for r in self.rings), self.share)
+
+    def density(self, rho: np.ndarray, phi: np.ndarray, wavelength) -> np.ndarray:
+        return sum(w * r.density(rho, phi, wavelength) for r, w in zip(self.rings, self.share))
+
+    def sample(self, u: np.ndarray, wavelength, pick: np.ndarray | None = None) -> np.ndarray:
+        """As `EdgeBand.sample`, the ring chosen by the uniforms `pick` (N,) against the shares."""
+        which = np.minimum(np.searchsorted(np.cumsum(self.share), pick, side="right"), len(self.rings) - 1)
+        out = np.zeros((len(u), 3))
+        wl = np.broadcast_to(np.asarray(wavelength), (len(u),))
+        for k, ring in enumerate(self.rings):
+            rows = which == k
+            out[rows] = ring.sample(u[rows], wl[rows])
+        return out
+
+
+def guided_photons(scene, band: EdgeBand | EdgeRings | None, seed: int, purpose: str, first: int, n: int) -> RayBatch:
     """Photons first … first+n−1 of the run (`walk.emit_photons`), a share 1 − UNIFORM_SHARE of them
     started so that they cross P in the band; each carries 1 / (n q) (module docstring)."""
     rays = emit_photons(scene, seed, purpose, first, n, n)
@@ -139,9 +179,14 @@ def guided_photons(scene, band: EdgeBand | None, seed: int, purpose: str, first:
     u = Streams(seed, purpose + "/emit-band", rays.id).random((n, 3))
     centre, d0 = np.asarray(disc.centre), np.asarray(band.d0)
     which = emission_component(seed, purpose, rays.id)
-    for component, rows in ((wide, which == WIDE), (band, which == AIMED)):
+    # a photon's ring (several: `EdgeRings`): its component's uniform u₀, rescaled within the component's
+    # interval, is uniform and independent of the two that place it in the ring
+    for component, rows, lo, width in ((wide, which == WIDE, UNIFORM_SHARE, WIDE_SHARE),
+                                       (band, which == AIMED, UNIFORM_SHARE + WIDE_SHARE,
+                                        1.0 - UNIFORM_SHARE - WIDE_SHARE)):
         d = rays.direction[rows]
-        rays.origin[rows] = _back_to_disc(component.sample(u[rows, 1:], rays.wavelength[rows]), d, centre, d0)
+        pick = (u[rows, 0] - lo) / width
+        rays.origin[rows] = _back_to_disc(component.sample(u[rows, 1:], rays.wavelength[rows], pick), d, centre, d0)
     on_disc = np.linalg.norm(rays.origin - centre - ((rays.origin - centre) @ d0)[:, None] * d0, axis=1) <= disc.radius
     rho, phi = band.crossing(rays.origin, rays.direction)
     q = (UNIFORM_SHARE * on_disc / disc.area + WIDE_SHARE * wide.density(rho, phi, rays.wavelength)
@@ -210,11 +255,18 @@ def _pilot(scene, tracer, broad, seed, n_photons):
     fit = _fit(rays, hit, band.centre, np.asarray(band.d0), n_wl, per_wavelength=False)
     if fit is None:
         return None
-    # Stage 2: the stage-1 fit with a band twice its width, one ring per wavelength.
-    band2 = EdgeBand(fit.centre, fit.d0, fit.coef, 2.0 * fit.half_width, fit.pmf)
+    # Stage 2: the stage-1 fit with a band twice its width (each ring), one ring per wavelength.
+    band2 = _doubled(fit)
     rays, hit = _pilot_photons(scene, tracer, band2, tags, seed, "photon-pilot", 1,
                                np.arange(n_photons, 2 * n_photons, dtype=np.int64))
     return _fit(rays, hit, band.centre, np.asarray(band.d0), n_wl, per_wavelength=True) or fit
+
+
+def _doubled(fit: EdgeBand | EdgeRings) -> EdgeBand | EdgeRings:
+    """The fit with each ring's band twice as wide (stage 2's proposal)."""
+    if isinstance(fit, EdgeRings):
+        return EdgeRings(tuple(_doubled(r) for r in fit.rings), fit.share)
+    return EdgeBand(fit.centre, fit.d0, fit.coef, 2.0 * fit.half_width, fit.pmf)
 
 
 def first_band(scene, tags) -> EdgeBand | None:
@@ -255,7 +307,8 @@ def _pilot_photons(scene, tracer, band, tags, seed, purpose, index, ids):
     """Pilot photons `ids` started so that they cross P in `band` (numbers from `purpose`'s stream
     `index`), and which of them met the edge (a FACE event on one of `tags`)."""
     rays, _ = scene.source.emit(len(ids), Streams(seed, purpose + "/emit", ids))
-    p = band.sample(stream(seed, purpose, index).random((len(ids), 2)), rays.wavelength)
+    pick = stream(seed, purpose + "/ring", index).random(len(ids)) if isinstance(band, EdgeRings) else None
+    p = band.sample(stream(seed, purpose, index).random((len(ids), 2)), rays.wavelength, pick)
     start = _back_to_disc(p, rays.direction, np.asarray(scene.source.disc.centre), np.asarray(band.d0))
     rays = RayBatch.make(start, rays.direction, wavelength=rays.wavelength, ids=ids)
     step = tracer.next_event(rays, Streams(seed, purpose + "/trace", ids))
@@ -264,10 +317,11 @@ def _pilot_photons(scene, tracer, band, tags, seed, purpose, index, ids):
     return rays, hit
 
 
-def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per_wavelength: bool) -> EdgeBand | None:
+def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int,
+         per_wavelength: bool) -> EdgeBand | EdgeRings | None:
     """EdgeBand from the pilot photons and which of them met the edge: the plane's shift along d₀
     with the narrowest ring, then ρ*(φ) and h (per wavelength, or one for all from half as many
-    hits), and the azimuth histogram."""
+    hits), and the azimuth histogram; EdgeRings when the edge is lit through several (`_more_rings`)."""
     wl = np.asarray(rays.wavelength, np.int64) if per_wavelength else np.zeros(len(hit), np.int64)
     n_fit = n_wl if per_wavelength else 1
     if any(np.count_nonzero(hit & (wl == k)) < MIN_HITS * (1 if per_wavelength else 0.5) for k in range(n_fit)):
@@ -290,14 +344,50 @@ def _fit(rays: RayBatch, hit: np.ndarray, centre, d0: np.ndarray, n_wl: int, per
         return None
     coef, sigma = np.broadcast_to(coef, (n_wl, coef.shape[1])).copy(), np.broadcast_to(sigma, (n_wl,)).copy()
     wl = np.asarray(rays.wavelength, np.int64)
-    band = EdgeBand(c, tuple(d0), coef, np.maximum(HALF_WIDTH_SIGMAS * sigma, 1e-4), np.full(N_PHI, 1.0 / N_PHI))
-    # Azimuth histogram: hit rate per bin among the pilot photons that crossed P inside the band.
+    band = _with_azimuths(EdgeBand(c, tuple(d0), coef, np.maximum(HALF_WIDTH_SIGMAS * sigma, 1e-4),
+                                   np.full(N_PHI, 1.0 / N_PHI)), rays, hit)
+    return _more_rings(band, rays, hit, wl)
+
+
+def _with_azimuths(band: EdgeBand, rays: RayBatch, hit: np.ndarray) -> EdgeBand:
+    """The band with its azimuth histogram: hit rate per bin among the pilot photons that crossed P
+    inside it."""
+    wl = np.asarray(rays.wavelength, np.int64)
     rho, phi = band.crossing(rays.origin, rays.direction)
     inside = band.density(rho, phi, wl) > 0
     b = azimuth_bin(phi)
     tried = np.bincount(b[inside], minlength=N_PHI)
     got = np.bincount(b[inside & hit], minlength=N_PHI)
-    return EdgeBand(c, tuple(d0), coef, band.half_width, azimuth_pmf(tried, got))
+    return EdgeBand(band.centre, band.d0, band.coef, band.half_width, azimuth_pmf(tried, got))
+
+
+def _more_rings(band: EdgeBand, rays: RayBatch, hit: np.ndarray, wl: np.ndarray) -> EdgeBand | EdgeRings:
+    """The band, or the rings through which the edge is lit when the ring's fit left out at least
+    MIN_HITS pilot hits (beyond RING_SIGMAS of its residual spread: `targets.robust_fit`) that lie on
+    another ring of their own (a fit to them keeps MIN_HITS within RING_SIGMAS of a spread at most
+    RING_SPREAD times the first ring's); at most MAX_RINGS. Each ring's share of the aimed photons is
+    its share of the hits the rings explain."""
+    rho, phi = band.crossing(rays.origin, rays.direction)
+    sigma = band.half_width[np.clip(wl, 0, len(band.half_width) - 1)] / HALF_WIDTH_SIGMAS
+    explained = hit & (np.abs(rho - band.radius(phi, wl)) <= RING_SIGMAS * sigma)
+    left = hit & ~explained
+    rings, counts = [band], [int(explained.sum())]
+    while len(rings) < MAX_RINGS and np.count_nonzero(left) >= MIN_HITS:
+        coef, spread = robust_fit(_basis(phi[left]), rho[left])
+        if coef is None or spread > RING_SPREAD * float(sigma.max()):
+            break  # scattered hits, not a ring
+        on = left & (np.abs(rho - _basis(phi) @ coef) <= RING_SIGMAS * spread + 1e-9)
+        if np.count_nonzero(on) < MIN_HITS:
+            break
+        n_wl = len(band.coef)
+        ring = EdgeBand(band.centre, band.d0, np.tile(coef, (n_wl, 1)),
+                        np.full(n_wl, max(HALF_WIDTH_SIGMAS * spread, 1e-4)), np.full(N_PHI, 1.0 / N_PHI))
+        rings.append(_with_azimuths(ring, rays, hit))
+        counts.append(int(on.sum()))
+        left &= ~on
+    if len(rings) == 1:
+        return band
+    return EdgeRings(tuple(rings), tuple(float(k) / sum(counts) for k in counts))
 
 
 def _shifted(centre, d0: np.ndarray, shift: float) -> tuple[float, float, float]:
@@ -335,4 +425,4 @@ def _ring(rho, phi, wl, n_wl):
     return coef, sigma
 
 
-__all__ = ["EdgeBand", "COMPONENTS", "emission_component", "aims_at_edge", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
+__all__ = ["EdgeBand", "EdgeRings", "COMPONENTS", "emission_component", "aims_at_edge", "edge_band", "entrance_pupil", "guided_photons", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
