@@ -114,11 +114,11 @@ def test_tangent_contact_follows_the_sphere_slope(reference_layout):
 
 
 def test_envelope_never_returns_nan(monkeypatch, reference_layout):
-    import lensmount.optics.apertures as apertures
+    import lensmount.cad.layout as layout_module
     from lensmount.cad.layout import Envelope
 
     layout, _ = reference_layout
-    monkeypatch.setattr(apertures, "beam_envelope", lambda p, z: np.full(np.shape(z), np.nan))
+    monkeypatch.setattr(layout_module, "beam_envelope", lambda p, z: np.full(np.shape(z), np.nan))
     env = Envelope(layout.prescription, -10.0, 10.0, step=1.0)
     assert np.isfinite(env.at(np.linspace(-20, 20, 9))).all()
     assert np.isfinite(env.max_over(-5.0, 5.0))

@@ -121,7 +121,7 @@ def test_diaphragm_edge_is_the_50_um_land(reference, reference_mesh):
 
 
 def test_second_run_comes_from_the_cache(reference, monkeypatch):
-    from lensmount.cad import assembly, pipeline
+    from lensmount.cad import pipeline
 
     design, out, manifest = reference
     before = {p.name: os.stat(out / p.step).st_mtime_ns for p in manifest.parts}
@@ -129,7 +129,7 @@ def test_second_run_comes_from_the_cache(reference, monkeypatch):
     def boom(*a, **k):
         raise AssertionError("the CAD kernel ran on unchanged inputs")
 
-    monkeypatch.setattr(assembly, "build_assembly", boom)
+    monkeypatch.setattr(pipeline, "build_assembly", boom)
     again = pipeline.regenerate(design, out)
     assert again.cached and again.input_hash == manifest.input_hash
     assert {p.name: os.stat(out / p.step).st_mtime_ns for p in again.parts} == before

@@ -33,23 +33,22 @@ RUN = ["--passes", "3", "--photons-per-pass", "2000", "--workers", "1"]
 
 def _phases():
     """phase → (object, attribute, how many calls a run makes at least): where a signal is sent."""
-    from lensmount.analysis import paths
     from lensmount.analysis.passes import Accumulator
     from lensmount.cad import pipeline
-    from lensmount.design import folder
-    from lensmount.integrators import bidirectional, plan
+    from lensmount.integrators import bidirectional
     from lensmount.integrators.photon_gather import Gatherer
-    from lensmount.run import results
+    from lensmount.loop import prepare, simulate
     from lensmount.run.executor import InProcess
     from lensmount.run.store import Store
     from lensmount.scene import build
 
-    return {"read the design": (folder, "load_design", 1), "geometry": (pipeline, "regenerate", 1),
-            "scene": (build, "build_scene", 1), "plan": (plan, "plan", 1), "executor": (InProcess, "start", 1),
+    # a function is hooked where the caller looks it up: the module that imported it at its top
+    return {"read the design": (prepare, "load_design", 1), "geometry": (pipeline, "regenerate", 1),
+            "scene": (build, "build_scene", 1), "plan": (simulate, "plan", 1), "executor": (InProcess, "start", 1),
             "pilot": (bidirectional, "edge_band", 3), "view map": (bidirectional, "build_view_map", 3),
             "photons": (bidirectional, "photon_walk", 3), "gather": (Gatherer, "gather", 3),
             "merge": (Accumulator, "add", 3), "checkpoint": (Accumulator, "save", 1),
-            "results": (results, "write_run", 1), "paths.npz": (paths, "write_paths", 1),
+            "results": (simulate, "write_run", 1), "paths.npz": (simulate, "write_paths", 1),
             "store": (Store, "record", 1)}
 
 
@@ -183,13 +182,13 @@ def test_nothing_kept_means_nothing_written(design, reference, tmp_path, monkeyp
 @pytest.mark.parametrize("seed", seeds("regenerate-signal", 3))
 def test_signal_in_regenerate(seed, design, reference, tmp_path, monkeypatch):
     """A stopped regenerate leaves the build folder as it was (here: none), never empty or half."""
-    from lensmount.cad import assembly, export
+    from lensmount.cad import pipeline
     from lensmount.cli import app
     from lensmount.mesh import TaggedMesh
 
     rng = random.Random(seed)
-    owner, name, calls = rng.choice([(assembly, "build_assembly", 1), (assembly, "tessellate", 1),
-                                     (export, "write_part_step", 8), (export, "write_assembly_step", 1)])
+    owner, name, calls = rng.choice([(pipeline, "build_assembly", 1), (pipeline, "tessellate", 1),
+                                     (pipeline, "write_part_step", 8), (pipeline, "write_assembly_step", 1)])
     k = rng.randint(1, calls)
     signum = rng.choice([signal.SIGINT, signal.SIGTERM])
     copy = tmp_path / "design"
@@ -216,7 +215,6 @@ def test_signal_in_compare(seed, reference, tmp_path, monkeypatch):
 
     from lensmount.cli import app
     from lensmount.loop import compare
-    from lensmount.run import results
 
     old, new = tmp_path / "old", tmp_path / "new"
     shutil.copytree(reference.out, old)
@@ -225,8 +223,8 @@ def test_signal_in_compare(seed, reference, tmp_path, monkeypatch):
     straight = CliRunner().invoke(app, argv + ["--out", str(tmp_path / "straight")])
     assert straight.exit_code == 0, straight.output
     rng = random.Random(seed)
-    owner, name = rng.choice([(compare, "read_summary"), (results, "read_exr"), (results, "write_difference"),
-                              (results, "write_summary")])
+    owner, name = rng.choice([(compare, "read_summary"), (compare, "read_exr"), (compare, "write_difference"),
+                              (compare, "write_summary")])
     k, signum = rng.randint(1, 2 if name.startswith("read") else 1), rng.choice([signal.SIGINT, signal.SIGTERM])
     fired: list = []
     arm(monkeypatch, owner, name, k, signum, fired)
