@@ -205,6 +205,31 @@ def test_an_element_too_thin_at_its_edge_is_tried_with_smaller_chamfers():
     assert mount["lens_edge"]["chamfer_mm"] < _mount(p, "354710-C", True)["lens_edge"]["chamfer_mm"]
 
 
+@pytest.mark.slow   # the starter's seatings refused, then the search: ~15 s on the shared machine
+def test_a_lens_whose_clear_aperture_reaches_its_rim_is_bonded_by_its_edge():
+    """Thorlabs ACL2520-A (tests/optics/corpus): its file's fixed clear semi-diameter, 12.5 mm, leaves
+    no annulus on the front face of its 12.8 mm rim: a retainer there would have a 0.122 mm wall and a
+    barrel shoulder would reach into the hood's vane. The search ends on the edge bond: nothing touches
+    lens-1's front face, and the barrel's bore runs past the glass's farthest point (init exited 2)."""
+    from lensmount.cad.layout import plan
+    from lensmount.cad.mount_search import refusal
+    from lensmount.cad.starter import starter_mount
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import parse_mount
+
+    p = load_lens(CORPUS / "thorlabs-ACL2520-A.zmx")
+    mount, why = starter_mount(p, "ACL2520-A")
+    assert why is None and mount["seats"]["front"] == "bonded" and refusal(p, mount) is None
+    layout = plan(p, parse_mount(mount))
+    assert not [c for c in layout.contacts if c.lens == "lens-1" and c.surface == 1]   # surface 2: its front
+    lens = layout.part("lens-1").template
+    front_most = float(lens.front_z(np.linspace(0.0, lens.outer_radius, 257)).min())
+    bore = layout.part("barrel").template.bore
+    assert min(z for _, z in bore) <= front_most + 1e-9
+    assert min(r for r, z in bore if z <= lens.edge_z()[0]) > lens.outer_radius   # no lip in front of the glass
+    assert any("bonded" in note for note in layout.notes)
+
+
 def test_alternatives_follow_what_the_refusal_names():
     """A spacer refused between two elements: that gap's seat is tried first (a shoulder, as the
     refusal suggests), then the rims and faces of those two elements, never another gap's seat."""

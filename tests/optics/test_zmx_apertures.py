@@ -97,3 +97,19 @@ def test_save_toml_of_a_vignetted_lens_writes_the_semi_diameters_its_factors_giv
     assert [s.clear_semi_diameter for s in converted.surfaces] == pytest.approx(
         [s.clear_semi_diameter for s in direct.surfaces], rel=1e-12)
     assert "clear_semi_diameter" in out.read_text()
+
+
+def test_a_circular_aperture_on_the_stop_smaller_than_the_pupil_sets_the_working_pupil(tmp_path):
+    """Edmund #47-728 (optiland's lens2.zmx): ENPD 15 mm, its stop on the front face with a 6.75 mm
+    circular aperture (CLAP). OpticStudio keeps 15 mm for its paraxial data and lets the aperture clip
+    the real rays; a front stop is its own entrance pupil, so the light that passes is a 13.5 mm pupil,
+    which inspect says and the lens carries (the mount's diaphragm and the realised pupil follow it)."""
+    p, notes = read_zmx_with_notes(CORPUS / "optiland-lens2.zmx")
+    assert p.stop_index == 0 and p.aperture.kind == "epd"
+    assert p.aperture.value == pytest.approx(2 * 6.75, rel=1e-12)
+    said = [n.what for n in notes if n.where == "aperture" and n.kind == "substituted"]
+    assert len(said) == 1 and "circular aperture 6.75 mm" in said[0] and "13.5 mm" in said[0]
+    # the file without its aperture keeps its 15 mm
+    bare = tmp_path / "lens2-no-clap.zmx"
+    bare.write_text(re.sub(r"^\s*CLAP .*$", "", read_text(CORPUS / "optiland-lens2.zmx"), flags=re.M))
+    assert read_zmx(bare).aperture.value == pytest.approx(15.0)

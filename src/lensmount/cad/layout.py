@@ -386,6 +386,18 @@ class _MountPlanner:
         self.retainers.append(PartPlan(name, "retainer", self.spec.finish_of(name, self.spec.retainer.finish), ret))
         return name, ret
 
+    def _bonded(self, el: PartPlan, side: int, R: float, surface: int) -> float:
+        """The barrel's end beside el (rim R), bonded by its edge ([seats] front/rear = "bonded"): flush with
+        the glass's farthest point on that side, so the bore covers the whole edge; nothing touches the face,
+        so its clear aperture (surface `surface`) may reach the rim, as a catalogue lens's file often has it."""
+        rs = np.linspace(0.0, R, 129)
+        z = el.template.front_z(rs).min() if side < 0 else el.template.back_z(rs).max()
+        which = "front" if side < 0 else "rear"
+        self.notes.append(f"{el.name}: bonded into the barrel by its ground edge (seats.{which} = 'bonded'), no ring "
+                          f"or shoulder on its {which} face (surface {surface + 1}), whose clear semi-diameter "
+                          f"{self.clear[surface]:.3f} mm leaves {R - self.clear[surface]:.3f} mm of its {R:.3f} mm rim")
+        return float(z)
+
     def _outer_diaphragm(self, od: float, face=None) -> Diaphragm:
         """A diaphragm on a stop in front of the first element or behind the last one (or on its face)."""
         dia = stop_diaphragm(self.spec, self.p, self.stop, od, float(self.p.vertex_z[self.stop]), face)
@@ -426,6 +438,9 @@ class _MountPlanner:
                 hd1 = max(dia.face_inner_radius("rear"), env.max_over(dz1, dz1 + 1.0) + spec.spacers.aperture_margin_mm)
                 self._add_spacers([(hd1, dz1, EPS_SLOPE, h0, float(el0.front_z(h0)), m, "diaphragm", first.name)],
                                   od, -1, s0)
+        elif spec.seats.front == "bonded":
+            z_front = self._bonded(first, -1, R0, s0)
+            self.bore_pts.append((bore0, z_front))
         elif spec.seats.front == "retainer":
             name, ret = self._retainer(first, h0, -1, R0, bore0 - c_sp)
             self.contacts.append(Contact(name, first.name, s0, h0, self.clear[s0]))
@@ -596,6 +611,9 @@ class _MountPlanner:
                 self._add_spacers([(hL, float(elL.back_z(hL)), m, hd0, dz0, EPS_SLOPE, last.name, "diaphragm")],
                                   od, sL, -1)
             self.bore_pts += [(boreL, rz(boreL)), (r_lip, rz(r_lip)), (r_lip, z_back)]
+        elif spec.seats.rear == "bonded":
+            z_back = self._bonded(last, +1, RL, sL)
+            self.bore_pts.append((boreL, z_back))
         elif spec.seats.rear == "shoulder":
             m = contact_slope(elL.back_z, hL, RL, +1, self.tangent, self.wedge)
             cz = lambda r: float(elL.back_z(hL)) + m * (r - hL)  # noqa: E731

@@ -10,7 +10,8 @@ involved (`lens-3`, `element 4`, `surface 6`, the diaphragm). The alternatives t
 planner's options for those lens groups, most specific first:
 
 - the seat of each group involved: shoulder, spacer, ring (retainer) or resting on its neighbour
-  (glass), and the front and rear seats of the first and last groups;
+  (glass), and the front and rear seats of the first and last groups (retainer, shoulder, or the
+  element bonded into the bore by its edge when the beam leaves no annulus on its face for either);
 - the group's rim (`lens_edge.semi_diameter_mm`): wider by half the edge allowance or by all of
   it, or narrower by a quarter of it, never inside the clear aperture plus contact margin and chamfer
   (and all the groups named wider together: a spacer's bore follows the narrower neighbour);
@@ -46,6 +47,7 @@ from lensmount.optics.prescription import Prescription
 MAX_TRIES = 40   # plans tried after the first ones (each a layout and its profile checks, 0.1-3 s)
 MAX_DEPTH = 6    # refusals mended one after the other on one path
 SEATS = ("shoulder", "spacer", "retainer", "glass")
+END_SEATS = ("retainer", "shoulder", "bonded")   # bonded last: a seat on the face is preferred where one fits
 
 
 @dataclass(frozen=True)
@@ -173,8 +175,10 @@ def alternatives(p: Prescription, mount: dict, why: Refusal) -> list[tuple[str, 
     def end_moves(k: int) -> None:   # the first group's front seat, the last group's rear seat
         for side, which in (("front", 0), ("rear", len(groups) - 1)):
             if k == which:
-                other = "shoulder" if mount["seats"][side] == "retainer" else "retainer"
-                changed(f"{side} seat a {other}", lambda m, side=side, other=other: m["seats"].update({side: other}))
+                for other in END_SEATS:
+                    if other != mount["seats"][side]:
+                        changed(f"{side} seat a {other}" if other != "bonded" else f"{side} element bonded by its edge",
+                                lambda m, side=side, other=other: m["seats"].update({side: other}))
 
     def rim_moves(k: int, wider: bool) -> None:
         g = groups[k]

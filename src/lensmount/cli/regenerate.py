@@ -139,6 +139,13 @@ def _init_from_lens(directory: Path, lens: Path) -> None:
     (directory / "scenes").mkdir(exist_ok=True)
     header = f"# mount.toml derived by `lensmount init --lens {lens.name}` (lensmount.cad.starter); " \
              "keys: docs/mount-toml.md\n"
+    bonded = [side for side in ("front", "rear") if mount["seats"][side] == "bonded"]
+    if bonded:   # the last seat init tries: said where the engineer reads, not only in regenerate's notes
+        said = (f"seats.{' and seats.'.join(bonded)} = 'bonded': the {' and '.join(bonded)} element held by an "
+                "adhesive bead on its ground edge: no retainer or shoulder on its face builds (a clear aperture reaching "
+                "the rim leaves no annulus for one; regenerate's notes give the sizes)")
+        header += f"# {said}\n"
+        typer.echo(f"note: {said}")
     write_text(directory / "finishes.toml", "# finishes.toml derived by `lensmount init` (lensmount.cad.starter): "
                "the design's finishes, coatings and which faces get which, shared by every scene\n"
                + tomli_w.dumps(starter_finishes(prescription)))

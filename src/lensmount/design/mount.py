@@ -61,8 +61,11 @@ class Seats(_Strict):
     """What holds each element: the seat on its object side."""
 
     contact: ContactStyle = "sharp"
-    front: Literal["retainer", "shoulder"] = "retainer"
-    rear: Literal["retainer", "shoulder"] = "shoulder"
+    front: Literal["retainer", "shoulder", "bonded"] = Field("retainer", description="what holds the first "
+        "element from the object side (bonded: an adhesive bead between its ground edge and the barrel's bore, "
+        "nothing on its face: the seat for a lens whose beam reaches its rim, no annulus left for a ring)")
+    rear: Literal["retainer", "shoulder", "bonded"] = Field("shoulder", description="what holds the last "
+        "element from the image side (as front)")
     default: Literal["spacer", "shoulder"] = "spacer"
     element: dict[int, Literal["spacer", "shoulder", "retainer", "glass"]] = Field(
         default_factory=dict, description="1-based element number → seat on its object side "

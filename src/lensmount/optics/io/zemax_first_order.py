@@ -73,7 +73,29 @@ def _with_aperture(p: Prescription, lens, notes, file, note) -> Prescription:
         out = Aperture("epd", stop.clear_semi_diameter / unit)
         text = f"float by stop size {stop.clear_semi_diameter:g} mm -> entrance pupil diameter {out.value:.6g} mm"
     notes.append(note("imported", "aperture", text))
-    return replace(p, aperture=out)
+    return _admitted_by_the_stop(replace(p, aperture=out), lens, notes, note)
+
+
+def _admitted_by_the_stop(p: Prescription, lens, notes, note) -> Prescription:
+    """The working aperture when a circular aperture (CLAP) on the stop surface is smaller than the
+    beam the system aperture sends through it: OpticStudio keeps the stated pupil for its paraxial data
+    and lets the stop's aperture vignette the real rays, so the beam that passes is the pupil the
+    aperture admits (paraxially scaled, as float by stop size scales it); lensmount takes that as the
+    pupil, so the diaphragm, the envelope and the F/# are those of the light that gets through."""
+    stop = next((zs for zs in lens.surfaces if zs.stop), None)
+    if p.aperture.kind not in ("epd", "fno") or stop is None or not stop.clap:
+        return p
+    par = paraxial(p)
+    clap = stop.clap * lens.unit
+    if par.stop_semi_diameter <= clap * (1.0 + 1e-9):
+        return p
+    epd = par.epd * clap / par.stop_semi_diameter
+    notes.append(note("substituted", "aperture",
+                      f"entrance pupil diameter {par.epd:.6g} mm fills the stop (SURF {stop.number}) to "
+                      f"{par.stop_semi_diameter:.4g} mm, beyond its circular aperture {clap:.4g} mm, which clips "
+                      f"the beam -> the entrance pupil that aperture admits: {epd:.6g} mm "
+                      f"(F/# {abs(par.efl) / epd:.4g} at infinity)"))
+    return replace(p, aperture=Aperture("epd", epd))
 
 
 def _image_marginal_slope(p: Prescription) -> float:
