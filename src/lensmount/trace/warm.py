@@ -25,7 +25,7 @@ def main() -> None:
     from lensmount.scene.build import build_scene
     from lensmount.physics.rays import RayBatch
     from lensmount.physics.sampler import Streams
-    from lensmount.trace import lens_kernel
+    from lensmount.trace import kernels, lens_kernel
     from lensmount.trace.tracer import Tracer
 
     start = time.perf_counter()
@@ -58,6 +58,9 @@ def main() -> None:
         tracer.intersect(rays)
         few = rays.subset(slice(0, 64))  # fewer than THREADED_FROM: the walk on one core
         tracer.next_event(few, Streams(0, "warm", np.arange(64)))
+    # Only a hit near a face it shares no vertex with asks for its neighbours; the rays above may meet none.
+    kernels.neighbours_near(np.zeros((1, 3)), np.zeros(1, np.int64), np.zeros(2, np.int64), np.zeros(0, np.int64),
+                            np.zeros((1, 2, 3)), np.zeros((1, 3)), np.zeros((1, 3)), 0.0)
     print(f"lensmount: tracer kernels compiled and cached ({time.perf_counter() - start:.1f} s)")
 
 
