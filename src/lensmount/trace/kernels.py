@@ -199,9 +199,9 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
         valid[i] = enters and not coplanar
     return t_out, lam, valid
 @njit(cache=True)
-def box_pairs(box, vid, pad):
+def box_pairs(box, vid, normal, pad):
     """(first (T + 1,), other (k,)): for each triangle, the others sharing no vertex with it (vid (T, 3):
-    vertex ids) whose bounding box (box (T, 2, 3): lo, hi) comes within pad of its own (CSR: triangle
+    vertex ids) and not parallel to it (unit normal (T, 3); see `neighbours_near`) whose bounding box (box (T, 2, 3): lo, hi) comes within pad of its own (CSR: triangle
     i's are other[first[i]:first[i + 1]], ascending). A sweep along x over the boxes sorted by their
     low x, counted then filled."""
     t_n = box.shape[0]
@@ -224,7 +224,9 @@ def box_pairs(box, vid, pad):
                 for a in range(3):
                     for b in range(3):
                         shared = shared or vid[i, a] == vid[j, b]
-                if (not shared and box[j, 0, 1] <= box[i, 1, 1] + 2.0 * pad and box[i, 0, 1] <= box[j, 1, 1] + 2.0 * pad
+                parallel = abs(normal[i, 0] * normal[j, 0] + normal[i, 1] * normal[j, 1]
+                               + normal[i, 2] * normal[j, 2]) >= 1.0 - 1e-9
+                if (not shared and not parallel and box[j, 0, 1] <= box[i, 1, 1] + 2.0 * pad and box[i, 0, 1] <= box[j, 1, 1] + 2.0 * pad
                         and box[j, 0, 2] <= box[i, 1, 2] + 2.0 * pad and box[i, 0, 2] <= box[j, 1, 2] + 2.0 * pad):
                     if pass_ == 1:
                         other[first[i] + count[i]] = j

@@ -89,7 +89,8 @@ class MechanicalFaces:
         # Faces beside each face, sharing none of its vertices (those are its ring): boxes within the
         # float32 noise band of its own (rule 2b).
         self._band = _BAND * self.margin
-        self._beside_first, self._beside = kernels.box_pairs(self._box, np.ascontiguousarray(vid, np.int64), self._band)
+        self._beside_first, self._beside = kernels.box_pairs(self._box, np.ascontiguousarray(vid, np.int64),
+                                                                   np.ascontiguousarray(self._n), self._band)
         self.has_faces = len(self.prims) > 0
         if self.has_faces:
             # Fat copies: scaled about the incentre so every edge moves out by `margin`.
