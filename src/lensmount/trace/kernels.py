@@ -198,7 +198,80 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
                     and abs(nx * tx + ny * ty + nz * tz) <= t_tol)
         valid[i] = enters and not coplanar
     return t_out, lam, valid
-__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table"]
+@njit(cache=True)
+def box_pairs(box, vid, normal, pad):
+    """(first (T + 1,), other (k,)): for each triangle, the others sharing no vertex with it (vid (T, 3):
+    vertex ids) and not parallel to it (unit normal (T, 3); see `neighbours_near`) whose bounding box (box (T, 2, 3): lo, hi) comes within pad of its own (CSR: triangle
+    i's are other[first[i]:first[i + 1]], ascending). A sweep along x over the boxes sorted by their
+    low x, counted then filled."""
+    t_n = box.shape[0]
+    order = np.argsort(box[:, 0, 0], kind="mergesort")
+    count = np.zeros(t_n, np.int64)
+    other = np.empty(0, np.int64)
+    first = np.zeros(t_n + 1, np.int64)
+    for pass_ in range(2):
+        if pass_ == 1:
+            first[1:] = np.cumsum(count)
+            other = np.empty(first[t_n], np.int64)
+            count[:] = 0
+        for k in range(t_n):
+            i = order[k]
+            for m in range(k + 1, t_n):
+                j = order[m]
+                if box[j, 0, 0] > box[i, 1, 0] + 2.0 * pad:
+                    break
+                shared = False
+                for a in range(3):
+                    for b in range(3):
+                        shared = shared or vid[i, a] == vid[j, b]
+                parallel = abs(normal[i, 0] * normal[j, 0] + normal[i, 1] * normal[j, 1]
+                               + normal[i, 2] * normal[j, 2]) >= 1.0 - 1e-9
+                if (not shared and not parallel and box[j, 0, 1] <= box[i, 1, 1] + 2.0 * pad and box[i, 0, 1] <= box[j, 1, 1] + 2.0 * pad
+                        and box[j, 0, 2] <= box[i, 1, 2] + 2.0 * pad and box[i, 0, 2] <= box[j, 1, 2] + 2.0 * pad):
+                    if pass_ == 1:
+                        other[first[i] + count[i]] = j
+                        other[first[j] + count[j]] = i
+                    count[i] += 1
+                    count[j] += 1
+    for i in range(t_n):
+        other[first[i]:first[i + 1]] = np.sort(other[first[i]:first[i + 1]])
+    return first, other
+
+
+@njit(cache=True)
+def neighbours_near(points, own, first, other, box, corner, normal, pad):
+    """(row (k,), triangle (k,)): for each point (m, 3) on triangle own (m,), the triangles listed
+    beside it (`box_pairs`) whose bounding box, padded by pad, holds the point and whose plane (a
+    corner, unit normal) passes within pad of it, not parallel to own's (a coplanar face is crossed at
+    the same distance, never nearer); rows in order."""
+    m = points.shape[0]
+    count = 0
+    row = np.empty(0, np.int64)
+    tri = np.empty(0, np.int64)
+    for pass_ in range(2):  # count, then fill
+        if pass_ == 1:
+            row = np.empty(count, np.int64)
+            tri = np.empty(count, np.int64)
+            count = 0
+        for i in range(m):
+            qx, qy, qz = points[i, 0], points[i, 1], points[i, 2]
+            o = own[i]
+            for s in range(first[o], first[o + 1]):
+                t = other[s]
+                if (box[t, 0, 0] - pad <= qx and qx <= box[t, 1, 0] + pad and box[t, 0, 1] - pad <= qy
+                        and qy <= box[t, 1, 1] + pad and box[t, 0, 2] - pad <= qz and qz <= box[t, 1, 2] + pad
+                        and abs(normal[t, 0] * (qx - corner[t, 0]) + normal[t, 1] * (qy - corner[t, 1])
+                                + normal[t, 2] * (qz - corner[t, 2])) <= pad
+                        and abs(normal[t, 0] * normal[o, 0] + normal[t, 1] * normal[o, 1]
+                                + normal[t, 2] * normal[o, 2]) < 1.0 - 1e-9):
+                    if pass_ == 1:
+                        row[count] = i
+                        tri[count] = t
+                    count += 1
+    return row, tri
+
+
+__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table", "box_pairs", "neighbours_near"]
 
 drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
 

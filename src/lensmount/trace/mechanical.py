@@ -12,6 +12,12 @@ intersection says so (to ~1e-12 of its size), whatever float32 rounding did:
    line misses the candidate, every triangle sharing a vertex with it (its ring) is
    intersected too and the nearest float64 hit among them is the answer: at a seam, at a
    knife edge (a 50 µm land and its two faces), at a concave corner.
+2b. *A nearer face within float32's noise.* Embree may order two crossings a few float32 roundings
+   apart either way (a vane's face ending on a bore wall, crossed nanometres before the wall). So
+   every face sharing no vertex with the answer's triangle whose box comes within `_BAND` margins
+   of its box (listed once, at build), and which is not parallel to it, is solved in float64 too
+   when its box and its plane pass within that band of the hit point; the nearest crossing wins.
+   Elsewhere (no such face near the point, the common case) this costs one lookup.
 3. *Relaunch along the line.* If nothing in the ring is hit near the candidate (the line
    passes a silhouette edge), every triangle whose box comes within the relaunch step of the
    candidate point is intersected in float64 too (a face that meets the candidate's edge without
@@ -41,6 +47,7 @@ from lensmount.trace import kernels
 _MARGIN_REL = 5e-7     # float32 candidate margin and relaunch step, relative to the assembly size
 _BARY_TOL = 1e-12      # float64 inside test: barycentric tolerance (closes seams exactly)
 _MAX_ROUNDS = 32
+_BAND = 4.0            # float32 noise band about an accepted hit, in margins (rule 2b)
 _EMBREE_MISS = 1e30
 
 
@@ -79,6 +86,11 @@ class MechanicalFaces:
         counts = np.bincount(vid.reshape(-1), minlength=int(vid.max()) + 1 if len(vid) else 0)
         self._vt_ptr = np.concatenate([[0], np.cumsum(counts)])
         self._vid = vid
+        # Faces beside each face, sharing none of its vertices (those are its ring): boxes within the
+        # float32 noise band of its own (rule 2b).
+        self._band = _BAND * self.margin
+        self._beside_first, self._beside = kernels.box_pairs(self._box, np.ascontiguousarray(vid, np.int64),
+                                                                   np.ascontiguousarray(self._n), self._band)
         self.has_faces = len(self.prims) > 0
         if self.has_faces:
             # Fat copies: scaled about the incentre so every edge moves out by `margin`.
@@ -189,6 +201,20 @@ class MechanicalFaces:
             if near.size:
                 row, tri = self._ring(cand[near])
                 self._nearest_of(near[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t64, loc)
+            # 2b. A face nearer than the accepted hit by less than float32's noise (Embree may order the
+            # two either way): any face whose box lies within the band of the hit point is solved in
+            # float64 too when its plane passes within the band as well, and the nearest crossing wins (a
+            # vane's face ending on a bore wall).
+            got = np.flatnonzero(np.isfinite(t64))
+            if got.size:
+                row, tri = kernels.neighbours_near(oo[got] + t64[got, None] * dd[got], loc[got],
+                                                   self._beside_first, self._beside, self._box, self._a, self._n,
+                                                   self._band)
+                if row.size:
+                    t_near, l_near = np.full(len(todo), np.inf), np.full(len(todo), -1, np.int64)
+                    self._nearest_of(got[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t_near, l_near)
+                    nearer = t_near < t64
+                    t64[nearer], loc[nearer] = t_near[nearer], l_near[nearer]
             # 3. Nothing in the ring: any face within the step of the candidate point (a T-junction).
             beside = np.flatnonzero(hit & ~clear & ~np.isfinite(t64))
             if beside.size:

@@ -60,6 +60,9 @@ def main() -> None:
         tracer.next_event(few, Streams(0, "warm", np.arange(64)))
     # Only rays past a silhouette edge ask for the boxes near a point; the rays above may meet none.
     kernels.boxes_near(np.zeros((1, 3)), np.zeros((1, 2, 3)), 0.0)
+    # Only a hit near a face it shares no vertex with asks for its neighbours; the rays above may meet none.
+    kernels.neighbours_near(np.zeros((1, 3)), np.zeros(1, np.int64), np.zeros(2, np.int64), np.zeros(0, np.int64),
+                            np.zeros((1, 2, 3)), np.zeros((1, 3)), np.zeros((1, 3)), 0.0)
     print(f"lensmount: tracer kernels compiled and cached ({time.perf_counter() - start:.1f} s)")
 
 
