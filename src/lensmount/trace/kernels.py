@@ -238,6 +238,13 @@ def box_pairs(box, vid, normal, pad):
     return first, other
 
 
+@njit(cache=True, inline="always")
+def _in_padded_box(box, t, qx, qy, qz, pad):
+    """Whether (qx, qy, qz) lies in triangle t's bounding box (box (T, 2, 3): lo, hi) padded by pad."""
+    return (box[t, 0, 0] - pad <= qx and qx <= box[t, 1, 0] + pad and box[t, 0, 1] - pad <= qy
+            and qy <= box[t, 1, 1] + pad and box[t, 0, 2] - pad <= qz and qz <= box[t, 1, 2] + pad)
+
+
 @njit(cache=True)
 def neighbours_near(points, own, first, other, box, corner, normal, pad):
     """(row (k,), triangle (k,)): for each point (m, 3) on triangle own (m,), the triangles listed
@@ -258,8 +265,7 @@ def neighbours_near(points, own, first, other, box, corner, normal, pad):
             o = own[i]
             for s in range(first[o], first[o + 1]):
                 t = other[s]
-                if (box[t, 0, 0] - pad <= qx and qx <= box[t, 1, 0] + pad and box[t, 0, 1] - pad <= qy
-                        and qy <= box[t, 1, 1] + pad and box[t, 0, 2] - pad <= qz and qz <= box[t, 1, 2] + pad
+                if (_in_padded_box(box, t, qx, qy, qz, pad)
                         and abs(normal[t, 0] * (qx - corner[t, 0]) + normal[t, 1] * (qy - corner[t, 1])
                                 + normal[t, 2] * (qz - corner[t, 2])) <= pad
                         and abs(normal[t, 0] * normal[o, 0] + normal[t, 1] * normal[o, 1]
@@ -269,11 +275,6 @@ def neighbours_near(points, own, first, other, box, corner, normal, pad):
                         tri[count] = t
                     count += 1
     return row, tri
-
-
-__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table", "box_pairs", "neighbours_near"]
-
-drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
 
 
 @njit(cache=True)
@@ -292,11 +293,14 @@ def boxes_near(points, box, pad):
         for i in range(m):
             qx, qy, qz = points[i, 0], points[i, 1], points[i, 2]
             for t in range(t_n):
-                if (box[t, 0, 0] - pad <= qx and qx <= box[t, 1, 0] + pad and box[t, 0, 1] - pad <= qy
-                        and qy <= box[t, 1, 1] + pad and box[t, 0, 2] - pad <= qz and qz <= box[t, 1, 2] + pad):
+                if _in_padded_box(box, t, qx, qy, qz, pad):
                     if pass_ == 1:
                         row[count] = i
                         tri[count] = t
                     count += 1
     return row, tri
 
+
+__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table", "box_pairs", "neighbours_near", "boxes_near"]
+
+drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
