@@ -100,7 +100,7 @@ class TerminalObserver(Observer):
         self.step_started.clear()
         self._say(text)
         if text.startswith("tracing:"):
-            self._wait_for_first_pass(time.monotonic())
+            self._wait_for_first_pass(time.monotonic(), bidirectional="bidirectional" in text)
 
     def _say(self, text: str) -> None:
         if self.live:
@@ -108,15 +108,16 @@ class TerminalObserver(Observer):
         else:
             typer.echo(text, err=True)
 
-    def _wait_for_first_pass(self, start: float) -> None:
-        """A line every HEARTBEAT_S until the first pass is merged: it builds the tracer and runs the
-        pilot and the view map before its photons, and was silent for minutes."""
+    def _wait_for_first_pass(self, start: float, bidirectional: bool) -> None:
+        """A line every HEARTBEAT_S until the first pass is merged: it builds the tracer and, in the
+        bidirectional method, runs the pilot and the view map before its photons, and was silent for minutes."""
         self.first_pass = done = threading.Event()
+        extra = ", aims the photons (pilot) and builds the view map" if bidirectional else ""
 
         def beat():
             while not done.wait(self.HEARTBEAT_S):
                 self._say(f"  pass 1 still running ({time.monotonic() - start:.0f} s): the first pass also loads "
-                          "the tracer, aims the photons (pilot) and builds the view map")
+                          f"the tracer{extra}")
 
         threading.Thread(target=beat, daemon=True).start()
 
