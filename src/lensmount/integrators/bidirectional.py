@@ -136,7 +136,7 @@ class Bidirectional:
         core[optical_faces(scene.mesh.tag_table)] = np.inf  # a scattering mirror: the photons count it (docstring)
         broad = np.isfinite(core)
         seen = face_tally(scene)
-        # None without a face to gather at (the plan's "scatter" is off).
+        # No hit points without a face to gather at (the plan's "scatter" is off).
         diagnostics: dict[str, float] = {}
         clock = phase_clock()
         hits = build_view_map(scene, tracer, scene.detector,
@@ -159,15 +159,15 @@ class Bidirectional:
         broad = np.isfinite(core)
         by_routes = route_reflections(scene, cfg)
         film, ledger = Film(scene, by_routes, seen=view.seen), EnergyLedger()
-        clock = phase_clock()  # the hit points' search trees: the gather's (this film's paths get its sums)
-        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
-                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
-        gather_s = phase_clock() - clock
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = phase_clock()
+        # the hit points' search trees, per film (its paths get the gather's sums): the gather's time
+        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
+        gather_s = phase_clock() - clock
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
