@@ -32,10 +32,10 @@ def test_bad_angles_are_one_paragraph_and_exit_2(tmp_path):
     assert not out.exists()
 
 
-def _small_scene(design: Path) -> Path:
-    """Case 2 (every mount face Lambertian 5 %) with the direct image on, a 30×30 detector, few photons."""
+def _small_scene(design: Path, direct: bool = True) -> Path:
+    """Case 2 (every mount face Lambertian 5 %) with the direct image on (or not), a 30×30 detector, few photons."""
     text = (design / "scenes" / "case2-lambertian.toml").read_text()
-    for old, new in (("pixels = [600, 600]", "pixels = [30, 30]"), ("direct = false", "direct = true"),
+    for old, new in (("pixels = [600, 600]", "pixels = [30, 30]"), ("direct = false", f"direct = {str(direct).lower()}"),
                      ("photons = 100_000", "photons = 10_000"), ("passes = 32", "passes = 8"),
                      ("target_rel_error = 0.05", "")):
         assert old in text
@@ -43,6 +43,36 @@ def _small_scene(design: Path) -> Path:
     path = design / "scenes" / "pst-small.toml"
     path.write_text(text)
     return path
+
+
+def test_each_angle_reads_as_if_run_alone(tmp_path):
+    """pst builds pass i's view map once and gathers every angle's photons of pass i at it. The
+    invariant: each angle's PST and error bar are exactly those of `simulate` of that angle alone
+    with the same seed (its own scene file, scene, tracer and view maps), while the angles differ."""
+    from lensmount.loop.simulate import SimulateOptions, simulate
+    from lensmount.physics.sources import entering_fraction
+
+    design = tmp_path / "design"
+    shutil.copytree(DESIGN, design, ignore=shutil.ignore_patterns("build", ".lensmount"))
+    scene = _small_scene(design, direct=False)
+    angles, seed, passes, photons = (0.0, 7.0, 20.0), 5, 3, 2_000
+    result = pst(PstOptions(design, scene, angles, passes=passes, photons_per_pass=photons, seed=seed,
+                            geometry=tmp_path / "geometry", workers=2))
+    text = scene.read_text()
+    for point in result.points:
+        alone = design / "scenes" / f"alone-{point.angle_deg:g}.toml"
+        alone.write_text(text.replace("off_axis_deg = 7.0", f"off_axis_deg = {point.angle_deg}"))
+        run = simulate(SimulateOptions(design, alone, seed=seed, passes=passes, photons_per_pass=photons,
+                                       geometry=tmp_path / "geometry", workers=1, record=False,
+                                       out=tmp_path / f"alone-{point.angle_deg:g}"))
+        s = run.summary
+        # E_in / E_sun: the mean of cos over the 0.53° sun (1 − 5e-6 on axis), as pst divides by
+        e_in = entering_fraction(point.angle_deg, math.radians(0.53) / 2)
+        assert s["passes"] == point.passes == passes
+        assert point.pst == pytest.approx(s["stray_flux_mm2"] / (44.5 * 44.5 * e_in), rel=1e-12, abs=0)
+        assert point.std_error == pytest.approx(s["stray_flux_std_error_mm2"] / (44.5 * 44.5 * e_in), rel=1e-9)
+    values = sorted(p.pst for p in result.points)
+    assert values[0] > 0 and values[1] > 1.5 * values[0] and values[2] > 1.5 * values[1]  # three different angles
 
 
 @pytest.mark.slow

@@ -1,6 +1,8 @@
 """Bidirectional stochastic ray tracing (Zhdanov et al. 2016) as independent progressive passes.
 
-One pass = three phases, as pbrt-v4's SPPM reads:
+One pass = three phases, as pbrt-v4's SPPM reads (`view_pass` is phase 1, `photon_pass` phases 2
+and 3, `run_pass` both; the view map does not depend on the source, so a sweep over source
+directions gathers every direction's photons of pass i at pass i's view map, `ViewMap`):
 
 1. View map (`view_map.build_view_map`): backward samples from every pixel, through
    the optics, to the first broad scatterer they meet → hit points with weight τ,
@@ -45,14 +47,16 @@ whichever worker runs it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from lensmount.integrators.estimate import (
-    AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, film_channels,
-    phase_clock, phase_times, scattering_tags)
+    AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
+    film_channels, phase_clock, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
+from lensmount.integrators.paths import FaceTally
 from lensmount.integrators.photon_target import COMPONENTS, aims_at_edge, edge_band, emission_component, guided_photons
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
@@ -104,7 +108,8 @@ def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
 
 class Bidirectional:
     """Bidirectional stochastic ray tracing (see the module docstring); the `Integrator` contract:
-    `channels(scene)` and `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`."""
+    `channels(scene)`, `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`, and its
+    two halves `view_pass` (phase 1) and `photon_pass` (phases 2 and 3)."""
 
     name = "bidirectional"
     purpose = "photons"
@@ -118,18 +123,20 @@ class Bidirectional:
     def run_pass(self, scene, tracer, pass_index: int, photons: int, seed: int,
                  radius_scale: float | None = None) -> PassEstimate:
         """One complete, independent pass; radius_scale None: s_i of the settings' alpha schedule."""
+        view = self.view_pass(scene, tracer, pass_index, seed, radius_scale)
+        return self.photon_pass(scene, tracer, view, pass_index, photons, seed)
+
+    def view_pass(self, scene, tracer, pass_index: int, seed: int, radius_scale: float | None = None) -> "ViewMap":
+        """Phase 1 of pass `pass_index`: the view map, which does not depend on the source (`ViewMap`)."""
         cfg = self.settings
         scale = radius_scale_of(pass_index, cfg) if radius_scale is None else float(radius_scale)
         half_widths, boundaries = _scene_tables(scene, cfg.radius_cap_mm, cfg.normal_limit_deg)
-        scatters = scattering_tags(scene)
         core = gather_cores(scene.bsdf_of_tag, cfg.glossy_threshold_deg, cfg.gathered_share)
-        core[~scatters] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
+        core[~scattering_tags(scene)] = np.inf  # scatter off: every mechanical face absorbs, nothing is gathered
         core[optical_faces(scene.mesh.tag_table)] = np.inf  # a scattering mirror: the photons count it (docstring)
         broad = np.isfinite(core)
-        by_routes = route_reflections(scene, cfg)
-        film, ledger = Film(scene, by_routes), EnergyLedger()
-
-        # Phase 1: the view map (none without a face to gather at: the plan's "scatter" is off).
+        seen = face_tally(scene)
+        # No hit points without a face to gather at (the plan's "scatter" is off).
         diagnostics: dict[str, float] = {}
         clock = phase_clock()
         hits = build_view_map(scene, tracer, scene.detector,
@@ -137,15 +144,30 @@ class Bidirectional:
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
-                              faces=film.faces) if broad.any() else HitPoints.empty()
-        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
-                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
-        view_map_s, gather_s = phase_clock() - clock, np.zeros(2)
+                              faces=seen) if broad.any() else HitPoints.empty()
+        return ViewMap(int(pass_index), int(seed), scale, hits, core, seen, diagnostics, phase_clock() - clock)
+
+    def photon_pass(self, scene, tracer, view: "ViewMap", pass_index: int, photons: int, seed: int) -> PassEstimate:
+        """Phases 2 and 3 of pass `pass_index` on its view map: photons from `scene`'s source, gathered at
+        the view's hit points. `scene` may differ from the view's only in its source (`ViewMap`)."""
+        if (view.pass_index, view.seed) != (int(pass_index), int(seed)):
+            raise ValueError(f"the view map of pass {view.pass_index} (seed {view.seed}) given to pass {pass_index} "
+                             f"(seed {seed}): a pass's photons are gathered at its own view map")
+        cfg = self.settings
+        scatters = scattering_tags(scene)
+        core, hits, diagnostics = view.core, view.hits, dict(view.diagnostics)
+        broad = np.isfinite(core)
+        by_routes = route_reflections(scene, cfg)
+        film, ledger = Film(scene, by_routes, seen=view.seen), EnergyLedger()
 
         # Phase 2: photons, walked as in the forward estimator; at every scattering face they
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = phase_clock()
+        # the hit points' search trees, per film (its paths get the gather's sums): the gather's time
+        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
+        gather_s = phase_clock() - clock
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
@@ -166,7 +188,7 @@ class Bidirectional:
                                            ev.tag[f].astype(np.int32), ev.wavelength[f],
                                            film.paths.extend(step.signature[f], ev.tag[f])))
                 gather_s += phase_clock() - start
-        diagnostics.update(phase_times(view_map=view_map_s, gather=gather_s,
+        diagnostics.update(phase_times(view_map=view.seconds, gather=gather_s,
                                        walk=phase_clock() - clock - gather_s))
 
         if by_routes:  # the ghosts channel's two- (four-) reflection light, deterministically
@@ -179,11 +201,43 @@ class Bidirectional:
         film.add_images(parts_g)
         estimate = film.estimate(photons, ledger, diagnostics)
         # The same pass with every gather radius on the ladder (only the gathered part changes): the bias estimate.
-        estimate.radius_scale = scale
+        estimate.radius_scale = view.radius_scale
         estimate.part_flux_ladder = (estimate.part_flux - parts_g.sum(axis=(1, 2)) * film.detector.pixel_area
                                      + gatherer.part_flux_ladder(film.channel_of_tag, len(film.channels))
                                      * film.detector.pixel_area)
         return estimate
+
+
+@dataclass
+class ViewMap:
+    """Phase 1 of a bidirectional pass: all of it that does not depend on the source.
+
+    The backward samples start on the detector and their numbers are keyed by (seed, pass, pixel,
+    sample); where they stop (broad faces), the radii (the pass's s_i, r_0 from the hit points
+    themselves) and the edge target's pilot (backward rays from the detector, `targets.learned_rim`)
+    read the mesh, the finishes, the effects, the optics and the detector, never the source. So one
+    view map serves the photons of any source of the same scene (`Bidirectional.photon_pass`; `pst`
+    gathers every angle's photons of pass i at pass i's view map). What does read the source stays
+    in the photon phase: the photons' aim at the diaphragm edge (`photon_target.edge_band`, a pilot
+    of photons), the ghost routes, the emission.
+
+    pass_index, seed : the pass it belongs to
+    radius_scale : s_i, the pass's gather radius relative to r_0
+    hits : the hit points with their radii (none when nothing is gathered)
+    core : (n_tags,) per face the lobe core the photons count (`gather_cores`; inf: nothing gathered)
+    seen : the faces the detector sees first from each pixel (`paths.FaceTally`, the film's `seen`)
+    diagnostics : the backward samples traced and lost (`view_map.build_view_map`'s stats)
+    seconds : (wall, CPU) seconds it took (the plan's view-map phase)
+    """
+
+    pass_index: int
+    seed: int
+    radius_scale: float
+    hits: HitPoints
+    core: np.ndarray
+    seen: FaceTally
+    diagnostics: dict[str, float]
+    seconds: np.ndarray
 
 
 def _tally_edge_flux(diagnostics: dict, component: np.ndarray, flux: np.ndarray) -> None:
@@ -207,4 +261,4 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
                                                                  radius_scale=radius_scale)
 
 
-__all__ = ["Bidirectional", "bidirectional_pass", "gather_cores", "radius_scale_of"]
+__all__ = ["Bidirectional", "ViewMap", "bidirectional_pass", "gather_cores", "radius_scale_of"]

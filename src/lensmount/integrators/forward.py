@@ -21,8 +21,8 @@ BATCH = 200_000  # photons per batch: bounds memory, not the result (numbers are
 
 
 class Forward:
-    """Forward light tracing (see the module docstring); the `Integrator` contract:
-    `channels(scene)` and `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`."""
+    """Forward light tracing (see the module docstring); the `Integrator` contract: `channels(scene)`,
+    `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`, `view_pass` (none) and `photon_pass`."""
 
     name = "forward"
     purpose = "forward"
@@ -37,6 +37,14 @@ class Forward:
     def run_pass(self, scene, tracer, pass_index: int, photons: int, seed: int,
                  radius_scale: float | None = None) -> PassEstimate:
         """One independent pass of N = `photons` photons (radius_scale: unused, nothing is gathered)."""
+        return self.photon_pass(scene, tracer, None, pass_index, photons, seed)
+
+    def view_pass(self, scene, tracer, pass_index: int, seed: int, radius_scale: float | None = None) -> None:
+        """Nothing: a forward pass has no view map (the `Integrator` contract)."""
+        return None
+
+    def photon_pass(self, scene, tracer, view: None, pass_index: int, photons: int, seed: int) -> PassEstimate:
+        """The whole pass (`run_pass`); view: `view_pass`'s None."""
         by_routes = route_reflections(scene, self.settings)
         film, ledger = Film(scene, by_routes), EnergyLedger()
         first = int(pass_index) * int(photons)

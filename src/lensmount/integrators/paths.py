@@ -21,6 +21,7 @@ the étendue with which the detector sees it (critical, from the view map's back
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 
@@ -213,6 +214,13 @@ class FaceTally:
         old_t, old_p, old_v = self._images
         keys, sums = _sparse_sum(np.concatenate([old_t * n_binned + old_p, keys]), np.concatenate([old_v, sums]))
         self._images = (keys // n_binned, keys % n_binned, sums)
+
+    def copy(self) -> "FaceTally":
+        """An independent tally holding what this one holds (`add_*` on either leaves the other as it is)."""
+        other = copy.copy(self)
+        other.lit = self.lit.copy()
+        other.seen = None if self.seen is None else self.seen.copy()
+        return other  # `_images` is a tuple of arrays that `add_seen` replaces, never writes into
 
     def finish(self) -> PassFaces:
         return PassFaces(self.lit.copy(), None if self.seen is None else self.seen.copy(), *self._images)

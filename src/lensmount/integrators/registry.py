@@ -24,6 +24,12 @@ class Integrator(Protocol):
     run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None): photon k of pass i is
     photon i·photons + k of the run, so a pass is the same in any worker; radius_scale None
     follows the settings' schedule (integrators without a gather radius ignore it).
+
+    run_pass = photon_pass(scene, tracer, view_pass(scene, tracer, pass_index, seed, radius_scale),
+    pass_index, photons, seed): `view_pass` is the part of a pass that does not depend on the source
+    (bidirectional: the view map; None for an integrator without one), so a sweep over sources
+    (`loop.pst`) computes it once per pass for all of them; `photon_pass` takes a scene that differs
+    from the view's only in its source.
     """
 
     name: str
@@ -34,6 +40,10 @@ class Integrator(Protocol):
 
     def run_pass(self, scene: Scene, tracer, pass_index: int, photons: int, seed: int,
                  radius_scale: float | None = None) -> PassEstimate: ...
+
+    def view_pass(self, scene: Scene, tracer, pass_index: int, seed: int, radius_scale: float | None = None): ...
+
+    def photon_pass(self, scene: Scene, tracer, view, pass_index: int, photons: int, seed: int) -> PassEstimate: ...
 
 
 INTEGRATORS: dict[str, type[Integrator]] = {"bidirectional": Bidirectional, "forward": Forward}

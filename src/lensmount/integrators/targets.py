@@ -58,6 +58,7 @@ WIDE_SHARE = 0.2  # band samples drawn in the wide band (near misses of the fit)
 WIDE_FACTOR = 8.0  # its half width in h
 
 _CACHE: dict[tuple, tuple] = {}
+PILOTS_KEPT = 1024  # entries of one tracer in a pilot cache (`cached_pilot`): a sweep has ≤ 1000 angles
 
 
 def _basis(s: np.ndarray, dphi: np.ndarray) -> np.ndarray:
@@ -96,9 +97,14 @@ def azimuth_pmf(tried: np.ndarray, got: np.ndarray) -> np.ndarray:
 
 def cached_pilot(cache: dict, key: tuple, scene, tracer, pilot):
     """`pilot()` once per key in this process. The entry keeps scene and tracer alive, so their ids
-    (in the key) cannot be reused by other objects while it exists; a few entries at most."""
+    (in the key) cannot be reused by other objects while it exists. Beyond a few entries only those of
+    this tracer are kept: they share its mesh and BVH (a pst sweep's worker keeps one photon pilot per
+    angle, whose scenes differ in their source alone), while each other tracer would hold its own."""
     if key not in cache:
         if len(cache) > 8:
+            for old in [k for k, entry in cache.items() if entry[1] is not tracer]:
+                del cache[old]
+        if len(cache) >= PILOTS_KEPT:
             cache.clear()
         cache[key] = (scene, tracer, pilot())
     return cache[key][2]

@@ -8,19 +8,28 @@ dominates (PST of order the relative aperture area); past the field edge only st
 is left and the curve drops by orders of magnitude.
 
 What does not change with the source direction is built once: the mount geometry (the
-regenerate cache) and the Scene's mesh, optics, finishes and detector. Each angle only swaps
-the source (`make_source`) and runs its passes on the `Runner`, on every core as `simulate`
-does (each worker builds the angle's tracer, an Embree BVH, once). The bidirectional view map is built per pass, inside
-`bidirectional_pass`, with the pass's own radius; it does not depend on the source, but
-sharing it across angles would need the estimator split into its view and photon phases,
-which `integrators.bidirectional` does not offer, so each angle still pays for it.
+regenerate cache), the Scene's mesh, optics, finishes and detector, each worker's tracer (an
+Embree BVH; the workers live for the whole sweep) and, per pass, the bidirectional view map
+(`Bidirectional.view_pass`: backward samples from the detector, which read no source). The
+sweep runs pass-major: a job is pass i of every angle still running, one view map and then
+each angle's photons gathered at it (`Bidirectional.photon_pass`, the scene with that angle's
+source); each angle merges its passes in order into its own Accumulator and stops at its own
+target, exactly where it would alone. What reads the source stays per angle: the emission,
+the photons' aim at a diaphragm edge (its pilot, once per worker and angle), the ghost routes.
+
+So an angle's value and error bar are those of a `simulate` of that angle with the same seed
+(photon k of pass i and the backward samples of pass i are keyed by (seed, i) alone), and its
+passes stay independent of one another: pass i and pass j see different view maps, so the
+batch-means error bar holds. Different angles are correlated, though: angle a's pass i and
+angle b's pass i gather at the same hit points, so their errors share the view map's part
+(neighbouring points of the curve move together; a difference between two angles is not
+as uncertain as their two error bars say).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -37,7 +46,7 @@ from lensmount.loop.provenance import collect
 from lensmount.loop.simulate import SimulateOptions, check_options
 from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
 from lensmount.run.results import save_figure
-from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
+from lensmount.run.runner import Runner, Stopping, default_workers
 from lensmount.run.signals import Terminated
 from lensmount.scene.scene import EFFECT_NAMES
 
@@ -87,6 +96,9 @@ class PstOptions:
 
 @dataclass(frozen=True)
 class PstPoint:
+    """One angle's PST; time_s: seconds into the sweep when its last pass was merged (the angles run
+    together, pass by pass, so the time of one angle alone is not measured)."""
+
     angle_deg: float
     pst: float
     std_error: float | None  # None: unknown (one pass)
@@ -104,6 +116,69 @@ class PstResult:
     method: str
     effects: list[str]
     provenance: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SourcesJob:
+    """Pass `index` of every angle still running (`sources`: its place in the sweep → its Source), on
+    one view map; picklable, as the runner's PassJob."""
+
+    method: str
+    photons: int
+    seed: int
+    index: int
+    settings: EstimatorSettings
+    sources: dict
+
+
+SWEEP_PASS = "lensmount.loop.pst:sweep_pass"
+_SCENES: dict = {}  # this worker's scene per angle for the run's scene (see `_with_source`)
+
+
+def sweep_pass(scene, tracer, job: SourcesJob) -> dict:
+    """In a worker: pass `job.index`'s view map once, then each angle's photons gathered at it; of each
+    angle's pass, its totals ({place in the sweep: PassEstimate}). `tracer` is the base scene's: a
+    tracer reads the mesh, the optics and the detector, never the source."""
+    integrator = INTEGRATORS[job.method](job.settings)
+    view = integrator.view_pass(scene, tracer, job.index, job.seed)
+    return {k: integrator.photon_pass(_with_source(scene, k, source), tracer, view, job.index, job.photons,
+                                      job.seed).totals()
+            for k, source in job.sources.items()}
+
+
+def _with_source(scene, k: int, source):
+    """`scene` with angle k's source, the same object for every pass in this worker: the photons' pilot
+    (`photon_target.edge_band`) is kept per scene, and would otherwise run again every pass."""
+    if _SCENES.get("base") is not scene:  # a new sweep (holding the base keeps its id from being reused)
+        _SCENES.clear()
+        _SCENES["base"] = scene
+    if k not in _SCENES:
+        _SCENES[k] = dataclasses.replace(scene, source=source)
+    return _SCENES[k]
+
+
+class AngleTally:
+    """The runner's accumulator for a sweep: each angle's Accumulator gets its own passes in order and
+    stops by `stopping` as a run of that angle alone would; `running` are the angles not stopped yet
+    (the next jobs carry only them), `stopped` those stopped, in the order they stopped. As a
+    stopping rule (`done`) it holds when every angle has stopped."""
+
+    def __init__(self, accumulators: list[Accumulator], stopping: Stopping):
+        self.accumulators, self.stopping = accumulators, stopping
+        self.running, self.stopped = list(range(len(accumulators))), []
+        self.n, self.last_pass, self.elapsed_s = 0, -1, 0.0
+        self.max_passes = stopping.max_passes
+
+    def add(self, estimates: dict, pass_index: int) -> None:
+        for k in self.running:
+            self.accumulators[k].add(estimates[k], pass_index=pass_index)
+        self.n, self.last_pass = self.n + 1, int(pass_index)
+        done = [k for k in self.running if self.stopping.done(self.accumulators[k], self.elapsed_s)]
+        self.running = [k for k in self.running if k not in done]
+        self.stopped += done
+
+    def done(self, _tally, _elapsed: float) -> bool:
+        return not self.running
 
 
 def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: float, entering_fraction: float
@@ -148,29 +223,35 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     area = det.width * det.height
     field_edge = float(design.prescription.max_field_deg)
     settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
+    sources = [make_source(spec.source.model_copy(update={"off_axis_deg": float(a), "azimuth_deg": azimuth}),
+                           base.front_opening, base.mesh, det, design.prescription) for a in o.angles_deg]
+    # Only each pass's totals travel and are kept (`PassEstimate.totals`): PST needs no image.
+    names = INTEGRATORS[o.method](settings).channels(base)
+    tally = AngleTally([Accumulator.empty((1, 1), names, det.pixel_area) for _ in sources],
+                       Stopping(target_rel_error=target, max_passes=passes))
+    stopped: dict[int, PstPoint] = {}  # place in the sweep → its point, as the angles stop
 
-    points = []
-    for angle in o.angles_deg:
-        source_spec = spec.source.model_copy(update={"off_axis_deg": float(angle), "azimuth_deg": azimuth})
-        scene = dataclasses.replace(base, source=make_source(source_spec, base.front_opening, base.mesh, det,
-                                                                  design.prescription))
-        start = time.perf_counter()
-        names = INTEGRATORS[o.method](settings).channels(scene)
-        acc = Accumulator.empty((det.ny, det.nx), names, det.pixel_area)
-        runner = Runner(scene, lambda i: PassJob(o.method, per_pass, seed, i, settings), acc,
-                        workers=o.workers or default_workers())
-        runner.run(Stopping(target_rel_error=target, max_passes=passes))
-        if runner.interrupted:  # the sweep stops with the signal, as the passes did
-            raise Terminated() if runner.terminated else KeyboardInterrupt()
-        value, se = pst_of(acc.flux, acc.flux_std_error, area, scene.source.entering_fraction)
-        point = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons,
-                         time.perf_counter() - start)
-        points.append(point)
-        err = f" ± {se:.2g}" if se is not None else ""
-        say(f"{angle:g}°: PST {value:.4g}{err} ({'in' if point.in_field else 'outside'} the field, "
-            f"{point.time_s:.1f} s)")
+    def job(index: int) -> SourcesJob:
+        return SourcesJob(o.method, per_pass, seed, index, settings, {k: sources[k] for k in tally.running})
+
+    def merged(_, elapsed: float) -> None:
+        for k in tally.stopped:
+            if k in stopped:
+                continue
+            acc, angle = tally.accumulators[k], o.angles_deg[k]
+            value, se = pst_of(acc.flux, acc.flux_std_error, area, sources[k].entering_fraction)
+            stopped[k] = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons, elapsed)
+            err = f" ± {se:.2g}" if se is not None else ""
+            say(f"{angle:g}°: PST {value:.4g}{err} ({'in' if stopped[k].in_field else 'outside'} the field, "
+                f"{acc.n} passes, {elapsed:.1f} s into the sweep)")
+
+    workers = o.workers or default_workers()
+    runner = Runner(base, job, tally, workers=workers, progress=merged, run_pass_path=SWEEP_PASS, window=workers)
+    runner.run(tally)
+    if runner.interrupted:  # the sweep stops with the signal, as the passes did
+        raise Terminated() if runner.terminated else KeyboardInterrupt()
     effects = [k for k in EFFECT_NAMES if getattr(base.effects, k)]
-    return PstResult(points, field_edge, azimuth, o.method, effects, provenance)
+    return PstResult([stopped[k] for k in range(len(sources))], field_edge, azimuth, o.method, effects, provenance)
 
 
 def write_pst(out: Path, result: PstResult) -> dict[str, Path]:

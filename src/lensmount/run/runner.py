@@ -87,9 +87,11 @@ class Runner:
 
     Args:
         scene: the Scene (sent to each worker once).
-        make_job: pass index -> PassJob.
+        make_job: pass index -> PassJob (or what `run_pass_path` takes).
         accumulator: where passes go (a resumed one continues after its last pass, and its
-            `elapsed_s` keeps counting, so the run's time is the total over resumed parts).
+            `elapsed_s` keeps counting, so the run's time is the total over resumed parts). An
+            Accumulator, or anything with its `add(result, pass_index)`, `n`, `last_pass`, `elapsed_s`
+            that `stopping.done` reads (`loop.pst`'s tally of every angle's Accumulator).
         workers: local processes; 1 runs in this process (tests, debugging). Ignored when
             `executor` is given.
         executor: where passes run (`lensmount.run.executor.executor_for`); default from `workers`.
@@ -97,12 +99,15 @@ class Runner:
             and on stop; `checkpoint_meta` goes along (seed, input hash, method).
         progress: called after every merged pass with (accumulator, elapsed seconds).
         tracer_path: "module:Class" building the tracer from the scene.
+        run_pass_path: "module:function" computing a job in a worker, (scene, tracer, job) -> result.
+        window: passes in flight at once (default: two per worker, so none waits for a merge; a sweep
+            whose jobs carry only the angles still running takes one per worker: fewer passes past a stop).
     """
 
     def __init__(self, scene, make_job: Callable[[int], PassJob], accumulator: Accumulator, *, workers: int = 1,
                  executor: Executor | None = None, checkpoint: str | os.PathLike | None = None,
                  checkpoint_meta: dict | None = None, checkpoint_every: int = 8, progress: Callable | None = None,
-                 tracer_path: str = TRACER):
+                 tracer_path: str = TRACER, run_pass_path: str = RUN_PASS, window: int | None = None):
         self.scene = scene
         self.make_job = make_job
         self.acc = accumulator
@@ -112,6 +117,8 @@ class Runner:
         self.every = max(1, checkpoint_every)
         self.progress = progress
         self.tracer_path = tracer_path
+        self.run_pass_path = run_pass_path
+        self.window = window
         self.interrupted = False
         self.terminated = False  # stopped by SIGTERM rather than Ctrl-C
         self.workers_gone: str | None = None  # stopped because no Dask worker came back: why
@@ -142,7 +149,7 @@ class Runner:
         with stop_on_signals():
             try:
                 try:
-                    self.executor.start(self.scene, self.tracer_path, RUN_PASS)
+                    self.executor.start(self.scene, self.tracer_path, self.run_pass_path)
                     self._run(stopping, start, base)
                 finally:
                     self.executor.close()
@@ -167,7 +174,7 @@ class Runner:
         # Keep a window of passes in flight; merge finished ones strictly in pass order.
         next_index = self.acc.last_pass + 1
         finished: dict[int, PassEstimate] = {}
-        window = 2 * self.executor.workers if self.executor.workers > 1 else 1
+        window = self.window or (2 * self.executor.workers if self.executor.workers > 1 else 1)
         last = next_index + max(stopping.max_passes - self.acc.n, 0)  # no pass past the limit is started
         while not stopping.done(self.acc, base + time.perf_counter() - start):
             while self.executor.in_flight + len(finished) < window and next_index < last:
