@@ -397,6 +397,7 @@ def boxes_near(points, box, pad, lo, cell, dims, first, member):
     return row, tri
 
 
-__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table", "box_pairs", "neighbours_near", "box_grid", "boxes_near"]
+__all__ = ["conic_roots", "sequential_step", "triangle_crossings", "face_table", "box_pairs", "neighbours_near",
+           "box_grid", "boxes_near"]
 
 drop_damaged(globals())  # a damaged cache file is compiled again, not loaded (trace.jit_cache)
