@@ -9,8 +9,17 @@ Figures printed:
    Both on one core, same machine, same run.
 2. Photon gather: time to gather M photons into H hit points (cKDTree pairs), showing
    near-linear scaling in M.
+3. The phases of a pass (`phases`): case 1 and case 2 as `simulate` traces them (the plan's scene,
+   the scene's photons per pass), one warm-up pass then `PHASE_PASSES` passes on one core: CPU
+   seconds of the view map, the photon walk and the gather, and the view map's CPU per backward
+   segment (`Tracer.segments`) against the forward walk's per segment measured in the same process:
+   a bundle of FORWARD_BUNDLE photons of the scene's source through the same tracer (`Tracer.next_event`,
+   one batch: the issue's "forward walk per segment"), and the pass's own photon walk (its BSDF sampling,
+   film and roulette included; case 1's 2·10⁴ photons a pass make small batches). Ratios within one
+   process hold on a loaded machine; the seconds are CPU.
 
-`python benchmarks/bench_bidirectional.py [budget_seconds]` (default 60 s per method).
+`python benchmarks/bench_bidirectional.py [budget_seconds]` (default 60 s per method);
+`python benchmarks/bench_bidirectional.py phases` for 3 alone.
 """
 
 from __future__ import annotations
@@ -26,6 +35,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 DESIGN = ROOT / "examples" / "double-gauss-360"
 TARGET = 0.05
+
+
+PHASE_PASSES = 2
+FORWARD_BUNDLE = 200_000
+VIEW_MAP_CPU = "time/scatter: view map (hit points), CPU"
+GATHER_CPU = "time/scatter: gather at hit points, CPU"
+WALK_CPU = "time/photon walk (scatter, direct and ghosts together), CPU"
 
 
 def _case1_scene():
@@ -124,10 +140,76 @@ def bench_gather() -> None:
         print(f"  {m:>9,} photons: {dt:7.3f} s  ({1e6 * dt / m:.2f} µs/photon, {g.pairs_tested:,} pairs so far)")
 
 
+def bench_phases(case: str) -> dict:
+    """One case's phases (item 3 of the module docstring): per measured pass the CPU seconds by phase and
+    the segments of the view map and of the photon walk; printed, and returned summed."""
+    from lensmount.integrators import bidirectional as bidir
+    from lensmount.integrators.plan import plan
+    from lensmount.integrators.settings import EstimatorSettings
+    from lensmount.integrators.walk import emit_photons
+    from lensmount.loop.prepare import build, read_inputs
+    from lensmount.physics.sampler import Streams
+    from lensmount.trace.tracer import Tracer
+
+    design, spec = read_inputs(DESIGN, DESIGN / "scenes" / f"{case}.toml")
+    settings = EstimatorSettings()
+    scene = plan(build(design, spec, Path(tempfile.gettempdir()) / "lensmount-bench-geometry").scene,
+                 settings).scene
+    tracer = Tracer(scene)
+    integrator = bidir.Bidirectional(settings)
+    seg = {"view map": 0}
+    build_view_map = bidir.build_view_map
+
+    def counted(*args, **kwargs):  # the view map's segments; the rest of a pass's are the photons'
+        start = tracer.segments
+        out = build_view_map(*args, **kwargs)
+        seg["view map"] += tracer.segments - start
+        return out
+
+    bidir.build_view_map = counted
+    try:
+        integrator.run_pass(scene, tracer, 0, spec.run.photons, spec.run.seed)  # pilots, compiled code
+        bundle = emit_photons(scene, 1, "bench", 0, FORWARD_BUNDLE, FORWARD_BUNDLE)
+        tracer.segments, c0 = 0, time.process_time()
+        tracer.next_event(bundle, Streams(1, "bench", bundle.id))
+        forward = (time.process_time() - c0) / tracer.segments
+        print(f"  {case}: forward bundle ({FORWARD_BUNDLE:,} photons of the source, one batch) "
+              f"{1e9 * forward:.0f} ns per segment ({tracer.segments:,})")
+        total = dict(view_map=0.0, walk=0.0, gather=0.0, view_segments=0, walk_segments=0)
+        for i in range(1, 1 + PHASE_PASSES):
+            seg["view map"], tracer.segments = 0, 0
+            d = integrator.run_pass(scene, tracer, i, spec.run.photons, spec.run.seed).diagnostics
+            vm, wk, ga = d[VIEW_MAP_CPU], d[WALK_CPU], d[GATHER_CPU]
+            vs, ws = seg["view map"], tracer.segments - seg["view map"]
+            print(f"  {case} pass {i}: CPU view map {vm:.2f} s, photon walk {wk:.2f} s, gather {ga:.2f} s; "
+                  f"view map {1e9 * vm / vs:.0f} ns per backward segment ({vs:,}) = {vm / vs / forward:.2f}x the "
+                  f"forward bundle's; photon walk {1e9 * wk / ws:.0f} ns per segment ({ws:,})")
+            for k, v in (("view_map", vm), ("walk", wk), ("gather", ga), ("view_segments", vs),
+                         ("walk_segments", ws)):
+                total[k] += v
+    finally:
+        bidir.build_view_map = build_view_map
+    per_backward = total["view_map"] / total["view_segments"]
+    print(f"  {case}, {PHASE_PASSES} passes: CPU view map {total['view_map']:.2f} s, photon walk {total['walk']:.2f} s,"
+          f" gather {total['gather']:.2f} s; view map per backward segment = {per_backward / forward:.2f}x the forward"
+          f" bundle's (target 2x), {per_backward / (total['walk'] / total['walk_segments']):.2f}x the photon walk's")
+    return total
+
+
+def phases() -> None:
+    print(f"phases of a pass, one core, CPU ({PHASE_PASSES} passes after a warm-up)")
+    for case in ("case1-diaphragm-edge", "case2-lambertian"):
+        bench_phases(case)
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["phases"]:
+        phases()
+        return
     budget = float(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].replace(".", "").isdigit() else 60.0
     bench_gather()
     bench_case1(budget)
+    phases()
 
 
 if __name__ == "__main__":

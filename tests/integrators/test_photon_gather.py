@@ -127,3 +127,31 @@ def test_glossy_rule_routes_by_the_share_of_the_lobe_a_gather_can_catch():
     share_sampled = w[np.hypot(t[:, 0], t[:, 1]) >= cone].sum() / w.sum()
     assert share_sampled == pytest.approx(share0, abs=0.03)
     assert 0.25 < gatherable_share(abg, cone) < 0.6
+
+
+def test_each_hit_point_gathers_the_photons_of_its_wavelength_within_each_rung_of_its_radius():
+    """Radii spread over two octaves and two wavelengths, against every (hit point, photon) pair summed
+    directly: a photon of the other wavelength, or beyond r · BIAS_LADDER[l], adds nothing to rung l
+    (the pair test that runs before the normals, `_pairs_in_reach`)."""
+    from lensmount.integrators.photon_gather import BIAS_LADDER
+
+    rng = np.random.default_rng(3)
+    h, m = 300, 4000
+    up = np.tile([0.0, 0.0, 1.0], (h, 1))
+    hits = HitPoints(np.column_stack([rng.uniform(0, 10, (h, 2)), np.zeros(h)]), up, up, np.ones(h),
+                     np.arange(h, dtype=np.int64), np.zeros(h, np.int32), rng.integers(0, 2, h).astype(np.int32),
+                     rng.uniform(0.2, 0.8, h))
+    flux = rng.uniform(0.5, 1.5, m)
+    photons = PhotonHits(np.column_stack([rng.uniform(0, 10, (m, 2)), np.zeros(m)]), np.tile([0.0, 0.0, -1.0], (m, 1)),
+                         np.tile([0.0, 0.0, 1.0], (m, 1)), flux, np.zeros(m, np.int32),
+                         rng.integers(0, 2, m).astype(np.int32))
+    g = Gatherer(hits, [Lambert(0.3)])
+    g.gather(photons)
+    d = np.linalg.norm(hits.position[:, None, :] - photons.position[None, :, :], axis=2)
+    same = hits.wavelength[:, None] == photons.wavelength[None, :]
+    for rung, scale in enumerate(BIAS_LADDER):
+        inside = same & (d < scale * hits.radius[:, None])
+        expected = inside @ flux * 0.3 / math.pi / (math.pi * (scale * hits.radius) ** 2)
+        assert np.allclose(g.radiance_ladder[:, rung], expected, rtol=1e-12, atol=0.0)
+    assert np.allclose(g.radiance, g.radiance_ladder[:, 0], rtol=1e-12, atol=0.0)
+    assert (g.radiance > 0).sum() > 0.9 * h

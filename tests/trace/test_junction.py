@@ -228,16 +228,18 @@ def test_no_ray_in_a_million_passes_the_vane_root_junction():
 def test_boxes_near_a_point_are_every_padded_box_that_holds_it():
     """The compiled search (`kernels.boxes_near`) against a plain numpy containment test, points on
     and just off box walls included (the comparisons are inclusive)."""
-    from lensmount.trace.kernels import boxes_near
+    from lensmount.trace.kernels import box_grid, boxes_near
 
     rng = np.random.default_rng(4)
     lo = rng.uniform(-30.0, 30.0, size=(5000, 3))
     box = np.stack([lo, lo + rng.uniform(0.0, 3.0, size=(5000, 3))], axis=1)
     points = np.concatenate([rng.uniform(-30.0, 33.0, size=(40, 3)), box[:10, 0] - 0.25, box[10:20, 1] + 0.2500001])
-    pad = 0.25
-    row, tri = boxes_near(points, box, pad)
-    ref = [(i, t) for i, q in enumerate(points)
-           for t in np.flatnonzero(np.all((box[:, 0] - pad <= q) & (q <= box[:, 1] + pad), axis=1))]
-    assert list(zip(row.tolist(), tri.tolist())) == [(int(i), int(t)) for i, t in ref]
-    assert len(ref) > 20
-    assert [len(a) for a in boxes_near(np.zeros((0, 3)), box, pad)] == [0, 0]
+    grid = box_grid(box)
+    for pad in (0.25, 1e3):  # a few cells about each point; a pad spanning the grid (every box tested)
+        row, tri = boxes_near(points, box, pad, *grid)
+        ref = [(i, t) for i, q in enumerate(points)
+               for t in np.flatnonzero(np.all((box[:, 0] - pad <= q) & (q <= box[:, 1] + pad), axis=1))]
+        assert list(zip(row.tolist(), tri.tolist())) == [(int(i), int(t)) for i, t in ref]
+        assert len(ref) > 20
+    assert [len(a) for a in boxes_near(np.zeros((0, 3)), box, 0.25, *grid)] == [0, 0]
+    assert [len(a) for a in boxes_near(np.array([[np.nan, 0.0, 0.0]]), box, 0.25, *grid)] == [0, 0]

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from lensmount.integrators.settings import EstimatorSettings
@@ -215,25 +216,27 @@ class Gatherer:
             pairs = htree.sparse_distance_matrix(ptree, rmax, output_type="ndarray")
             if len(pairs) == 0:
                 continue
-            hi = hidx[pairs["i"]]
-            pj = pidx[pairs["j"]]
             self.pairs_tested += len(pairs)
+            # The scalar tests first, compiled, on every pair (~3 in 4 fail: another wavelength, beyond the
+            # hit point's own widest disc); the normals are gathered only for the pairs left, in order.
+            near = _pairs_in_reach(pairs["i"], pairs["j"], pairs["v"], hidx, pidx, h.radius, self._reach,
+                                   h.wavelength, photons.wavelength)
+            if not len(near):
+                continue
+            hi, pj, v = hidx[pairs["i"][near]], pidx[pairs["j"][near]], pairs["v"][near]
             n_h = h.normal[hi]
             wi = -photons.direction[pj]
-            keep = ((pairs["v"] < self._reach * h.radius[hi])
-                    & (h.wavelength[hi] == photons.wavelength[pj])
-                    & (np.einsum("ij,ij->i", n_h, photons.normal[pj]) > self._cos_ladder.min())
-                    & (np.einsum("ij,ij->i", n_h, wi) > 0.0))
+            cos_n = np.einsum("ij,ij->i", n_h, photons.normal[pj])
+            keep = (cos_n > self._cos_ladder.min()) & (np.einsum("ij,ij->i", n_h, wi) > 0.0)
             if not keep.any():
                 continue
-            hi, pj, wi, n_h = hi[keep], pj[keep], wi[keep], n_h[keep]
-            cos_n = np.einsum("ij,ij->i", n_h, photons.normal[pj])
+            hi, pj, wi, n_h, v, cos_n = hi[keep], pj[keep], wi[keep], n_h[keep], v[keep], cos_n[keep]
             f = np.asarray(bsdf.eval(wi, h.omega_o[hi], n_h), dtype=np.float64)
             core = 0.0 if self.core_of_tag is None else float(self.core_of_tag[tag])
             if core > 0:  # the lobe's core is the photons' to count (glossy rule): gather the rest only
                 f = np.where(outside_core(wi, h.omega_o[hi], n_h, core), f, 0.0)
             contrib = np.maximum(f, 0.0) * photons.flux[pj]
-            distance = pairs["v"][keep] / h.radius[hi]
+            distance = v / h.radius[hi]
             ladder = ((distance[:, None] < np.asarray(BIAS_LADDER)) & (cos_n[:, None] > self._cos_ladder)
                       ) / h.area_ladder[hi]
             if not np.all(np.isfinite(contrib[:, None] * ladder)):  # never zeroed: it hides light
@@ -271,6 +274,22 @@ class Gatherer:
         flat = ch.astype(np.int64) * (ny * nx) + h.pixel
         per_channel = np.bincount(flat, weights=value, minlength=n_channels * ny * nx)[: n_channels * ny * nx]
         return image, per_channel.reshape(n_channels, ny, nx)
+
+
+@njit(cache=True)
+def _pairs_in_reach(i, j, distance, hidx, pidx, radius, reach, hit_wavelength, photon_wavelength):
+    """Positions (ascending) of the pairs (hit point hidx[i], photon pidx[j] at `distance`) within reach × the
+    hit point's radius and of its wavelength: the numpy test's comparisons, one pair at a time (no (pairs,)
+    temporaries: case 1 tests ~8 × 10⁶ pairs a pass and keeps ~1 in 4)."""
+    out = np.empty(len(i), np.int64)
+    n = 0
+    for k in range(len(i)):
+        h = hidx[i[k]]
+        p = pidx[j[k]]
+        if distance[k] < reach * radius[h] and hit_wavelength[h] == photon_wavelength[p]:
+            out[n] = k
+            n += 1
+    return out[:n]
 
 
 __all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]

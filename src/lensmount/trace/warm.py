@@ -59,7 +59,7 @@ def main() -> None:
         few = rays.subset(slice(0, 64))  # fewer than THREADED_FROM: the walk on one core
         tracer.next_event(few, Streams(0, "warm", np.arange(64)))
     # Only rays past a silhouette edge ask for the boxes near a point; the rays above may meet none.
-    kernels.boxes_near(np.zeros((1, 3)), np.zeros((1, 2, 3)), 0.0)
+    kernels.boxes_near(np.zeros((1, 3)), np.zeros((1, 2, 3)), 0.0, *kernels.box_grid(np.zeros((1, 2, 3))))
     # Only a hit near a face it shares no vertex with asks for its neighbours; the rays above may meet none.
     kernels.neighbours_near(np.zeros((1, 3)), np.zeros(1, np.int64), np.zeros(2, np.int64), np.zeros(0, np.int64),
                             np.zeros((1, 2, 3)), np.zeros((1, 3)), np.zeros((1, 3)), 0.0)
