@@ -81,6 +81,24 @@ def test_finite_object_with_object_height_and_na_and_working_f_number():
     assert 1.0 / (2 * abs(u2)) == pytest.approx(5.0, rel=1e-9)
 
 
+def test_a_finite_objects_field_angle_is_the_chief_rays_angle_at_the_entrance_pupil():
+    """FTYP 0 with an object at a finite distance: OpticStudio measures the angle from the paraxial
+    entrance pupil's centre, so the object point is (d + z_EP) tan(theta) high. Here the stop is surface 1
+    (z_EP = 0): 200 tan 5° by hand; and Thorlabs MAP105050-A's 4° is its SURF 0 DIAM, 3.629181535504 mm,
+    as OpticStudio wrote it (it was read as a 4 mm height)."""
+    from pathlib import Path
+
+    from lensmount.design.lens import load_lens
+
+    lens, _ = _lens(ftyp=0, field=5, obj=200)
+    assert lens.object_heights_mm[1] == pytest.approx(200.0 * math.tan(math.radians(5.0)), rel=1e-12)
+    chief = chief_ray(lens, [lens.object_heights_mm[1]], clip=False)
+    d = chief.start_directions[0]
+    assert math.degrees(math.atan(math.hypot(d[0], d[1]) / d[2])) == pytest.approx(5.0, abs=1e-9)
+    p = load_lens(Path(__file__).parent / "corpus" / "thorlabs-MAP105050-A.zmx")
+    assert p.object_heights_mm[1] == pytest.approx(3.629181535504, abs=1e-9)
+
+
 def test_coordinate_breaks_that_undo_each_other_import_and_one_that_tilts_a_lens_is_refused():
     undone = ["SURF 1", "  TYPE COORDBRK", "  PARM 3 5", "  DISZ 0", "SURF 2", "  DISZ 0",
               "SURF 3", "  TYPE COORDBRK", "  PARM 3 -5", "  DISZ 2"]

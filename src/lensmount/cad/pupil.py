@@ -1,7 +1,9 @@
 """The entrance pupil the mount realises, measured on the mesh with real rays.
 
 On-axis rays of the primary wavelength enter parallel to the axis at height rho and
-azimuth phi; the sequential trace (`optics.realrays`) gives each one's path through
+azimuth phi (from a finite object: leave the axial object point towards the point at rho, phi
+of the paraxial entrance pupil's plane);
+the sequential trace (`optics.realrays`) gives each one's path through
 the glass, and every straight piece of that path is tested against the mount's
 triangles with Embree (the optical faces excepted: the trace already refracted
 there). For each azimuth the largest rho whose ray reaches the image plane without
@@ -70,8 +72,13 @@ class MountHits:
 
 def _first_block(hits: MountHits, p: Prescription, rho: np.ndarray, phi: np.ndarray, wl: float, z0: float):
     """Per ray: index of the first mount triangle on its path (-1: reaches the image)."""
-    o = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), np.full(len(rho), z0)])
-    d = np.tile([0.0, 0.0, 1.0], (len(rho), 1))
+    pupil = np.column_stack([rho * np.cos(phi), rho * np.sin(phi)])
+    if p.finite_object:   # from the axial object point through the entrance pupil's plane at rho
+        o = np.tile([0.0, 0.0, -p.object_distance], (len(rho), 1))
+        d = np.column_stack([pupil, np.full(len(rho), p.object_distance + paraxial(p, wl).entrance_pupil_z)])
+    else:
+        o = np.column_stack([pupil, np.full(len(rho), z0)])
+        d = np.tile([0.0, 0.0, 1.0], (len(rho), 1))
     rays = trace(p, o, d, wl, clip=False)
     path = np.concatenate([o[None], rays.points], axis=0)  # (S+2, N, 3)
     first = np.full(len(rho), -1)

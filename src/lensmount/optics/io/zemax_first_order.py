@@ -142,8 +142,11 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
     elif kind == 3:
         values = _real_image_height_fields(p, values, par, file, lens.field_type_line)
     if p.finite_object:
-        heights = tuple(values)
         d = p.object_distance + par.entrance_pupil_z
+        # OpticStudio measures a field angle from the paraxial entrance pupil's centre on the axis:
+        # the object point of angle theta is d tan(theta) high (Thorlabs MAP105050-A: 4° -> 3.629 mm,
+        # its SURF 0 DIAM)
+        heights = tuple(d * math.tan(math.radians(v)) for v in values) if kind == 0 else tuple(values)
         angles = tuple(_unique([math.degrees(math.atan(h / d)) for h in heights]))
         out = replace(p, object_heights_mm=heights, field_angles_deg=angles)
         shown = ", ".join(f"{h:.4g}" for h in heights) + " mm object heights"
@@ -152,7 +155,7 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
         shown = ", ".join(f"{a:.4g}" for a in values) + "° field angles"
     out = replace(out, vignetting=tuple(factors))
     given = ", ".join(f"{math.hypot(x, y):g}" for x, y in zip(xs, ys))
-    text = f"fields as {_FIELD_TYPES[kind]} {given}" + ("" if kind in (0, 1) else f" -> {shown}")
+    text = f"fields as {_FIELD_TYPES[kind]} {given}" + ("" if kind == 1 or (kind == 0 and not p.finite_object) else f" -> {shown}")
     notes.append(note("imported", "fields", text))
     return out
 
