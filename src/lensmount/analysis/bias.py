@@ -91,7 +91,7 @@ def ladder_bias(flux: np.ndarray, ladder: np.ndarray, t_factor) -> BiasBound:
     at_r = abs(float(ladder[:, _R].mean()))
     if abs(d.mean()) > MAX_STEP * at_r:
         return BiasBound(None, float(d.mean()), False,
-                         f"the estimate changes by {100 * abs(d.mean()) / at_r:.0f} % when the gather radius doubles: "
+                         f"the estimate changes {_share(abs(d.mean()), at_r)} when the gather radius doubles: "
                          "the radius is not small against the light's structure (a lit feature far smaller than the "
                          "radius, or a seen window narrower than it), and no power of the radius can be trusted to "
                          "extrapolate that far; more passes (the radius shrinks) or a smaller radius (--neighbours)", p)
@@ -102,6 +102,11 @@ def ladder_bias(flux: np.ndarray, ladder: np.ndarray, t_factor) -> BiasBound:
     widen = t_factor(n) / math.sqrt(n)
     se, se_corrected = np.std(flux, ddof=1) * widen, np.std(flux - d, ddof=1) * widen
     return BiasBound(float(abs(d.mean()) + 2.0 * max(se_corrected - se, 0.0)), float(d.mean()), True, "", p)
+
+
+def _share(change: float, value: float) -> str:
+    """'by 35 %', or 'from zero' when the value at r is 0 (no division by it)."""
+    return f"by {100 * change / value:.0f} %" if value > 0 else "from zero"
 
 
 def _flattening(steps: np.ndarray) -> float | None:
