@@ -4,6 +4,7 @@ beam (every ray passes, some ray touches each rim) and by exact straight-line ge
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,10 +36,28 @@ def test_automatic_semi_diameters_pass_the_whole_beam_and_touch_it(double_gauss)
     np.testing.assert_allclose(peak, csd, atol=0.01)
 
 
-def test_stop_semi_diameter_is_the_paraxial_marginal_height(double_gauss):
+def test_stop_semi_diameter_is_where_the_real_axial_ray_at_epd_over_2_crosses_the_stop(double_gauss):
+    """The ray parallel to the axis at EPD/2, traced by hand here, sets the stop (not the paraxial
+    height, 16.306 mm: the front group's spherical aberration moves the real ray 8 µm)."""
     stop = double_gauss.stop_index
-    assert double_gauss.surfaces[stop].clear_semi_diameter == pytest.approx(
-        paraxial(double_gauss).stop_semi_diameter, rel=1e-12)
+    h = paraxial(double_gauss).epd / 2.0
+    rim = trace(double_gauss, [[0.0, h, -5.0]], [[0.0, 0.0, 1.0]], clip=False)
+    assert double_gauss.surfaces[stop].clear_semi_diameter == pytest.approx(rim.points[stop, 0, 1], rel=1e-12)
+    assert abs(rim.points[stop, 0, 1] - paraxial(double_gauss).stop_semi_diameter) > 1e-3
+
+
+@pytest.mark.parametrize("name, opticstudio", [
+    ("thorlabs-ACL2520-A.zmx", 9.149889739468),      # a strong asphere before the stop: paraxially 6.808 mm
+    ("US00583336-2-scaled.zmx", 4.215000499256)])    # paraxially 4.2508 mm
+def test_stop_semi_diameter_is_opticstudios_automatic_stop_diam(name, opticstudio):
+    """OpticStudio's automatic stop DIAM (flag 0, written in the file) is the real axial ray's height at
+    EPD/2; B270's index (lensmount's table, not Zemax's catalogue) leaves 0.2 µm on ACL2520-A."""
+    from lensmount.design.lens import load_lens
+    from lensmount.optics.realrays import stop_semi_diameter
+
+    p = load_lens(Path(__file__).parent / "corpus" / name)
+    assert stop_semi_diameter(p) == pytest.approx(opticstudio, abs=5e-4)
+    assert abs(paraxial(p).stop_semi_diameter - opticstudio) > 0.03
 
 
 def test_margin_is_added_to_automatic_semi_diameters_only(double_gauss_raw):

@@ -2,7 +2,7 @@
 
 On-axis rays of the primary wavelength enter parallel to the axis at height rho and
 azimuth phi (from a finite object: leave the axial object point towards the point at rho, phi
-of the paraxial entrance pupil's plane);
+of the paraxial entrance pupil's plane, as `optics.realrays.axial_rim_ray` does at the rim);
 the sequential trace (`optics.realrays`) gives each one's path through
 the glass, and every straight piece of that path is tested against the mount's
 triangles with Embree (the optical faces excepted: the trace already refracted

@@ -16,9 +16,8 @@ import numpy as np
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.apertures import beam_envelope
-from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
-from lensmount.optics.realrays import trace
+from lensmount.optics.realrays import axial_rim_ray
 from lensmount.templates.diaphragm import Diaphragm
 
 if TYPE_CHECKING:
@@ -88,8 +87,7 @@ def pupil_edge_radius(prescription: Prescription, z0: float, z1: float) -> float
     """
     if prescription.object_telecentric:   # the object-space NA is the aperture: the stop passes every field's beam
         return float(beam_envelope(prescription, np.linspace(z0, z1, 9)).max())
-    h = 0.5 * paraxial(prescription).epd
-    rays = trace(prescription, np.array([[0.0, h, -1.0]]), np.array([[0.0, 0.0, 1.0]]), clip=False)
+    rays = axial_rim_ray(prescription)   # from a finite object: from the axial object point
     pts = np.concatenate([rays.origins[None], rays.points], axis=0)[:, 0]  # (S+2, 3) polyline
     zs = np.linspace(z0, z1, 9)
     return float(np.interp(zs, pts[:, 2], np.abs(pts[:, 1])).max())

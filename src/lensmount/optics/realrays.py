@@ -14,9 +14,11 @@ that point to its launch point. Rays are launched on the plane z = 0
 ray parameter are fine in a sequential trace) and their launch points are solved
 by Newton's method so that each ray crosses the *stop* at the requested
 normalised pupil coordinate times the stop semi-diameter (real-ray aiming, as
-Zemax's "ray aiming: real"). The stop semi-diameter is the paraxial marginal-ray
-height at the stop (Zemax's rule), so real on-axis marginal rays enter at EPD/2
-only up to the spherical aberration of the lenses in front of the stop. A lens with
+Zemax's "ray aiming: real"). The stop semi-diameter is where the real on-axis ray
+through the rim of the entrance pupil (EPD/2) crosses the stop, as OpticStudio sizes
+an automatic stop, so the real on-axis beam enters at exactly the designed EPD: the
+paraxial height differs from it by the spherical aberration of the lenses in front of
+the stop (a strong asphere there: 6.81 mm against 9.15 mm). A lens with
 telecentric object space is aimed as Zemax does: chief rays parallel to the axis, the
 pupil in direction cosines of the object-space NA, no stop involved.
 """
@@ -27,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.optics.paraxial import indices, marginal_heights, paraxial
+from lensmount.optics.paraxial import indices, marginal_heights, marginal_start, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.snell import reflect, refract
@@ -164,11 +166,33 @@ def field_direction(field_deg) -> np.ndarray:
     return np.stack([np.zeros_like(a), np.sin(a), np.cos(a)], axis=1)
 
 
+def axial_rim_ray(prescription: Prescription, wavelength_um: float | None = None) -> RealRays:
+    """The real on-axis ray through the rim of the paraxial entrance pupil (N = 1, clip off): at
+    infinity parallel to the axis at EPD/2, from a finite object from the axial object point
+    towards the pupil's rim (`paraxial.marginal_start`). Its first point (`origins`) is in object
+    space: 1 mm before surface 1's vertex plane, or the object point."""
+    par = paraxial(prescription, wavelength_um)
+    y1, u = marginal_start(prescription, par.epd, par.entrance_pupil_z)
+    if prescription.finite_object:
+        origin, direction = [0.0, 0.0, -prescription.object_distance], [0.0, y1, prescription.object_distance]
+    else:
+        origin, direction = [0.0, y1, -1.0], [0.0, 0.0, 1.0]
+    return trace(prescription, np.array([origin]), np.array([direction]), wavelength_um, clip=False)
+
+
 def stop_semi_diameter(prescription: Prescription, wavelength_um: float | None = None) -> float:
-    """Stop semi-diameter: the paraxial marginal-ray height at the stop for the entrance
-    pupil diameter (Zemax's rule with ray aiming on: the aperture sets the stop size
-    paraxially; real rays are then aimed to fill it)."""
-    return paraxial(prescription, wavelength_um).stop_semi_diameter
+    """Stop semi-diameter: the height at which the real on-axis ray through the rim of the
+    entrance pupil crosses the stop (`axial_rim_ray`), as OpticStudio sizes an automatic stop
+    (its DIAM: 9.1499 mm for Thorlabs ACL2520-A, whose paraxial height is 6.81 mm). Where that
+    ray is lost before the stop (it misses a surface, or is totally reflected) the paraxial
+    height stands, and the real beam's trace names the surface."""
+    par = paraxial(prescription, wavelength_um)
+    stop = prescription.stop_index
+    rim = axial_rim_ray(prescription, wavelength_um)
+    at = int(rim.vignetted_at[0])
+    if 0 <= at <= stop:
+        return par.stop_semi_diameter
+    return float(np.hypot(*rim.points[stop, 0, :2]))
 
 
 def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | None = None,
@@ -346,5 +370,5 @@ def _safe_norm(v: np.ndarray) -> np.ndarray:
     return np.where(n > 0.0, n, 1.0)
 
 
-__all__ = ["RealRays", "trace", "aim", "field_direction", "stop_semi_diameter",
+__all__ = ["RealRays", "trace", "aim", "field_direction", "axial_rim_ray", "stop_semi_diameter",
            "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]
