@@ -178,10 +178,9 @@ def _envelope_beam(prescription: Prescription) -> tuple:
 
 def _stop_passing_the_rim(prescription: Prescription) -> Prescription:
     """The lens with a stop that passes the rays aimed at its rim. The mount's diaphragm passes the
-    designed pupil (cad.seats.pupil_edge_radius), so a stop DIAM a hair under the paraxial marginal ray
-    (the Cooke triplet's 3.8 mm for 3.8046 mm; Zemax's real-ray 4.215 mm for US 583,336's paraxial
-    4.251 mm) must not drop the rim rays the beam is aimed with from the envelope or the automatic
-    semi-diameters behind it."""
+    designed pupil (cad.seats.pupil_edge_radius), so a stop DIAM a hair under the height at which the
+    real axial ray at EPD/2 crosses it (the Cooke triplet's 3.8 mm for 3.861 mm) must not drop the rim rays
+    the beam is aimed with from the envelope or the automatic semi-diameters behind it."""
     stop = prescription.surfaces[prescription.stop_index]
     r_stop = (1.0 + 1e-6) * stop_semi_diameter(prescription)
     if stop.clear_semi_diameter is None or stop.clear_semi_diameter >= r_stop or prescription.object_telecentric:
