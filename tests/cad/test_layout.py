@@ -146,3 +146,31 @@ def test_cooke_housing_is_closed_against_the_narrow_barrel(examples_dir):
     assert housing.inner_radius > barrel.outer_radius  # the detector is wider than the lens
     assert housing.flange_radius is not None and housing.flange_radius < barrel.outer_radius
     assert hood.flange_radius is not None and hood.flange_radius < barrel.outer_radius
+
+
+def test_the_diaphragm_is_judged_against_the_beam_its_land_passes(examples_dir):
+    """The Cooke example's stop is the flint's curved rear face: the land sits 11 µm behind it at the rim,
+    where the 20° beam aimed at the face's rim runs 35 µm past the land's radius (its rays leave at a
+    slope of ~0.68). The land stops those rays (it is the stop); the rays it passes leave its rear end
+    inside its radius, so the 45° bevel, which opens 0.76 mm per mm with the plate's cone, clears them.
+    A 70° bevel opens 0.33 mm per mm: rays the land passes meet it, and the check refuses it."""
+    from lensmount.cad.checks import check_beam
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import load_mount
+    from lensmount.optics.realrays import aim, trace
+
+    lens = load_lens(examples_dir / "cooke-triplet" / "lens.toml")
+    spec = load_mount(examples_dir / "cooke-triplet" / "mount.toml")
+    layout = plan(lens, spec)
+    dia = layout.part("diaphragm").template
+    z0, z1, r = dia.land_range()
+    o, d = aim(lens, [20.0], [[0.0, 1.0]])      # the 20° beam's upper rim ray, aimed at the stop face
+    ray = trace(lens, o, d, clip=False)
+    p, q = ray.points[lens.stop_index, 0], ray.points[lens.stop_index + 1, 0]
+    y1 = p[1] + (z1 - p[2]) * (q[1] - p[1]) / (q[2] - p[2])
+    assert y1 - r > 0.02                        # past the land: the land stops it
+    check_beam(layout, {q.name: outline(q.template.segments()) for q in layout.parts})
+    steep = spec.model_copy(update={"diaphragm": spec.diaphragm.model_copy(update={"bevel_angle_deg": 70.0})})
+    layout = plan(lens, steep)
+    with pytest.raises(GeometryError, match="diaphragm enters the beam"):
+        check_beam(layout, {q.name: outline(q.template.segments()) for q in layout.parts})

@@ -133,3 +133,20 @@ def test_envelope_is_finite_everywhere(double_gauss):
     z = np.array([-1e4, -1.0, 0.0, 150.91, 502.0, 1e4])
     env = beam_envelope(double_gauss, z)
     assert np.all(np.isfinite(env)) and np.all(env > 0)
+
+
+def test_a_land_behind_the_stop_passes_the_field_beam_displaced_by_its_distance_times_the_slope():
+    """Hand-traced: the stop a plane in air at z = 0, 20 mm in front of a singlet, object at infinity: in that
+    gap every ray of field theta is straight and parallel, the ray through stop point p at p + z tan(theta) y.
+    A diaphragm's land of radius a = EPD/2 (the axial rim ray's, parallel at a) from z0 to z1 behind the stop
+    passes the rays inside a at both ends, so behind it the widest is the one leaving z1 at its rim:
+    a + (z - z1) tan(theta); the beam aimed at the stop reaches a + z tan(theta). (It fails when the land's
+    cut is not applied, and when only the stop-aimed rays are filtered: they sample the passed rim coarsely.)"""
+    a, theta, z0, z1 = 5.0, 10.0, 4.0, 4.05
+    lens = Prescription((Surface(math.inf, 20.0, is_stop=True), Surface(60.0, 5.0, "N-BK7"), Surface(-60.0, 50.0)),
+                        Aperture("epd", 2 * a), field_angles_deg=(0.0, theta))
+    t = math.tan(math.radians(theta))
+    z = np.array([4.5, 8.0, 15.0])
+    np.testing.assert_allclose(beam_envelope(lens, z), a + z * t, rtol=1e-9)
+    np.testing.assert_allclose(beam_envelope(lens, z, (z0, z1, a)), a + (z - z1) * t, rtol=1e-9)
+    assert beam_envelope(lens, [0.5 * (z0 + z1)], (z0, z1, a))[0] <= a + 1e-6   # inside the land: the land itself

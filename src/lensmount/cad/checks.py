@@ -6,8 +6,8 @@ reaches into the other) is the number the error reports. Checks:
 
 * any two parts: no overlap deeper than OVERLAP_TOL_MM (contacts touch, never cut);
 * spacers, retainers and shoulders touch lenses outside the clear aperture;
-* no mechanical face enters the beam footprint (real rays, full field), the
-  diaphragm's knife edge excepted (it *is* the stop);
+* no mechanical face enters the beam footprint (real rays, full field); for the
+  diaphragm, whose land *is* the stop, the beam its land passes (`apertures.beam_through_land`);
 * lens edge to bore clearance at least `checks.min_radial_clearance_mm`;
 * plates and walls at least `checks.min_thickness_mm` (knife-edge lands excepted);
 * glass and metal either touch at a designed contact, the metal leaving the glass
@@ -99,7 +99,7 @@ def check_interference(outlines: dict[str, np.ndarray]) -> None:
 
 
 def check_beam(layout: Layout, outlines: dict[str, np.ndarray]) -> None:
-    """No mechanical part's profile reaches into the beam envelope (diaphragm edge excepted)."""
+    """No mechanical part's profile reaches into the beam envelope (the diaphragm: the beam its land passes)."""
     if layout.beam is not None:  # a folded path: the rays themselves, past the central obscuration
         layout.beam.check(layout, outlines)
         return
@@ -110,16 +110,16 @@ def check_beam(layout: Layout, outlines: dict[str, np.ndarray]) -> None:
             continue
         pts = _densify(outlines[plan.name])
         pts = pts[(pts[:, 1] >= z_lo) & (pts[:, 1] <= z_hi)]
-        if plan.kind == "diaphragm":
-            # the land at the stop radius *is* the aperture: only the rest must clear the beam
-            pts = pts[pts[:, 0] > plan.template.inner_radius + 1e-6]
+        # the diaphragm's land *is* the stop: the rays it stops are its to stop (a land off a curved
+        # stop face stops a sliver of an off-axis beam aimed at the face); what it passes must clear it
+        land = plan.template.land_range() if plan.kind == "diaphragm" else None
         if not len(pts):
             continue
         near = pts[:, 0] < env.at(pts[:, 1]) + _NEAR_MM
         if not near.any():
             continue
         pts = pts[near]
-        into = env.exact(pts[:, 1]) - pts[:, 0]  # the real rays at these very planes
+        into = env.exact(pts[:, 1], land) - pts[:, 0]  # the real rays at these very planes
         k = int(np.argmax(into))
         if into[k] > BEAM_TOL_MM:
             raise GeometryError(

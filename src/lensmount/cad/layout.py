@@ -95,9 +95,10 @@ class Envelope:
         self.z = np.linspace(z_min, z_max, n)
         self.r = _envelope_grid(prescription, float(z_min), float(z_max), n)
 
-    def exact(self, z) -> np.ndarray:
-        """The real-ray envelope at each z (slow: traces the beam), (n,)."""
-        return _exact_envelope(self.prescription, z)
+    def exact(self, z, land: tuple[float, float, float] | None = None) -> np.ndarray:
+        """The real-ray envelope at each z (slow: traces the beam), (n,); with a diaphragm's land
+        (z0, z1, radius), of the rays it passes (`optics.apertures.beam_through_land`)."""
+        return _exact_envelope(self.prescription, z, land)
 
     def at(self, z) -> np.ndarray:
         """Envelope at each z by linear interpolation: (n,)."""
@@ -120,11 +121,11 @@ def _envelope_grid(prescription: Prescription, z_min: float, z_max: float, n: in
     return r
 
 
-def _exact_envelope(prescription: Prescription, z) -> np.ndarray:
+def _exact_envelope(prescription: Prescription, z, land=None) -> np.ndarray:
     z = np.atleast_1d(np.asarray(z, dtype=np.float64))
     if not len(z):
         return np.zeros(0)
-    return np.nan_to_num(beam_envelope(prescription, z), nan=0.0, posinf=0.0, neginf=0.0)
+    return np.nan_to_num(beam_envelope(prescription, z, land), nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:

@@ -21,7 +21,7 @@ import numpy as np
 
 from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription
-from lensmount.optics.realrays import aim, pupil_rings, stop_semi_diameter, trace
+from lensmount.optics.realrays import RealRays, aim, plane_crossing, pupil_rings, stop_semi_diameter, trace
 
 # Pupil sampling for the envelope: the rim error of a polygon of S spokes on a
 # circle of radius R is R (1 - cos(pi/S)); 180 spokes keep it below 0.01 mm for
@@ -78,34 +78,17 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
     if margin_mm < 0:
         raise InputError(f"clear-aperture margin {margin_mm} mm is negative", field="margin_mm",
                          valid="a margin >= 0 mm")
+    heights, missed = beam_heights(prescription)
+    if missed is not None:
+        s = prescription.surfaces[missed]
+        raise InputError(
+            f"rays of the full field and aperture miss surface {missed + 1} (radius {s.radius:g} mm) "
+            "or are totally reflected there: its radius is smaller than the semi-diameter the beam needs, "
+            "or a surface before it bends the beam too far",
+            field=f"surface[{missed + 1}].radius",
+            valid="a |radius| larger than the beam's semi-diameter on that surface (or radii before it "
+                  "that bend the beam less), or a smaller aperture or field")
     stop = prescription.stop_index
-    fields = _field_samples(prescription, 6)
-    # a beam decentred across (VDX) or turned (VAN) is not mirror-symmetric in x: the whole pupil then
-    symmetric = all(v[0] == 0.0 and v[4] == 0.0 for v in prescription.vignetting)
-    pupil = vignetted_pupils(prescription, fields, pupil_rings(CLEAR_RINGS, CLEAR_SPOKES, half=symmetric))
-    nsurf = len(prescription.surfaces)
-    heights = np.zeros(nsurf)
-    given = np.array([s.clear_semi_diameter is not None for s in prescription.surfaces])
-    # Surfaces with a given clear semi-diameter clip the beam (those rays are legitimately
-    # vignetted); a ray stopped where nothing clips missed the surface or met TIR.
-    for rays in _beam(_stop_passing_the_rim(prescription), fields, pupil, clip=True):
-        at = rays.vignetted_at
-        lost = at[(at >= 0) & (at < nsurf)]
-        lost = lost[~given[lost]]
-        if len(lost):
-            i = int(lost.min())
-            s = prescription.surfaces[i]
-            raise InputError(
-                f"rays of the full field and aperture miss surface {i + 1} (radius {s.radius:g} mm) "
-                "or are totally reflected there: its radius is smaller than the semi-diameter the beam needs, "
-                "or a surface before it bends the beam too far",
-                field=f"surface[{i + 1}].radius",
-                valid="a |radius| larger than the beam's semi-diameter on that surface (or radii before it "
-                      "that bend the beam less), or a smaller aperture or field")
-        # a ray counts on surface j if it reached it (arrived, or stopped at a later surface)
-        reached = (at[None, :] < 0) | (at[None, :] > np.arange(nsurf)[:, None])
-        h = np.where(reached, rays.heights()[:nsurf], 0.0)
-        heights = np.maximum(heights, h.max(axis=1))
     out = []
     for i, s in enumerate(prescription.surfaces):
         if s.clear_semi_diameter is not None:
@@ -115,6 +98,33 @@ def with_clear_semi_diameters(prescription: Prescription, margin_mm: float = 0.0
         else:
             out.append(float(heights[i]) + margin_mm)
     return prescription.with_clear_semi_diameters(out)
+
+
+def beam_heights(prescription: Prescription) -> tuple[np.ndarray, int | None]:
+    """(S,) the largest real-ray height on each surface over the fields (and their mirror images), the
+    full pupil (the file's vignetting factors applied) and every wavelength, with real-ray aiming at the
+    stop, of the rays that reach it; and the first surface (0-based) where rays are lost though it gives
+    no clear semi-diameter (they miss it or are totally reflected), None when there is none. Surfaces
+    with a clear semi-diameter clip the beam (those rays are legitimately vignetted)."""
+    fields = _field_samples(prescription, 6)
+    # a beam decentred across (VDX) or turned (VAN) is not mirror-symmetric in x: the whole pupil then
+    symmetric = all(v[0] == 0.0 and v[4] == 0.0 for v in prescription.vignetting)
+    pupil = vignetted_pupils(prescription, fields, pupil_rings(CLEAR_RINGS, CLEAR_SPOKES, half=symmetric))
+    nsurf = len(prescription.surfaces)
+    heights = np.zeros(nsurf)
+    given = np.array([s.clear_semi_diameter is not None for s in prescription.surfaces])
+    missed = None
+    for rays in _beam(_stop_passing_the_rim(prescription), fields, pupil, clip=True):
+        at = rays.vignetted_at
+        lost = at[(at >= 0) & (at < nsurf)]
+        lost = lost[~given[lost]]
+        if len(lost):
+            missed = int(lost.min()) if missed is None else min(missed, int(lost.min()))
+        # a ray counts on surface j if it reached it (arrived, or stopped at a later surface)
+        reached = (at[None, :] < 0) | (at[None, :] > np.arange(nsurf)[:, None])
+        h = np.where(reached, rays.heights()[:nsurf], 0.0)
+        heights = np.maximum(heights, h.max(axis=1))
+    return heights, missed
 
 
 LOSS_PUPIL_STEP = 0.02  # pupil grid pitch (normalised): ~7 850 points, a loss resolved to ~0.02 %
@@ -142,7 +152,7 @@ def pupil_lost_at(prescription: Prescription, surface_sets, fields) -> np.ndarra
     return lost
 
 
-def beam_envelope(prescription: Prescription, z) -> np.ndarray:
+def beam_envelope(prescription: Prescription, z, land: tuple[float, float, float] | None = None) -> np.ndarray:
     """Largest radius of any ray of the full field and aperture at each z.
 
     Args:
@@ -151,14 +161,56 @@ def beam_envelope(prescription: Prescription, z) -> np.ndarray:
         z: (n,) z values, mm, assembly frame. In front of surface 1 the beam is
             collimated per field (straight lines); behind the image plane the rays
             continue straight.
+        land: (z0, z1, radius) of a diaphragm's land: only the rays it passes count
+            (`beam_through_land`).
     Returns:
         (n,) radius in mm (all wavelengths, fields 0..max, full pupil).
     """
     zq = np.atleast_1d(np.asarray(z, dtype=np.float64))
     env = np.zeros(len(zq))
-    for rays in _envelope_beam(prescription):
+    for rays in (_envelope_beam(prescription) if land is None else beam_through_land(prescription, land)):
         env = np.maximum(env, _polyline_radius(rays, zq))
     return env
+
+
+@lru_cache(maxsize=4)
+def beam_through_land(prescription: Prescription, land: tuple[float, float, float]) -> tuple[RealRays, ...]:
+    """The rays of the full field and aperture that a diaphragm's land (a bore of radius r from z0 to
+    z1, in air) passes. The land is the stop the mount realises: it passes the designed axial beam
+    (`cad.seats.pupil_edge_radius`), but it lies off the stop surface when that is a curved face
+    (no metal fits on glass), so an off-axis beam crosses it displaced from where the stop surface
+    has it, by the distance times the rays' slope (the Cooke triplet's 20° beam: 35 µm): the land
+    stops a sliver of the beam aimed at the stop surface and passes as much on the other side.
+    Kept: the envelope beam's rays inside r at z0 and z1 (a straight ray's radius is convex in z,
+    so inside over the whole land), and the passed beam's rim, rays aimed at the land's rim at
+    either end that pass the other end. Telecentric object space: the land passes every field
+    whole (`pupil_edge_radius`), the envelope beam itself."""
+    z0, z1, r = land
+    fields = _field_samples(prescription, ENVELOPE_FIELDS)
+    rim = pupil_rings(1, ENVELOPE_SPOKES, center=False, half=True)
+    stop = prescription.stop_index   # the land replaces the stop: the stop face's own semi-diameter clips nothing
+    lens = prescription.with_surfaces([replace(s, clear_semi_diameter=None) if i == stop else s
+                                       for i, s in enumerate(prescription.surfaces)])
+    out = []
+    for rays in _envelope_beam(prescription):
+        wl = rays.wavelength_um
+        sets = [rays]
+        if not prescription.object_telecentric:
+            for plane in (z0, z1):
+                o, d = aim(lens, fields, rim, wl, stop_radius=r, at_z=plane)
+                sets.append(trace(lens, o, d, wl, clip=True))
+        for s in sets:
+            keep = np.ones(s.points.shape[1], bool)
+            for plane in (z0, z1):
+                xy, reached = plane_crossing(s, plane)
+                keep &= reached & (np.hypot(xy[:, 0], xy[:, 1]) <= r + _LAND_TOL_MM)
+            if keep.any():
+                out.append(RealRays(s.points[:, keep], s.directions[:, keep], s.vignetted[keep], s.vignetted_at[keep],
+                                    s.origins[keep], s.start_directions[keep], wl))
+    return tuple(out)
+
+
+_LAND_TOL_MM = 1e-6   # a ray aimed at the land's rim passes it (the aim lands within 1e-10 mm)
 
 
 @lru_cache(maxsize=4)  # ~14 MB a lens (3 colours x 8000 rays x 12 surfaces)
@@ -237,4 +289,4 @@ def _polyline_radius(rays, zq: np.ndarray) -> np.ndarray:
     return np.sqrt(env2)
 
 
-__all__ = ["with_clear_semi_diameters", "vignetted_pupils", "pupil_lost_at", "beam_envelope"]
+__all__ = ["with_clear_semi_diameters", "beam_heights", "vignetted_pupils", "pupil_lost_at", "beam_envelope", "beam_through_land"]

@@ -196,7 +196,7 @@ def stop_semi_diameter(prescription: Prescription, wavelength_um: float | None =
 
 
 def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | None = None,
-        stop_radius: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        stop_radius: float | None = None, at_z: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Launch rays so that they cross the stop at pupil_xy · stop semi-diameter.
 
     Args:
@@ -206,6 +206,8 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
             every field, or (F, P, 2): one set per field (a vignetted beam).
         stop_radius: stop semi-diameter, mm; defaults to `stop_semi_diameter` at the
             primary wavelength (the diaphragm is one size for every colour).
+        at_z: aim at the plane z = at_z (where each ray's path first crosses it) instead of
+            the stop surface: a diaphragm's land, which cannot lie on a curved stop face.
     Returns:
         origins (F·P, 3) on the plane z = 0 and directions (F·P, 3), field-major
         (ray f·P + p is field f, pupil point p). Rays the solver cannot place (they
@@ -251,6 +253,8 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
 
     def at_stop(xy_, rows):
         o = np.column_stack([xy_, np.zeros(len(xy_))])
+        if at_z is not None:
+            return plane_crossing(trace(prescription, o, directions(xy_, rows), wl, clip=False), at_z)
         r = trace(prescription, o, directions(xy_, rows), wl, clip=False, n_surfaces=stop + 1)
         ok = (r.vignetted_at == -1) | (r.vignetted_at > stop)
         return r.points[stop, :, :2], ok
@@ -289,6 +293,35 @@ def aim(prescription: Prescription, field_deg, pupil_xy, wavelength_um: float | 
         stuck[rows[pending]] = True
     origins = np.column_stack([xy, np.zeros(len(xy))])
     return origins, directions(xy)
+
+
+def plane_crossing(rays: RealRays, z: float) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) x, y where each ray's path first crosses the plane z, and (N,) whether it reaches it:
+    the launch line (extended back in object space), the legs between the surfaces the ray
+    reached, and, for a ray that arrived, its line on beyond the image plane."""
+    pts, n = rays.points, rays.points.shape[1]
+    xy, found = np.zeros((n, 2)), np.zeros(n, bool)
+
+    def cross(sel, a, b):
+        """Rays `sel` on the segment a -> b (N, 3) whose z range holds z."""
+        dz = b[:, 2] - a[:, 2]
+        hit = sel & ~found & (np.abs(dz) > 1e-15) & (np.minimum(a[:, 2], b[:, 2]) <= z) & (np.maximum(a[:, 2], b[:, 2]) >= z)
+        t = (z - a[hit, 2]) / dz[hit]
+        xy[hit] = a[hit, :2] + t[:, None] * (b[hit, :2] - a[hit, :2])
+        found[hit] = True
+
+    # in front of surface 1: the launch line, as far back as it goes
+    d0 = rays.start_directions
+    back = pts[0] - d0 * (np.maximum(pts[0][:, 2] - z, 0.0) / np.where(d0[:, 2] > 1e-15, d0[:, 2], 1.0) + 1.0)[:, None]
+    cross(d0[:, 2] > 1e-15, back, pts[0])
+    last_ok = np.where(rays.vignetted_at < 0, len(pts) - 1, rays.vignetted_at)   # legs j < last_ok exist
+    for j in range(len(pts) - 1):
+        cross(j < last_ok, pts[j], pts[j + 1])
+    arrived = rays.vignetted_at < 0
+    d = rays.directions[-1]
+    ahead = pts[-1] + d * (np.maximum(z - pts[-1][:, 2], 0.0) / np.where(d[:, 2] > 1e-15, d[:, 2], 1.0) + 1.0)[:, None]
+    cross(arrived & (d[:, 2] > 1e-15), pts[-1], ahead)
+    return xy, found
 
 
 def _telecentric(prescription: Prescription, source: np.ndarray, pupil: np.ndarray):
@@ -370,5 +403,5 @@ def _safe_norm(v: np.ndarray) -> np.ndarray:
     return np.where(n > 0.0, n, 1.0)
 
 
-__all__ = ["RealRays", "trace", "aim", "field_direction", "axial_rim_ray", "stop_semi_diameter",
+__all__ = ["RealRays", "trace", "aim", "plane_crossing", "field_direction", "axial_rim_ray", "stop_semi_diameter",
            "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]

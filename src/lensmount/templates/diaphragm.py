@@ -52,6 +52,10 @@ class Diaphragm(RevolvedPart):
         z1 = self.z_stop + 0.5 * self.land
         return z1 - self.thickness, z1
 
+    def land_range(self) -> tuple[float, float, float]:
+        """(z0, z1, radius) of the land: the bore that is the aperture stop."""
+        return self.z_stop - 0.5 * self.land, self.z_stop + 0.5 * self.land, self.inner_radius
+
     def face_inner_radius(self, side: str) -> float:
         """Inner radius of the flat front or rear face (where a spacer may touch)."""
         return self.inner_radius + (self.bevel_run() if side == self.bevel_side else 0.0)
