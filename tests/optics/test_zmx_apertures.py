@@ -113,3 +113,59 @@ def test_a_circular_aperture_on_the_stop_smaller_than_the_pupil_sets_the_working
     bare = tmp_path / "lens2-no-clap.zmx"
     bare.write_text(re.sub(r"^\s*CLAP .*$", "", read_text(CORPUS / "optiland-lens2.zmx"), flags=re.M))
     assert read_zmx(bare).aperture.value == pytest.approx(15.0)
+
+
+# Catalogue diameters, mm, from the part numbers (Thorlabs: AC254 = Ø25.4, AL1815 = Ø18, ACL3026 = Ø30, MAP10
+# pairs and 1" singlets Ø25.4; Edmund #55-278: Ø25), independent of the files' DIAM lines
+CATALOGUE_DIAMETER_MM = {
+    "thorlabs-AC050-008-A": 5.0, "thorlabs-AC127-025-A": 12.7, "thorlabs-AC254-035-A": 25.4,
+    "thorlabs-AC254-050-B": 25.4, "thorlabs-AC254-100-A": 25.4, "thorlabs-AC508-080-A": 50.8,
+    "thorlabs-AC508-1000-A": 50.8, "thorlabs-ACL2520-A": 25.0, "thorlabs-ACL25416U-A": 25.4,
+    "thorlabs-ACL3026U-utf16": 30.0, "thorlabs-AL1210-A-latin1": 12.5, "thorlabs-AL1815-C-latin1": 18.0,
+    "thorlabs-AL2520-A": 25.0, "thorlabs-AL50100-A-latin1": 50.0, "thorlabs-ASL10142-A": 25.4,
+    "thorlabs-LA1050-A": 50.8, "thorlabs-LA1131-A": 25.4, "thorlabs-LB1761-A": 25.4, "thorlabs-LBF254-050-A": 25.4,
+    "thorlabs-LE1234-A": 25.4, "thorlabs-MAP105050-A": 25.4, "edmund-55278-utf16": 25.0,
+}
+
+
+def _catalogue_lens_keeps_its_diameter(name: str):
+    from lensmount.design.lens import load_lens
+
+    p = load_lens(CORPUS / f"{name}.zmx")
+    for g in p.lens_groups():
+        for i in g:
+            s = p.surfaces[i]
+            assert s.mechanical_semi_diameter == pytest.approx(CATALOGUE_DIAMETER_MM[name] / 2, abs=1e-9), (name, i)
+            assert s.clear_semi_diameter < s.mechanical_semi_diameter   # what the beam needs, inside the glass
+    return p
+
+
+def test_a_fixed_diam_with_no_larger_mema_is_the_catalogue_parts_edge_and_init_keeps_it():
+    """Thorlabs writes a fixed DIAM of 12.7 mm on every face of MAP105050-A (two Ø1" achromats) and no MEMA:
+    OpticStudio draws the glass to it. The beam needs 9.8-10.6 mm there, so the element's glass ends at
+    12.7 mm and its clear apertures are the beam's; init's mount takes that rim (it was built 13.4 mm: the
+    DIAM read as the clear aperture plus the edge allowance, a part that does not fit a Ø25.4 mm bore)."""
+    from lensmount.cad.layout import plan
+    from lensmount.cad.starter import _mount
+    from lensmount.design.mount import MountSpec
+
+    p = _catalogue_lens_keeps_its_diameter("thorlabs-MAP105050-A")
+    mount = _mount(p, "MAP105050-A", True)
+    assert "semi_diameter_mm" not in mount["lens_edge"]
+    layout = plan(p, MountSpec.model_validate(mount))
+    assert [round(x.template.outer_radius, 9) for x in layout.parts if x.kind == "lens"] == [12.7] * 4
+
+
+@pytest.mark.slow   # real-ray apertures of 21 files
+@pytest.mark.parametrize("name", sorted(CATALOGUE_DIAMETER_MM))
+def test_every_vendor_singlet_and_doublet_keeps_its_catalogue_diameter(name):
+    _catalogue_lens_keeps_its_diameter(name)
+
+
+def test_a_fixed_diam_the_beam_overfills_stays_an_aperture():
+    """US 8,427,765 (a patent's camera lens) fixes its semi-diameters below what its full field and aperture
+    need (7.6 mm on surface 1, where the beam reaches 10.3 mm): the design vignettes with them, so they stay
+    the clear semi-diameters and the glass extends past them by the mount's edge allowance."""
+    p, notes = read_zmx_with_notes(CORPUS / "US08427765-1.zmx")
+    assert p.surfaces[0].clear_semi_diameter == pytest.approx(7.6) and p.surfaces[0].mechanical_semi_diameter is None
+    assert any(n.where == "SURF 1-2" and "overfills" in n.what for n in notes)

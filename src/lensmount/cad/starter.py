@@ -143,11 +143,16 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
 
     numbers = np.cumsum([0] + [len(g) - 1 for g in groups])[:-1] + 1   # first element of each group
     natural = [max(clear[i] for i in g) + allowance for g in groups]
+    # the glass the lens file gives (a catalogue part's diameter: a MEMA, or a fixed DIAM that bounds the
+    # glass, optics.io.zemax) is the part one buys: its rim stays, and regenerate judges the seats on it
+    given = {k: group_rim(p, g, int(first), LensEdge(allowance_mm=allowance)) for k, (g, first) in
+             enumerate(zip(groups, numbers)) if any(surf[i].mechanical_semi_diameter is not None for i in g)}
+    natural = [given.get(k, n) for k, n in enumerate(natural)]
     # the seat's contact inside the chamfer (beside a stepped element: on its partner, outside its rim)
     floor = [max(max(seat_heights(k, n)) + chamfer + 0.01, max(clear[i] for i in g) + contact + chamfer + 0.01)
              for k, (g, n) in enumerate(zip(groups, natural))]
     seats = {}
-    radii_fixed = {}
+    radii_fixed = dict(given)
     flat: set[int] = set()   # 1-based faces to grind flat (lens_edge.flat_faces)
     stop = p.stop_index
     for k in range(len(groups) - 1):
@@ -200,7 +205,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             floor[k] = max(floor[k], above_the_ring(groups[k][0]))
     radii = [radii_fixed.get(k, max(n, f)) for k, (n, f) in enumerate(zip(natural, floor))]
     for k in range(len(groups)):   # thick enough at the edge
-        while radii[k] - step >= floor[k] and thin(k, radii[k]) and not crossed(k, radii[k]):
+        while k not in given and radii[k] - step >= floor[k] and thin(k, radii[k]) and not crossed(k, radii[k]):
             radii[k] -= step
         if too_thin(k, radii[k]) and k not in radii_fixed:   # a flat-bevelled meniscus thickens outward
             wider = [r for r in np.arange(radii[k], 1.5 * max(clear[i] for i in groups[k]), step)
@@ -216,7 +221,7 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
             if float(b.face_z(True, r) - a.face_z(False, r)) > min_thickness + 2 * chamfer and not _step_blocked(a, b):
                 break
             big = k if radii[k] >= radii[k + 1] else k + 1
-            if radii[big] - step < floor[big]:
+            if radii[big] - step < floor[big] or big in given:
                 break
             radii[big] -= step
     out = {}

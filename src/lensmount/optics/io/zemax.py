@@ -16,7 +16,11 @@ What a lens file holds and how it is read:
     DISZ (INFINITY for an object at infinity, a number for a finite object)
     DIAM v flag / CLAP rmin rmax: a fixed semi-diameter (flag 1), a pickup of one
                                  (flag 2 k), another solve (value as written) and a CLAP are
-                                 honoured and vignette; an automatic one (flag 0, or a pickup of
+                                 honoured and vignette, except that on a lens face with no
+                                 larger MEMA a fixed one the beam passes inside (and no
+                                 vignetting factors fit the beam to) is the glass's edge, the
+                                 mechanical semi-diameter (`_glass_edges`: a catalogue part's
+                                 diameter); an automatic one (flag 0, or a pickup of
                                  one) is only Zemax's last computed value and is recomputed from
                                  lensmount's real rays, as for surfaces without a DIAM (the
                                  stop's stays: Zemax's size of the diaphragm)
@@ -49,7 +53,10 @@ import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from lensmount.errors import InputError
+from lensmount.optics.apertures import beam_heights
 from lensmount.optics.glass import CATALOGUES, register_catalogue
 from lensmount.optics.io import zemax_glass
 from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
@@ -338,6 +345,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                                 "built-in catalogues)"))
     surfaces: list[Surface] = []
     numbers: list[int] = []
+    edges: dict[int, tuple[float, float | None]] = {}   # faces whose fixed DIAM may be the glass's edge
     medium = AIR
     tilt = None  # (surface number, description) of a coordinate break not yet undone
     state = [0.0, 0.0, 0.0, 0.0]  # decenter x, y, tilt x, tilt y accumulated by breaks
@@ -378,6 +386,8 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
         clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
+        if _bounds_glass(lens, zs) and not zs.mirror and (material.upper() != AIR or medium.upper() != AIR):
+            edges[len(surfaces)] = (zs.diam * s, zs.clap * s if zs.clap else None)
         qtype = qtype_of(zs, s, file)
         if qtype is not None:
             notes.append(ImportNote("imported", f"SURF {zs.number}", qtype_note(qtype, max(clear or 0.0, mech or 0.0))))
@@ -403,7 +413,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             "objective's medium or a cover glass the image is formed in; lensmount's detector, mount and tracer "
             "take the image in air", file=file, line=last.glass_line or last.line,
             valid="an image space in air (no GLAS on the last surface before the image)")
-    surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s)
+    surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s, edges)
     waves, weights = _wavelengths(lens)
     if not waves:
         waves, weights = [_D_LINE], [1.0]
@@ -415,7 +425,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
                         name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric,
                         glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs))
-    return apply_aperture_and_fields(base, lens, numbers, notes, file), notes
+    return _glass_edges(apply_aperture_and_fields(base, lens, numbers, notes, file), edges, numbers, notes), notes
 
 
 def _check_telecentric(lens: ZmxLens, object_distance: float, file) -> None:
@@ -517,11 +527,12 @@ def _semi_diameters(lens: ZmxLens, zs: ZmxSurface, s: float, notes, automatic: s
 _AUTOMATIC_MECHANICAL = -1.0
 
 
-def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes, s: float) -> list[Surface]:
+def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes, s: float, edges) -> list[Surface]:
     """Automatic MEMAs recomputed as OpticStudio computes them: the largest clear semi-diameter plus
     chip zone (OEMA) over the element's faces. With no chip zone that is the clear semi-diameter
     itself, which leaves no edge to hold the glass by; and where a face's clear semi-diameter is
-    left to real rays the sum is not known here: both are left to the mount's edge allowance."""
+    left to real rays the sum is not known here: both are left to the mount's edge allowance. On a
+    face whose DIAM is fixed (`edges`) it is that DIAM, and `_glass_edges` says what it is."""
     zmx = {i: zs for i, zs in enumerate(body)}
     out = list(surfaces)
     p = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0))
@@ -542,9 +553,70 @@ def _automatic_mechanical(surfaces: list[Surface], body: list[ZmxSurface], notes
                     "semi-diameter, no edge to hold the glass by)" if not any(chips) else
                     "left to the mount's edge allowance (a face's clear semi-diameter is recomputed from real rays)")
         out[i] = replace(surf, mechanical_semi_diameter=mech)
-        notes.append(ImportNote("substituted", where, f"mechanical semi-diameter {was:.4g} mm, automatic in the "
-                                f"file (what OpticStudio last computed) -> {what}"))
+        if i not in edges:
+            notes.append(ImportNote("substituted", where, f"mechanical semi-diameter {was:.4g} mm, automatic in the "
+                                    f"file (what OpticStudio last computed) -> {what}"))
     return out
+
+
+def _bounds_glass(lens: ZmxLens, zs: ZmxSurface) -> bool:
+    """The DIAM is fixed (not OpticStudio's automatic value) and no MEMA is larger: none, an automatic
+    one without a chip zone (OpticStudio's is then the element's largest DIAM), or a smaller one.
+    OpticStudio draws the element's glass out to such a DIAM."""
+    if not zs.diam or _is_automatic(lens, zs, "diam"):
+        return False
+    if not zs.mema:
+        return True
+    if _is_automatic(lens, zs, "mema"):
+        return not zs.chip_zone
+    return zs.mema <= zs.diam
+
+
+def _glass_edges(p: Prescription, edges: dict[int, tuple[float, float | None]], numbers: list[int],
+                 notes) -> Prescription:
+    """Fixed DIAMs with no larger MEMA (`_bounds_glass`), read as what they are. OpticStudio's DIAM is
+    the face's semi-diameter and its MEMA the glass's outer one, automatic = the element's largest
+    DIAM plus its chip zone; semi-diameters do not vignette there (apertures do). So a fixed DIAM with
+    no larger MEMA is where the glass ends, the diameter a catalogue part is sold at (Thorlabs writes
+    12.7 mm on its 25.4 mm achromats, whose beam fills 11.43 mm). Per element: when the designed beam
+    (real rays, the DIAMs not clipping) passes inside each such DIAM, the element's mechanical
+    semi-diameter is the largest of them and the clear semi-diameters are what the beam needs there,
+    as for automatic DIAMs. A DIAM the beam overfills is an aperture the design vignettes with (a
+    patent's camera lens, US 8,427,765), and so are the DIAMs of a file with vignetting factors
+    (OpticStudio's Set Vignetting fits them to the semi-diameters, so that the marginal rays just pass:
+    US 583,336): they stay the clear semi-diameters and clip, and the glass extends past them by the
+    mount's edge allowance."""
+    if not edges:
+        return p
+    fitted = any(any(v) for v in p.vignetting)   # the beam was fitted to the DIAMs
+    clear = {i: clap for i, (_, clap) in edges.items()}   # a CLAP stays an aperture
+    trial = p.with_surfaces([replace(s, clear_semi_diameter=clear[i]) if i in edges else s
+                             for i, s in enumerate(p.surfaces)])
+    heights, missed = beam_heights(trial) if not fitted else (np.zeros(len(p.surfaces)), None)
+    surfaces = list(p.surfaces)
+    for group in p.lens_groups():
+        faces = [i for i in group if i in edges]
+        if not faces:
+            continue
+        edge = max([edges[i][0] for i in faces] + [p.surfaces[i].mechanical_semi_diameter or 0.0 for i in group])
+        need = max(float(heights[i]) for i in group)
+        where = f"SURF {numbers[group[0]]}-{numbers[group[-1]]}"
+        fixed = ", ".join(f"{edges[i][0]:.4g}" for i in faces)
+        if not fitted and missed is None and all(heights[i] <= edges[i][0] * (1.0 + 1e-9) for i in faces) \
+                and need <= edge * (1.0 + 1e-9):
+            for i in group:
+                surfaces[i] = replace(surfaces[i], mechanical_semi_diameter=edge,
+                                      clear_semi_diameter=clear[i] if i in edges else surfaces[i].clear_semi_diameter)
+            notes.append(ImportNote("substituted", where, f"fixed semi-diameters {fixed} mm with no larger MEMA, the "
+                                    f"beam inside them (it needs {need:.4g} mm): the element's glass ends there, as "
+                                    f"OpticStudio draws it (a catalogue part's diameter) -> mechanical semi-diameter "
+                                    f"{edge:.4g} mm, the clear ones from real rays"))
+        else:
+            why = "the vignetting factors fit the beam to" if fitted else "the beam overfills"
+            notes.append(ImportNote("imported", where, f"fixed semi-diameters {fixed} mm with no larger MEMA, which "
+                                    f"{why}: apertures the design vignettes with (they clip), the glass extends past "
+                                    "them by the mount's edge allowance"))
+    return p.with_surfaces(surfaces)
 
 
 def _polynomial(zs: ZmxSurface, file) -> tuple[bool, dict]:
