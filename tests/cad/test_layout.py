@@ -118,7 +118,7 @@ def test_envelope_never_returns_nan(monkeypatch, reference_layout):
     from lensmount.cad.layout import Envelope
 
     layout, _ = reference_layout
-    monkeypatch.setattr(layout_module, "beam_envelope", lambda p, z: np.full(np.shape(z), np.nan))
+    monkeypatch.setattr(layout_module, "beam_envelope", lambda p, z, land=None: np.full(np.shape(z), np.nan))
     env = Envelope(layout.prescription, -10.0, 10.0, step=1.0)
     assert np.isfinite(env.at(np.linspace(-20, 20, 9))).all()
     assert np.isfinite(env.max_over(-5.0, 5.0))

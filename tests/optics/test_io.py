@@ -82,7 +82,8 @@ def test_even_asphere_parameters_and_units_are_converted():
     assert s1.thickness == pytest.approx(0.2 * 25.4) and s2.thickness == pytest.approx(3.5 * 25.4)
     assert s1.material == "1.5168/64.17"
     assert s1.clear_semi_diameter is None                 # no DIAM: automatic
-    assert s2.clear_semi_diameter == pytest.approx(0.8 * 25.4)   # DIAM ... 1: fixed
+    # DIAM ... 1: fixed, no MEMA and the beam inside it: the glass's edge, the clear aperture the beam's
+    assert s2.mechanical_semi_diameter == pytest.approx(0.8 * 25.4) and s2.clear_semi_diameter is None
     assert lens.aperture.kind == "fno" and lens.aperture.value == 4.0
     assert lens.wavelengths_um == (0.55,)
     # field (x = 4 deg, y = 3 deg) is the radial angle atan(hypot(tan 4, tan 3))

@@ -42,12 +42,18 @@ def _thick_lens_efl(n):
 
 def test_an_automatic_mema_without_chip_zone_is_left_to_the_mount_and_a_fixed_one_is_kept():
     """OpticStudio 2019+ writes MEMA on every surface; flag 0 is its automatic value, which with no
-    chip zone equals the clear semi-diameter (no edge to hold the glass by)."""
-    auto = "  DIAM 8 1 0 0 1 \"\"\n  MEMA 8 0 0 0 1 \"\""
+    chip zone equals the clear semi-diameter: on an automatic DIAM (the beam's) no edge to hold the glass
+    by; on a fixed DIAM the beam stays inside (here 5 mm of 8), the edge OpticStudio draws the glass to."""
+    auto = "  DIAM 8 0 0 0 1 \"\"\n  MEMA 8 0 0 0 1 \"\""
     lens, notes = _convert(_zmx(surf1=auto, surf2=auto))
     assert [s.mechanical_semi_diameter for s in lens.surfaces] == [None, None]
-    assert [s.clear_semi_diameter for s in lens.surfaces] == [8.0, 8.0]
+    assert [s.clear_semi_diameter for s in lens.surfaces] == [8.0, None]   # the stop's automatic DIAM stays
     assert sum("automatic in the file" in n.what and "mechanical" in n.what for n in notes) == 2
+    edge = "  DIAM 8 1 0 0 1 \"\"\n  MEMA 8 0 0 0 1 \"\""
+    lens, notes = _convert(_zmx(surf1=edge, surf2=edge))
+    assert [s.mechanical_semi_diameter for s in lens.surfaces] == [8.0, 8.0]
+    assert [s.clear_semi_diameter for s in lens.surfaces] == [None, None]   # the beam's, from real rays
+    assert any(n.kind == "substituted" and "the element's glass ends there" in n.what for n in notes)
     fixed = "  DIAM 8 1 0 0 1 \"\"\n  MEMA 9.5 1 0 0 1 \"\""
     lens, notes = _convert(_zmx(surf1=fixed, surf2=fixed))
     assert [s.mechanical_semi_diameter for s in lens.surfaces] == [9.5, 9.5]
@@ -63,8 +69,8 @@ def test_an_automatic_mema_with_a_chip_zone_is_the_elements_largest_clear_semi_d
 
 
 def test_a_mema_picked_up_from_an_automatic_one_is_automatic_and_a_pickup_of_a_fixed_one_is_kept():
-    s1 = "  DIAM 8 1 0 0 1 \"\"\n  MEMA 9 {flag} 0 0 1 \"\""
-    s2 = "  DIAM 8 1 0 0 1 \"\"\n  MEMA 9 2 1 0 1 \"\""
+    s1 = "  DIAM 8 0 0 0 1 \"\"\n  MEMA 9 {flag} 0 0 1 \"\""
+    s2 = "  DIAM 8 0 0 0 1 \"\"\n  MEMA 9 2 1 0 1 \"\""
     lens, _ = _convert(_zmx(surf1=s1.format(flag=0), surf2=s2))
     assert [s.mechanical_semi_diameter for s in lens.surfaces] == [None, None]
     lens, _ = _convert(_zmx(surf1=s1.format(flag=1), surf2=s2))
@@ -78,7 +84,7 @@ def test_an_automatic_mema_beyond_the_spheres_reach_is_no_refusal(tmp_path):
     path = tmp_path / "mema.zmx"
     path.write_text(text)
     lens = load_lens(path)
-    assert lens.surfaces[0].mechanical_semi_diameter is None
+    assert lens.surfaces[0].mechanical_semi_diameter == 8.0   # OpticStudio's automatic MEMA: the fixed DIAM
     with pytest.raises(InputError) as err:                 # the same value given (flag 1) is refused
         path.write_text(text.replace("MEMA 60 0", "MEMA 60 1"))
         load_lens(path)
