@@ -17,7 +17,7 @@ from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.scene.scene import Effects
 from lensmount.physics.detector import Detector  # noqa: F401  (re-exported for the tests)
 from lensmount.physics.rays import RayBatch
-from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events
+from lensmount.trace.tracer import DETECTOR, FACE, GONE, Events, Hits
 
 
 @dataclass
@@ -81,8 +81,9 @@ class PlanarScene:
 
 
 class PlanarTracer:
-    """The real tracer's contract, `next_event(rays, rng, origin_normal) -> Events`, on planar
-    faces: vectorised over rays, looping over the few faces. No glass, so `rng` is unused."""
+    """The real tracer's contract, `next_event(rays, rng, origin_normal) -> Events` and `intersect(rays,
+    origin_normal) -> Hits`, on planar faces: vectorised over rays, looping over the few faces. No
+    glass, so `rng` is unused."""
 
     def __init__(self, scene: PlanarScene):
         self.scene = scene
@@ -126,6 +127,16 @@ class PlanarTracer:
         return Events(kind, pos, d.copy(), nrm, tag, prim, pixel, np.where(rays.alive, rays.weight, 0.0),
                       rays.wavelength.copy(), rays.id.copy(), np.zeros(n, bool), np.zeros(n, np.int32),
                       np.full((n, 2), -1, np.int32))
+
+
+    def intersect(self, rays: RayBatch, origin_normal=None) -> Hits:
+        """Nearest hit: the detector when it is nearer than every face (either side of it)."""
+        ev = self.next_event(rays)
+        det = ev.kind == DETECTOR
+        n = len(rays)
+        t = np.linalg.norm(ev.position - rays.origin, axis=1)
+        return Hits(np.where(ev.kind == GONE, np.inf, t), ev.position, ev.normal, ev.prim, ev.tag,
+                    np.full(n, -1, np.int32), det, det, np.zeros(n, bool))
 
 
 class Lambert:

@@ -173,8 +173,10 @@ class _NaNEval(Lambert):
         return np.where(np.arange(len(f)) % 50 == 0, np.nan, f)
 
 
-def test_a_non_finite_gather_value_is_an_error_naming_the_face():
+@pytest.mark.parametrize("connect, what", [(False, "gather"), (True, "connection")])
+def test_a_non_finite_gather_value_is_an_error_naming_the_face(connect, what):
+    """The plate is seen straight from the detector: its light is the gather's, or the connections' (`connect`)."""
     scene = _plate(_NaNEval(0.5))
-    with pytest.raises(FloatingPointError, match="non-finite gather value on face tag 0"):
-        INTEGRATORS["bidirectional"](EstimatorSettings(samples_per_pixel=4)).run_pass(scene, PlanarTracer(scene), 0,
-                                                                                     2000, 1)
+    settings = EstimatorSettings(samples_per_pixel=4, connect_direct_view=connect)
+    with pytest.raises(FloatingPointError, match=f"non-finite {what} value on face tag 0"):
+        INTEGRATORS["bidirectional"](settings).run_pass(scene, PlanarTracer(scene), 0, 2000, 1)

@@ -44,10 +44,12 @@ def _plate_scene(rho, a=100.0, D=50.0):
                        _beam((0, 0, 0), 1.2 * a))
 
 
-def test_lambertian_disc_seen_on_axis():
-    """E/E_sun = ρ cos θ_i · a² / (a² + D²) (radiance ρE cosθ/π times the disc's projected solid angle)."""
+@pytest.mark.parametrize("connect", [False, True])
+def test_lambertian_disc_seen_on_axis(connect):
+    """E/E_sun = ρ cos θ_i · a² / (a² + D²) (radiance ρE cosθ/π times the disc's projected solid angle),
+    counted by the gather, or by each photon's connection to the detector (the disc is seen straight)."""
     rho, a, D = 0.3, 100.0, 50.0
-    mean, se, _ = _run(_plate_scene(rho, a, D), 6, 100_000, 256)
+    mean, se, _ = _run(_plate_scene(rho, a, D), 6, 100_000, 256, connect_direct_view=connect)
     expected = rho * math.cos(THETA) * a * a / (a * a + D * D)
     assert abs(mean - expected) < 3 * se + 0.005 * expected, (mean, se, expected)
     assert se < 0.01 * expected

@@ -50,6 +50,8 @@ class HitPoints:
     area : (H,) mm², the part of the gather disc on the hit point's face (π r² away from boundaries)
     area_ladder : (H, L) mm², the same for the discs of radius r · BIAS_LADDER[l] (the bias estimate,
         `Gatherer.radiance_ladder`)
+    direct : (H,) bool, the backward ray met no optical surface on its way here (`connect.direct_view`):
+        the light such a point would gather is counted by the photons' connections to the detector
     """
 
     position: np.ndarray
@@ -62,9 +64,12 @@ class HitPoints:
     radius: np.ndarray
     area: np.ndarray | None = None
     area_ladder: np.ndarray | None = None
+    direct: np.ndarray | None = None
 
     def __post_init__(self):
         r = np.asarray(self.radius, np.float64)
+        if self.direct is None:
+            self.direct = np.zeros(len(r), bool)
         if self.area is None:
             self.area = np.pi * r ** 2
         if self.area_ladder is None:
@@ -77,7 +82,7 @@ class HitPoints:
     def empty(cls) -> "HitPoints":
         z3, z = np.zeros((0, 3)), np.zeros(0)
         return cls(z3, z3.copy(), z3.copy(), z, np.zeros(0, np.int64), np.zeros(0, np.int32),
-                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))))
+                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))), np.zeros(0, bool))
 
     def subset(self, index) -> "HitPoints":
         return HitPoints(**{f.name: getattr(self, f.name)[index] for f in fields(self)})

@@ -35,6 +35,9 @@ class EstimatorSettings:
         edge_photons: bidirectional with a broad `diaphragm-edge` face and the sun (or a collimated
             source): most photons start where a pilot found they meet the edge
             (`integrators.photon_target`), weighted by the mixture density (unbiased either way).
+        connect_direct_view: bidirectional: light whose last segment runs straight from a broad face to
+            the detector is counted by connecting each photon there to a point of the detector
+            (`integrators.connect`), not by the gather (unbiased either way; no kernel bias there).
     """
 
     max_bounces: int = 64
@@ -51,6 +54,7 @@ class EstimatorSettings:
     ghost_routes: bool = True
     ghost_rays_across: int = 33
     edge_photons: bool = True
+    connect_direct_view: bool = True
 
     def __post_init__(self):
         checks = {

@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from lensmount.integrators.connect import direct_view
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
 from lensmount.integrators.neighbours import kth_distance
 from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
@@ -203,7 +204,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
                      pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=wavelength.astype(np.int32), radius=radius, area=area,
-                     area_ladder=area_ladder)
+                     area_ladder=area_ladder, direct=hit["direct"][ok])
 
 
 def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarray, targets, weights,
@@ -243,10 +244,11 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarr
         empty = np.zeros(0)
         return dict(position=np.zeros((0, 3)), normal=np.zeros((0, 3)), tag=np.zeros(0, np.int32), weight=empty,
                     direction=np.zeros((0, 3)), prim=np.zeros(0, np.int64), wavelength=np.zeros(0, np.int32),
-                    pixel=np.zeros(0, np.int64), u_roulette=empty, lost=step_lost)
+                    pixel=np.zeros(0, np.int64), u_roulette=empty, direct=np.zeros(0, bool), lost=step_lost)
+    direct = direct_view(rays.direction[ok], rays.weight[ok], step.direction[ok], step.weight[ok])
     return dict(position=step.position[ok], normal=step.normal[ok], tag=step.tag[ok], weight=step.weight[ok],
                 direction=step.direction[ok], prim=step.prim[ok], wavelength=step.wavelength[ok],
-                pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), lost=step_lost)
+                pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), direct=direct, lost=step_lost)
 
 
 __all__ = ["exit_disc", "build_view_map", "view_map_streams"]
