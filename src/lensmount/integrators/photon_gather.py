@@ -180,6 +180,9 @@ class Gatherer:
         self.detector_z = math.inf if detector_z is None else float(detector_z)
         self.radiance = np.zeros(len(hits))  # Σ f Φ / A per hit point, units E_sun/sr
         self.radiance_ladder = np.zeros((len(hits), len(BIAS_LADDER)))
+        self._rungs = np.asarray(BIAS_LADDER, np.float64)
+        self._ladder_sums = np.zeros_like(self.radiance_ladder)  # `_add_ladder`'s per-chunk sums, kept zero
+        self._touched = np.zeros(len(hits), np.bool_)
         self._reach = max(BIAS_LADDER)  # the widest disc the pair search must find
         self.pairs_tested = 0
         self.groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
@@ -237,9 +240,9 @@ class Gatherer:
                 f = np.where(outside_core(wi, h.omega_o[hi], n_h, core), f, 0.0)
             contrib = np.maximum(f, 0.0) * photons.flux[pj]
             distance = v / h.radius[hi]
-            ladder = ((distance[:, None] < np.asarray(BIAS_LADDER)) & (cos_n[:, None] > self._cos_ladder)
-                      ) / h.area_ladder[hi]
-            if not np.all(np.isfinite(contrib[:, None] * ladder)):  # never zeroed: it hides light
+            if not _add_ladder(hi, contrib, distance, cos_n, self._rungs, self._cos_ladder, h.area_ladder,
+                               self.radiance_ladder, self._ladder_sums, self._touched):
+                # never zeroed: it hides light
                 raise FloatingPointError(f"non-finite gather value on face tag {tag} at "
                                          f"{int(np.sum(~np.isfinite(contrib)))} photon-hit pairs (the finish's "
                                          f"BSDF value or the hit point's area is not finite)")
@@ -248,8 +251,6 @@ class Gatherer:
             self.radiance += np.bincount(hi_r, weights=value, minlength=len(h))
             if self.paths is not None:
                 self.paths.add(photons.signature[pj[inside]], h.pixel[hi_r], h.weight[hi_r] * value)
-            for rung in range(len(BIAS_LADDER)):
-                self.radiance_ladder[:, rung] += np.bincount(hi, weights=contrib * ladder[:, rung], minlength=len(h))
 
     def part_flux_ladder(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
         """(L, C) Σ τ L_o per channel at each radius of BIAS_LADDER, as a sum over pixels (multiply by the
@@ -290,6 +291,39 @@ def _pairs_in_reach(i, j, distance, hidx, pidx, radius, reach, hit_wavelength, p
             out[n] = k
             n += 1
     return out[:n]
+
+
+@njit(cache=True, error_model="numpy")  # a zero area gives inf or nan, reported as not finite (not raised)
+def _add_ladder(hit, contrib, distance, cos_n, rungs, cos_rungs, area_ladder, radiance_ladder, sums, touched):
+    """One chunk's pairs (hit point `hit`, `contrib` = f Φ, `distance` / r, `cos_n` between the normals) into
+    `radiance_ladder` (H, L): at rung l a pair adds contrib · (1 / area_ladder[hit, l]) when within
+    rungs[l] and cos_rungs[l], else contrib · (0 / area). False when any of those products is not finite.
+
+    The numbers of the numpy form it replaces, one (pairs,) bincount per rung added into its column: each
+    hit point's pairs summed from 0 in pair order (in `sums`, zero between calls, `touched` marking its
+    rows), then added to the column once. One pass over the pairs instead of five bincounts of length H."""
+    n_l = rungs.size
+    rows = np.empty(hit.size, np.int64)
+    m = 0
+    finite = True
+    for p in range(hit.size):
+        h = hit[p]
+        if not touched[h]:
+            touched[h] = True
+            rows[m] = h
+            m += 1
+        for l in range(n_l):
+            within = 1.0 if distance[p] < rungs[l] and cos_n[p] > cos_rungs[l] else 0.0
+            w = contrib[p] * (within / area_ladder[h, l])
+            finite &= math.isfinite(w)
+            sums[h, l] += w
+    for i in range(m):
+        h = rows[i]
+        touched[h] = False
+        for l in range(n_l):
+            radiance_ladder[h, l] += sums[h, l]
+            sums[h, l] = 0.0
+    return finite
 
 
 __all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
