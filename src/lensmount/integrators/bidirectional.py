@@ -55,7 +55,7 @@ from lensmount.integrators.estimate import (
     AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
     film_channels, phase_clock, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
+from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share, search_groups
 from lensmount.integrators.paths import FaceTally
 from lensmount.integrators.photon_target import COMPONENTS, aims_at_edge, edge_band, emission_component, guided_photons
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
@@ -145,7 +145,8 @@ class Bidirectional:
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
                               faces=seen) if broad.any() else HitPoints.empty()
-        return ViewMap(int(pass_index), int(seed), scale, hits, core, seen, diagnostics, phase_clock() - clock)
+        return ViewMap(int(pass_index), int(seed), scale, hits, search_groups(hits), core, seen, diagnostics,
+                       phase_clock() - clock)
 
     def photon_pass(self, scene, tracer, view: "ViewMap", pass_index: int, photons: int, seed: int) -> PassEstimate:
         """Phases 2 and 3 of pass `pass_index` on its view map: photons from `scene`'s source, gathered at
@@ -164,9 +165,10 @@ class Bidirectional:
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = phase_clock()
-        # the hit points' search trees, per film (its paths get the gather's sums): the gather's time
+        # per film (its paths get the gather's sums), at the view map's search trees: the gather's time
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
-                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths,
+                            groups=view.groups)
         gather_s = phase_clock() - clock
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
@@ -224,6 +226,7 @@ class ViewMap:
     pass_index, seed : the pass it belongs to
     radius_scale : s_i, the pass's gather radius relative to r_0
     hits : the hit points with their radii (none when nothing is gathered)
+    groups : their search trees (`photon_gather.search_groups`), shared by every source's gather
     core : (n_tags,) per face the lobe core the photons count (`gather_cores`; inf: nothing gathered)
     seen : the faces the detector sees first from each pixel (`paths.FaceTally`, the film's `seen`)
     diagnostics : the backward samples traced and lost (`view_map.build_view_map`'s stats)
@@ -234,6 +237,7 @@ class ViewMap:
     seed: int
     radius_scale: float
     hits: HitPoints
+    groups: dict
     core: np.ndarray
     seen: FaceTally
     diagnostics: dict[str, float]

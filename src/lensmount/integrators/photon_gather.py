@@ -10,7 +10,7 @@ r > 25 µm around a point on the 50 µm diaphragm edge would also collect the ph
 on the plate's faces, whose irradiance is orders of magnitude higher.
 
 Neighbour search: hit points are grouped by (tag, radius octave) and each group gets
-one cKDTree per pass; photons of a tag get one tree per bounce; the pairs come back
+one cKDTree per view map (`search_groups`); photons of a tag get one tree per bounce; the pairs come back
 as flat arrays from `sparse_distance_matrix(..., output_type="ndarray")` — no Python
 loop over photons or hit points, only over (tag, octave) groups.
 """
@@ -144,6 +144,29 @@ def gatherable_share(bsdf, core: float, n_u: int = 48) -> float:
     return float(np.mean(shares))
 
 
+REACH = max(BIAS_LADDER)  # the widest disc the pair search must find, relative to a hit point's r
+
+
+def search_groups(hits: HitPoints) -> dict[int, list[tuple[np.ndarray, cKDTree, float]]]:
+    """The hit points by face and radius octave, one KD-tree a group: {tag: [(indices, tree, reach)]}, reach
+    the farthest a pair of the group can lie (REACH × its largest radius). They read the hit points alone, so
+    they belong to the view map (`bidirectional.ViewMap.groups`: built once a pass, every source's photons
+    gathered at them; `pst` gathered each angle's at trees of its own, ~7 % of an angle's pass)."""
+    groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
+    if len(hits) == 0:
+        return groups
+    octave = np.floor(np.log2(np.maximum(hits.radius, 1e-12))).astype(np.int64)
+    key = hits.tag.astype(np.int64) * 4096 + (octave + 2048)
+    order = np.argsort(key, kind="stable")
+    uniq, starts = np.unique(key[order], return_index=True)
+    ends = np.append(starts[1:], len(order))
+    for k, s, e in zip(uniq, starts, ends):
+        idx = order[s:e]
+        groups.setdefault(int(k // 4096), []).append((idx, cKDTree(hits.position[idx]),
+                                                      REACH * float(hits.radius[idx].max())))
+    return groups
+
+
 class Gatherer:
     """Hit points indexed for the pass; `gather(photons)` adds Σ f Φ / A into `radiance`.
 
@@ -159,13 +182,16 @@ class Gatherer:
     paths : a `paths.PathTally` that gets every photon–hit-point contribution to the detector
         irradiance (τ f Φ / A into the hit point's pixel) under the photon's signature; None: not kept.
 
+    groups : the hit points' `search_groups` (None: made here); a view map's, shared by every source's photons
+
     `radiance_ladder` (H, L) is the same estimate over the discs of radius r · BIAS_LADDER[l] (same
     photons, areas `area_ladder`): how it changes with the radius measures the kernel bias of the pass
     (`analysis.bias`).
     """
 
     def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = EstimatorSettings.normal_limit_deg, chunk: int = 100_000,
-                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None, paths=None):
+                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None, paths=None,
+                 groups: dict | None = None):
         self.hits = hits
         self.paths = paths
         self.chunk = int(chunk)
@@ -183,21 +209,9 @@ class Gatherer:
         self._rungs = np.asarray(BIAS_LADDER, np.float64)
         self._ladder_sums = np.zeros_like(self.radiance_ladder)  # `_add_ladder`'s per-chunk sums, kept zero
         self._touched = np.zeros(len(hits), np.bool_)
-        self._reach = max(BIAS_LADDER)  # the widest disc the pair search must find
+        self._reach = REACH
         self.pairs_tested = 0
-        self.groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
-        if len(hits) == 0:
-            return
-        octave = np.floor(np.log2(np.maximum(hits.radius, 1e-12))).astype(np.int64)
-        key = hits.tag.astype(np.int64) * 4096 + (octave + 2048)
-        order = np.argsort(key, kind="stable")
-        uniq, starts = np.unique(key[order], return_index=True)
-        ends = np.append(starts[1:], len(order))
-        for k, s, e in zip(uniq, starts, ends):
-            idx = order[s:e]
-            tag = int(k // 4096)
-            self.groups.setdefault(tag, []).append((idx, cKDTree(hits.position[idx]),
-                                                    self._reach * float(hits.radius[idx].max())))
+        self.groups = search_groups(hits) if groups is None else groups
 
     def gather(self, photons: PhotonHits) -> None:
         """Deposit one bounce of photons into the hit points within their radius on the same face."""
@@ -326,4 +340,4 @@ def _add_ladder(hit, contrib, distance, cos_n, rungs, cos_rungs, area_ladder, ra
     return finite
 
 
-__all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
+__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
