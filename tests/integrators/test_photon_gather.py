@@ -155,3 +155,32 @@ def test_each_hit_point_gathers_the_photons_of_its_wavelength_within_each_rung_o
         assert np.allclose(g.radiance_ladder[:, rung], expected, rtol=1e-12, atol=0.0)
     assert np.allclose(g.radiance, g.radiance_ladder[:, 0], rtol=1e-12, atol=0.0)
     assert (g.radiance > 0).sum() > 0.9 * h
+
+
+def test_the_compiled_ladder_sums_are_the_five_bincounts_to_the_bit():
+    """`_add_ladder` replaced one bincount per rung added into its column: every rung of every hit point must
+    be that float, over two chunks of pairs (a hit point met many times in each, in no order), and a
+    non-finite product (a zero area) must be reported, not summed away."""
+    from lensmount.integrators.photon_gather import BIAS_LADDER, _add_ladder
+
+    rng = np.random.default_rng(11)
+    h_n, rungs = 50, np.asarray(BIAS_LADDER)
+    cos_rungs = np.cos(np.radians(np.minimum(30.0 * np.maximum(rungs, 1.0), 89.0)))
+    area = rng.uniform(1e-3, 2.0, (h_n, len(rungs)))
+    reference = rng.uniform(0, 1, (h_n, len(rungs)))
+    ladder = reference.copy()
+    sums, touched = np.zeros_like(ladder), np.zeros(h_n, bool)
+    for _ in range(2):
+        p = 4000
+        hi = rng.integers(0, h_n, p)
+        contrib = rng.lognormal(0.0, 3.0, p)
+        distance = rng.uniform(0.0, 2.2, p)
+        cos_n = rng.uniform(0.5, 1.0, p)
+        within = ((distance[:, None] < rungs) & (cos_n[:, None] > cos_rungs)) / area[hi]
+        for rung in range(len(rungs)):
+            reference[:, rung] += np.bincount(hi, weights=contrib * within[:, rung], minlength=h_n)
+        assert _add_ladder(hi, contrib, distance, cos_n, rungs, cos_rungs, area, ladder, sums, touched)
+        assert np.array_equal(ladder, reference)
+        assert not sums.any() and not touched.any()
+    area[hi[0], 0] = 0.0
+    assert not _add_ladder(hi, contrib, distance, cos_n, rungs, cos_rungs, area, ladder, sums, touched)

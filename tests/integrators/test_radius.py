@@ -122,12 +122,11 @@ def test_a_disc_wholly_on_a_coarse_annulus_keeps_its_whole_area():
 
 
 def _inside_area_numpy(fb, position, normal, tag, radius, detector_z):
-    """The on-face area as the (H, k, 3) numpy formulas computed it before the nearest boundaries were
-    compiled (radius._nearest_boundaries), with the candidates from scipy's KD-tree before the grid
-    (`neighbours.k_nearest`) found them: the reference the compiled search must equal to the bit."""
+    """The on-face area as the (H, k, 3) numpy formulas computed it before the nearest boundaries
+    (radius._nearest_boundaries) and the caps (radius._disc_areas) were compiled, with the candidates
+    from scipy's KD-tree before the grid (`neighbours.k_nearest`) found them: the reference the
+    compiled search must equal to the bit."""
     from scipy.spatial import cKDTree
-
-    from lensmount.integrators.radius import _cap, _cut_by_plane
 
     area = np.pi * radius**2
     for t in np.unique(tag):
@@ -163,6 +162,28 @@ def _inside_area_numpy(fb, position, normal, tag, radius, detector_z):
     return area
 
 
+def _cap(d, r):
+    """Area of the part of a disc of radius r beyond a line at distance d from its centre (numpy)."""
+    x = np.clip(d / np.maximum(r, 1e-300), 0.0, 1.0)
+    return r * r * (np.arccos(x) - x * np.sqrt(np.maximum(1.0 - x * x, 0.0)))
+
+
+def _cut_by_plane(position, normal, u1, d1, d2, detector_z):
+    """(d1, d2) with the detector plane's line merged in (numpy): where z = detector_z cuts the tangent
+    plane, at (detector_z − z) / |g| along g, the tangent direction of steepest z ascent; it joins the
+    nearest boundary when it lies on that side of the centre, else the opposite one, whichever is nearer."""
+    g = np.zeros_like(normal)
+    g[:, 2] = 1.0
+    g = g - normal[:, 2:3] * normal
+    slope = np.linalg.norm(g, axis=1)
+    cuts = slope > 1e-9
+    dist = np.maximum(np.where(cuts, (detector_z - position[:, 2]) / np.where(cuts, slope, 1.0), np.inf), 0.0)
+    same_side = np.einsum("hj,hj->h", g, u1) > 0
+    d1 = np.where(cuts & same_side, np.minimum(d1, dist), d1)
+    d2 = np.where(cuts & ~same_side, np.minimum(d2, dist), d2)
+    return d1, d2
+
+
 def test_compiled_boundary_search_is_the_numpy_one_to_the_bit():
     """Points on and just off a tilted annulus (a cone-like bore face crossing the detector plane) and a
     50 µm strip, radii from 10 µm to 5 mm: every area equals the numpy formulation's, with and without
@@ -170,7 +191,11 @@ def test_compiled_boundary_search_is_the_numpy_one_to_the_bit():
     rng = np.random.default_rng(3)
     v_a, tri_a = _annulus(10.0, 14.0, 96)
     c, s = math.cos(0.4), math.sin(0.4)
-    v_a = v_a @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]]).T  # tilted: its z spans the detector plane
+    # tilted about x, then turned about z: its z spans the detector plane and its normal has three
+    # non-zero components (how the plane's slope |g| is summed shows in the last bit)
+    turn = np.array([[math.cos(0.3), -math.sin(0.3), 0], [math.sin(0.3), math.cos(0.3), 0], [0, 0, 1]])
+    tilt = turn @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    v_a = v_a @ tilt.T
     v_s, tri_s, tags_s = _strip(0.05, 100.0, n=200)
     v = np.vstack([v_a, v_s + [0, 0, 30.0]])
     tri = np.vstack([tri_a, tri_s + len(v_a)])
@@ -179,10 +204,12 @@ def test_compiled_boundary_search_is_the_numpy_one_to_the_bit():
     n = 4000
     rho, phi = rng.uniform(9.9, 14.1, n), rng.uniform(0, 2 * np.pi, n)
     on_annulus = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), np.zeros(n)])
-    on_annulus = on_annulus @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]]).T
+    on_annulus = on_annulus @ tilt.T
     on_strip = np.column_stack([rng.uniform(0, 100, n), rng.uniform(-0.01, 0.06, n), np.full(n, 30.0)])
     pos = np.vstack([on_annulus, on_strip])
-    nrm = np.vstack([np.tile([0, -s, c], (n, 1)), np.tile([0, 0, 1.0], (n, 1))])
+    # facet normals scattered by ~1° about the annulus's, as on a tessellated curved face
+    wobble = tilt @ [0, 0, 1.0] + rng.normal(0.0, 0.02, (n, 3))
+    nrm = np.vstack([wobble / np.linalg.norm(wobble, axis=1, keepdims=True), np.tile([0, 0, 1.0], (n, 1))])
     tag = np.repeat([0, 1], n)
     r = np.exp(rng.uniform(math.log(0.01), math.log(5.0), 2 * n))
     for detector_z in (None, 2.0):

@@ -64,7 +64,7 @@ from lensmount.integrators.estimate import (
     AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
     film_channels, phase_clock, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share
+from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share, search_groups
 from lensmount.integrators.paths import FaceTally
 from lensmount.integrators.photon_target import COMPONENTS, aims_at_edge, edge_band, emission_component, guided_photons
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
@@ -154,7 +154,10 @@ class Bidirectional:
                               samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
                               faces=seen) if broad.any() else HitPoints.empty()
-        return ViewMap(int(pass_index), int(seed), scale, hits, core, seen, diagnostics, phase_clock() - clock)
+        # the hit points a backward ray reached straight from the detector gather nothing: their light is the
+        # photons' connections' (`connect`), so that each path is counted once
+        groups = search_groups(hits, ~hits.direct if cfg.connect_direct_view else None)
+        return ViewMap(int(pass_index), int(seed), scale, hits, groups, core, seen, diagnostics, phase_clock() - clock)
 
     def photon_pass(self, scene, tracer, view: "ViewMap", pass_index: int, photons: int, seed: int) -> PassEstimate:
         """Phases 2 and 3 of pass `pass_index` on its view map: photons from `scene`'s source, gathered at
@@ -173,13 +176,11 @@ class Bidirectional:
         # deposit into the hit points there before they scatter on. A thin diaphragm edge gets
         # most of them aimed at it (the pilot's band, once per process; Φ by the mixture density).
         clock = phase_clock()
-        # the hit points' search trees, per film (its paths get the gather's sums): the gather's time
-        # the hit points a backward ray reached straight from the detector gather nothing: their light is the
-        # photons' connections' (`connect`), so that each path is counted once
-        connects = cfg.connect_direct_view
-        gatherer = Gatherer(hits.subset(~hits.direct) if connects else hits, scene.bsdf_of_tag,
-                            max_normal_deg=cfg.normal_limit_deg,
-                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths)
+        # per film (its paths get the gather's sums), at the view map's search trees: the gather's time
+        gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
+                            detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths,
+                            groups=view.groups)
+        connects = cfg.connect_direct_view  # the view map's direct hit points are in no search tree (view_pass)
         gather_s = phase_clock() - clock
         aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
@@ -242,6 +243,7 @@ class ViewMap:
     pass_index, seed : the pass it belongs to
     radius_scale : s_i, the pass's gather radius relative to r_0
     hits : the hit points with their radii (none when nothing is gathered)
+    groups : their search trees (`photon_gather.search_groups`), shared by every source's gather
     core : (n_tags,) per face the lobe core the photons count (`gather_cores`; inf: nothing gathered)
     seen : the faces the detector sees first from each pixel (`paths.FaceTally`, the film's `seen`)
     diagnostics : the backward samples traced and lost (`view_map.build_view_map`'s stats)
@@ -252,6 +254,7 @@ class ViewMap:
     seed: int
     radius_scale: float
     hits: HitPoints
+    groups: dict
     core: np.ndarray
     seen: FaceTally
     diagnostics: dict[str, float]

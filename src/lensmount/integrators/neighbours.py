@@ -111,11 +111,12 @@ def _cell_of(x, y, z, lo, c, dims):
 
 
 @njit(cache=True, inline="always")
-def _scan(row, x, y, z, points, order, start, bd, bi, found, k):
-    """Offer the points of one cell to the query's k best (bd, bi ascending by (d², index)); the new count."""
+def _scan(row, x, y, z, by_cell, order, start, bd, bi, found, k):
+    """Offer the points of one cell to the query's k best (bd, bi ascending by (d², index)); the new count.
+    by_cell: the points in cell order (points[order]), so a cell's points are read from consecutive memory."""
     for s in range(start[row], start[row + 1]):
         p = order[s]
-        dx, dy, dz = x - points[p, 0], y - points[p, 1], z - points[p, 2]
+        dx, dy, dz = x - by_cell[s, 0], y - by_cell[s, 1], z - by_cell[s, 2]
         d2 = (dx * dx + dy * dy) + dz * dz  # cKDTree's order of summation
         found = _offer(d2, p, bd, bi, found, k)
     return found
@@ -140,6 +141,9 @@ def _offer(d2, p, bd, bi, found, k):
 def _k_nearest(points, queries, k, per_cell):
     """(d² (Q, k), index (Q, k)): each query's k nearest points, ascending by (d², index)."""
     lo, c, dims, order, start = _grid(points, per_cell)
+    by_cell = np.empty((order.size, 3))
+    for s in range(order.size):
+        by_cell[s] = points[order[s]]
     q_n = queries.shape[0]
     best_d = np.empty((q_n, k))
     best_i = np.empty((q_n, k), np.int64)
@@ -153,13 +157,23 @@ def _k_nearest(points, queries, k, per_cell):
         q_start[q_cell[q] + 1] += 1
     for j in range(1, q_start.size):
         q_start[j] += q_start[j - 1]
-    for q in _sorted_by_cell(q_cell, q_start):  # neighbouring queries one after the other: their cells are cached
-        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+    # The queries in cell order, neighbours one after the other (their cells stay cached); read and
+    # answered in that order from consecutive memory, the answers put in place at the end: hit points
+    # come in pixel order, scattered over their face, and a search reading and writing them in place
+    # waited on memory for most of its time.
+    q_order = _sorted_by_cell(q_cell, q_start)
+    q_by_cell = np.empty((q_n, 3))
+    for s in range(q_n):
+        q_by_cell[s] = queries[q_order[s]]
+    sorted_d = np.empty((q_n, k))
+    sorted_i = np.empty((q_n, k), np.int64)
+    for s in range(q_n):
+        x, y, z = q_by_cell[s, 0], q_by_cell[s, 1], q_by_cell[s, 2]
         cx = _axis_cell(x, lo[0], c, dims[0])
         cy = _axis_cell(y, lo[1], c, dims[1])
         cz = _axis_cell(z, lo[2], c, dims[2])
-        bd = best_d[q]
-        bi = best_i[q]
+        bd = sorted_d[s]
+        bi = sorted_i[s]
         found = 0
         ring = 0
         while True:
@@ -171,12 +185,12 @@ def _k_nearest(points, queries, k, per_cell):
                     row = (i * dims[1] + j) * dims[2]
                     if abs(i - cx) == ring or abs(j - cy) == ring:  # on the shell: the whole column
                         for kz in range(z0, z1 + 1):
-                            found = _scan(row + kz, x, y, z, points, order, start, bd, bi, found, k)
+                            found = _scan(row + kz, x, y, z, by_cell, order, start, bd, bi, found, k)
                     else:  # inside the shell's square: only its two z walls are new
                         if cz - ring >= 0:
-                            found = _scan(row + cz - ring, x, y, z, points, order, start, bd, bi, found, k)
+                            found = _scan(row + cz - ring, x, y, z, by_cell, order, start, bd, bi, found, k)
                         if cz + ring < dims[2]:
-                            found = _scan(row + cz + ring, x, y, z, points, order, start, bd, bi, found, k)
+                            found = _scan(row + cz + ring, x, y, z, by_cell, order, start, bd, bi, found, k)
             # The nearest point not yet visited lies beyond one of the walls of the visited block.
             wall = np.inf
             if x0 > 0:
@@ -197,6 +211,9 @@ def _k_nearest(points, queries, k, per_cell):
             if found == k and bd[k - 1] < wall * wall:
                 break
             ring += 1
+    for s in range(q_n):
+        best_d[q_order[s]] = sorted_d[s]
+        best_i[q_order[s]] = sorted_i[s]
     return best_d, best_i
 
 
@@ -261,20 +278,28 @@ def _k_nearest_grouped(points, queries, k, per_group):
 
 def k_nearest(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """(distance (Q, k), index (Q, k)) of the k points (N, 3) nearest each query (Q, 3), nearest
-    first (ties: the smaller index first); cKDTree(points).query(queries, k)'s numbers. 1 ≤ k ≤ N.
+    first (ties: the smaller index first); cKDTree(points).query(queries, k)'s numbers. 1 ≤ k ≤ N."""
+    d2, idx = _k_nearest_squared(points, queries, k)
+    return np.sqrt(d2), idx
 
-    Up to FEW_POINTS points (a face's rim segments, a subsample) the queries share the work in
-    groups (`_k_nearest_grouped`); more (a face's hit points among themselves), each searches the
-    points' grid (`_k_nearest`). Both give the same answer; the choice is speed alone."""
+
+def nearest_indices(points: np.ndarray, queries: np.ndarray, k: int) -> np.ndarray:
+    """(Q, k) `k_nearest`'s indices alone (the distances are not taken: a face's boundary candidates)."""
+    return _k_nearest_squared(points, queries, k)[1]
+
+
+def _k_nearest_squared(points, queries, k: int):
+    """(d² (Q, k), index (Q, k)) of `k_nearest`. Up to FEW_POINTS points (a face's rim segments, a
+    subsample) the queries share the work in groups (`_k_nearest_grouped`); more (a face's hit points
+    among themselves), each searches the points' grid (`_k_nearest`). Both give the same answer; the
+    choice is speed alone."""
     points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
     queries = np.ascontiguousarray(queries, np.float64).reshape(-1, 3)
     if not 1 <= k <= len(points):
         raise ValueError(f"k must lie in [1, {len(points)}], got {k}")
     if len(points) <= FEW_POINTS:
-        d2, idx = _k_nearest_grouped(points, queries, int(k), float(QUERIES_PER_GROUP))
-    else:
-        d2, idx = _k_nearest(points, queries, int(k), float(PER_CELL))
-    return np.sqrt(d2), idx
+        return _k_nearest_grouped(points, queries, int(k), float(QUERIES_PER_GROUP))
+    return _k_nearest(points, queries, int(k), float(PER_CELL))
 
 
 def kth_distance(points: np.ndarray, queries: np.ndarray, k: int) -> np.ndarray:
@@ -283,4 +308,4 @@ def kth_distance(points: np.ndarray, queries: np.ndarray, k: int) -> np.ndarray:
     return k_nearest(points, queries, k)[0][:, -1]
 
 
-__all__ = ["FEW_POINTS", "PER_CELL", "QUERIES_PER_GROUP", "k_nearest", "kth_distance"]
+__all__ = ["FEW_POINTS", "PER_CELL", "QUERIES_PER_GROUP", "k_nearest", "kth_distance", "nearest_indices"]

@@ -10,7 +10,7 @@ r > 25 µm around a point on the 50 µm diaphragm edge would also collect the ph
 on the plate's faces, whose irradiance is orders of magnitude higher.
 
 Neighbour search: hit points are grouped by (tag, radius octave) and each group gets
-one cKDTree per pass; photons of a tag get one tree per bounce; the pairs come back
+one cKDTree per view map (`search_groups`); photons of a tag get one tree per bounce; the pairs come back
 as flat arrays from `sparse_distance_matrix(..., output_type="ndarray")` — no Python
 loop over photons or hit points, only over (tag, octave) groups.
 """
@@ -149,6 +149,33 @@ def gatherable_share(bsdf, core: float, n_u: int = 48) -> float:
     return float(np.mean(shares))
 
 
+REACH = max(BIAS_LADDER)  # the widest disc the pair search must find, relative to a hit point's r
+
+
+def search_groups(hits: HitPoints, members: np.ndarray | None = None) -> dict[int, list[tuple[np.ndarray, cKDTree, float]]]:
+    """The hit points by face and radius octave, one KD-tree a group: {tag: [(indices, tree, reach)]}, reach
+    the farthest a pair of the group can lie (REACH × its largest radius). They read the hit points alone, so
+    they belong to the view map (`bidirectional.ViewMap.groups`: built once a pass, every source's photons
+    gathered at them; `pst` gathered each angle's at trees of its own, ~7 % of an angle's pass).
+    members : (H,) bool, the hit points that gather (None: all); the others are in no tree, so they gather
+    nothing (the direct ones, whose light the photons' connections count: `connect`)."""
+    groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
+    index = np.arange(len(hits)) if members is None else np.flatnonzero(members)
+    if len(index) == 0:
+        return groups
+    octave = np.floor(np.log2(np.maximum(hits.radius[index], 1e-12))).astype(np.int64)
+    key = hits.tag[index].astype(np.int64) * 4096 + (octave + 2048)
+    by_key = np.argsort(key, kind="stable")
+    order = index[by_key]
+    uniq, starts = np.unique(key[by_key], return_index=True)
+    ends = np.append(starts[1:], len(order))
+    for k, s, e in zip(uniq, starts, ends):
+        idx = order[s:e]
+        groups.setdefault(int(k // 4096), []).append((idx, cKDTree(hits.position[idx]),
+                                                      REACH * float(hits.radius[idx].max())))
+    return groups
+
+
 class Gatherer:
     """Hit points indexed for the pass; `gather(photons)` adds Σ f Φ / A into `radiance`.
 
@@ -164,13 +191,16 @@ class Gatherer:
     paths : a `paths.PathTally` that gets every photon–hit-point contribution to the detector
         irradiance (τ f Φ / A into the hit point's pixel) under the photon's signature; None: not kept.
 
+    groups : the hit points' `search_groups` (None: made here); a view map's, shared by every source's photons
+
     `radiance_ladder` (H, L) is the same estimate over the discs of radius r · BIAS_LADDER[l] (same
     photons, areas `area_ladder`): how it changes with the radius measures the kernel bias of the pass
     (`analysis.bias`).
     """
 
     def __init__(self, hits: HitPoints, bsdf_of_tag, max_normal_deg: float = EstimatorSettings.normal_limit_deg, chunk: int = 100_000,
-                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None, paths=None):
+                 detector_z: float | None = None, core_of_tag: np.ndarray | None = None, paths=None,
+                 groups: dict | None = None):
         self.hits = hits
         self.paths = paths
         self.chunk = int(chunk)
@@ -185,21 +215,12 @@ class Gatherer:
         self.detector_z = math.inf if detector_z is None else float(detector_z)
         self.radiance = np.zeros(len(hits))  # Σ f Φ / A per hit point, units E_sun/sr
         self.radiance_ladder = np.zeros((len(hits), len(BIAS_LADDER)))
-        self._reach = max(BIAS_LADDER)  # the widest disc the pair search must find
+        self._rungs = np.asarray(BIAS_LADDER, np.float64)
+        self._ladder_sums = np.zeros_like(self.radiance_ladder)  # `_add_ladder`'s per-chunk sums, kept zero
+        self._touched = np.zeros(len(hits), np.bool_)
+        self._reach = REACH
         self.pairs_tested = 0
-        self.groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
-        if len(hits) == 0:
-            return
-        octave = np.floor(np.log2(np.maximum(hits.radius, 1e-12))).astype(np.int64)
-        key = hits.tag.astype(np.int64) * 4096 + (octave + 2048)
-        order = np.argsort(key, kind="stable")
-        uniq, starts = np.unique(key[order], return_index=True)
-        ends = np.append(starts[1:], len(order))
-        for k, s, e in zip(uniq, starts, ends):
-            idx = order[s:e]
-            tag = int(k // 4096)
-            self.groups.setdefault(tag, []).append((idx, cKDTree(hits.position[idx]),
-                                                    self._reach * float(hits.radius[idx].max())))
+        self.groups = search_groups(hits) if groups is None else groups
 
     def gather(self, photons: PhotonHits) -> None:
         """Deposit one bounce of photons into the hit points within their radius on the same face."""
@@ -242,9 +263,9 @@ class Gatherer:
                 f = np.where(outside_core(wi, h.omega_o[hi], n_h, core), f, 0.0)
             contrib = np.maximum(f, 0.0) * photons.flux[pj]
             distance = v / h.radius[hi]
-            ladder = ((distance[:, None] < np.asarray(BIAS_LADDER)) & (cos_n[:, None] > self._cos_ladder)
-                      ) / h.area_ladder[hi]
-            if not np.all(np.isfinite(contrib[:, None] * ladder)):  # never zeroed: it hides light
+            if not _add_ladder(hi, contrib, distance, cos_n, self._rungs, self._cos_ladder, h.area_ladder,
+                               self.radiance_ladder, self._ladder_sums, self._touched):
+                # never zeroed: it hides light
                 raise FloatingPointError(f"non-finite gather value on face tag {tag} at "
                                          f"{int(np.sum(~np.isfinite(contrib)))} photon-hit pairs (the finish's "
                                          f"BSDF value or the hit point's area is not finite)")
@@ -253,8 +274,6 @@ class Gatherer:
             self.radiance += np.bincount(hi_r, weights=value, minlength=len(h))
             if self.paths is not None:
                 self.paths.add(photons.signature[pj[inside]], h.pixel[hi_r], h.weight[hi_r] * value)
-            for rung in range(len(BIAS_LADDER)):
-                self.radiance_ladder[:, rung] += np.bincount(hi, weights=contrib * ladder[:, rung], minlength=len(h))
 
     def part_flux_ladder(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
         """(L, C) Σ τ L_o per channel at each radius of BIAS_LADDER, as a sum over pixels (multiply by the
@@ -297,4 +316,37 @@ def _pairs_in_reach(i, j, distance, hidx, pidx, radius, reach, hit_wavelength, p
     return out[:n]
 
 
-__all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
+@njit(cache=True, error_model="numpy")  # a zero area gives inf or nan, reported as not finite (not raised)
+def _add_ladder(hit, contrib, distance, cos_n, rungs, cos_rungs, area_ladder, radiance_ladder, sums, touched):
+    """One chunk's pairs (hit point `hit`, `contrib` = f Φ, `distance` / r, `cos_n` between the normals) into
+    `radiance_ladder` (H, L): at rung l a pair adds contrib · (1 / area_ladder[hit, l]) when within
+    rungs[l] and cos_rungs[l], else contrib · (0 / area). False when any of those products is not finite.
+
+    The numbers of the numpy form it replaces, one (pairs,) bincount per rung added into its column: each
+    hit point's pairs summed from 0 in pair order (in `sums`, zero between calls, `touched` marking its
+    rows), then added to the column once. One pass over the pairs instead of five bincounts of length H."""
+    n_l = rungs.size
+    rows = np.empty(hit.size, np.int64)
+    m = 0
+    finite = True
+    for p in range(hit.size):
+        h = hit[p]
+        if not touched[h]:
+            touched[h] = True
+            rows[m] = h
+            m += 1
+        for l in range(n_l):
+            within = 1.0 if distance[p] < rungs[l] and cos_n[p] > cos_rungs[l] else 0.0
+            w = contrib[p] * (within / area_ladder[h, l])
+            finite &= math.isfinite(w)
+            sums[h, l] += w
+    for i in range(m):
+        h = rows[i]
+        touched[h] = False
+        for l in range(n_l):
+            radiance_ladder[h, l] += sums[h, l]
+            sums[h, l] = 0.0
+    return finite
+
+
+__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "outside_core", "gatherable_share", "INCIDENCES_DEG"]

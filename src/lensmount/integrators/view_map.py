@@ -194,13 +194,12 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                                   cap_mm=radius_cap_mm)
     radius = radius * float(radius_scale)
     area = area_ladder = None
-    if boundaries is not None:
-        area, *ladder = boundaries.inside_areas(pos, nrm, tg, (radius, *(m * radius for m in BIAS_LADDER)),
-                                                detector_z=det.z)
-        area_ladder = np.column_stack(ladder)
+    if boundaries is not None:  # the ladder's first rung is r itself (r · 1.0 == r): its areas are the pass's
+        ladder = boundaries.inside_areas(pos, nrm, tg, tuple(m * radius for m in BIAS_LADDER), detector_z=det.z)
+        area, area_ladder = ladder[0], np.column_stack(ladder)
     # A lens edge seen from inside the glass: the detector gets that radiance / n².
     direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
-    tau = tau[ok] * air_radiance_factor(scene, direction, tg, hit["prim"][ok], wavelength)
+    tau = tau[ok] * hit["air"][ok]
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
                      pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=wavelength.astype(np.int32), radius=radius, area=area,
@@ -211,7 +210,8 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarr
                    broad: np.ndarray, weight_scale: float, faces=None) -> dict:
     """Backward samples of `pixel` (m,) with streams `paths`, traced to their first face: the
     samples that end on a broad scatterer with a positive weight (position, normal, tag, weight,
-    direction, prim, wavelength, pixel, u_roulette) and `lost`, the samples the tracer's guards ended.
+    direction, air (the 1/n² of a hit from inside glass, `media`), wavelength, pixel, u_roulette) and `lost`,
+    the samples the tracer's guards ended.
     faces: as `build_view_map`'s (every sample's first face goes into it here)."""
     m = len(pixel)
     n_wl = len(scene.wavelengths_um)
@@ -231,11 +231,12 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarr
         step_lost = 0
     else:
         tag = step.tag
+        met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
+        air = np.ones(len(tag))  # the radiance factor of a hit from inside glass, for the faces and the hit points
+        air[met] = air_radiance_factor(scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met])
         if faces is not None:
-            met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
             # τ carries n_wl (a sample gathers one wavelength's photons): the solid angle is τ / n_wl.
-            faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air_radiance_factor(
-                scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met]))
+            faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air[met])
         ok = (step.kind == FACE) & (tag >= 0) & (tag < len(broad))
         ok[ok] &= broad[tag[ok]]
         ok &= (step.weight > 0) & np.isfinite(step.weight)
@@ -243,11 +244,11 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarr
     if not ok.any():
         empty = np.zeros(0)
         return dict(position=np.zeros((0, 3)), normal=np.zeros((0, 3)), tag=np.zeros(0, np.int32), weight=empty,
-                    direction=np.zeros((0, 3)), prim=np.zeros(0, np.int64), wavelength=np.zeros(0, np.int32),
-                    pixel=np.zeros(0, np.int64), u_roulette=empty, direct=np.zeros(0, bool), lost=step_lost)
+                    direction=np.zeros((0, 3)), air=empty.copy(), wavelength=np.zeros(0, np.int32),
+                    pixel=np.zeros(0, np.int64), u_roulette=empty.copy(), direct=np.zeros(0, bool), lost=step_lost)
     direct = direct_view(rays.direction[ok], rays.weight[ok], step.direction[ok], step.weight[ok])
     return dict(position=step.position[ok], normal=step.normal[ok], tag=step.tag[ok], weight=step.weight[ok],
-                direction=step.direction[ok], prim=step.prim[ok], wavelength=step.wavelength[ok],
+                direction=step.direction[ok], air=air[ok], wavelength=step.wavelength[ok],
                 pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), direct=direct, lost=step_lost)
 
 

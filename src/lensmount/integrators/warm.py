@@ -1,7 +1,8 @@
-"""Compile the integrators' numba kernels (the gather area's nearest-boundary search,
-`radius._nearest_boundaries`, the grid's k nearest, `neighbours._k_nearest`, which r_0 and
-the boundary candidates share, and the gather's pair test, `photon_gather._pairs_in_reach`) into
-their cache once: `python -m lensmount.integrators.warm`
+"""Compile the integrators' numba kernels (the gather area's nearest-boundary search and caps,
+`radius._nearest_boundaries` and `_disc_areas`, the grid's k nearest, `neighbours._k_nearest`, which
+r_0 and the boundary candidates share, and the gather's pair test and ladder sums,
+`photon_gather._pairs_in_reach` and `_add_ladder`) into their cache once:
+`python -m lensmount.integrators.warm`
 (`make install` runs it after `lensmount.trace.warm`).
 
 Why: cold, it takes 2-7 s to compile on the 2-core machine, which the first `simulate` (each of

@@ -10,7 +10,8 @@ is left and the curve drops by orders of magnitude.
 What does not change with the source direction is built once: the mount geometry (the
 regenerate cache), the Scene's mesh, optics, finishes and detector, each worker's tracer (an
 Embree BVH; the workers live for the whole sweep) and, per pass, the bidirectional view map
-(`Bidirectional.view_pass`: backward samples from the detector, which read no source). The
+(`Bidirectional.view_pass`: backward samples from the detector, which read no source, and the hit
+points' search trees the gather reads). The
 sweep runs pass-major: a job is pass i of every angle still running, one view map and then
 each angle's photons gathered at it (`Bidirectional.photon_pass`, the scene with that angle's
 source); each angle merges its passes in order into its own Accumulator and stops at its own

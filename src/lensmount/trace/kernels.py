@@ -305,6 +305,15 @@ def _grid_index(x, lo, cell, dim):
     return int(min(max(i, 0.0), dim - 1.0))
 
 
+@njit(cache=True, inline="always")
+def _cell_span(lo, hi, origin, cell, dims):
+    """(a0, a1, b0, b1, c0, c1): the cells, first and last along each axis, that the box [lo, hi] overlaps
+    in the grid (origin, cell edge, dims), clipped to it."""
+    return (_grid_index(lo[0], origin[0], cell[0], dims[0]), _grid_index(hi[0], origin[0], cell[0], dims[0]),
+            _grid_index(lo[1], origin[1], cell[1], dims[1]), _grid_index(hi[1], origin[1], cell[1], dims[1]),
+            _grid_index(lo[2], origin[2], cell[2], dims[2]), _grid_index(hi[2], origin[2], cell[2], dims[2]))
+
+
 @njit(cache=True)
 def _grid_members(box, lo, cell, dims):
     """CSR (first, member) of the boxes in each cell, boxes ascending in a cell (counted, then filled)."""
@@ -318,12 +327,7 @@ def _grid_members(box, lo, cell, dims):
             member = np.empty(first[n_cells], np.int64)
             fill = first[:-1].copy()
         for t in range(box.shape[0]):
-            a0 = _grid_index(box[t, 0, 0], lo[0], cell[0], dims[0])
-            a1 = _grid_index(box[t, 1, 0], lo[0], cell[0], dims[0])
-            b0 = _grid_index(box[t, 0, 1], lo[1], cell[1], dims[1])
-            b1 = _grid_index(box[t, 1, 1], lo[1], cell[1], dims[1])
-            c0 = _grid_index(box[t, 0, 2], lo[2], cell[2], dims[2])
-            c1 = _grid_index(box[t, 1, 2], lo[2], cell[2], dims[2])
+            a0, a1, b0, b1, c0, c1 = _cell_span(box[t, 0], box[t, 1], lo, cell, dims)
             for i in range(a0, a1 + 1):
                 for j in range(b0, b1 + 1):
                     for k in range(c0, c1 + 1):
@@ -363,12 +367,8 @@ def boxes_near(points, box, pad, lo, cell, dims, first, member):
             qx, qy, qz = points[i, 0], points[i, 1], points[i, 2]
             if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)):
                 continue
-            a0 = _grid_index(qx - slack, lo[0], cell[0], dims[0])
-            a1 = _grid_index(qx + slack, lo[0], cell[0], dims[0])
-            b0 = _grid_index(qy - slack, lo[1], cell[1], dims[1])
-            b1 = _grid_index(qy + slack, lo[1], cell[1], dims[1])
-            c0 = _grid_index(qz - slack, lo[2], cell[2], dims[2])
-            c1 = _grid_index(qz + slack, lo[2], cell[2], dims[2])
+            a0, a1, b0, b1, c0, c1 = _cell_span((qx - slack, qy - slack, qz - slack),
+                                                (qx + slack, qy + slack, qz + slack), lo, cell, dims)
             n_found = 0
             if (a1 - a0 + 1) * (b1 - b0 + 1) * (c1 - c0 + 1) > GRID_QUERY_CELLS_MAX:
                 for t in range(t_n):
