@@ -504,5 +504,5 @@ def verdict_sentence(v: Verdict) -> str:
 
 
 __all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "compare_until_decided", "resume", "obtain",
-           "plan", "plan_current", "stored_run", "check_comparable", "comparison_folder", "write_comparison", "part_rows",
-           "verdict_row", "verdict_sentence", "METRICS"]
+           "plan", "plan_current", "stored_run", "check_comparable", "comparison_folder", "write_comparison",
+           "part_rows", "verdict_row", "verdict_sentence", "METRICS"]
