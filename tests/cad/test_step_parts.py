@@ -466,3 +466,29 @@ def tomli_dumps(doc: dict) -> str:
     import tomli_w
 
     return tomli_w.dumps(doc)
+
+
+def test_a_step_part_whose_datum_moves_is_another_part(tmp_path, reference_layout):
+    """A STEP part is placed at its datum (here the image plane): a lens edit that moves the datum moves
+    the part with its `[parts.NAME]` entry unchanged, so its hash (what regenerate's kept STEP file and
+    the tessellation a long-lived process keeps, `cad.assembly._part_mesh`, are keyed by) changes too."""
+    from dataclasses import replace
+
+    from build123d import Cylinder
+
+    from lensmount.cad.assembly import step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    path = write_step(tmp_path / "tube.step", [("tube", Cylinder(60.0, 40.0) - Cylinder(55.0, 40.0), {}, {}, {})])
+    entry = {"step": "tube.step", "datum": "image-plane", "offset_mm": [0, 0, 30.0], "kind": "baffle",
+             "allow_vignetting": True}
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    p = layout.prescription
+    last = p.surfaces[-1]
+    longer = replace(p, surfaces=p.surfaces[:-1] + (replace(last, thickness=last.thickness + 1.0),))
+    assert longer.image_z == pytest.approx(p.image_z + 1.0)
+    [here] = step_built_parts(replace(layout, notes=[]), spec, {"camera": path}, {}, set())
+    [moved] = step_built_parts(replace(layout, prescription=longer, notes=[]), spec, {"camera": path}, {}, set())
+    assert moved.solid.bounding_box().min.Z == pytest.approx(here.solid.bounding_box().min.Z + 1.0, abs=1e-6)
+    assert moved.hash != here.hash

@@ -243,7 +243,7 @@ def step_built_parts(layout: Layout, spec: MountSpec, step_paths: dict[str, Path
             placed = solid.solid.moved(where)
             default = spec.finish_of(part, entry.finish)
             finishes = face_finishes(entry, part, solid, placed, used, default)
-            pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name))
+            pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name, z0))
             faces = len(finishes.finishes)
             out.append(BuiltPart(pp, placed, [("mount", -1)] * faces, path, part_hash(pp, None),
                                  f"parts.{name}.step", finishes.finishes, list(solid.face_names)))

@@ -57,10 +57,11 @@ class StepSource:
     entry_name: str  # NAME of its `[parts.NAME]` entry
     entry: StepPart
     solid_name: str
+    datum_z_mm: float  # where its datum is in this layout: the part moves with it, its entry unchanged
 
     def params(self) -> dict:
         return {"step": self.path.name, "sha256": self.sha256, "entry": self.entry_name, "solid": self.solid_name,
-                **self.entry.model_dump(mode="json")}
+                "datum_z_mm": self.datum_z_mm, **self.entry.model_dump(mode="json")}
 
 
 @dataclass

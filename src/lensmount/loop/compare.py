@@ -300,7 +300,7 @@ def compare(options: CompareOptions, observer: Observer | None = None,
     --until-decided before the last write nothing)."""
     o = options
     if o.until_decided:
-        return compare_until_decided(o, observer)
+        return compare_until_decided(o, observer, write)
     old_source, new_source = sources or plan(o)
     new = obtain(new_source, observer)
     old = obtain(old_source, observer)
@@ -331,12 +331,15 @@ def comparison_folder(o: CompareOptions, new: Run) -> Path:
 MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
 
 
-def compare_until_decided(options: CompareOptions, observer: Observer | None = None) -> CompareResult:
+def compare_until_decided(options: CompareOptions, observer: Observer | None = None,
+                          write: bool = True) -> CompareResult:
     """`compare`, then while the verdict is undecided: resume the runs by the passes that would decide
     it (`analysis.compare.to_decide`) and look again. Look j judges at `look_confidence(c, j)`, so the
     chance that any look reads a wrong verdict stays below 1 − c however many looks it takes. Stops at
     a verdict, when the next step would overrun `budget_s` seconds of tracing, when no number of passes
-    would decide it, or after MAX_LOOKS looks; the notes say which."""
+    would decide it, or after MAX_LOOKS looks; the notes say which. The last look's images and report are
+    written once, at the end (`write`; False: by the caller, `write_comparison`, e.g. after it has said
+    the verdict)."""
     o = replace(options, until_decided=False)
     if not o.budget_s >= 0:
         raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
@@ -373,7 +376,8 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
-    result.paths = write_comparison(out, result.old, result.new, result)  # compare.json with the looks' notes
+    if write:
+        result.paths = write_comparison(out, result.old, result.new, result)  # compare.json with the looks' notes
     return result
 
 
@@ -500,5 +504,5 @@ def verdict_sentence(v: Verdict) -> str:
 
 
 __all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "compare_until_decided", "resume", "obtain",
-           "plan", "plan_current", "stored_run", "check_comparable", "part_rows", "verdict_row", "verdict_sentence",
-           "METRICS"]
+           "plan", "plan_current", "stored_run", "check_comparable", "comparison_folder", "write_comparison",
+           "part_rows", "verdict_row", "verdict_sentence", "METRICS"]

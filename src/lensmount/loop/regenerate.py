@@ -46,4 +46,13 @@ def regenerate(options: RegenerateOptions, progress: Callable[[str, int, int], N
     return RegenerateResult(folder, manifest)
 
 
-__all__ = ["RegenerateOptions", "RegenerateResult", "regenerate"]
+def warm(design: Path) -> None:
+    """Keep the design's CAD warm in this process, writing nothing (`cad.pipeline.warm`): a long-lived
+    caller then regenerates an edit at the cost of the parts it changed."""
+    # lazy: keeps lensmount --help from loading cad and matplotlib
+    from lensmount.cad.pipeline import warm as warm_parts
+
+    warm_parts(design)
+
+
+__all__ = ["RegenerateOptions", "RegenerateResult", "regenerate", "warm"]

@@ -6,7 +6,10 @@ cache rebuilds only the parts whose inputs changed), simulates the scene and jud
 against the baseline, progressively: a first look after the QUICK preset's run (loop.simulate), then
 `compare --until-decided`'s looks, each adding the passes that would decide it. The baseline: by default the design as it was when `watch` started, or a stored run
 (`against`: last, best or a git revision). The CAD kernel, the compiled tracer kernels and
-the imports are paid for once, at start; worker processes are forked from this warm process.
+the imports are paid for once, at start: the design's parts are built into this process then
+(`loop.regenerate.warm`), so an edit pays for the parts it changed; worker processes are forked
+from this warm process. A verdict is said as soon as it is reached; the comparison's images and
+report follow before the folder is watched again.
 
 A revision that does not build (an InputError) is said in one paragraph and watching goes on:
 the next save is tried again. Each verdict is written to `OUT/watch.html`, a page that reloads
@@ -22,7 +25,9 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from lensmount.errors import InputError
-from lensmount.loop.compare import CompareOptions, CompareResult, Run, compare, obtain, plan_current, verdict_sentence
+from lensmount.loop.compare import (CompareOptions, CompareResult, Run, compare, obtain, plan_current, verdict_sentence,
+                                   write_comparison)
+from lensmount.loop.regenerate import warm
 from lensmount.loop.simulate import Observer
 from lensmount.run.report import esc, page, section, table_block, write_report
 
@@ -58,7 +63,9 @@ class WatchOptions:
 
 @dataclass(frozen=True)
 class Revision:
-    """One judged save: which files changed, the comparison (None when it did not build) and why."""
+    """One judged save: which files changed, the comparison (None when it did not build) and why. The
+    verdict comes first: the comparison's images and report (`result.paths`) are written when the caller
+    asks for the next revision, before the folder is watched again."""
 
     number: int
     changed: tuple[str, ...]
@@ -126,6 +133,7 @@ def watch(options: WatchOptions, observer: Observer | None = None,
     if o.against is None:  # the design as it is now; stored when an identical run exists
         start = time.perf_counter()
         baseline = obtain(plan_current(design, o.scene, settings, "old"), observer)
+        warm(design)  # the CAD kernel and every part kept in this process: an edit rebuilds only what it changed
         first = Revision(0, (), None, None, time.perf_counter() - start)
         history.append(first)
         write_watch_page(out, design, baseline, history)
@@ -139,17 +147,23 @@ def watch(options: WatchOptions, observer: Observer | None = None,
         target = out / f"revision-{number:03d}"
         try:
             if baseline is None:
-                result = compare(replace(judging, out=target), observer)
+                if number == 0:  # watching starts with this look: the CAD kept from here on (as for a baseline)
+                    warm(design)
+                result = compare(replace(judging, out=target), observer, write=False)
             else:
                 new = obtain(plan_current(design, o.scene, judging), observer)
                 result = compare(replace(judging, a=baseline.folder, b=new.folder, scene=None, against=None,
-                                         out=target), observer)
+                                         out=target), observer, write=False)
             revision = Revision(number, changed, result, None, time.perf_counter() - start)
         except InputError as error:  # the edit does not build: say so and keep watching
             revision = Revision(number, changed, None, error.paragraph(), time.perf_counter() - start)
         history.append(revision)
         write_watch_page(out, design, baseline, history)
         yield revision
+        if revision.result is not None:  # the verdict is out: now its images and report.html (seconds of matplotlib)
+            r = revision.result
+            r.paths = write_comparison(target, r.old, r.new, r)
+            write_watch_page(out, design, baseline, history)
         number += 1
 
 

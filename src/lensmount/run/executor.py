@@ -34,11 +34,15 @@ from multiprocessing.connection import Connection, wait
 
 from lensmount.errors import InputError, WorkersGone
 from lensmount.trace import lens_kernel
+from lensmount.trace.jit_cache import load_cached
 
 SCHEDULER_ENV = "LENSMOUNT_SCHEDULER"
 WORKER_WAIT_S = 300.0  # how long a Dask run with no worker left waits for one before it stops (exit 75)
 WORKER_DEATHS = 3  # a pass that kills this many local workers is a fault of the pass, not of a worker
 _PR_SET_PDEATHSIG = 1
+# The modules whose compiled kernels a pass calls: loaded from numba's cache before local workers are forked
+KERNEL_MODULES = ("lensmount.trace.kernels", "lensmount.trace.lens_kernel", "lensmount.integrators.neighbours",
+                  "lensmount.integrators.radius", "lensmount.integrators.photon_gather")
 
 
 def resolve(path: str):
@@ -152,6 +156,8 @@ class LocalProcesses(Executor):
         super().start(scene, tracer_path, run_pass_path)
         self._queue: deque = deque()  # passes not yet handed to a worker
         self._deaths: dict[int, int] = {}  # pass index → workers it has killed
+        for name in KERNEL_MODULES:  # once here, inherited by every fork, not once per worker and run
+            load_cached(vars(importlib.import_module(name)))
         self._idle = [self._spawn() for _ in range(self.workers)]
 
     @property

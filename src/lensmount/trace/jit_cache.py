@@ -38,4 +38,24 @@ def drop_damaged(namespace: dict) -> list[str]:
     return dropped
 
 
-__all__ = ["drop_damaged"]
+def load_cached(namespace: dict) -> int:
+    """Load into this process every signature of the namespace's kernels that the cache holds for this
+    machine and this source (`Dispatcher.compile` of a cached signature loads it; nothing is compiled,
+    a signature the cache lacks waits for its first call); how many. A process that forks workers
+    (`run.executor`) loads once for all of them, where each worker would load the same machine code in its
+    first pass (~1 CPU s each, every run). Kernels on every core (`parallel=True`) are left out: loading one
+    starts numba's threading layer (GNU OpenMP is not fork-safe), and a worker walks on one core."""
+    loaded = 0
+    for kernel in namespace.values():
+        if not isinstance(kernel, Dispatcher) or not kernel._cache.__class__.__name__ == "FunctionCache" \
+                or kernel.targetoptions.get("parallel"):
+            continue
+        codegen = kernel.targetctx.codegen()
+        for key in kernel._cache._cache_file._load_index():
+            if kernel._cache._index_key(key[0], codegen) == key:  # this machine's, of this source
+                kernel.compile(key[0])
+                loaded += 1
+    return loaded
+
+
+__all__ = ["drop_damaged", "load_cached"]
