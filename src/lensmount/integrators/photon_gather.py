@@ -314,4 +314,5 @@ def _pairs_in_reach(i, j, distance, hidx, pidx, radius, reach, hit_wavelength, p
     return out[:n]
 
 
-__all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "turned", "gatherable_share", "INCIDENCES_DEG"]
+__all__ = ["BIAS_LADDER", "HitPoints", "PhotonHits", "Gatherer", "outside_core", "turned", "gatherable_share",
+           "INCIDENCES_DEG"]
