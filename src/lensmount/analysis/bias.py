@@ -24,6 +24,10 @@ kernel bias is b(r) = E[F(r)] − truth; what the ladder can say about it, and w
   two orders of opposite sign, a disc wider than its face (issue 29, item 2): `compare` and the
   stopping rule take such a run's error as unknown, not as zero.
 
+A gather that loses photons on its wider discs flattens the curve the same way: 19 % of default case-1
+runs could not bound their bias while grazing photons on the curved diaphragm bore were dropped by a
+test of their world direction (`photon_gather.turned` keeps them; docs/performance.md, issue 29).
+
 What no ladder of radii ≥ r/√2 can see is a bias that appears only below r/√2 and is flat above it;
 the radius caps (`radius.radius_caps`: r_0 below the face's half width and its bend's chord) are
 what keep a disc from spanning a whole face, where that would happen.

@@ -9,6 +9,15 @@ on the same side (normals within `max_normal_deg`). Without the face test a disc
 r > 25 µm around a point on the 50 µm diaphragm edge would also collect the photons
 on the plate's faces, whose irradiance is orders of magnitude higher.
 
+ω_p is the photon's incidence on its own facet, turned with the face from its normal to the hit
+point's (`turned`): a photon's flux landed on the face, so it counts at every hit point of its disc,
+with the angle of incidence it had. Tested in its world direction instead, a grazing photon on a
+curved face lies behind the tangent plane of hit points a few degrees around the bend and was
+dropped there: on case 1's bore (R = 16.3 mm, light at 1–3° grazing near the ends of the lit arc)
+0.2–1 % of a pass's flux at r, more at each wider radius of the bias ladder. That loss is a kernel
+bias of no power of the radius: the ladder read it as a curve flattening outward and 19 % of
+default case-1 runs could not bound their bias (issue 29).
+
 Neighbour search: hit points are grouped by (tag, radius octave) and each group gets
 one cKDTree per view map (`search_groups`); photons of a tag get one tree per bounce; the pairs come back
 as flat arrays from `sparse_distance_matrix(..., output_type="ndarray")` — no Python
@@ -116,6 +125,16 @@ class PhotonHits:
     def __post_init__(self):
         if self.signature is None:
             self.signature = np.zeros(len(self.flux), np.int64)
+
+
+def turned(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3) each v turned by the rotation that takes unit normal a to unit normal b about a × b (Rodrigues:
+    v·c + k × v + k (k·v) / (1 + c), k = a × b, c = a·b); the angle of v to a is its angle to b. Normals
+    within the gather's band (c ≥ cos 89°) keep 1 + c away from 0."""
+    k = np.cross(a, b)
+    c = np.einsum("ij,ij->i", a, b)
+    return (v * c[:, None] + np.cross(k, v)
+            + k * (np.einsum("ij,ij->i", k, v) / np.maximum(1.0 + c, 1e-12))[:, None])
 
 
 def outside_core(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, core) -> np.ndarray:
@@ -250,9 +269,12 @@ class Gatherer:
             if not len(near):
                 continue
             hi, pj, v = hidx[pairs["i"][near]], pidx[pairs["j"][near]], pairs["v"][near]
-            n_h = h.normal[hi]
-            wi = -photons.direction[pj]
-            cos_n = np.einsum("ij,ij->i", n_h, photons.normal[pj])
+            n_h, n_p = h.normal[hi], photons.normal[pj]
+            cos_n = np.einsum("ij,ij->i", n_h, n_p)
+            # The photon's incidence as it met its own facet, turned onto the hit point's (`turned`): a test of
+            # its world direction against the hit point's tangent plane dropped the grazing photons of a curved
+            # face more the wider the disc, a loss no power of the radius describes (module docstring).
+            wi = turned(-photons.direction[pj], n_p, n_h)
             keep = (cos_n > self._cos_ladder.min()) & (np.einsum("ij,ij->i", n_h, wi) > 0.0)
             if not keep.any():
                 continue
@@ -349,4 +371,4 @@ def _add_ladder(hit, contrib, distance, cos_n, rungs, cos_rungs, area_ladder, ra
     return finite
 
 
-__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "outside_core", "gatherable_share", "INCIDENCES_DEG"]
+__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "outside_core", "turned", "gatherable_share", "INCIDENCES_DEG"]
