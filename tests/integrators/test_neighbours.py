@@ -68,7 +68,7 @@ def test_k_nearest_are_the_kd_trees_and_ties_go_to_the_smaller_index(name, searc
     assert np.array_equal(idx[untied], idx_ref[untied])
 
 
-@pytest.mark.parametrize("per_cell", [0.5, 2.0, 8.0, 64.0])
+@pytest.mark.parametrize("per_cell", [pytest.param(0.5, marks=pytest.mark.slow), 2.0, 8.0, 64.0])  # 0.5: ~30 s of CI
 def test_the_grids_cell_size_changes_the_work_not_the_answer(per_cell):
     points = _clouds()["crowded"]
     d_b, idx_b = _brute(points, points[::7], 9)
