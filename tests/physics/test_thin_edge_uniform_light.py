@@ -102,16 +102,10 @@ def test_thin_cylindrical_edge_reads_the_truth_at_every_radius(R):
                                        err_msg=f"R={R} {m:.3g} r={rho_m:.3g}")
 
 
-@pytest.mark.parametrize("R", [4.5, 16.3])
-def test_grazing_skew_light_on_a_cylindrical_edge_reads_the_truth_at_every_radius(R):
-    """Issue 29: light meeting the bore at grazing incidence, skewed along it (cos i = 0.05, a tangential
-    part ±0.2 in each facet's own frame: the field of a source on the axis, the same at every azimuth, so
-    the irradiance is uniform and L = ρ E / π exactly). A photon at azimuth Δφ from the hit point has its
-    world direction behind the hit point's tangent plane once tan Δφ > 0.05 / 0.2 (14°): tested so, the
-    gather dropped half the photons beyond 14°, 0.8–0.9 of the truth at r and less on each wider rung
-    (case 1's bore, R = 16.3 mm, lit at the ends of its arc by such light, made 19 % of runs unbounded).
-    The photon's incidence on its own facet, turned onto the hit point's, keeps them all: every rung reads
-    the truth but for the curvature's own kernel bias of the wider disc (the arc factor, as above)."""
+def _three_hit_points(R):
+    """The bore of radius R (`_edge`) with three hit points a third of a turn apart, each in the middle of its
+    facet: (vertices, triangles, tags, facet azimuths, the r cap, hit normals, hit positions, the facets the
+    widest disc of the ladder can reach from them)."""
     v, t, phi = _edge(R)
     tags = np.zeros(len(t), np.int32)
     cap = float(radius_caps(v, t, tags, 1)[0])
@@ -123,6 +117,21 @@ def test_grazing_skew_light_on_a_cylindrical_edge_reads_the_truth_at_every_radiu
                            np.zeros(3)])
     span = math.ceil((cap * max(BIAS_LADDER) + 0.1) / (2 * R * math.sin(math.pi / m))) + 1
     quads = np.unique(np.concatenate([(q + np.arange(-span, span + 1)) % m for q in q_hit]))
+    return v, t, tags, phi, cap, fn, pos, quads
+
+
+@pytest.mark.parametrize("R", [4.5, 16.3])
+def test_grazing_skew_light_on_a_cylindrical_edge_reads_the_truth_at_every_radius(R):
+    """Issue 29: light meeting the bore at grazing incidence, skewed along it (cos i = 0.05, a tangential
+    part ±0.2 in each facet's own frame: the field of a source on the axis, the same at every azimuth, so
+    the irradiance is uniform and L = ρ E / π exactly). A photon at azimuth Δφ from the hit point has its
+    world direction behind the hit point's tangent plane once tan Δφ > 0.05 / 0.2 (14°): tested so, the
+    gather dropped half the photons beyond 14°, 0.8–0.9 of the truth at r and less on each wider rung
+    (case 1's bore, R = 16.3 mm, lit at the ends of its arc by such light, made 19 % of runs unbounded).
+    The photon's incidence on its own facet, turned onto the hit point's, keeps them all: every rung reads
+    the truth but for the curvature's own kernel bias of the wider disc (the arc factor, as above)."""
+    v, t, tags, phi, cap, fn, pos, quads = _three_hit_points(R)
+    m = len(phi)
     photons, cell = _photons(R, phi, quads)
     n = photons.normal
     along = np.cross(n, [0.0, 0.0, 1.0])  # the facet's own tangent along the bore
@@ -163,17 +172,8 @@ def test_a_bore_under_grazing_skew_light_bounds_its_bias_and_holds_the_truth():
     from lensmount.analysis.passes import t_factor
 
     R, rho, e = 16.3, 0.05, 1.0
-    v, t, phi = _edge(R)
-    tags = np.zeros(len(t), np.int32)
-    cap = float(radius_caps(v, t, tags, 1)[0])
+    v, t, tags, phi, cap, fn, pos, quads = _three_hit_points(R)
     m = len(phi)
-    q_hit = np.array([0, m // 3, (2 * m) // 3])
-    ang = phi[q_hit] + math.pi / m
-    fn = np.array([_facet_normal(phi[q], phi[q] + 2 * math.pi / m) for q in q_hit])
-    pos = np.column_stack([R * math.cos(math.pi / m) * np.cos(ang), R * math.cos(math.pi / m) * np.sin(ang),
-                           np.zeros(3)])
-    span = math.ceil((cap * max(BIAS_LADDER) + 0.1) / (2 * R * math.sin(math.pi / m))) + 1
-    quads = np.unique(np.concatenate([(q + np.arange(-span, span + 1)) % m for q in q_hit]))
     facet_area = 2 * R * math.sin(math.pi / m) * WIDTH
     fb = FaceBoundaries(v, t, tags, 1)
     bsdf = make_bsdf("lambertian", reflectance=rho)
