@@ -121,6 +121,7 @@ def test_the_step_housing_replaces_the_generated_one_face_by_face(step_housing, 
     assert "field 5°: 0.00 %" in notes
 
 
+@pytest.mark.slow  # a whole case-2 run (~20 s); the STEP housing's faces and tags are checked in the fast tests above
 def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path):
     import tomllib
 
