@@ -207,17 +207,23 @@ def test_an_element_too_thin_at_its_edge_is_tried_with_smaller_chamfers():
 
 @pytest.mark.slow   # the starter's seatings refused, then the search: ~15 s on the shared machine
 def test_a_lens_whose_clear_aperture_reaches_its_rim_is_bonded_by_its_edge():
-    """Thorlabs ACL2520-A (tests/optics/corpus): its file's fixed clear semi-diameter, 12.5 mm, leaves
-    no annulus on the front face of its 12.8 mm rim: a retainer there would have a 0.122 mm wall and a
-    barrel shoulder would reach into the hood's vane. The search ends on the edge bond: nothing touches
-    lens-1's front face, and the barrel's bore runs past the glass's farthest point (init exited 2)."""
+    """Thorlabs ACL2520-A (tests/optics/corpus) with a clear semi-diameter of 12.5 mm on both faces and a
+    12.8 mm rim (as its fixed DIAM was read before it became the glass's edge, `zemax._glass_edges`): no
+    annulus is left on the front face: a retainer there would have a 0.122 mm wall and a barrel shoulder
+    would reach into the hood's vane. The search ends on the edge bond: nothing touches lens-1's front face,
+    and the barrel's bore runs past the glass's farthest point (init exited 2)."""
+    import dataclasses
+
     from lensmount.cad.layout import plan
     from lensmount.cad.mount_search import refusal
     from lensmount.cad.starter import starter_mount
     from lensmount.design.lens import load_lens
     from lensmount.design.mount import parse_mount
 
-    p = load_lens(CORPUS / "thorlabs-ACL2520-A.zmx")
+    catalogue = load_lens(CORPUS / "thorlabs-ACL2520-A.zmx")
+    faces = [dataclasses.replace(s, clear_semi_diameter=12.5, mechanical_semi_diameter=12.8) if i in (1, 2) else s
+             for i, s in enumerate(catalogue.surfaces)]
+    p = dataclasses.replace(catalogue, surfaces=tuple(faces))
     mount, why = starter_mount(p, "ACL2520-A")
     assert why is None and mount["seats"]["front"] == "bonded" and refusal(p, mount) is None
     layout = plan(p, parse_mount(mount))

@@ -201,7 +201,7 @@ def test_a_real_paint_change_from_5_to_20_percent_is_a_regression_named_as_a_fin
         _edit(folder / "finishes.toml", "reflectance = 0.05", f"reflectance = {reflectance}")
         _edit(folder / "scenes" / f"{CASE2}.toml", "pixels = [360, 240]", "pixels = [36, 24]")
         designs.append(folder)
-    result = _compare(*designs, "--scene", CASE2, "--passes", "4", "--photons-per-pass", "5000", "--workers", "1")
+    result = _compare(*designs, "--scene", CASE2, "--passes", "4", "--photons-per-pass", "20000", "--workers", "1")
     assert result.exit_code == 1, result.output
     assert "finish black-paint: reflectance 0.05 -> 0.2" in result.output
     report = json.loads(next((designs[1] / ".lensmount" / "runs").glob(f"{CASE2}-*/compare/compare.json")).read_text())
