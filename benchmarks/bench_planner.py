@@ -80,7 +80,7 @@ class Efficiency(NamedTuple):
 
 def measure(scene, budget_s: float, photons: int, seed: int = 1, min_passes: int = 4) -> Efficiency:
     """Bidirectional passes of `scene` for budget_s (after a warm-up pass), the edge channel's figures."""
-    from lensmount.integrators.bidirectional import Bidirectional, classify
+    from lensmount.integrators.bidirectional import Bidirectional, gather_cores
     from lensmount.integrators.walk import scattering_tags
     from lensmount.trace.tracer import Tracer
 
@@ -92,7 +92,7 @@ def measure(scene, budget_s: float, photons: int, seed: int = 1, min_passes: int
     while len(flux) < min_passes or time.perf_counter() - start < budget_s:
         flux.append(float(method.run_pass(scene, tracer, len(flux) + 1, photons, seed).part_flux[k]))
     seconds = time.perf_counter() - start
-    broad, _ = classify(scene.bsdf_of_tag)
+    broad = np.isfinite(gather_cores(scene.bsdf_of_tag))  # the faces where hit points are made
     f = np.asarray(flux)
     return Efficiency(float(f.mean()), float(f.std(ddof=1) / math.sqrt(len(f))), len(f), photons * len(f), seconds,
                       int((broad & scattering_tags(scene)).sum()))
