@@ -62,6 +62,33 @@ def _photons(R, phi, quads, spacing=0.002, rows=5):
     return PhotonHits(pos, -nrm, nrm, flux, np.zeros(n, np.int32), np.zeros(n, np.int32)), (chord / k) * (WIDTH / rows)
 
 
+def _hit_points(pos, fn, fb, r):
+    """The three hit points at radius r, their on-face areas at r and at every rung from the face's boundaries."""
+    return HitPoints(position=pos, normal=fn, omega_o=fn, weight=np.ones(3), pixel=np.zeros(3, np.int64),
+                     tag=np.zeros(3, np.int32), wavelength=np.zeros(3, np.int32), radius=r,
+                     area=fb.inside_area(pos, fn, np.zeros(3, np.int32), r),
+                     area_ladder=np.column_stack([fb.inside_area(pos, fn, np.zeros(3, np.int32), k * r)
+                                                  for k in BIAS_LADDER]))
+
+
+def _reads_the_truth_at_every_rung(R, cap, pos, fn, fb, bsdf, photons, truth, pass_indices):
+    """Gather `photons` at the three hit points (`_three_hit_points`) with the radius of each pass in
+    `pass_indices`: the radiance at r is the truth, and at each rung of the bias ladder the truth times the
+    arc factor. A ball of radius ρ on the arc holds the arc 4R·asin(ρ/2R), the on-face area counts 2ρ of it
+    (+3.1 % at 2r): a kernel bias of the wider disc, which the ladder is there to see, and nothing more (no
+    photon lost to the normal band)."""
+    for index in pass_indices:
+        r = np.full(3, cap * radius_scale(index))
+        g = Gatherer(_hit_points(pos, fn, fb, r), [bsdf])
+        g.gather(photons)
+        np.testing.assert_allclose(g.radiance / truth, 1.0, atol=0.02, err_msg=f"R={R} r={r[0]:.3g}")
+        for rung, k in enumerate(BIAS_LADDER):
+            rho_k = k * r[0]
+            arc = 2 * R / rho_k * math.asin(rho_k / (2 * R))
+            np.testing.assert_allclose(g.radiance_ladder[:, rung] / truth, arc, atol=0.02,
+                                       err_msg=f"R={R} {k:.3g} r={rho_k:.3g}")
+
+
 @pytest.mark.parametrize("R", [2.0, 4.5, 9.0, 25.0])
 def test_thin_cylindrical_edge_reads_the_truth_at_every_radius(R):
     v, t, phi = _edge(R)
@@ -83,23 +110,7 @@ def test_thin_cylindrical_edge_reads_the_truth_at_every_radius(R):
     truth = rho / math.pi * 1e-6 / cell  # L = ρ E / π
     fb = FaceBoundaries(v, t, tags, 1)
     bsdf = make_bsdf("lambertian", reflectance=rho)
-    for index in (0, 3, 30, 300, 9999):
-        r = np.full(3, cap * radius_scale(index))
-        hits = HitPoints(position=pos, normal=fn, omega_o=fn, weight=np.ones(3), pixel=np.zeros(3, np.int64),
-                         tag=np.zeros(3, np.int32), wavelength=np.zeros(3, np.int32), radius=r,
-                         area=fb.inside_area(pos, fn, np.zeros(3, np.int32), r),
-                         area_ladder=np.column_stack([fb.inside_area(pos, fn, np.zeros(3, np.int32), m * r)
-                                                      for m in BIAS_LADDER]))
-        g = Gatherer(hits, [bsdf])
-        g.gather(photons)
-        np.testing.assert_allclose(g.radiance / truth, 1.0, atol=0.02, err_msg=f"R={R} r={r[0]:.3g}")
-        for rung, m in enumerate(BIAS_LADDER):  # the bias ladder's discs, up to 2r: a ball of radius ρ on the
-            # arc holds the arc 4R·asin(ρ/2R), the on-face area counts 2ρ of it (+3.1 % at 2r): a kernel bias
-            # of the wider disc, which the ladder is there to see, and nothing more (no photon lost to the normal band)
-            rho_m = m * r[0]
-            arc = 2 * R / rho_m * math.asin(rho_m / (2 * R))
-            np.testing.assert_allclose(g.radiance_ladder[:, rung] / truth, arc, atol=0.02,
-                                       err_msg=f"R={R} {m:.3g} r={rho_m:.3g}")
+    _reads_the_truth_at_every_rung(R, cap, pos, fn, fb, bsdf, photons, truth, (0, 3, 30, 300, 9999))
 
 
 def _three_hit_points(R):
@@ -142,21 +153,7 @@ def test_grazing_skew_light_on_a_cylindrical_edge_reads_the_truth_at_every_radiu
     truth = rho / math.pi * 1e-6 / cell
     fb = FaceBoundaries(v, t, tags, 1)
     bsdf = make_bsdf("lambertian", reflectance=rho)
-    for index in (0, 30, 9999):
-        r = np.full(3, cap * radius_scale(index))
-        hits = HitPoints(position=pos, normal=fn, omega_o=fn, weight=np.ones(3), pixel=np.zeros(3, np.int64),
-                         tag=np.zeros(3, np.int32), wavelength=np.zeros(3, np.int32), radius=r,
-                         area=fb.inside_area(pos, fn, np.zeros(3, np.int32), r),
-                         area_ladder=np.column_stack([fb.inside_area(pos, fn, np.zeros(3, np.int32), k * r)
-                                                      for k in BIAS_LADDER]))
-        g = Gatherer(hits, [bsdf])
-        g.gather(photons)
-        np.testing.assert_allclose(g.radiance / truth, 1.0, atol=0.02, err_msg=f"R={R} r={r[0]:.3g}")
-        for rung, k in enumerate(BIAS_LADDER):
-            rho_k = k * r[0]
-            arc = 2 * R / rho_k * math.asin(rho_k / (2 * R))
-            np.testing.assert_allclose(g.radiance_ladder[:, rung] / truth, arc, atol=0.02,
-                                       err_msg=f"R={R} {k:.3g} r={rho_k:.3g}")
+    _reads_the_truth_at_every_rung(R, cap, pos, fn, fb, bsdf, photons, truth, (0, 30, 9999))
 
 
 def test_a_bore_under_grazing_skew_light_bounds_its_bias_and_holds_the_truth():
@@ -193,12 +190,7 @@ def test_a_bore_under_grazing_skew_light_bounds_its_bias_and_holds_the_truth():
         photons = PhotonHits(p, -incidence, nrm, np.full(n, e * facet_area * len(quads) / n),
                              np.zeros(n, np.int32), np.zeros(n, np.int32))
         r = np.full(3, cap * radius_scale(index))
-        hits = HitPoints(position=pos, normal=fn, omega_o=fn, weight=np.ones(3), pixel=np.zeros(3, np.int64),
-                         tag=np.zeros(3, np.int32), wavelength=np.zeros(3, np.int32), radius=r,
-                         area=fb.inside_area(pos, fn, np.zeros(3, np.int32), r),
-                         area_ladder=np.column_stack([fb.inside_area(pos, fn, np.zeros(3, np.int32), k * r)
-                                                      for k in BIAS_LADDER]))
-        g = Gatherer(hits, [bsdf])
+        g = Gatherer(_hit_points(pos, fn, fb, r), [bsdf])
         g.gather(photons)
         flux.append(g.radiance.sum())
         ladder.append(g.radiance_ladder.sum(axis=0))
