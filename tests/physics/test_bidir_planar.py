@@ -140,3 +140,34 @@ def test_a_0_05_degree_lobe_is_followed_by_photons_and_matches_the_mirror_image(
     mean, se, est = _run(scene, 6, 100_000, 16)
     expected = albedo * math.cos(THETA)
     assert abs(mean - expected) < 3 * se + 0.01 * expected, (mean, se, expected)
+
+
+def _disc_view_factor(x, y, a, h):
+    """View factor from a detector element at (x, y), parallel to a disc of radius a at height h on
+    its axis: ½ [1 − (h² + r² − a²) / √((h² + r² + a²)² − 4 r² a²)]."""
+    r2 = x * x + y * y
+    return 0.5 * (1.0 - (h * h + r2 - a * a) / np.sqrt((h * h + r2 + a * a) ** 2 - 4.0 * r2 * a * a))
+
+
+@pytest.mark.parametrize("pitch", [1, 2])
+def test_a_coarse_view_map_reads_every_pixel(pitch):
+    """Every pixel's irradiance from a wide Lambertian disc (ρE cosθ/π times the disc's view factor
+    from that pixel), with the view map sampling blocks of pitch × pitch pixels: on a 3 × 3 detector
+    the 2 × 2 blocks are cut at its right and top edges, so a block weight that ignored the cut
+    (1.5–4× too much in the edge pixels) or a hit point put in the block's first pixel (others
+    empty) fails here."""
+    rho, a, D = 0.4, 200.0, 20.0
+    scene = PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (a, 0), "plate", disc=True)],
+                        [make_bsdf("lambertian", reflectance=rho)], Detector(24.0, 24.0, 3, 3, D),
+                        _beam((0, 0, 0), 1.2 * a))
+    _, _, est = _run(scene, 8, 30_000, 400, connect_direct_view=False, view_map_pitch=pitch)
+    images = np.array([e.image for e in est])
+    mean = images.mean(axis=0)
+    total_se = images.sum(axis=(1, 2)).std(ddof=1) / math.sqrt(len(images))
+    # the pixel average of ρ cos θ · F by a 40 × 40 midpoint rule over each 8 mm pixel
+    u = (np.arange(40) + 0.5) / 40 * 8.0
+    expected = np.array([[rho * math.cos(THETA) * _disc_view_factor(*np.meshgrid(-12.0 + 8.0 * ix + u,
+                                                                               -12.0 + 8.0 * iy + u), a, D).mean()
+                          for ix in range(3)] for iy in range(3)])
+    assert np.all(np.abs(mean / expected - 1.0) < 0.2), mean / expected
+    assert abs(mean.sum() - expected.sum()) < 4 * total_se + 0.01 * expected.sum(), (mean.sum(), expected.sum())

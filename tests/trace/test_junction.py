@@ -243,3 +243,31 @@ def test_boxes_near_a_point_are_every_padded_box_that_holds_it():
         assert len(ref) > 20
     assert [len(a) for a in boxes_near(np.zeros((0, 3)), box, 0.25, *grid)] == [0, 0]
     assert [len(a) for a in boxes_near(np.array([[np.nan, 0.0, 0.0]]), box, 0.25, *grid)] == [0, 0]
+
+
+def test_faces_beside_a_face_are_every_pair_of_boxes_within_the_band():
+    """`kernels.box_pairs` (candidates from a grid) against every pair tested in numpy: boxes within
+    2·pad of each other on all three axes, sharing no vertex, not parallel. Boxes that touch exactly at
+    2·pad, share a vertex, are parallel, or are degenerate (flat, on the grid's outer walls) included."""
+    from lensmount.trace.kernels import box_pairs
+
+    rng = np.random.default_rng(8)
+    n = 1500
+    lo = np.round(rng.uniform(-10.0, 10.0, size=(n, 3)), 1)  # on a 0.1 mm lattice: many exact touches
+    box = np.stack([lo, lo + np.round(rng.uniform(0.0, 2.0, size=(n, 3)), 1)], axis=1)
+    box[:40, 1, 2] = box[:40, 0, 2]  # flat boxes
+    vid = rng.integers(0, 3 * n // 2, size=(n, 3))  # some triangles share vertices
+    normal = rng.normal(size=(n, 3))
+    normal[50:100] = normal[0]  # a parallel family
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    for pad in (0.05, 0.5, 0.0):
+        first, other = box_pairs(box, vid, normal, pad)
+        near = np.all((box[None, :, 0] <= box[:, None, 1] + 2.0 * pad)
+                      & (box[:, None, 0] <= box[None, :, 1] + 2.0 * pad), axis=2)
+        shared = (vid[:, None, :, None] == vid[None, :, None, :]).any(axis=(2, 3))
+        parallel = np.abs(normal @ normal.T) >= 1.0 - 1e-9
+        want = near & ~shared & ~parallel
+        got = np.zeros((n, n), bool)
+        got[np.repeat(np.arange(n), np.diff(first)), other] = True
+        assert np.array_equal(got, want) and want.sum() > n
+        assert all(np.all(np.diff(other[first[i]:first[i + 1]]) > 0) for i in range(n))  # ascending, no repeat

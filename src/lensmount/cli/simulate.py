@@ -189,6 +189,10 @@ def simulate(
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass",
                                                    help="Photons per pass (default: the scene's run.photons)."),
     samples_per_pixel: int = typer.Option(1, "--samples-per-pixel", help="Backward samples per pixel per pass."),
+    view_map_pitch: Optional[int] = typer.Option(
+        None, "--view-map-pitch", help="Bidirectional: the view map samples blocks of N × N pixels a pass (default: "
+                                       "the scene's run.view_map_pitch, else 1). N² fewer backward rays a pass for "
+                                       "the same expected total and image; the image fills in over more passes."),
     alpha: float = typer.Option(0.7, "--alpha", help="Radius shrink parameter, 0 < alpha < 1."),
     workers: int = typer.Option(0, "--workers", help="Worker processes (0 = one per core)."),
     resume: bool = typer.Option(False, "--resume", help="Continue from OUT/checkpoint.npz (none there: start from the first "
@@ -218,8 +222,8 @@ def simulate(
     first passes), and the progress line refines it.
     """
     options = SimulateOptions(design, scene, method, seed, out, photons, time_s, target_rel_error, passes,
-                              photons_per_pass, samples_per_pixel, alpha, workers, resume, geometry, store,
-                              not no_record, list(sys.argv), scheduler, cluster, worker_wait, quick)
+                              photons_per_pass, samples_per_pixel, view_map_pitch, alpha, workers, resume, geometry,
+                              store, not no_record, list(sys.argv), scheduler, cluster, worker_wait, quick)
     result = observed(run_simulation, options)
     print_summary(result.summary, result.paths)
     if result.stopped_short:

@@ -45,6 +45,8 @@ passes = 32                  # at most this many
 seed = 1
 target_rel_error = 0.05      # stop at this relative error (std + bias bound; after 8 passes at least)
 time_s = 600                 # or after this many seconds of tracing, whichever comes first (the default)
+view_map_pitch = 1           # bidirectional: the view map samples blocks of 1 × 1 pixels a pass (4: 16× fewer
+                             # backward rays; the total's error barely moves, the image fills in over passes)
 ```
 """
 
@@ -160,13 +162,16 @@ class EffectsSpec(_Strict):
 class RunSpec(_Strict):
     """The run length `simulate` takes when its command line sets none (loop.simulate.stopping): photons
     per pass; at most `passes` passes; the target error when given; never more than time_s seconds of
-    tracing (a longer run is a batch job: say so with a larger time_s)."""
+    tracing (a longer run is a batch job: say so with a larger time_s). `view_map_pitch` is the
+    bidirectional view map's (integrators.settings.EstimatorSettings): part of the estimator, so of
+    the input hash."""
 
     photons: int = Field(default=1_000_000, ge=1)
     passes: int = Field(default=32, ge=1)
     seed: int = Field(default=1, ge=0)
     target_rel_error: float | None = Field(default=None, gt=0.0)
     time_s: float = Field(default=600.0, gt=0.0)
+    view_map_pitch: int = Field(default=1, ge=1)
 
 
 class ObjectSpec(_Strict):

@@ -149,9 +149,10 @@ class Bidirectional:
         diagnostics: dict[str, float] = {}
         clock = phase_clock()
         hits = build_view_map(scene, tracer, scene.detector,
-                              view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel), broad=broad,
+                              view_map_streams(seed, pass_index, scene.detector, cfg.samples_per_pixel,
+                                               cfg.view_map_pitch), broad=broad,
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
-                              samples_per_pixel=cfg.samples_per_pixel, mixture_c=cfg.mixture_c, pilot_seed=seed,
+                              samples_per_pixel=cfg.samples_per_pixel, pitch=cfg.view_map_pitch, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
                               faces=seen) if broad.any() else HitPoints.empty()
         # the hit points a backward ray reached straight from the detector gather nothing: their light is the

@@ -22,6 +22,9 @@ class EstimatorSettings:
         roulette_level: roulette keeps a photon with q = min(1, Φ / (roulette_level · Φ0)), Φ0 its emitted flux.
         alpha: progressive radius shrink, 0 < alpha < 1 (radius scale s_i of pass i).
         samples_per_pixel: backward samples per pixel per pass (view map).
+        view_map_pitch: the view map samples blocks of this many × this many pixels, `samples_per_pixel`
+            a block a pass, each standing for its block (`view_map`): k² fewer backward rays a pass for the
+            same expected image and total; the image needs about k² more passes to fill in.
         mixture_c: share of backward directions aimed at the exit targets (the rest cosine-weighted).
         glossy_threshold_deg: lobes narrower than this half width are followed by photons, not gathered...
         gathered_share: ...unless this share of their albedo lies beyond sin(glossy_threshold_deg) of the
@@ -45,6 +48,7 @@ class EstimatorSettings:
     roulette_level: float = 1e-3
     alpha: float = 0.7
     samples_per_pixel: int = 1
+    view_map_pitch: int = 1
     mixture_c: float = 0.5
     glossy_threshold_deg: float = 15.0
     gathered_share: float = 0.25
@@ -63,6 +67,7 @@ class EstimatorSettings:
             "roulette_level": (0.0 < self.roulette_level <= 1.0, "0 < roulette_level <= 1"),
             "alpha": (0.0 < self.alpha < 1.0, "0 < alpha < 1"),
             "samples_per_pixel": (self.samples_per_pixel >= 1, "an integer >= 1"),
+            "view_map_pitch": (self.view_map_pitch >= 1, "an integer >= 1 (pixels)"),
             "mixture_c": (0.0 <= self.mixture_c <= 1.0, "0 <= mixture_c <= 1"),
             "glossy_threshold_deg": (0.0 <= self.glossy_threshold_deg <= 90.0, "0 to 90 degrees"),
             "gathered_share": (0.0 < self.gathered_share <= 1.0, "0 < gathered_share <= 1"),

@@ -14,6 +14,14 @@ the scene has ghosts on). Where it first meets a mechanical face:
 
 W is the number of wavelengths: each sample picks one uniformly and gathers only
 photons of that wavelength.
+
+With a view-map pitch k > 1 a pass draws its samples per block of k × k pixels instead of
+per pixel: x uniform in the block, the hit point in the pixel x falls in, τ times the
+block's pixel count. Each pass stays unbiased for every pixel and for the total; a pixel is
+sampled in about 1/k² of the passes, so the image fills in over passes while the total
+(the stray fraction) costs k² fewer backward rays a pass. Since the direct view of broad
+faces is counted by connections (`connect`), the total's error hardly depends on how dense
+the view map is (docs/performance.md, "The view map's pitch").
 """
 
 from __future__ import annotations
@@ -117,22 +125,46 @@ def stop_rim_target(scene, det: Detector, broad: np.ndarray, rel_width: float = 
                     facing=-1.0 if det.z > z_xp else 1.0)
 
 
-def _sample_layout(det: Detector, samples_per_pixel: int) -> tuple[np.ndarray, np.ndarray]:
-    """(pixel, sample) of every backward sample of a pass, pixel-major."""
+def _sample_layout(det: Detector, samples_per_pixel: int, pitch: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(block, sample) of every backward sample of a pass, block-major. A block is `pitch` × `pitch`
+    pixels (fewer at the detector's right and top edges); at pitch 1 a block is a pixel."""
     s = int(samples_per_pixel)
-    n_pix = det.nx * det.ny
-    return np.repeat(np.arange(n_pix, dtype=np.int64), s), np.tile(np.arange(s, dtype=np.int64), n_pix)
+    n_blocks = _blocks(det.nx, pitch) * _blocks(det.ny, pitch)
+    return np.repeat(np.arange(n_blocks, dtype=np.int64), s), np.tile(np.arange(s, dtype=np.int64), n_blocks)
 
 
-def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixel: int) -> Streams:
-    """The numbers of pass `pass_index`'s backward samples, keyed by (seed, pass, pixel, sample)."""
-    pixel, sample = _sample_layout(det, samples_per_pixel)
-    return Streams(seed, "view-map", (np.full(len(pixel), int(pass_index)), pixel, sample))
+def _blocks(n_pixels: int, pitch: int) -> int:
+    return -(-int(n_pixels) // int(pitch))
+
+
+def block_points(det: Detector, block: np.ndarray, pitch: int,
+                 u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 3) points uniform in `pitch` × `pitch` pixel blocks (N,) from uniforms u (N, 2), the pixel
+    each lies in, and each block's size in pixels: a sample stands for its whole block, so its weight
+    is that many pixels'. At pitch 1 these are `Detector.sample_points`, bit for bit, and sizes 1."""
+    if pitch == 1:
+        return det.sample_points(block, u), np.asarray(block, np.int64), np.ones(len(block))
+    by, bx = np.divmod(np.asarray(block, np.int64), _blocks(det.nx, pitch))
+    ix0, iy0 = bx * pitch, by * pitch
+    wx, wy = np.minimum(pitch, det.nx - ix0), np.minimum(pitch, det.ny - iy0)
+    x = -0.5 * det.width + (ix0 + u[:, 0] * wx) * (det.width / det.nx)
+    y = -0.5 * det.height + (iy0 + u[:, 1] * wy) * (det.height / det.ny)
+    ix = ix0 + np.minimum((u[:, 0] * wx).astype(np.int64), wx - 1)
+    iy = iy0 + np.minimum((u[:, 1] * wy).astype(np.int64), wy - 1)
+    points = np.column_stack([x, y, np.full(len(x), float(det.z))])
+    return points, iy * det.nx + ix, (wx * wy).astype(np.float64)
+
+
+def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixel: int, pitch: int = 1) -> Streams:
+    """The numbers of pass `pass_index`'s backward samples, keyed by (seed, pass, block, sample); at
+    pitch 1 a block is a pixel."""
+    block, sample = _sample_layout(det, samples_per_pixel, pitch)
+    return Streams(seed, "view-map", (np.full(len(block), int(pass_index)), block, sample))
 
 
 def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
-                   mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
+                   pitch: int = 1, mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
                    radius_cap_mm: float = 5.0, stats: dict | None = None, faces=None) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
@@ -150,8 +182,8 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         (scene, tracer, seed)); None: the paraxial rim annulus instead (the estimate is the same).
     """
     s = int(samples_per_pixel)
-    pixel, _ = _sample_layout(det, s)
-    n = len(pixel)
+    block, _ = _sample_layout(det, s, pitch)
+    n = len(block)
     paths = ray_streams(rng, n)
     n_wl = len(scene.wavelengths_um)
     disc = exit_disc(scene, det)
@@ -170,7 +202,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     # Traced in chunks: a sample's numbers and path depend on its own stream only, so the hit
     # points are the same as from one batch, and memory stays bounded at any detector size.
     chunks = [_trace_samples(scene, tracer, det, paths.take(slice(a, a + VIEW_MAP_CHUNK)),
-                             pixel[a:a + VIEW_MAP_CHUNK], targets, weights, broad, n_wl / s, faces)
+                             block[a:a + VIEW_MAP_CHUNK], pitch, targets, weights, broad, n_wl / s, faces)
               for a in range(0, n, VIEW_MAP_CHUNK)]
     lost = sum(c.pop("lost") for c in chunks)
     if stats is not None:
@@ -206,24 +238,24 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                      area_ladder=area_ladder, direct=hit["direct"][ok])
 
 
-def _trace_samples(scene, tracer, det: Detector, paths: Streams, pixel: np.ndarray, targets, weights,
+def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarray, pitch: int, targets, weights,
                    broad: np.ndarray, weight_scale: float, faces=None) -> dict:
-    """Backward samples of `pixel` (m,) with streams `paths`, traced to their first face: the
+    """Backward samples of `block` (m,) (pixel blocks of `pitch`) with streams `paths`, traced to their first face: the
     samples that end on a broad scatterer with a positive weight (position, normal, tag, weight,
     direction, air (the 1/n² of a hit from inside glass, `media`), wavelength, pixel, u_roulette) and `lost`,
     the samples the tracer's guards ended.
     faces: as `build_view_map`'s (every sample's first face goes into it here)."""
-    m = len(pixel)
+    m = len(block)
     n_wl = len(scene.wavelengths_um)
     u = paths.random((m, 6))
-    x = det.sample_points(pixel, u[:, 0:2])
+    x, pixel, block_pixels = block_points(det, block, pitch, u[:, 0:2])
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
     omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
     response = scene.detector.spectral_weight
     if response is not None:  # the detector's spectral response weights each sample's wavelength
         w = w * np.asarray(response, np.float64)[wl]
     live = w > 0
-    rays = RayBatch.make(x[live], omega[live], weight=w[live] * weight_scale, wavelength=wl[live], ids=pixel[live])
+    rays = RayBatch.make(x[live], omega[live], weight=w[live] * (weight_scale * block_pixels[live]), wavelength=wl[live], ids=pixel[live])
     paths = paths.take(live)
     step = tracer.next_event(rays, paths) if len(rays) else None
     if step is None:

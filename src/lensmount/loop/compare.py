@@ -413,6 +413,7 @@ def _resumed_options(run: Run, more: int, o: CompareOptions) -> SimulateOptions 
                            seed=s.get("seed"), out=live_folder(run), passes=int(s.get("passes", 0)) + more,
                            photons_per_pass=s.get("photons_per_pass"),
                            samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
+                           view_map_pitch=int(settings.get("view_map_pitch", 1)),
                            alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,
                            store=o.store)
 

@@ -89,6 +89,7 @@ class PstOptions:
     photons_per_pass: int | None = None
     seed: int | None = None
     samples_per_pixel: int = 1
+    view_map_pitch: int | None = None  # default: the scene's run.view_map_pitch
     alpha: float = 0.7
     geometry: Path | None = None
     workers: int = 0  # processes running an angle's passes (0: one per core)
@@ -204,7 +205,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     check_options(SimulateOptions(o.design, o.scene, method=o.method, seed=o.seed, passes=o.passes,
                                   target_rel_error=o.target_rel_error,
                                   photons_per_pass=o.photons_per_pass, samples_per_pixel=o.samples_per_pixel,
-                                  alpha=o.alpha, geometry=o.geometry, workers=o.workers))
+                                  view_map_pitch=o.view_map_pitch, alpha=o.alpha, geometry=o.geometry, workers=o.workers))
     design, spec = read_inputs(o.design, o.scene)
     if not spec.source.at_infinity:
         raise InputError(f"pst sweeps the angle of a source at infinity; this scene's source is a {spec.source.type} "
@@ -223,7 +224,8 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     det = base.detector
     area = det.width * det.height
     field_edge = float(design.prescription.max_field_deg)
-    settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
+    settings = EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha,
+                                 view_map_pitch=spec.run.view_map_pitch if o.view_map_pitch is None else o.view_map_pitch)
     sources = [make_source(spec.source.model_copy(update={"off_axis_deg": float(a), "azimuth_deg": azimuth}),
                            base.front_opening, base.mesh, det, design.prescription) for a in o.angles_deg]
     # Only each pass's totals travel and are kept (`PassEstimate.totals`): PST needs no image.

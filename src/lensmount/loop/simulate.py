@@ -63,6 +63,7 @@ class SimulateOptions:
     passes: int | None = None
     photons_per_pass: int | None = None
     samples_per_pixel: int = 1
+    view_map_pitch: int | None = None
     alpha: float = 0.7
     workers: int = 0
     resume: bool = False
@@ -210,6 +211,9 @@ def check_options(o: SimulateOptions) -> None:
                          valid="a number > 0, e.g. 0.05")
     if o.samples_per_pixel < 1:
         raise InputError("need at least one sample per pixel", field="--samples-per-pixel", valid="an integer ≥ 1")
+    if o.view_map_pitch is not None and o.view_map_pitch < 1:
+        raise InputError(f"--view-map-pitch must be at least 1, got {o.view_map_pitch}", field="--view-map-pitch",
+                         valid="an integer ≥ 1 (pixels: 1 samples every pixel each pass)")
     if o.seed is not None and o.seed < 0:
         raise InputError(f"--seed must not be negative, got {o.seed}", field="--seed", valid="an integer ≥ 0")
     if o.cluster is not None:
@@ -259,12 +263,14 @@ def input_hash(design, spec, **params) -> str:
 def planned_input_hash(o: SimulateOptions, design, spec) -> str:
     """The input hash a run with these options would get (design: loaded Design, spec: its SceneSpec
     with the detector fitted)."""
-    return input_hash(design, spec, method=o.method, estimator_settings=estimator_settings(o).as_dict())
+    return input_hash(design, spec, method=o.method, estimator_settings=estimator_settings(o, spec.run).as_dict())
 
 
-def estimator_settings(o: SimulateOptions):
-    """The estimator's knobs these options set (the rest at their defaults)."""
-    return EstimatorSettings(samples_per_pixel=o.samples_per_pixel, alpha=o.alpha)
+def estimator_settings(o: SimulateOptions, run):
+    """The estimator's knobs these options and the scene's [run] table (run: its RunSpec) set (the rest
+    at their defaults)."""
+    pitch = run.view_map_pitch if o.view_map_pitch is None else o.view_map_pitch
+    return EstimatorSettings(samples_per_pixel=o.samples_per_pixel, view_map_pitch=pitch, alpha=o.alpha)
 
 
 RESUME_KEYS = ("seed", "method", "input_hash", "photons_per_pass")  # what a resumed run must share
@@ -310,7 +316,7 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     check_writable(out)
     seed = spec.run.seed if o.seed is None else o.seed
     per_pass = o.photons_per_pass or spec.run.photons
-    settings = estimator_settings(o)
+    settings = estimator_settings(o, spec.run)
     digest = planned_input_hash(o, design, spec)
     checkpoint = out / CHECKPOINT
     acc = None

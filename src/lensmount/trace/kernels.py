@@ -198,44 +198,65 @@ def triangle_crossings(local, o, d, leaving, left_normal, a, e1, e2, normal, t_t
                     and abs(nx * tx + ny * ty + nz * tz) <= t_tol)
         valid[i] = enters and not coplanar
     return t_out, lam, valid
-@njit(cache=True)
 def box_pairs(box, vid, normal, pad):
     """(first (T + 1,), other (k,)): for each triangle, the others sharing no vertex with it (vid (T, 3):
-    vertex ids) and not parallel to it (unit normal (T, 3); see `neighbours_near`) whose bounding box (box (T, 2, 3): lo, hi) comes within pad of its own (CSR: triangle
-    i's are other[first[i]:first[i + 1]], ascending). A sweep along x over the boxes sorted by their
-    low x, counted then filled."""
+    vertex ids) and not parallel to it (unit normal (T, 3); see `neighbours_near`) whose bounding box
+    (box (T, 2, 3): lo, hi) comes within pad of its own (CSR: triangle i's are other[first[i]:first[i + 1]],
+    ascending). Candidates come from a grid of the boxes grown by a little more than pad (`box_grid`),
+    each pair tested once, in the cell holding the low corner of the grown boxes' overlap; the test
+    itself is on the boxes as given. (A sweep along x tested every pair overlapping in x: on a lens
+    mount, a barrel's triangles all do, 2 s of each worker's 2.5 s tracer build on the double Gauss.)"""
+    box = np.ascontiguousarray(box, np.float64).reshape(-1, 2, 3)
+    grow = float(pad) + 1e-9  # the grid's boxes hold every pair within 2·pad whatever the rounding
+    grown = np.stack([box[:, 0] - grow, box[:, 1] + grow], axis=1)
+    origin, cell, dims, first, member = box_grid(grown)
+    return _pairs_in_cells(box, grown, np.ascontiguousarray(vid, np.int64), np.ascontiguousarray(normal, np.float64),
+                           float(pad), origin, cell, dims, first, member)
+
+
+@njit(cache=True)
+def _pairs_in_cells(box, grown, vid, normal, pad, origin, cell, dims, first, member):
+    """`box_pairs` from the grid (origin, cell, dims, first, member) of the grown boxes: counted, then filled."""
     t_n = box.shape[0]
-    order = np.argsort(box[:, 0, 0], kind="mergesort")
     count = np.zeros(t_n, np.int64)
     other = np.empty(0, np.int64)
-    first = np.zeros(t_n + 1, np.int64)
+    start = np.zeros(t_n + 1, np.int64)
     for pass_ in range(2):
         if pass_ == 1:
-            first[1:] = np.cumsum(count)
-            other = np.empty(first[t_n], np.int64)
+            start[1:] = np.cumsum(count)
+            other = np.empty(start[t_n], np.int64)
             count[:] = 0
-        for k in range(t_n):
-            i = order[k]
-            for m in range(k + 1, t_n):
-                j = order[m]
-                if box[j, 0, 0] > box[i, 1, 0] + 2.0 * pad:
-                    break
-                shared = False
-                for a in range(3):
-                    for b in range(3):
-                        shared = shared or vid[i, a] == vid[j, b]
-                parallel = abs(normal[i, 0] * normal[j, 0] + normal[i, 1] * normal[j, 1]
-                               + normal[i, 2] * normal[j, 2]) >= 1.0 - 1e-9
-                if (not shared and not parallel and box[j, 0, 1] <= box[i, 1, 1] + 2.0 * pad and box[i, 0, 1] <= box[j, 1, 1] + 2.0 * pad
-                        and box[j, 0, 2] <= box[i, 1, 2] + 2.0 * pad and box[i, 0, 2] <= box[j, 1, 2] + 2.0 * pad):
+        for c in range(first.shape[0] - 1):
+            for a in range(first[c], first[c + 1]):
+                i = member[a]
+                for b in range(a + 1, first[c + 1]):
+                    j = member[b]
+                    near = True
+                    for ax in range(3):
+                        near = near and box[j, 0, ax] <= box[i, 1, ax] + 2.0 * pad and box[i, 0, ax] <= box[j, 1, ax] + 2.0 * pad
+                    if not near:
+                        continue
+                    ci = _grid_index(max(grown[i, 0, 0], grown[j, 0, 0]), origin[0], cell[0], dims[0])
+                    cj = _grid_index(max(grown[i, 0, 1], grown[j, 0, 1]), origin[1], cell[1], dims[1])
+                    ck = _grid_index(max(grown[i, 0, 2], grown[j, 0, 2]), origin[2], cell[2], dims[2])
+                    if (ci * dims[1] + cj) * dims[2] + ck != c:
+                        continue  # the pair's own cell is another one they share
+                    shared = False
+                    for u in range(3):
+                        for v in range(3):
+                            shared = shared or vid[i, u] == vid[j, v]
+                    parallel = abs(normal[i, 0] * normal[j, 0] + normal[i, 1] * normal[j, 1]
+                                   + normal[i, 2] * normal[j, 2]) >= 1.0 - 1e-9
+                    if shared or parallel:
+                        continue
                     if pass_ == 1:
-                        other[first[i] + count[i]] = j
-                        other[first[j] + count[j]] = i
+                        other[start[i] + count[i]] = j
+                        other[start[j] + count[j]] = i
                     count[i] += 1
                     count[j] += 1
     for i in range(t_n):
-        other[first[i]:first[i + 1]] = np.sort(other[first[i]:first[i + 1]])
-    return first, other
+        other[start[i]:start[i + 1]] = np.sort(other[start[i]:start[i + 1]])
+    return start, other
 
 
 @njit(cache=True, inline="always")
