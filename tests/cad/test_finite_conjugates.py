@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from lensmount.cli import app
 from lensmount.design.lens import load_lens
+from tests.cad.test_init_lens import check_corpus_design
 
 ROOT = Path(__file__).resolve().parents[2]
 COOKE = ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx"
@@ -109,11 +110,14 @@ def test_a_finite_conjugate_lens_inspects_regenerates_and_images_a_point_on_its_
 def test_us05831776_inspects_regenerates_and_simulates(tmp_path):
     shown = CliRunner().invoke(app, ["inspect", str(US05831776)])   # imports: element 8 and two air gaps clipped
     assert shown.exit_code == 0 and "clipped" in shown.output, shown.output
-    # init's scenes of this 45-part mount take ~25 s each: case 2 is simulated by tests/cad/test_init_lens.py
-    # (the corpus chain), the object scene by the finite Cooke triplet above
+    # init's scenes of this 45-part mount take ~25 s each: case 2 is simulated by the corpus checks below,
+    # the object scene by the finite Cooke triplet above
     summary = _chain(US05831776, tmp_path, point_height=30.0, photons=5000, scenes=())
     assert math.isfinite(summary["stray_fraction"])
     notes = json.loads((tmp_path / "design" / "build" / "manifest.json").read_text())["notes"]
     for said in (notes, summary["warnings"]):   # the clips ride with the result: regenerate's and simulate's
         assert [w.split(" are edged")[0] for w in said if w.startswith("lens: ")] == [
             "lens: surfaces 15 and 16", "lens: surfaces 24 and 25", "lens: surfaces 28 and 29"]
+    # The corpus's checks of every refractive lens (tests/cad/test_init_lens.py leaves this one to this test:
+    # its init and 45-part regenerate once, not twice)
+    check_corpus_design(tmp_path / "design", tmp_path / "case2")

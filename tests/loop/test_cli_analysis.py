@@ -29,14 +29,18 @@ def test_ghosts_of_the_uncoated_cooke_triplet(tmp_path):
     assert peaks == sorted(peaks, reverse=True) and peaks[0] > 0
     assert abs(sum(p["share"] for p in pairs) - 1.0) < 1e-9
     assert (out / "ghosts.exr").exists() and len(list(out.glob("ghost-*.png"))) == 3
-    # Order 3: the four-reflection routes join (named in the order the light meets them), ~1.6 % more light.
+    # Order 3: the four-reflection routes join (named in the order the light meets them), ~1.7 % more light.
+    # On the same lattice (41 across): the lattice's own error is larger than that (the two-reflection total
+    # at 21 across is 2.2 % below its value at 41, 3.8 % below 101), so totals of two lattices cannot show it.
     result = CliRunner().invoke(app, ["ghosts", str(design), "--scene", str(design / "scenes" / "ghosts-uncoated.toml"),
-                                      "--out", str(tmp_path / "order3"), "--rays-across", "21", "--order", "3",
+                                      "--out", str(tmp_path / "order3"), "--rays-across", "41", "--order", "3",
                                       "--top", "1"])
     assert result.exit_code == 0, result.output
     deeper = json.loads((tmp_path / "order3" / "ghosts.json").read_text())
     fours = [p for p in deeper["pairs"] if p["reflections"] == 4]
     assert deeper["order"] == 3 and len(fours) > 100 and all(len(p["surfaces"]) == 4 for p in fours)
+    twos = sum(p["fraction"] for p in deeper["pairs"] if p["reflections"] == 2)
+    assert twos == pytest.approx(report["total_fraction"], rel=1e-9)  # the same routes, the same rays
     assert 1.005 < deeper["total_fraction"] / report["total_fraction"] < 1.05
 
 

@@ -50,7 +50,30 @@ def _design(tmp_path, name="design", mount_edit=None) -> Path:
     return design
 
 
-def test_runs_with_different_seeds_are_not_a_regression(tmp_path):
+def _no_vanes(text: str) -> str:
+    return text.replace("count = 3 ", "count = 0 ")
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The two designs (vanes and none), each regenerated once for the module: a test copies a design
+    with its build folder, whose cache (keyed by the design's inputs, not its path) the copy's
+    simulate restores instead of building the CAD again."""
+    from lensmount.loop.regenerate import RegenerateOptions, regenerate
+
+    base = tmp_path_factory.mktemp("built")
+    designs = {"with-vanes": _design(base, "with-vanes"), "no-vanes": _design(base, "no-vanes", _no_vanes)}
+    assert "count = 0" in (designs["no-vanes"] / "mount.toml").read_text()
+    for design in designs.values():
+        regenerate(RegenerateOptions(design))
+    return designs
+
+
+def _copy(built, name: str, tmp_path) -> Path:
+    return Path(shutil.copytree(built[name], tmp_path / name))
+
+
+def test_runs_with_different_seeds_are_not_a_regression(built, tmp_path):
     # 100 pairs of 4-pass forward runs (2000 photons per pass) of case 2, each run with its own
     # seed, through the estimator's real passes: at 99 % the verdict must be exit 0 in >= 98.
     # Tolerance 0 (any significant increase is a regression) is the hardest case for noise: with
@@ -64,10 +87,11 @@ def test_runs_with_different_seeds_are_not_a_regression(tmp_path):
     from lensmount.scene.build import build_scene
     from lensmount.trace.tracer import Tracer
 
-    design = _design(tmp_path)
-    built = regenerate(RegenerateOptions(design))
+    design = _copy(built, "with-vanes", tmp_path)
+    regenerated = regenerate(RegenerateOptions(design))
+    assert regenerated.manifest.cached
     loaded = load_design(design)
-    sc = build_scene(loaded.prescription, TaggedMesh.load(built.folder / built.manifest.mesh),
+    sc = build_scene(loaded.prescription, TaggedMesh.load(regenerated.folder / regenerated.manifest.mesh),
                      load_scene(design / "scenes" / "small2.toml", loaded.finishes))
     tracer = Tracer(sc)
 
@@ -85,13 +109,11 @@ def test_runs_with_different_seeds_are_not_a_regression(tmp_path):
     assert regressions <= 2, [(v.old, v.new, v.low) for v in verdicts if v.verdict == REGRESSION]
 
 
-def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(tmp_path, monkeypatch):
+def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(built, tmp_path, monkeypatch):
     # Without the three hood vanes the sun-lit hood wall scatters onto the housing: about +20 %
     # (forward, 16 x 50 000 photons per design: ~3 % error each, so the 5 % tolerance is decided).
     monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
-    with_vanes = _design(tmp_path, "with-vanes")
-    without = _design(tmp_path, "no-vanes", lambda text: text.replace("count = 3 ", "count = 0 "))
-    assert "count = 0" in (without / "mount.toml").read_text()
+    with_vanes, without = _copy(built, "with-vanes", tmp_path), _copy(built, "no-vanes", tmp_path)
     args = ["compare", str(with_vanes), str(without), "--scene", "small2", "--method", "forward", "--workers", "1"]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 1, result.output
@@ -113,13 +135,12 @@ def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(tmp_path, m
     assert history.exit_code == 0 and f"{runs[without]['stray_fraction']:.4g}" in history.output
 
 
-def test_until_decided_resumes_the_vanes_removed_change_to_a_regression(tmp_path, monkeypatch):
+def test_until_decided_resumes_the_vanes_removed_change_to_a_regression(built, tmp_path, monkeypatch):
     """Issue 26: 4 against 4 forward passes of 20 000 photons leave the vanes-removed change (about
     +20 %) undecided at 99 %; --until-decided resumes both runs by the passes `to_decide` asks for
     and looks again (each look stricter) until the interval clears the 5 % tolerance: exit 1."""
     monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
-    with_vanes = _design(tmp_path, "with-vanes")
-    without = _design(tmp_path, "no-vanes", lambda text: text.replace("count = 3 ", "count = 0 "))
+    with_vanes, without = _copy(built, "with-vanes", tmp_path), _copy(built, "no-vanes", tmp_path)
     args = ["compare", str(with_vanes), str(without), "--scene", "small2", "--method", "forward", "--workers", "1",
             "--passes", "4", "--photons-per-pass", "20000"]
     first = CliRunner().invoke(app, args)

@@ -57,7 +57,10 @@ def test_a_bias_bound_widens_what_counts_as_a_tie():
 
 
 @pytest.mark.slow
-def test_sweep_of_six_reference_variants_ranks_them(tmp_path):
+def test_sweep_of_four_reference_variants_ranks_them(tmp_path):
+    """Two parameters of two values each: a grid (not one axis), every variant regenerated and simulated.
+    Four, not six: each variant costs a regenerate and a run, and a third value of one parameter checks
+    nothing the second does not."""
     from lensmount.loop.simulate import SimulateOptions
     from lensmount.loop.sweep import SweepOptions, sweep
 
@@ -66,12 +69,12 @@ def test_sweep_of_six_reference_variants_ranks_them(tmp_path):
     scene = design / "scenes" / "case2-lambertian.toml"
     text = scene.read_text().replace("pixels = [600, 600]", "pixels = [60, 60]")
     scene.write_text(text)
-    params = (Param.parse("mount.vanes.count=0,3,5"), Param.parse("mount.hood.length_mm=60,100"))
+    params = (Param.parse("mount.vanes.count=0,5"), Param.parse("mount.hood.length_mm=60,100"))
     base = SimulateOptions(design, scene, passes=4, photons_per_pass=20_000, workers=2, record=False)
     result = sweep(SweepOptions(design, scene, params, tmp_path / "sweep", base))
-    assert len(result.variants) == 6 and result.plot.exists()
+    assert len(result.variants) == 4 and result.plot.exists()
     rows = list(csv.DictReader(result.table.open()))
-    assert len(rows) == 6 and all(float(r["stray_fraction"]) > 0 and float(r["std_error"]) > 0 for r in rows)
+    assert len(rows) == 4 and all(float(r["stray_fraction"]) > 0 and float(r["std_error"]) > 0 for r in rows)
     ranks = sorted(int(r["rank"]) for r in rows)
     assert ranks[0] == 1 and ranks == sorted(ranks)
     # Every variant was really built with its own vane count.

@@ -89,32 +89,54 @@ def _bidirectional(scene, tracer, seed, passes, photons):
     return acc
 
 
+def _allowance(bound, ladder: np.ndarray) -> float:
+    """What the agreement allows for the kernel bias: the run's bound, or, when the ladder's rule refuses
+    one, the largest move of the mean estimate over the whole ladder r/2 … 2r (what the ladder can see).
+
+    Why not assert a bound: on this scene the ladder is flat within its noise (64 passes of 4 seeds:
+    every step within 1.2σ of zero and under 0.4 % of the flux), and the rule's model check is a test at
+    a fixed level (`bias.SHAPE_P`), so on a bias-free ladder it refuses a fixed share of runs however many
+    photons they have: 9 % of these passes' resamplings, 2 of seeds 1-4 (issue notes of this change).
+    A single-seed `bounded` would fail that share of runs with nothing wrong."""
+    if bound.bounded:
+        return bound.bound
+    mean = ladder.mean(axis=0)
+    return float(np.max(np.abs(mean - mean[0])))
+
+
 def test_cooke_triplet_at_25_degrees_agrees_with_forward(cooke, forward_reference):
     scene, tracer = cooke
     f, f_se, f_parts = forward_reference
     acc = _bidirectional(scene, tracer, 1, 16, 100_000)
     total, per_part = acc.bias_bound()
     k = acc.part_names.index("housing")
-    assert total.bounded and per_part[k].bounded, (total.reason, per_part[k].reason)
-    bias, part_bias = total.bound, [b.bound for b in per_part]
+    ladder = np.asarray(acc.pass_part_flux_ladder)  # (passes, rungs, parts); rung 0 is r itself
+    bias = _allowance(total, ladder.sum(axis=2))
+    part_bias = [_allowance(b, ladder[:, :, p]) for p, b in enumerate(per_part)]
     sigma = math.hypot(acc.flux_std_error + bias, f_se)
     assert abs(acc.flux - f) <= 3 * sigma, (acc.flux, acc.flux_std_error, bias, f, f_se)
     h, h_se = f_parts["housing"]
     h_sigma = math.hypot(acc.part_flux_std_error[k] + part_bias[k], h_se)
     assert abs(acc.part_flux[k] - h) <= 3 * h_sigma, (acc.part_flux[k], acc.part_flux_std_error[k], part_bias[k], h)
-    print(f"cooke 25°: bidirectional {acc.flux:.5g} ± {acc.flux_std_error:.2g} (bias bound {bias:.2g}), "
+    print(f"cooke 25°: bidirectional {acc.flux:.5g} ± {acc.flux_std_error:.2g} (kernel bias allowed {bias:.2g}), "
           f"forward {f:.5g} ± {f_se:.2g}; housing {acc.part_flux[k]:.5g} ± {acc.part_flux_std_error[k]:.2g} "
-          f"(bound {part_bias[k]:.2g}) vs {h:.5g} ± {h_se:.2g}")
+          f"(bound {part_bias[k]:.2g}) vs {h:.5g} ± {h_se:.2g}; ladder: {total.reason or 'bounded'}")
     assert acc.flux_std_error + bias < 0.1 * acc.flux  # an error bar that says something
 
 
 def test_reported_2_sigma_covers_the_forward_reference_in_18_of_20_seeds(cooke_coarse, forward_reference):
     scene, tracer = cooke_coarse
     f, f_se, _ = forward_reference
-    inside = 0
+    inside = bounded = 0
     for seed in range(20):
         acc = _bidirectional(scene, tracer, 1000 + seed, 5, 20_000)
         bias = acc.bias_bound()[0]  # a run that cannot bound its bias claims no interval: honest
         inside += not bias.bounded or abs(acc.flux - f) <= 2 * acc.flux_std_error + bias.bound
-    print(f"cooke 25°: forward {f:.5g} ± {f_se:.2g} inside the reported 2σ in {inside} of 20 seeds")
+        bounded += bias.bounded
+    print(f"cooke 25°: forward {f:.5g} ± {f_se:.2g} inside the reported 2σ in {inside} of 20 seeds "
+          f"({bounded} bounded their bias)")
     assert inside >= 18, inside
+    # A run without a bound counts as inside (it claims no interval), so a rule that never bounded would pass
+    # the line above: most runs must bound. The rule refuses ~10 % of runs of a bias-free ladder (its fixed-level
+    # model check, `_allowance`); 18 of 20 bounded here. Below 14 is p < 0.3 % at that rate.
+    assert bounded >= 14, bounded

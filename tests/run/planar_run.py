@@ -5,7 +5,8 @@
 
 Prints one line per merged pass ("merged N") and, at the end, the accumulator's flux
 series as JSON on the last line. `--crash-once` makes the worker that first computes
-pass 3 die (os._exit) once, to test that a lost pass is re-run with the same result.
+pass 3 die (os._exit) once (`crashing_pass.crash_once`, importable by local and Dask workers alike), to
+test that a lost pass is re-run with the same result.
 """
 
 from __future__ import annotations
@@ -25,11 +26,9 @@ from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E40
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.run.executor import executor_for  # noqa: E402
-from lensmount.integrators.bidirectional import Bidirectional  # noqa: E402
 from lensmount.integrators.estimate import film_channels  # noqa: E402
-from lensmount.integrators.registry import INTEGRATORS  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
-from lensmount.run.runner import PassJob, Runner, Stopping  # noqa: E402
+from lensmount.run.runner import RUN_PASS, PassJob, Runner, Stopping  # noqa: E402
 
 TRACER = "planar:PlanarTracer"
 
@@ -39,18 +38,6 @@ def scene():
     d = (math.sin(th), 0, -math.cos(th))
     return PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (20.0, 0), "plate", disc=True)], [Lambert(0.2)],
                        Detector(2.0, 2.0, 4, 4, 20.0), Collimated(d, (-300 * d[0], 0, 300 * -d[2]), 25.0))
-
-
-class CrashingBidirectional(Bidirectional):
-    """The bidirectional integrator, but the worker dies the first time anyone computes pass 3
-    (the marker file named by $PLANAR_CRASH_MARKER records that it happened)."""
-
-    def run_pass(self, scene, tracer, pass_index, photons, seed, radius_scale=None):
-        marker = Path(os.environ["PLANAR_CRASH_MARKER"])
-        if pass_index == 3 and not marker.exists():
-            marker.write_text(str(os.getpid()))
-            os._exit(17)
-        return super().run_pass(scene, tracer, pass_index, photons, seed, radius_scale)
 
 
 def main(argv):
@@ -63,13 +50,11 @@ def main(argv):
     delay = float(os.environ.get("PLANAR_PASS_DELAY", "0"))
     sc = scene()
 
-    if crash:  # before the workers fork: they inherit the variable and the registered integrator
+    if crash:  # before the workers start: they inherit the variable
         os.environ["PLANAR_CRASH_MARKER"] = str(crash)
-        INTEGRATORS["crashing"] = CrashingBidirectional
 
     def job(i):
-        return PassJob("crashing" if crash else "bidirectional", 2000, 5, i,
-                       EstimatorSettings(samples_per_pixel=16))
+        return PassJob("bidirectional", 2000, 5, i, EstimatorSettings(samples_per_pixel=16))
 
     acc = Accumulator.load(checkpoint)[0] if resume else Accumulator.empty((4, 4), film_channels(sc), 0.25)
 
@@ -80,7 +65,7 @@ def main(argv):
     executor = executor_for(workers=workers, cluster=cluster, scheduler=scheduler, worker_wait_s=wait_s,
                             say=lambda text: print(text, flush=True))
     runner = Runner(sc, job, acc, executor=executor, checkpoint=checkpoint, checkpoint_every=1, progress=progress,
-                    tracer_path=TRACER)
+                    tracer_path=TRACER, run_pass_path="crashing_pass:crash_once" if crash else RUN_PASS)
     runner.run(Stopping(max_passes=passes))
     print(json.dumps({"flux": acc.pass_flux, "n": acc.n, "terminated": runner.terminated,
                       "interrupted": runner.interrupted, "elapsed_s": acc.elapsed_s,

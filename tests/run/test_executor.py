@@ -50,13 +50,6 @@ def test_one_and_two_local_workers_agree(tmp_path):
     assert one["flux"] == two["flux"]
 
 
-@pytest.mark.slow
-def test_dask_local_cluster_agrees_with_local_processes(tmp_path):
-    local, _ = _run(tmp_path, 6, 1, name="a.npz")
-    dask, _ = _run(tmp_path, 6, 1, "--cluster", "local:2", name="b.npz")
-    assert dask["flux"] == local["flux"]
-
-
 def test_dead_local_worker_is_replaced_with_identical_result(tmp_path):
     straight, _ = _run(tmp_path, 6, 2, name="a.npz")
     crashed, _ = _run(tmp_path, 6, 2, "--crash-once", tmp_path / "marker", name="b.npz")
@@ -65,11 +58,19 @@ def test_dead_local_worker_is_replaced_with_identical_result(tmp_path):
 
 
 @pytest.mark.slow
-def test_dead_dask_worker_is_replaced_with_identical_result(tmp_path):
+@pytest.mark.parametrize("cluster", ["local:2", "local:1"], ids=["one-of-two", "the-last"])
+def test_dead_dask_worker_is_replaced_with_identical_result(tmp_path, cluster):
+    """A Dask worker dies in pass 3 (`crashing_pass`, a module the workers import); its nanny starts
+    another. With one worker the scene's only holder went with it: the run says so and sends the scene
+    again. Either way the numbers are those of this process's run (so Dask agrees with it: the passes
+    other than 3 ran on Dask undisturbed), and nothing is said in tracebacks."""
     straight, _ = _run(tmp_path, 6, 1, name="a.npz")
-    crashed, _ = _run(tmp_path, 6, 1, "--cluster", "local:2", "--crash-once", tmp_path / "marker", name="b.npz")
-    assert (tmp_path / "marker").exists()
-    assert crashed["flux"] == straight["flux"]
+    crashed, out = _run(tmp_path, 6, 1, "--cluster", cluster, "--crash-once", tmp_path / "marker", name="b.npz")
+    assert (tmp_path / "marker").exists()  # a worker really died
+    assert crashed["n"] == 6 and crashed["flux"] == straight["flux"]
+    assert "Traceback" not in out.stderr, out.stderr[-3000:]
+    if cluster == "local:1":
+        assert "a Dask worker is back: the passes in flight are sent again" in out.stdout, out.stdout
 
 
 @pytest.mark.parametrize("how", [pytest.param(signal.SIGKILL, marks=pytest.mark.slow), signal.SIGTERM,
