@@ -1,6 +1,14 @@
 """Coverage of `--target-rel-error` runs on synthetic heavy-tailed passes (issue 29, item 4).
 
     python benchmarks/stopping_coverage.py RUNS MAX_PASSES TARGET...    e.g. 1000 400 0.2 0.05
+    python benchmarks/stopping_coverage.py terms RUNS MAX_PASSES TERMS TARGET...    e.g. terms 400 200 50 0.05 0.02
+
+`terms`: a pass is what the estimators make, a sum of TERMS independent heavy-tailed terms (Pareto, lognormal,
+exponential); each pass keeps its `LARGEST` largest terms as `PassEstimate.largest` does, and the rule shipped
+before (standard error + the dominant-pass test) is set against the one shipped now (`Accumulator.rel_error`:
+no error bar while the terms' tail index `tail_index` is at most UNBOUNDED_TAIL, the tail allowance below
+LIGHT_TAIL). A run is honest when its interval mean ± (2 se + allowance) holds the truth, or when it ends
+(at MAX_PASSES) saying it has no error bar.
 
 Each run adds passes drawn from one distribution and stops at the first n >= 8 (runner.Stopping's
 min_passes) where the rule holds; a stopped run covers when |mean - truth| <= 2 x its quoted standard
@@ -17,7 +25,8 @@ import sys
 import numpy as np
 from scipy.stats import t as student
 
-from lensmount.analysis.passes import TAIL_P, TAIL_RATIO, t_factor
+from lensmount.analysis.passes import UNBOUNDED_TAIL, TAIL_K, TAIL_P, TAIL_RATIO, t_factor, tail_allowance, tail_index
+from lensmount.integrators.estimate import LARGEST
 
 
 def distributions(rng, runs, passes):
@@ -85,6 +94,58 @@ def run(x, target, rule, min_passes=8, keep=16):
     return stop, est, err
 
 
+def term_distributions():
+    """name -> (draw(rng, shape), mean of one term)."""
+    out = {"exponential": (lambda rng, shape: rng.exponential(1.0, shape), 1.0)}
+    for s in (1.0, 1.5, 2.0):
+        out[f"lognormal sigma={s}"] = (lambda rng, shape, s=s: rng.lognormal(0, s, shape), math.exp(s * s / 2))
+    for a in (1.5, 2.0, 2.5, 3.0, 4.0):
+        out[f"Pareto alpha={a}"] = (lambda rng, shape, a=a: (1 - rng.random(shape)) ** (-1 / a), a / (a - 1))
+    return out
+
+
+def run_terms(draw, runs, passes, terms, target, seed=1, min_passes=8):
+    """Both rules on the same passes: {rule: (stop, estimate, quoted half-width / 2, ended without an error bar)}."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros((runs, passes))
+    pool = np.zeros((runs, 0))  # the run's TAIL_K + 1 largest terms: all `tail_index` reads of every pass's LARGEST
+    out = {r: (np.full(runs, -1), np.zeros(runs), np.zeros(runs), np.zeros(runs, bool)) for r in ("before", "now")}
+    for n in range(1, passes + 1):
+        t = draw(rng, (runs, terms))
+        x[:, n - 1] = t.sum(axis=1)
+        top = -np.partition(-t, LARGEST - 1, axis=1)[:, :LARGEST]
+        pool = -np.sort(-np.concatenate([pool, top], axis=1), axis=1)[:, :TAIL_K + 1]
+        if n < min_passes:
+            continue
+        m = x[:, :n].mean(axis=1)
+        var = x[:, :n].var(axis=1, ddof=1)
+        se = np.sqrt(var / n) * t_factor(n)
+        heavy = dominant(x[:, :n], n, m, var, x[:, :n].max(axis=1))
+        index = tail_index(pool)
+        allowance = tail_allowance(index, pool[:, 0], n)
+        for rule, err, no_bar in (("before", se, np.zeros(runs, bool)),
+                                  ("now", se + allowance, index <= UNBOUNDED_TAIL)):
+            stop, est, half, unbounded = out[rule]
+            now = (((err <= target * np.abs(m)) & ~heavy & ~no_bar) | (n == passes)) & (stop < 0)
+            stop[now], est[now], half[now], unbounded[now] = n, m[now], err[now], no_bar[now]
+    return out
+
+
+def main_terms(runs: int, passes: int, terms: int, targets: list[float]) -> None:
+    for target in targets:
+        print(f"{terms} terms a pass, target {100 * target:g} %, {runs} runs of at most {passes} passes: "
+              "honest | stopped on the target | their median passes | their mean / truth")
+        for name, (draw, mu) in term_distributions().items():
+            row = []
+            for rule, (stop, est, half, unbounded) in run_terms(draw, runs, passes, terms, target).items():
+                done = stop < passes
+                honest = unbounded | (np.abs(est - terms * mu) <= 2 * half)
+                row.append(f"{rule}: {100 * honest.mean():5.1f} % | {100 * done.mean():3.0f} % | "
+                           f"{np.median(stop[done]) if done.any() else float('nan'):4.0f} | "
+                           f"{est[done].mean() / (terms * mu) if done.any() else float('nan'):.2f}")
+            print(f"  {name:20s} " + "  ;  ".join(row), flush=True)
+
+
 def main(runs: int, passes: int, targets: list[float]) -> None:
     data = distributions(np.random.default_rng(1), runs, passes)
     print("fixed n: coverage of mean ± 2 se (t)")
@@ -109,4 +170,7 @@ def main(runs: int, passes: int, targets: list[float]) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]), int(sys.argv[2]), [float(a) for a in sys.argv[3:]])
+    if sys.argv[1] == "terms":
+        main_terms(int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), [float(a) for a in sys.argv[5:]])
+    else:
+        main(int(sys.argv[1]), int(sys.argv[2]), [float(a) for a in sys.argv[3:]])

@@ -30,7 +30,15 @@ What the error bar includes (docs/bidirectional.md, "What the error bar includes
   that makes one pass several times the rest (issue 32: one pass in 432 at 4.4× the median on
   case 1) inflates the spread and moves the mean by more than the quoted error says, and runs
   that have not met it yet read low with a small error. Such a run is flagged `heavy`, names the
-  path that carried the excess, and does not count as converged (`converged`).
+  path that carried the excess, and does not count as converged (`converged`);
+- nor is it while the terms a pass sums are heavy-tailed (issue 29 item 4). A pass is a sum over many
+  photons (and photon × hit-point pairs); every pass keeps its LARGEST largest terms
+  (`PassEstimate.largest`), and Hill's estimate over the run's TAIL_K largest (`tail_index`) gives the
+  tail's index α (P(term > x) ∝ x^−α): the terms show it in every pass, long before one pass is large
+  enough to stand out, and in the runs that would stop early reading low. α < LIGHT_TAIL: the error bar
+  widens by the tail allowance (`Tail.allowance`), what a run that has not met its tail yet typically
+  misses (in `flux_std_error`, so in every interval quoted from it); α ≤ UNBOUNDED_TAIL: that is
+  unbounded, the run has no error bar (relative error unknown: no stop on a target).
 """
 
 from __future__ import annotations
@@ -47,21 +55,34 @@ from lensmount.analysis.bias import BiasBound, ladder_bias
 from lensmount.analysis.paths import PathSums
 from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
-from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate
+from lensmount.integrators.estimate import AIMED_PASSES, LARGEST, PassEstimate
 from lensmount.integrators.paths import EMPTY
 from lensmount.integrators.photon_gather import BIAS_LADDER
 from lensmount.integrators.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
-_STATE_VERSION = 8  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
+_STATE_VERSION = 9  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
 # scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess;
-# 8: each pass's flux on the ladder of radii instead of at half the radius
+# 8: each pass's flux on the ladder of radii instead of at half the radius; 9: each pass's largest terms
 MIN_PASSES = 3  # below this the spread of the passes is no error bar (std error: inf)
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
 TAIL_P = 0.01  # the largest pass is an outlier below this p-value: 1 % of runs with normal passes are flagged
 # ... and dominates only at this many medians: on case 1 the last pass (smallest radius, the noisiest) at 1.10×
 # among seven within ±2.6 % is an outlier by the test (seed 25, p = 0.004) but moves the mean by 1.3 %
 TAIL_RATIO = 1.5
+# The tail of the terms a pass sums (`tail_index`). Hill's estimate from the run's TAIL_K largest (±1/√64 = 12 %
+# of α); with fewer than TAIL_MIN + 1 positive terms kept there is no estimate. From LIGHT_TAIL on the fourth
+# moment is finite, the spread's own variance converges (MCNP's variance of the variance) and the spread is the
+# error bar; at 3 (MCNP's slope test) Pareto terms still held the truth in only 92 % of the runs. At or below
+# UNBOUNDED_TAIL the allowance x_max α/(α − 1) has no bound. Not at 2 (infinite variance): case 1's gathered
+# terms read α = 1.3–1.6 in its first passes while its largest term is 10⁻⁴ of a pass, an allowance of 0.02 %.
+# Measured on sums of 50 and 500 Pareto, lognormal and exponential terms a pass (benchmarks/stopping_coverage.py
+# terms): ≥ 94 % of the runs hold the truth or say they have no error bar, where the spread alone held 61–93 %
+# (docs/accuracy.md).
+TAIL_K = 64
+TAIL_MIN = 16
+UNBOUNDED_TAIL = 1.0
+LIGHT_TAIL = 4.0
 
 
 @dataclass
@@ -76,6 +97,12 @@ class Tail:
         pass dominates; the spread is no error bar for this run
     path : signature of the path whose flux in that pass most exceeded its mean over the passes before
         (`analysis.paths`; EMPTY when the passes carry no paths)
+    index : the tail index α of the terms the passes sum (`tail_index` over every pass's largest terms);
+        None when the passes keep none (or fewer than TAIL_MIN + 1 positive), inf when the largest are equal
+    allowance : what the error bar adds for that tail (mm²): 0 from LIGHT_TAIL on, inf at or below
+        UNBOUNDED_TAIL (no error bar); between, x_max α / ((α − 1) n): with N terms in the run and a
+        tail x^−α, about one term of the next N exceeds the largest seen, x_max, and carries x_max α/(α − 1)
+        on average, 1/n of it in the run's mean: what a run that has not met its tail yet misses
     """
 
     largest_pass: int
@@ -84,6 +111,8 @@ class Tail:
     p: float
     heavy: bool
     path: int = EMPTY
+    index: float | None = None
+    allowance: float = 0.0
 
 
 @dataclass
@@ -123,6 +152,7 @@ class Accumulator:
     paths : per path signature and per CAD face sums (`analysis.paths.PathSums`) of the passes that carry them
     pass_excess_path : per pass, the signature of the path whose flux most exceeded its mean over the
         passes before it (EMPTY without paths): where a dominant pass's light came from (`tail`)
+    pass_largest : per pass, its LARGEST largest terms (mm², `PassEstimate.largest`; zeros when it kept none)
     """
 
     part_names: list[str]
@@ -143,6 +173,7 @@ class Accumulator:
     pass_radius_scale: list[float] = field(default_factory=list)
     paths: PathSums = field(default_factory=PathSums)
     pass_excess_path: list[int] = field(default_factory=list)
+    pass_largest: list[np.ndarray] = field(default_factory=list)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -184,6 +215,10 @@ class Accumulator:
         self.pass_part_flux_ladder.append(rungs)
         self.pass_radius_scale.append(float(estimate.radius_scale))
         self.pass_excess_path.append(EMPTY if estimate.paths is None else _excess_path(self.paths, estimate.paths))
+        largest = np.zeros(LARGEST) if estimate.largest is None else np.asarray(estimate.largest, np.float64)
+        if largest.shape != (LARGEST,) or not np.isfinite(largest).all():
+            raise ValueError("pass's largest terms have the wrong shape or are not finite")
+        self.pass_largest.append(largest)
         if estimate.paths is not None:
             self.paths.add(estimate.paths, estimate.faces)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
@@ -216,8 +251,10 @@ class Accumulator:
 
     @property
     def flux_std_error(self) -> float:
-        """Standard error of `flux` (batch means over passes, × `t_factor`); inf below MIN_PASSES (unknown)."""
-        return _std_error(np.asarray(self.pass_flux))
+        """Standard error of `flux`: batch means over passes, × `t_factor`, plus the tail allowance of heavy-tailed
+        terms (`Tail.allowance`: the spread of passes that have not met their tail yet is too small); inf below
+        MIN_PASSES and where the terms' tail has no bound (unknown)."""
+        return _std_error(np.asarray(self.pass_flux)) + self.tail().allowance
 
     @property
     def part_flux(self) -> np.ndarray:
@@ -268,9 +305,10 @@ class Accumulator:
         return ZERO_SIGNAL_COUNT * mean_weight * heaviest / self.n
 
     def rel_error(self) -> float:
-        """Relative uncertainty of the total flux for the stopping rule: (standard error +
-        bias bound) / |flux|. inf when unknown: n < MIN_PASSES, no signal (a zero mean: more passes
-        are what could show light, never a reason to stop), and a bias the ladder cannot bound."""
+        """Relative uncertainty of the total flux for the stopping rule: (standard error, with its tail
+        allowance, + bias bound) / |flux|. inf when unknown: n < MIN_PASSES, no signal (a zero mean: more
+        passes are what could show light, never a reason to stop), a bias the ladder cannot bound, and
+        terms whose tail has no bound (`Tail.allowance`)."""
         if self.n < MIN_PASSES:
             return math.inf
         mean = abs(self.flux)
@@ -288,14 +326,18 @@ class Accumulator:
         median, total = float(np.median(f)), float(f.sum())
         p = grubbs_p(f)
         ratio = f[k] / median if median > 0 else None
+        terms = np.concatenate(self.pass_largest)
+        index = float(tail_index(terms))
         return Tail(self.last_pass - self.n + 1 + k, ratio, f[k] / total if total > 0 else 0.0, p,
                     p < TAIL_P and (ratio is None or ratio >= TAIL_RATIO),
-                    int(self.pass_excess_path[k]) if k < len(self.pass_excess_path) else EMPTY)
+                    int(self.pass_excess_path[k]) if k < len(self.pass_excess_path) else EMPTY,
+                    None if math.isnan(index) else index, float(tail_allowance(index, float(terms.max()), self.n)))
 
     def converged(self, target_rel_error: float) -> bool:
         """The relative error is at most the target and no single pass dominates (`tail`): a run that
         has met a rare event once cannot quote its error from the spread, and one that stops on a
-        low spread before meeting it reads low (issue 29, optional stopping). Nor while the aimed
+        low spread before meeting it reads low (issue 29, optional stopping). The relative error holds the
+        tail allowance of heavy-tailed terms and is unknown (never met) where that has no bound. Nor while the aimed
         photons' uniform or wide components carry the edge's light in few heavy photons
         (`plan.edge_flux_components`: the learned ring misses part of the lit edge)."""
         return (self.rel_error() <= target_rel_error and not self.tail().heavy
@@ -347,6 +389,7 @@ class Accumulator:
                 -1, len(BIAS_LADDER), len(self.part_names)),
             pass_radius_scale=np.asarray(self.pass_radius_scale, dtype=np.float64),
             pass_excess_path=np.asarray(self.pass_excess_path, dtype=np.int64),
+            pass_largest=np.asarray(self.pass_largest, dtype=np.float64).reshape(-1, LARGEST),
             **self.paths.arrays(),
         )
         for key, value in meta.items():
@@ -366,7 +409,7 @@ class Accumulator:
             raise InputError(f"the checkpoint is damaged and cannot be resumed ({type(e).__name__}: {e})",
                              file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
                                                    "it and run again without --resume (its passes are lost)") from None
-        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_ladder, acc.pass_radius_scale)
+        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_ladder, acc.pass_radius_scale, acc.pass_largest)
         shapes = {acc.sum_image.shape, acc.sumsq_image.shape, acc.sum_parts.shape[1:]}
         if any(len(x) != acc.n for x in series) or len(shapes) != 1 or acc.n < 0 or not all(
                 np.isfinite(a).all() for a in (acc.sum_image, acc.sumsq_image, acc.sum_parts)):
@@ -394,7 +437,8 @@ class Accumulator:
                       pass_part_flux_ladder=[rungs.copy() for rungs in z["pass_part_flux_ladder"]],
                       pass_radius_scale=[float(v) for v in z["pass_radius_scale"]],
                       paths=PathSums.from_arrays(z),
-                      pass_excess_path=[int(v) for v in z["pass_excess_path"]])
+                      pass_excess_path=[int(v) for v in z["pass_excess_path"]],
+                      pass_largest=[row.copy() for row in z["pass_largest"]])
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 
@@ -408,6 +452,32 @@ def t_factor(n: int) -> float:
     if n < 2:
         return math.inf
     return float(stdtrit(n - 1, 0.975) / 1.959963984540054)
+
+
+def tail_index(terms: np.ndarray) -> np.ndarray:
+    """Hill's estimate of the tail index α (P(term > x) ∝ x^−α) from the TAIL_K + 1 largest positive terms of
+    each row of `terms` (..., m), any order: α̂ = k / Σ_{i<k} ln(x_(i) / x_(k)), k = min(TAIL_K, positive − 1).
+    nan with fewer than TAIL_MIN + 1 positive terms; inf when the k largest are equal (no tail: equal photons).
+    Vectorised over rows (benchmarks/stopping_coverage.py runs a thousand runs at once)."""
+    x = -np.sort(-np.asarray(terms, np.float64), axis=-1)[..., :TAIL_K + 1]
+    positive = (x > 0).sum(axis=-1)
+    k = np.minimum(positive - 1, TAIL_K)
+    ref = np.take_along_axis(x, np.maximum(k, 0)[..., None], axis=-1)
+    used = np.arange(x.shape[-1]) < k[..., None]
+    logs = np.where(used, np.log(np.where(used, x, 1.0) / np.where(ref > 0, ref, 1.0)), 0.0).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = np.where(logs > 0, k / np.where(logs > 0, logs, 1.0), np.inf)
+    return np.where(k >= TAIL_MIN, alpha, np.nan)
+
+
+def tail_allowance(index, largest, n):
+    """What the error bar adds for terms of tail index `index` (`Tail.allowance`, mm²): 0 when unknown (nan) or
+    at least LIGHT_TAIL, inf at or below UNBOUNDED_TAIL, else largest · α / ((α − 1) n). Vectorised."""
+    index = np.asarray(index, np.float64)
+    widen = (index > UNBOUNDED_TAIL) & (index < LIGHT_TAIL)
+    a = np.where(widen, index, 2.0 * LIGHT_TAIL)
+    return np.where(index <= UNBOUNDED_TAIL, np.inf,
+                    np.where(widen, largest * a / ((a - 1.0) * np.maximum(n, 1)), 0.0))
 
 
 def grubbs_p(series: np.ndarray) -> float:
@@ -453,4 +523,5 @@ def _std_error(series: np.ndarray) -> float:
     return float(np.std(series, ddof=1) / math.sqrt(n) * t_factor(n))
 
 
-__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "TAIL_RATIO", "grubbs_p", "t_factor"]
+__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
+           "LIGHT_TAIL", "grubbs_p", "t_factor", "tail_index", "tail_allowance"]

@@ -10,7 +10,7 @@ import numpy as np
 
 from lensmount.analysis.bias import BiasBound
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
-from lensmount.analysis.passes import TAIL_P, Accumulator
+from lensmount.analysis.passes import LIGHT_TAIL, TAIL_P, UNBOUNDED_TAIL, Accumulator
 from lensmount.analysis.paths import describe_event
 from lensmount.integrators.paths import EMPTY
 from lensmount.integrators.estimate import TIME_PREFIX, ledger_residual
@@ -31,7 +31,8 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
     bound from the photons traced (`Accumulator.upper_bound`) and the relative error is null;
     `stray_fraction_no_signal_bound` is that bound for any figure that read zero (a part too), what
     `compare` takes for a zero instead of 0 ± 0. `tail` says whether one pass dominates the others
-    (`tail_block`; tag_table names its path)."""
+    (`tail_block`; tag_table names its path) and how heavy the tail of the terms the passes sum is: its
+    allowance (`stray_fraction_tail_allowance`) is part of `stray_fraction_std_error`."""
     flux, se = acc.flux, acc.flux_std_error
     bias, part_bias = acc.bias_bound()
     upper = acc.upper_bound()
@@ -64,6 +65,7 @@ def build_summary(acc: Accumulator, *, method: str, seed: int, effects_ran: list
         "stray_fraction_bias_bound": _bound(bias, scale),
         "stray_fraction_bias_unbounded": None if bias.bounded else bias.reason,
         "bias": {"outward_step": finite_or_none(bias.step * scale), "shape_p": finite_or_none(bias.shape_p)},
+        "stray_fraction_tail_allowance": finite_or_none(acc.tail().allowance * scale),
         "stray_fraction_upper_bound": None if upper is None else finite_or_none(upper * scale),
         "stray_fraction_no_signal_bound": finite_or_none(acc.no_signal_bound() * scale),
         "stray_fraction_rel_error": finite_or_none(acc.rel_error()),
@@ -92,23 +94,43 @@ def _bound(bias: BiasBound, scale: float) -> float | None:
     return None if bias.bound is None or not np.isfinite(bias.bound) else finite_or_none(bias.bound * scale)
 
 
+NOTABLE_ALLOWANCE = 0.1  # a note when the tail allowance is this share of the standard error or more (case 1: 0.01)
+
+
 def tail_block(acc: Accumulator, tag_table=None) -> dict:
     """The largest pass against the others (`Accumulator.tail`), and when it dominates them
-    (`heavy`) a sentence saying so and the path it came from: the error bar is then not the spread's."""
+    (`heavy`) a sentence saying so and the path it came from: the error bar is then not the spread's.
+    The tail index of the terms the passes sum (`terms_tail_index`, null when unknown or without a tail) and,
+    when its allowance is a notable part of the error bar (or it has none), a sentence in `note` saying so."""
     t = acc.tail()
     block = {"largest_pass": t.largest_pass if acc.n else None,
              "largest_over_median": finite_or_none(t.over_median) if t.over_median is not None else None,
-             "largest_share": finite_or_none(t.share), "outlier_p": finite_or_none(t.p), "heavy": bool(t.heavy)}
+             "largest_share": finite_or_none(t.share), "outlier_p": finite_or_none(t.p), "heavy": bool(t.heavy),
+             "terms_tail_index": None if t.index is None else finite_or_none(t.index),
+             "terms_unbounded": t.index is not None and t.index <= UNBOUNDED_TAIL}
+    notes = []
     path = acc.paths.events.get(t.path, ()) if t.path != EMPTY else ()
     if tag_table is not None and path:
         block["path"] = [describe_event(c, tag_table)["name"] for c in path]
     if t.heavy:
         ratio = f"{t.over_median:.2f}× the median" if t.over_median is not None else "against a median of 0"
         via = f" (its excess came by {' → '.join(block['path'])})" if "path" in block else ""
-        block["note"] = (f"pass {t.largest_pass} dominates the others: {ratio}, {100 * t.share:.1f} % of the sum of "
-                         f"{acc.n} passes, p = {t.p:.2g} < {TAIL_P:g} that it belongs with them{via}. The "
-                         "passes are heavy-tailed: the standard error from their spread is not to be trusted "
-                         "and the run does not count as converged; run more passes.")
+        notes.append(f"pass {t.largest_pass} dominates the others: {ratio}, {100 * t.share:.1f} % of the sum of "
+                     f"{acc.n} passes, p = {t.p:.2g} < {TAIL_P:g} that it belongs with them{via}. The "
+                     "passes are heavy-tailed: the standard error from their spread is not to be trusted "
+                     "and the run does not count as converged; run more passes.")
+    if t.index is not None and t.index <= UNBOUNDED_TAIL:
+        notes.append(f"the largest terms the passes sum fall off as x^-{t.index:.2f} (tail index at most "
+                     f"{UNBOUNDED_TAIL:g}): what the run has not met yet has no bound, so it cannot bound its error "
+                     "and does not count as converged; more passes help only once they reach the tail's end, "
+                     "a sampling that avoids the heavy terms does (the path of the largest pass in `path`).")
+    elif t.allowance > 0 and t.allowance >= NOTABLE_ALLOWANCE * acc.flux_std_error:
+        notes.append(f"the largest terms the passes sum fall off as x^-{t.index:.2f} (below {LIGHT_TAIL:g}): "
+                     f"a heavy tail; the error bar adds the tail allowance "
+                     f"({100 * t.allowance / abs(acc.flux) if acc.flux else 0:.2g} % of the value), what a run "
+                     "that has not met its tail yet misses.")
+    if notes:
+        block["note"] = " ".join(notes)
     return block
 
 

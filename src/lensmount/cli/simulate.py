@@ -263,6 +263,11 @@ def print_summary(summary: dict, paths: dict) -> None:
         table.add_row("kernel bias (bound)", f"± {bias:.2g}")
     if summary.get("stray_fraction_bias_unbounded"):
         table.add_row("kernel bias", f"cannot be bounded: {summary['stray_fraction_bias_unbounded']}")
+    allowance = summary.get("stray_fraction_tail_allowance")
+    if allowance:
+        table.add_row("of the ±, tail allowance", f"{allowance:.2g} (heavy-tailed terms, see the warning)")
+    if (summary.get("tail") or {}).get("terms_unbounded"):
+        table.add_row("error bar", "none: the terms' tail has no bound (see the warning)")
     rel = summary.get("stray_fraction_rel_error")
     table.add_row("relative error (std + bias)", f"{100 * rel:.2f} %" if rel is not None else "—")
     drift = summary.get("stray_fraction_drift")

@@ -219,6 +219,7 @@ class Bidirectional:
         # Phase 3: the update — the gather's image plus the photons the film counted.
         _, parts_g = gatherer.image(film.detector.shape, film.channel_of_tag, len(film.channels))
         film.add_images(parts_g)
+        film.largest.add(gatherer.largest.values * film.detector.pixel_area)
         estimate = film.estimate(photons, ledger, diagnostics)
         # The same pass with every gather radius on the ladder (only the gathered part changes): the bias estimate.
         estimate.radius_scale = view.radius_scale

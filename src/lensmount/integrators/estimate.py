@@ -45,6 +45,9 @@ class PassEstimate:
         density estimate). How it changes with the radius measures the kernel bias (`analysis.bias`).
     paths : the same light by path signature (`integrators.paths`: ordered scatter faces, ghosts)
     faces : light per CAD face: flux arriving (illuminated), étendue seen by the detector (critical)
+    largest : (LARGEST,) the largest single contributions (mm²) to the pass's flux, descending, zero-padded
+        (`Largest`: photons landing or connected, photon × hit-point pairs gathered; None when not kept).
+        Their fall-off is the tail of what a pass sums (`analysis.passes.tail_index`).
     """
 
     image: np.ndarray
@@ -58,6 +61,7 @@ class PassEstimate:
     part_flux_ladder: np.ndarray | None = None
     paths: PassPaths | None = None
     faces: PassFaces | None = None
+    largest: np.ndarray | None = None
 
     @property
     def flux(self) -> float:
@@ -101,6 +105,26 @@ EDGE_FLUX_SQ = "edge flux squared/"
 PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
           "walk": "photon walk (scatter, direct and ghosts together)",
           "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}
+
+
+LARGEST = 16  # a pass's largest contributions kept (`Largest`): 8 passes give the tail index its 64 and more
+
+
+class Largest:
+    """The LARGEST largest values of everything added (a pass's single contributions to its flux).
+
+    Why a pass keeps them: a pass is a sum over many photons (and photon × hit-point pairs), and how its
+    largest terms fall off, x_(i) ∝ i^(−1/α), shows a heavy tail (α ≤ 3) in every pass, long before one
+    pass is large enough to stand out among the others (`analysis.passes.tail_index`, issue 29 item 4)."""
+
+    def __init__(self):
+        self.values = np.zeros(LARGEST)  # descending
+
+    def add(self, values: np.ndarray) -> None:
+        values = np.asarray(values, np.float64).ravel()
+        if len(values) > LARGEST:
+            values = np.partition(values, -LARGEST)[-LARGEST:]
+        self.values = -np.sort(-np.concatenate([self.values, values]))[:LARGEST]
 
 
 CPU_SUFFIX = ", CPU"  # after a phase's name: its CPU seconds, beside the wall seconds under the bare name
@@ -180,6 +204,7 @@ class Film:
         self._response = None if response is None else np.asarray(response, np.float64)
         self.paths = PathTally(det.shape, det.pixel_area)
         self.faces = face_tally(scene) if seen is None else seen.copy()
+        self.largest = Largest()  # the largest single contributions (mm²): deposits here, the gather's added
 
     def channel(self, part: np.ndarray, reflections: np.ndarray) -> np.ndarray:
         """(N,) channel of paths whose last scattering part is `part` (-1: none) after `reflections`
@@ -200,6 +225,7 @@ class Film:
         value = flux if self._response is None else flux * self._response[np.asarray(wavelength, np.int64)]
         self._flux += np.bincount(channel * self._n_pix + pixel, weights=value, minlength=len(self._flux))
         self.paths.add(signature, pixel, value / self.detector.pixel_area)
+        self.largest.add(value)
 
     def deposit_route(self, route: tuple[int, ...], pixel: np.ndarray, flux: np.ndarray,
                       wavelength: np.ndarray) -> None:
@@ -224,7 +250,8 @@ class Film:
                                      f"y={iy}) ({int(bad.sum())} values in all)")
         return PassEstimate(image=per_part.sum(axis=0), per_part=per_part, part_names=list(self.channels),
                             pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict(),
-                            diagnostics=dict(diagnostics or {}), paths=self.paths.finish(), faces=self.faces.finish())
+                            diagnostics=dict(diagnostics or {}), paths=self.paths.finish(), faces=self.faces.finish(),
+                            largest=self.largest.values.copy())
 
 
 class EnergyLedger:
@@ -265,6 +292,6 @@ def ledger_residual(ledger: dict[str, float]) -> float:
     return (source - rest) / source if source else 0.0
 
 
-__all__ = ["PassEstimate", "Film", "EnergyLedger", "face_tally", "film_channels", "scattering_tags", "scattering_parts",
+__all__ = ["PassEstimate", "Film", "Largest", "LARGEST", "EnergyLedger", "face_tally", "film_channels", "scattering_tags", "scattering_parts",
            "ledger_residual", "phase_clock", "phase_times", "DIRECT", "GHOSTS", "BY_ROUTES", "TIME_PREFIX",
            "CPU_SUFFIX", "PHASES"]

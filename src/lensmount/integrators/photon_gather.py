@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
+from lensmount.integrators.estimate import Largest
 from lensmount.integrators.settings import EstimatorSettings
 
 # The radii, relative to a pass's r, at which the gather also estimates each hit point's radiance from
@@ -212,6 +213,9 @@ class Gatherer:
 
     groups : the hit points' `search_groups` (None: made here); a view map's, shared by every source's photons
 
+    `largest` (`estimate.Largest`) keeps the largest single photon–hit-point contributions τ f Φ / A (units of
+    the image: times the pixel area, a flux): the tail of what the pass sums (`analysis.passes.tail_index`).
+
     `radiance_ladder` (H, L) is the same estimate over the discs of radius r · BIAS_LADDER[l] (same
     photons, areas `area_ladder`): how it changes with the radius measures the kernel bias of the pass
     (`analysis.bias`).
@@ -240,6 +244,7 @@ class Gatherer:
         self._reach = REACH
         self.pairs_tested = 0
         self.groups = search_groups(hits) if groups is None else groups
+        self.largest = Largest()
 
     def gather(self, photons: PhotonHits) -> None:
         """Deposit one bounce of photons into the hit points within their radius on the same face."""
@@ -294,6 +299,7 @@ class Gatherer:
             inside = (distance < 1.0) & (cos_n > self.cos_max)
             hi_r, value = hi[inside], contrib[inside] / h.area[hi[inside]]
             self.radiance += np.bincount(hi_r, weights=value, minlength=len(h))
+            self.largest.add(h.weight[hi_r] * value)
             if self.paths is not None:
                 self.paths.add(photons.signature[pj[inside]], h.pixel[hi_r], h.weight[hi_r] * value)
 
