@@ -431,6 +431,8 @@ def _stop_onto_coincident_face(lens: ZmxLens, notes) -> ZmxLens:
     when a solve has put the stop on the glass. Kept apart, the mount would have to fit a diaphragm into
     an air gap of no length; merged, the stop is the face (a catalogue lens's stop on its front face).
     The planes are dropped, their gaps added to the gap in front of them, their STOP moved to the face."""
+    if lens.aperture is not None and lens.aperture[0] == "float":
+        return lens   # the stop's own DIAM is the aperture (FLOA): it stays where it is
     out, run = list(lens.surfaces), []
     k = 1
     while k < len(out) - 1:
