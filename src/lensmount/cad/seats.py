@@ -128,10 +128,6 @@ def stop_diaphragm(spec, p, stop, od, z_stop, face=None) -> Diaphragm:
             m = side * (max(0.0, need) + EPS_SLOPE)
         lo = zc - 0.5 * land
         r0 = pupil_edge_radius(p, lo, lo + land)
-        if zc != z_stop and any(p.field_values):   # off the stop plane (a flat stop face: the land in front of the glass)
-            # the field beams no longer cross the axis at the land: its bore passes them all, as the face
-            # does, and the designed pupil grows by (land's distance) x tan(field) / (EPD / 2) at most
-            r0 = max(r0, float(beam_envelope(p, np.linspace(lo, lo + land, 9)).max()))
     return Diaphragm(zc, r0, *args, slope=m)
 
 

@@ -375,7 +375,8 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         | ({"element": {str(k): v for k, v in seat_of.items()}} if seat_of else {}),
         "spacers": {"aperture_margin_mm": margin},
         "retainer": {"thickness_mm": retainer},
-        "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05},
+        "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05}
+                      | ({"bevel_side": "front"} if _land_toward_front_stop_face(p) else {}),
         "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": margin, "edge_width_mm": 0.05,
                   "thickness_mm": _round(_clamp(0.05 * a, 0.3, 1.0), 1)},
         "hood": {"length_mm": hood_length, "inner_diameter_mm": _round(2 * hood_radius, 1),
@@ -388,6 +389,17 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         "tessellation": {"linear_tolerance_mm": _round(_clamp(0.002 * a, 0.005, 0.05), 3),
                          "angular_tolerance_deg": 6.0},
     }
+
+
+def _land_toward_front_stop_face(p: Prescription) -> bool:
+    """The stop is a lens's front face and the lens has off-axis fields: the diaphragm stands in front of the
+    glass, and its land (the stop) goes on the plate's rear face, a clearance from the glass, not the plate's
+    thickness away: there the field beams, which cross the axis at the face, run off-centre by that distance
+    times tan(field), and the land, passing the designed pupil, would clip them (OptoSigma objective: 0.4 mm x
+    tan 3.43 deg = 24 um on a 4 mm pupil radius). The bevel then faces the light."""
+    i = p.stop_index
+    return (not p.has_mirrors and not p.object_telecentric and any(p.field_values) and p.holds_glass_after(i)
+            and p.material_before(i).upper() == "AIR")
 
 
 def starter_finishes(p: Prescription) -> dict:

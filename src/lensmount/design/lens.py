@@ -148,16 +148,6 @@ def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = F
             raise InputError(f"material '{s.material}' has no valid index over the wavelengths "
                              f"{', '.join(f'{w:g}' for w in p.wavelengths_um)} µm", file=file,
                              field=f"surface[{i + 1}].material", valid="a glass whose catalogue covers these wavelengths")
-        if i == len(p.surfaces) - 1 and not s.is_air_after and s.thickness * p.travel[i] < 0:
-            raise InputError(
-                f"the image plane lies {abs(s.thickness):g} mm before surface {i + 1}, against the light, inside "
-                f"{s.material}, the medium after that face: the beam has come to its focus in front of the face "
-                "and diverges in the medium, so the image the file puts there is virtual (an image solve that "
-                "found the focus before the last face) and no detector or specimen can sit in it; a cover glass "
-                "whose back face the file dropped has no thickness to build", file=file,
-                field=f"surface[{i + 1}].thickness",
-                valid=f"an image space after surface {i + 1}: a thickness >= 0 mm in its medium (a real image), "
-                      "or the focus in the air in front of the face with the face removed")
         if p.holds_glass_after(i) and s.thickness * p.travel[i] <= 0:
             raise InputError(f"glass thickness {s.thickness:g} mm after surface {i + 1} runs against the light",
                              file=file, field=f"surface[{i + 1}].thickness",
@@ -169,6 +159,17 @@ def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = F
                              f"semi-diameter {s.clear_semi_diameter:g} mm", file=file,
                              field=f"surface[{i + 1}].mechanical_semi_diameter",
                              valid="mechanical semi-diameter >= clear semi-diameter")
+    face = p.immersion_face
+    if face is not None and (p.image_z - p.vertex_z[face]) * p.travel[-1] < 0:
+        raise InputError(
+            f"the image plane lies {abs(p.image_z - p.vertex_z[face]):g} mm before surface {face + 1}, against the "
+            f"light, inside {p.image_medium}, the medium after that face: the beam has come to its focus in front of "
+            "the face and diverges in the medium, so the image the file puts there is virtual (an image solve that "
+            "found the focus before the last face) and no detector or specimen can sit in it; a cover glass "
+            "whose back face the file dropped has no thickness to build", file=file,
+            field=f"surface[{len(p.surfaces)}].thickness",
+            valid=f"an image space after surface {face + 1}: the image plane behind it in its medium (a real "
+                  "image), or the focus in the air in front of the face with the face removed")
     if p.image_z <= 0 and not p.has_mirrors:
         _check_image(p, file, afocal_ok)   # the reason, when it is one: no real image (a negative lens), afocal
         raise InputError("the image plane lies in front of surface 1", file=file,
