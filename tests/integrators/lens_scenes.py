@@ -16,7 +16,8 @@ import numpy as np
 from lensmount.mesh import FaceTag, TaggedMesh
 from lensmount.optics.prescription import Aperture, Prescription, Surface
 from lensmount.scene import primitives
-from lensmount.scene.build import imaged_field_deg, optical_surfaces, solid_absorption_of_tag, solid_index_of_tag
+from lensmount.scene.build import (detector_medium_index, imaged_field_deg, optical_surfaces, solid_absorption_of_tag,
+                                   solid_index_of_tag)
 from lensmount.scene.scene import Effects, Scene
 from lensmount.physics.bsdf import make_bsdf
 from lensmount.physics.detector import Detector
@@ -178,3 +179,31 @@ def glass_rim(off_axis_deg=20.0, *, material="N-BK7", barrel_gap=0.2, pixels=(16
                  wavelengths_um=wl, effects=Effects(True, False, False), entrance_pupil_area_mm2=math.pi * h * h,
                  solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
                  solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl))
+
+
+def immersed_singlet(bsdf, *, medium="1.333/0", off_axis_deg=20.0, pixels=(16, 16), detector_mm=40.0):
+    """`singlet_barrel`'s f/4 singlet with its plane back face in contact with `medium`, which fills the
+    96 mm to the detector (an immersion image): only the barrel in front of the lens scatters, so every
+    detector photon has crossed the lens into the medium (the barrel beside the medium absorbs)."""
+    h = 12.5
+    lens = Prescription((Surface(51.68, 6.0, "N-BK7", is_stop=True, clear_semi_diameter=h, mechanical_semi_diameter=h),
+                         Surface(math.inf, 96.0, medium, clear_semi_diameter=h, mechanical_semi_diameter=h)),
+                        Aperture("epd", 2 * h), (0.5875618,), (1.0,), 0, (0.0,), "immersed singlet")
+    z_img = lens.image_z
+    mesh = TaggedMesh.concatenate([
+        primitives.lens_elements(lens, [h, h], rings=24, segments=128, finish="x"),
+        barrel(-30.0, 0.0, h, h + 3.0, segments=128),
+        barrel(0.0, z_img + 2.0, h, h + 3.0, part="rear-barrel", segments=128),
+    ])
+    wl = np.array([0.5875618])
+    bsdfs = [None if t.role == "optical" else (bsdf if t.part == "barrel" else make_bsdf("absorber"))
+             for t in mesh.tag_table]
+    d = source_direction(off_axis_deg, 90.0)
+    disc = EmissionDisc(tuple(float(x) for x in np.array([0.0, 0.0, -30.0]) - 500.0 * d), h + 4.0 + 500 * 0.005)
+    detector = Detector(detector_mm, detector_mm, *pixels, z_img, medium_index=detector_medium_index(lens, z_img, wl))
+    return Scene(mesh=mesh, optical=optical_surfaces(lens, wl, lambda i, c: parse_coating("perfect-ar")),
+                 bsdf_of_tag=bsdfs, source=SunSource(off_axis_deg, 90.0, disc), detector=detector,
+                 wavelengths_um=wl, effects=Effects(True, False, False), entrance_pupil_area_mm2=math.pi * h * h,
+                 solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
+                 solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl),
+                 field_of_view_deg=imaged_field_deg(lens, detector))

@@ -182,8 +182,8 @@ def test_malformed_toml_names_the_line():
     (('material = "N-BK7"', 'material = "N-BK77"'), "surface[1].material", "unknown glass"),
     (("radius = 50.0", "radius = 50.0\nclear_semi_diameter = 60.0"), "surface[1].radius", "smaller than"),
     (("thickness = 6.0", "thickness = 0.2"), "surface[1].thickness", "cross"),
-    (("radius = -80.0\nthickness = 90.0", "radius = -80.0\nthickness = 90.0\nmaterial = \"N-BK7\""),
-     "surface[2].material", "image space"),
+    (("radius = -80.0\nthickness = 90.0", "radius = -80.0\nthickness = -2.0\nmaterial = \"N-SF6\""),
+     "surface[2].thickness", "virtual"),   # an image in glass is allowed, not one before its face
 ])
 def test_physical_checks_are_input_errors(tmp_path, edit, field, words):
     p = tmp_path / "lens.toml"

@@ -23,7 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from lensmount.cad.baffles import hood_and_vanes, housing
-from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group
+from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group, thin_plate
 from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, contact_slope, diaphragm_spacer_ends,
                                  glass_seat_bore, radii_to_rim, ring_opening, stop_diaphragm)
 from lensmount.cad.step_parts import StepSource
@@ -306,7 +306,7 @@ class _MountPlanner:
                 f"surface {ends[0].index + 1}'s sphere ends at {ends[0].profile.max_radius():.3f} mm, inside "
                 f"the {R:.3f} mm rim" if ends else "its faces close in toward the rim, the flat keeps the edge "
                 f"{el.edge_thickness():.3f} mm thick at {R:.3f} mm"))
-        if el.center_thickness() < min_t or el.edge_thickness() < min_t:
+        if (el.center_thickness() < min_t or el.edge_thickness() < min_t) and not thin_plate([el.front, el.back], min_t):
             # rims from the smallest a seat outside the light allows to 2 mm beyond: a thin meniscus
             # is too thin at all of them, which no allowance can mend
             r_min = max(clear[a], clear[b]) + self.cm + el.front_chamfer + el.back_chamfer

@@ -50,6 +50,14 @@ def face_beyond_reach(el: LensElement) -> OpticalFace | None:
     return None
 
 
+def thin_plate(faces: list[OpticalFace], min_t: float) -> bool:
+    """The group is one plane-parallel plate thinner than the minimum (a 0.17 mm cover glass): its
+    thickness is the lens file's, the same out to its rim, so the minimum, which guards an edge that
+    curvature and chamfers thin, does not apply, and no chamfer is cut on it (a cover slip has none)."""
+    return len(faces) == 2 and all(f.profile.is_plane for f in faces) and \
+        abs(faces[1].z_vertex - faces[0].z_vertex) < min_t
+
+
 def lens_group(faces: list[OpticalFace], R: float, chamfer: float, clear: list[float], min_t: float,
                stepped_min: float, flat: tuple[bool, bool] = (False, False)) -> tuple[list[LensElement], tuple[int, ...]]:
     """The elements of one lens group (faces and clear semi-diameters front to back), radius R, and
@@ -61,6 +69,8 @@ def lens_group(faces: list[OpticalFace], R: float, chamfer: float, clear: list[f
     holds it, and the group is seated on the partner's cemented face outside it, which gets the
     protective chamfer at its rim (`seat_of_group`). `flat`: grind the group's front (back) face flat
     from its clear semi-diameter out (lens_edge.flat_faces)."""
+    if thin_plate(faces, min_t):
+        return [LensElement(faces[0], faces[1], R, 0.0, 0.0)], ()
     n = len(faces) - 1
     els = [lens_element(faces[k], faces[k + 1], R, chamfer if k == 0 else 0.0, chamfer if k == n - 1 else 0.0,
                         clear[k] if k == 0 else None, clear[k + 1] if k == n - 1 else None, min_t) for k in range(n)]
@@ -117,4 +127,4 @@ def seat_of_group(elements: list, stepped: tuple[int, ...], group: tuple[int, ..
     return front, back
 
 
-__all__ = ["lens_element", "lens_group", "seat_of_group", "ends_inside", "face_beyond_reach"]
+__all__ = ["lens_element", "lens_group", "thin_plate", "seat_of_group", "ends_inside", "face_beyond_reach"]

@@ -50,7 +50,7 @@ import math
 import numpy as np
 
 from lensmount.cad.layout import Envelope, group_rim
-from lensmount.cad.lens_groups import lens_group, seat_of_group
+from lensmount.cad.lens_groups import lens_group, seat_of_group, thin_plate
 from lensmount.cad.mount_search import find_mount
 from lensmount.design.mount import LensEdge, MountSpec
 from lensmount.optics.paraxial import paraxial
@@ -125,6 +125,8 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
 
     def thin(k: int, r: float) -> bool:   # a stepped element's edge does not follow the group's rim
         g, stepped = groups[k], group(k, r)[1]
+        if thin_plate([face(i) for i in g], min_thickness):
+            return False
         return any(LensElement(face(a), face(b), r, chamfer, chamfer).edge_thickness()
                    < max(min_thickness, MIN_EDGE_FRACTION * (zv[b] - zv[a]))
                    for j, (a, b) in enumerate(zip(g[:-1], g[1:])) if j not in stepped)
@@ -135,6 +137,8 @@ def _edges_and_seats(p: Prescription, allowance: float, chamfer: float, contact:
 
     def too_thin(k: int, r: float) -> bool:
         els, stepped = group(k, r)
+        if thin_plate([face(i) for i in groups[k]], min_thickness):
+            return False
         return any(el.edge_thickness() < min_thickness for j, el in enumerate(els) if j not in stepped)
 
     def seat_heights(k: int, r: float) -> tuple[float, float]:   # (front, back) contact heights
@@ -359,20 +363,25 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
     if flat:
         edge["flat_faces"] = list(flat)
+    # An image formed in a medium (an immersion objective's water or oil) lies on the specimen, in contact
+    # with the medium after the last face: no detector housing behind it, and the last element is bonded
+    # into the barrel's nose (a shoulder or ring behind it would stand in the liquid, past the image).
+    immersed = p.immersion_face is not None
     return {
         "name": f"{name} mount",
         "barrel": {"wall_mm": wall, "radial_clearance_mm": 0.03, "lip_mm": lip},
         "lens_edge": edge,
-        "seats": {"front": "retainer", "rear": "shoulder", "default": "spacer"}
+        "seats": {"front": "retainer", "rear": "bonded" if immersed else "shoulder", "default": "spacer"}
         | ({"element": {str(k): v for k, v in seat_of.items()}} if seat_of else {}),
         "spacers": {"aperture_margin_mm": margin},
         "retainer": {"thickness_mm": retainer},
-        "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05},
+        "diaphragm": {"thickness_mm": _round(_clamp(0.03 * a, 0.3, 1.0), 1), "land_mm": 0.05}
+                      | ({"bevel_side": "front"} if _land_toward_front_stop_face(p) else {}),
         "vanes": {"placement": "even", "count": vanes, "aperture_margin_mm": margin, "edge_width_mm": 0.05,
                   "thickness_mm": _round(_clamp(0.05 * a, 0.3, 1.0), 1)},
         "hood": {"length_mm": hood_length, "inner_diameter_mm": _round(2 * hood_radius, 1),
                  "exclusion_deg": _round(exclusion, 2)} | ({"enabled": False} if p.has_mirrors else {}),
-        "housing": ({"enabled": False} if p.has_mirrors else {}) | {
+        "housing": ({"enabled": False} if p.has_mirrors or immersed else {}) | {
                     "detector_width_mm": width, "detector_height_mm": height,
                     "detector_clearance_mm": _round(_clamp(0.1 * max(width, height), 0.3, 2.0), 1),
                     "back_gap_mm": _round(_clamp(0.1 * a, 1.0, 5.0), 1), "wall_mm": wall},
@@ -380,6 +389,17 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
         "tessellation": {"linear_tolerance_mm": _round(_clamp(0.002 * a, 0.005, 0.05), 3),
                          "angular_tolerance_deg": 6.0},
     }
+
+
+def _land_toward_front_stop_face(p: Prescription) -> bool:
+    """The stop is a lens's front face and the lens has off-axis fields: the diaphragm stands in front of the
+    glass, and its land (the stop) goes on the plate's rear face, a clearance from the glass, not the plate's
+    thickness away: there the field beams, which cross the axis at the face, run off-centre by that distance
+    times tan(field), and the land, passing the designed pupil, would clip them (OptoSigma objective: 0.4 mm x
+    tan 3.43 deg = 24 um on a 4 mm pupil radius). The bevel then faces the light."""
+    i = p.stop_index
+    return (not p.has_mirrors and not p.object_telecentric and any(p.field_values) and p.holds_glass_after(i)
+            and p.material_before(i).upper() == "AIR")
 
 
 def starter_finishes(p: Prescription) -> dict:

@@ -63,6 +63,10 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
         "efl_mm": None if par.afocal else par.efl,
         "bfl_mm": None if par.afocal else par.bfl,
         "f_number": None if par.afocal else par.f_number,
+        "image_medium": prescription.image_medium,
+        "image_index": par.image_index,
+        "image_space_na": None if par.afocal else par.image_na,
+        "image_space_focal_length_mm": None if par.afocal else par.image_space_focal_length,
         "epd_mm": par.epd,
         "entrance_pupil_z_mm": par.entrance_pupil_z,
         "exit_pupil_z_mm": par.exit_pupil_z,
@@ -135,7 +139,11 @@ def _print_tables(doc: dict) -> None:
     else:
         focal = [("effective focal length", f"{doc['efl_mm']:.4f} mm"),
                  ("back focal length", f"{doc['bfl_mm']:.4f} mm"),
-                 ("image-space F/#", f"{doc['f_number']:.4f}")]
+                 ("image-space F/#", f"{doc['f_number']:.4f}"),
+                 ("image-space NA (paraxial, n' u')", f"{doc['image_space_na']:.4f}")]
+        if doc["image_index"] != 1.0:   # an image formed in a medium: the detector in contact with it
+            focal += [("image medium", f"{doc['image_medium']} (n' {doc['image_index']:.5f})"),
+                      ("focal length in the image medium", f"{doc['image_space_focal_length_mm']:.4f} mm")]
     rows = [*focal,
             ("entrance pupil diameter", f"{doc['epd_mm']:.4f} mm"),
             ("entrance pupil z", f"{doc['entrance_pupil_z_mm']:.4f} mm"),

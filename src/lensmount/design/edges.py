@@ -108,11 +108,11 @@ def height_at_gap(p: Prescription, i: int, lo: float, hi: float, thickness: floa
 
 
 def _element_numbers(p: Prescription) -> list[int]:
-    """1-based element number of the glass after each surface (0 in air)."""
+    """1-based element number of the glass after each surface (0 in air and in the image medium)."""
     out, n = [], 0
-    for s in p.surfaces:
-        n += not s.is_air_after
-        out.append(0 if s.is_air_after else n)
+    for i in range(len(p.surfaces)):
+        n += p.holds_glass_after(i)
+        out.append(n if p.holds_glass_after(i) else 0)
     return out
 
 

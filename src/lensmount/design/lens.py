@@ -6,7 +6,9 @@ gives none. Every problem is an InputError naming the file, the field or line,
 and what would be valid.
 
 Checks beyond the file's syntax:
-- every material is a known glass, a model glass n_d/V_d, or AIR; image space is air;
+- every material is a known glass, a model glass n_d/V_d, or AIR; the image may lie in a medium
+  (an immersion objective's water or oil, `Prescription.image_medium`), but not before its last face
+  against the light (a virtual image, refused);
 - glass thicknesses are positive;
 - exactly one stop;
 - |radius| is at least the clear semi-diameter (given, or needed by the beam);
@@ -146,7 +148,7 @@ def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = F
             raise InputError(f"material '{s.material}' has no valid index over the wavelengths "
                              f"{', '.join(f'{w:g}' for w in p.wavelengths_um)} µm", file=file,
                              field=f"surface[{i + 1}].material", valid="a glass whose catalogue covers these wavelengths")
-        if not s.is_air_after and s.thickness * p.travel[i] <= 0:
+        if p.holds_glass_after(i) and s.thickness * p.travel[i] <= 0:
             raise InputError(f"glass thickness {s.thickness:g} mm after surface {i + 1} runs against the light",
                              file=file, field=f"surface[{i + 1}].thickness",
                              valid="a centre thickness > 0 mm for a glass (< 0 after an odd number of mirrors); "
@@ -157,9 +159,17 @@ def validate(prescription: Prescription, file: str = "lens", afocal_ok: bool = F
                              f"semi-diameter {s.clear_semi_diameter:g} mm", file=file,
                              field=f"surface[{i + 1}].mechanical_semi_diameter",
                              valid="mechanical semi-diameter >= clear semi-diameter")
-    if not p.surfaces[-1].is_air_after:
-        raise InputError(f"the image space is '{p.surfaces[-1].material}'", file=file,
-                         field=f"surface[{len(p.surfaces)}].material", valid="AIR after the last surface")
+    face = p.immersion_face
+    if face is not None and (p.image_z - p.vertex_z[face]) * p.travel[-1] < 0:
+        raise InputError(
+            f"the image plane lies {abs(p.image_z - p.vertex_z[face]):g} mm before surface {face + 1}, against the "
+            f"light, inside {p.image_medium}, the medium after that face: the beam has come to its focus in front of "
+            "the face and diverges in the medium, so the image the file puts there is virtual (an image solve that "
+            "found the focus before the last face) and no detector or specimen can sit in it; a cover glass "
+            "whose back face the file dropped has no thickness to build", file=file,
+            field=f"surface[{len(p.surfaces)}].thickness",
+            valid=f"an image space after surface {face + 1}: the image plane behind it in its medium (a real "
+                  "image), or the focus in the air in front of the face with the face removed")
     if p.image_z <= 0 and not p.has_mirrors:
         _check_image(p, file, afocal_ok)   # the reason, when it is one: no real image (a negative lens), afocal
         raise InputError("the image plane lies in front of surface 1", file=file,
@@ -220,6 +230,12 @@ def _check_radii(p: Prescription, file: str, given_only: bool) -> None:
                 valid=f"a radius and conic whose surface reaches {h:.4g} mm, or a smaller semi-diameter")
 
 
+def _dummy_in_air(p: Prescription, i: int) -> bool:
+    """Surface i only marks a plane: air on both sides, neither the stop (the diaphragm) nor a mirror."""
+    s = p.surfaces[i]
+    return s.is_air_after and p.material_before(i).upper() == AIR and not s.is_stop and not s.mirror
+
+
 def _check_crossings(p: Prescription, file: str, given=None) -> None:
     """Neighbouring surfaces must not cross within the semi-diameter they share.
 
@@ -231,8 +247,8 @@ def _check_crossings(p: Prescription, file: str, given=None) -> None:
     for i in range(len(p.surfaces) - 1):
         a, b = p.surfaces[i], p.surfaces[i + 1]
         ha, hb = _outer_semi_diameter(a), _outer_semi_diameter(b)
-        if ha is None or hb is None:
-            continue
+        if ha is None or hb is None or (a.is_air_after and (_dummy_in_air(p, i) or _dummy_in_air(p, i + 1))):
+            continue   # a reference plane in air is no part: a gap to it may be negative (OpticStudio's -1e-8 mm)
         h = max(ha, hb) if not a.is_air_after else min(ha, hb)
         h = min(h, Profile.of(a).max_radius(), Profile.of(b).max_radius())
         r = np.linspace(0.0, h, _CROSS_SAMPLES)

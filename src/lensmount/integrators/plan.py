@@ -266,6 +266,7 @@ def dispersion_free(scene) -> bool:
     return (all(flat(s.n_before) and flat(s.n_after) and (s.mirror or s.coating.kind in _WAVELENGTH_FREE_COATINGS)
                 and (not absorbs or (flat(s.absorption_before) and flat(s.absorption_after)))
                 for s in scene.optical) and flat(scene.solid_index_of_tag)
+            and (not scene.detector.medium_index or flat(scene.detector.medium_index))
             and (not absorbs or flat(scene.solid_absorption_of_tag)))
 
 
@@ -284,6 +285,8 @@ def _wavelengths(scene) -> tuple[object, Decision]:
     response = scene.detector.spectral_weight
     detector = scene.detector if response is None else \
         replace(scene.detector, spectral_weight=(float(np.dot(p, np.asarray(response, np.float64))),))
+    if scene.detector.medium_index:
+        detector = replace(detector, medium_index=scene.detector.medium_index[keep:keep + 1])
     one = replace(scene, wavelengths_um=wl[keep:keep + 1], detector=detector,
                   source=replace(scene.source, wavelength_weights=(1.0,)),
                   optical=[replace(s, n_before=np.atleast_1d(s.n_before)[keep:keep + 1],

@@ -36,7 +36,7 @@ from lensmount.integrators.neighbours import kth_distance
 from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
-from lensmount.integrators.media import air_radiance_factor
+from lensmount.integrators.media import detector_radiance_factor
 from lensmount.physics.detector import Detector
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams, ray_streams
@@ -229,7 +229,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     if boundaries is not None:  # the ladder's first rung is r itself (r · 1.0 == r): its areas are the pass's
         ladder = boundaries.inside_areas(pos, nrm, tg, tuple(m * radius for m in BIAS_LADDER), detector_z=det.z)
         area, area_ladder = ladder[0], np.column_stack(ladder)
-    # A lens edge seen from inside the glass: the detector gets that radiance / n².
+    # The detector gets a face's radiance times n_det² / n² (n: the glass a lens edge is seen from inside).
     direction, wavelength = hit["direction"][ok], hit["wavelength"][ok]
     tau = tau[ok] * hit["air"][ok]
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
@@ -265,7 +265,7 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarr
         tag = step.tag
         met = np.flatnonzero((step.kind == FACE) & (tag >= 0) & (step.weight > 0) & np.isfinite(step.weight))
         air = np.ones(len(tag))  # the radiance factor of a hit from inside glass, for the faces and the hit points
-        air[met] = air_radiance_factor(scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met])
+        air[met] = detector_radiance_factor(scene, step.direction[met], tag[met], step.prim[met], step.wavelength[met])
         if faces is not None:
             # τ carries n_wl (a sample gathers one wavelength's photons): the solid angle is τ / n_wl.
             faces.add_seen(tag[met], step.id[met], step.weight[met] / n_wl * air[met])

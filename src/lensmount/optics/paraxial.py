@@ -7,8 +7,13 @@ Mirrors use the usual signed-index rule: the index changes sign at each reflecti
 positive reduced thicknesses t/n'. Object at infinity or at `object_distance`.
 All z in the assembly frame (surface 1 vertex at z = 0).
 
-Definitions (Zemax's, for an object at infinity, image space in air):
-    efl = -1 / C of the whole system (in air on both sides)
+Definitions (Zemax's, for an object at infinity):
+    efl = -1 / C of the whole system, referred to air (OpticStudio's EFL "in air"); in an image
+          medium of index n' (an immersion objective) the rear focal length is n' efl
+          (`image_space_focal_length`, OpticStudio's "in image space") and the paraxial focus lies
+          n' times further from the rear principal plane than in air
+    image_na = n' u' of the marginal ray after the last surface: EPD / (2 efl) for an object at
+          infinity whatever n' (the medium shrinks the angle, not the NA)
     bfl = distance from the last vertex to the paraxial focus
     f_number = efl / epd (image-space F/#; for an object at infinity it equals
                the paraxial working F/# 1 / (2 n' u'))
@@ -63,6 +68,14 @@ class Paraxial:
     image_z: float
     wavelength_um: float
     angular_magnification: float | None = None  # an afocal system's (module docstring); None if focal
+    image_index: float = 1.0       # n' of the image medium (water, oil: an immersion objective)
+    image_na: float = 0.0          # paraxial image-space NA, n' u' of the axial marginal ray (n' sin u' paraxially)
+
+    @property
+    def image_space_focal_length(self) -> float:
+        """n' · efl: the rear focal length measured in the image medium (OpticStudio's "in image space",
+        optiland's f2); efl itself is referred to air (1 / power), as OpticStudio's "in air" EFL."""
+        return self.image_index * self.efl
 
     @property
     def afocal(self) -> bool:
@@ -134,10 +147,10 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
     f_number = abs(efl) / epd
     y1, u1 = marginal_start(prescription, epd, entrance_pupil_z)
     stop_semi = abs(front[0, 0] * y1 + front[0, 1] * u1)
+    y_out, nu_out = system @ np.array([y1, u1])   # the marginal ray after the last surface: (y, n' u')
     if prescription.finite_object:
         # the paraxial image of the axial object point, from the last vertex
-        y, nu = system @ np.array([y1, u1])
-        bfl = -y * n_image / _nonzero(nu)
+        bfl = -y_out * n_image / _nonzero(nu_out)
 
     # Exit pupil: from the stop's vertex plane (medium before the stop's refraction) to image space.
     back = _chain(refr, trans, stop, last)
@@ -152,6 +165,7 @@ def paraxial(prescription: Prescription, wavelength_um: float | None = None) -> 
         exit_pupil_diameter=_finite(exit_pupil_diameter), stop_semi_diameter=float(stop_semi),
         image_z=float(z_vertex[last] + bfl), wavelength_um=wl,
         angular_magnification=float(system[1, 1] / n_image) if afocal else None,
+        image_index=float(abs(n_image)), image_na=float(abs(nu_out)),
     )
 
 

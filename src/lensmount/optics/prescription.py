@@ -182,6 +182,34 @@ class Prescription:
     def max_field_deg(self) -> float:
         return max(abs(f) for f in self.field_angles_deg)
 
+    @property
+    def image_medium(self) -> str:
+        """The medium the image is formed in: the material after the last surface (`AIR` for most
+        lenses; an immersion objective's water or oil, `"1.333/55.8"` or a catalogue liquid)."""
+        return self.surfaces[-1].material
+
+    @property
+    def immersion_face(self) -> int | None:
+        """0-based index of the face the image medium begins at, None in air.
+
+        The image medium fills the space from this face to the image plane and is no part of the
+        lens: the detector (the specimen plane) sits in optical contact with it, as an immersion
+        objective's water or oil does, so it is not a lens element the mount holds (a cover glass in
+        front of it is one: glass between two faces). Any surfaces after this face in the same
+        medium are dummies in the liquid."""
+        if self.surfaces[-1].is_air_after:
+            return None
+        medium = self.image_medium.upper()
+        i = len(self.surfaces) - 1
+        while i > 0 and self.surfaces[i - 1].material.upper() == medium and not self.surfaces[i - 1].mirror:
+            i -= 1
+        return i
+
+    def holds_glass_after(self, i: int) -> bool:
+        """Surface i (0-based) is followed by a lens element's glass: not air, not the image medium."""
+        face = self.immersion_face
+        return not self.surfaces[i].is_air_after and (face is None or i < face)
+
     def material_before(self, i: int) -> str:
         """Medium in front of surface i (0-based): air before surface 1."""
         return AIR if i == 0 else self.surfaces[i - 1].material
@@ -190,11 +218,12 @@ class Prescription:
         """Runs of surfaces bounding glass: (first, ..., last) 0-based indices.
 
         A singlet is (i, i+1); a cemented doublet (i, i+1, i+2). The surfaces inside
-        a run with glass on both sides are cemented interfaces.
+        a run with glass on both sides are cemented interfaces. The image medium after
+        `immersion_face` is no element: a cover glass in contact with it ends its run there.
         """
         groups, current = [], []
         for i, s in enumerate(self.surfaces):
-            if not s.is_air_after:
+            if self.holds_glass_after(i):
                 if not current:
                     current = [i]
                 current.append(i + 1)

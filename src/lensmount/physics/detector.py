@@ -9,6 +9,12 @@ Irradiance bookkeeping: photons carry flux in units of E_sun · mm², so a pixel
 
 Optional spectral weighting: `spectral_weight` (W,) multiplies every deposit of wavelength
 index k by spectral_weight[k] (a detector's relative spectral response); None = 1.
+
+The medium in front of it: `medium_index` (W,) is the index of the medium the detector is in
+optical contact with (an immersion objective's water or oil, `Prescription.image_medium`); () is air.
+Flux per area (what photons deposit) is the same in any medium; radiance is not: L / n² is what
+passes an interface unchanged, so a backward estimate of E = ∫ L cos θ dω sampled in the medium
+takes n² times the radiance seen in air (integrators/media.py).
 """
 
 from __future__ import annotations
@@ -28,6 +34,14 @@ class Detector:
     ny: int
     z: float
     spectral_weight: tuple[float, ...] | None = None
+    medium_index: tuple[float, ...] = ()
+
+    def medium_index_at(self, wavelength: np.ndarray) -> np.ndarray:
+        """(H,) index of the medium in front of the detector at wavelength indices (H,): 1 in air."""
+        wavelength = np.asarray(wavelength, np.int64)
+        if not self.medium_index:
+            return np.ones(len(wavelength))
+        return np.asarray(self.medium_index, np.float64)[wavelength]
 
     @property
     def pixel_area(self) -> float:

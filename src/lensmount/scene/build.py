@@ -177,7 +177,8 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
         raise located(InputError(f"spectral_weight has {len(d.spectral_weight)} values for {len(wavelengths)} "
                                  "wavelengths", field="detector.spectral_weight",
                                  valid=f"{len(wavelengths)} non-negative numbers"), spec.source_file, spec.source_text)
-    detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight)
+    detector = Detector(d.width_mm, d.height_mm, int(d.pixels[0]), int(d.pixels[1]), z_det, d.spectral_weight,
+                        detector_medium_index(prescription, z_det, wavelengths))
     try:
         source = make_source(spec.source, opening, mesh, detector, prescription)
     except InputError as exc:
@@ -195,6 +196,15 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                  front_opening=opening, finish_of_tag=finishes, description=spec.description,
                  warnings=detector_warnings(mesh, detector),
                  field_of_view_deg=imaged_field_deg(prescription, detector))
+
+
+def detector_medium_index(prescription: Prescription, z_det: float, wavelengths_um: np.ndarray) -> tuple[float, ...]:
+    """The index (W,) of the image medium when the detector lies in it (behind the face the immersion
+    medium begins at, `Prescription.immersion_face`: the specimen plane of an immersion objective), () in air."""
+    face = prescription.immersion_face
+    if face is None or z_det < prescription.vertex_z[face]:
+        return ()
+    return tuple(float(n) for n in np.atleast_1d(refractive_index(prescription.image_medium, wavelengths_um)))
 
 
 def imaged_field_deg(prescription: Prescription, detector: Detector) -> float:
@@ -386,6 +396,6 @@ def make_source(src: SourceParams, opening: FrontOpening, mesh: TaggedMesh, dete
     return SOURCE_KINDS[src.type].build(src, at)
 
 __all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
-           "detector_warnings", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
+           "detector_warnings", "detector_medium_index", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",
            "solid_absorption_of_tag", "optical_surfaces", "front_opening", "object_meshes", "make_source",
            "clear_distance"]

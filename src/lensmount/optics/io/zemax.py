@@ -319,6 +319,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
         raise InputError("fewer than three SURF blocks (object, one surface, image)", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
     notes: list[ImportNote] = []
+    lens = _stop_onto_coincident_face(lens, notes)
     obj, body, image = lens.surfaces[0], lens.surfaces[1:-1], lens.surfaces[-1]
     s = lens.unit
     if obj.glass.upper() != AIR:
@@ -406,13 +407,6 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
                          valid="a sequential lens: SURF 0 (object), SURF 1..N, image surface")
-    if medium.upper() != AIR:
-        last = next(z for z in reversed(body) if z.number == numbers[-1])
-        raise InputError(
-            f"the image lies inside {medium} (the GLAS of surface {last.number}), not in air: an immersion "
-            "objective's medium or a cover glass the image is formed in; lensmount's detector, mount and tracer "
-            "take the image in air", file=file, line=last.glass_line or last.line,
-            valid="an image space in air (no GLAS on the last surface before the image)")
     surfaces = _automatic_mechanical(surfaces, [z for z in body if z.number in numbers], notes, s, edges)
     waves, weights = _wavelengths(lens)
     if not waves:
@@ -426,6 +420,45 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                         name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric,
                         glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs))
     return _glass_edges(apply_aperture_and_fields(base, lens, numbers, notes, file), edges, numbers, notes), notes
+
+
+_COINCIDENT_MM = 1e-5   # closer than this, two planes are one: OpticStudio's solves leave gaps of 1e-8 .. 1e-6 mm
+
+
+def _stop_onto_coincident_face(lens: ZmxLens, notes) -> ZmxLens:
+    """A stop plane in air (with dummy planes beside it) a rounding error in front of a plane lens face is
+    that face's stop: OpticStudio writes such gaps (-1.09e-8 and 5.9e-7 mm in the OptoSigma objective)
+    when a solve has put the stop on the glass. Kept apart, the mount would have to fit a diaphragm into
+    an air gap of no length; merged, the stop is the face (a catalogue lens's stop on its front face).
+    The planes are dropped, their gaps added to the gap in front of them, their STOP moved to the face."""
+    if lens.aperture is not None and lens.aperture[0] == "float":
+        return lens   # the stop's own DIAM is the aperture (FLOA): it stays where it is
+    out, run = list(lens.surfaces), []
+    k = 1
+    while k < len(out) - 1:
+        zs = out[k]
+        prev_glass = _glass_name(out[k - 1]) if k > 1 else AIR
+        plane_in_air = (zs.type == "STANDARD" and zs.curvature == 0.0 and not zs.parm and not zs.xdat and
+                        not zs.mirror and zs.clap is None and _glass_name(zs) == AIR and prev_glass == AIR)
+        if plane_in_air and abs(zs.thickness) < _COINCIDENT_MM and k + 1 < len(out) - 1:
+            run.append(k)
+            k += 1
+            continue
+        face = out[k]
+        if run and any(out[j].stop for j in run) and face.type == "STANDARD" and face.curvature == 0.0 \
+                and not face.parm and _glass_name(face) != AIR and abs(sum(out[j].thickness for j in run)) < _COINCIDENT_MM:
+            gap = sum(out[j].thickness for j in run)
+            before = out[run[0] - 1]
+            out[run[0] - 1] = replace(before, thickness=before.thickness + gap)
+            out[k] = replace(face, stop=True)
+            notes.append(ImportNote("substituted", "SURF " + ", ".join(str(out[j].number) for j in run),
+                                    f"stop plane {gap:.3g} mm in front of the plane face of SURF {face.number}: "
+                                    f"the stop is that face (the planes dropped)"))
+            out = [zs for j, zs in enumerate(out) if j not in run]
+            k -= len(run)
+        run = []
+        k += 1
+    return replace(lens, surfaces=out) if len(out) != len(lens.surfaces) else lens
 
 
 def _check_telecentric(lens: ZmxLens, object_distance: float, file) -> None:

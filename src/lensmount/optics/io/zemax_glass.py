@@ -114,7 +114,7 @@ def _is_placeholder(args) -> bool:
 
 def _model(nd: float, vd: float) -> str:
     # V_d = 0 is Zemax's constant index, which lensmount's model glass "n_d/0" means too
-    return f"{nd:.6g}/{vd:.6g}"
+    return f"{nd:.12g}/{vd:.12g}"
 
 
 def _prefer_catalogue(name: str, catalogues: list[str]) -> str:
