@@ -36,7 +36,8 @@ def _small_scene(design: Path, direct: bool = True) -> Path:
     """Case 2 (every mount face Lambertian 5 %) with the direct image on (or not), a 30×30 detector, few photons."""
     text = (design / "scenes" / "case2-lambertian.toml").read_text()
     for old, new in (("pixels = [600, 600]", "pixels = [30, 30]"), ("direct = false", f"direct = {str(direct).lower()}"),
-                     ("photons = 100_000", "photons = 10_000"), ("passes = 32", "passes = 8"),
+                     ("photons = 20_000", "photons = 10_000"), ("passes = 32", "passes = 8"),
+                     ("view_map_pitch = 4", "view_map_pitch = 1"),
                      ("target_rel_error = 0.05", "")):
         assert old in text
         text = text.replace(old, new)
