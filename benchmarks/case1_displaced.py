@@ -13,22 +13,17 @@ cost goes with the pixels. --no-check leaves the displaced ring as it is (the is
 import json
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.analysis.metrics import stray_fraction
-from lensmount.cad.pipeline import regenerate
-from lensmount.design.folder import load_design
-from lensmount.design.scene import scene_from_dict
 from lensmount.integrators import photon_target
 from lensmount.integrators.bidirectional import Bidirectional
 from lensmount.integrators.plan import edge_flux_components, plan
 from lensmount.integrators.estimate import AIMED_PASSES
-from lensmount.mesh import TaggedMesh
-from lensmount.scene.build import build_scene
+from lensmount.loop.prepare import prepare
 from lensmount.trace.tracer import Tracer
 
 DESIGN = Path(__file__).resolve().parents[1] / "examples" / "double-gauss-360"
@@ -47,12 +42,10 @@ def displace(pilot, how):
 
 
 def run(out: Path, seeds, how: str, pixels: int, check: bool) -> None:
-    geometry = out.with_suffix(".geometry")
-    manifest = regenerate(DESIGN, geometry)
-    data = tomllib.loads(SCENE.read_text())
-    data["detector"]["pixels"] = [pixels, pixels]
-    spec = scene_from_dict(data, base_dir=str(SCENE.parent))
-    scene = plan(build_scene(load_design(DESIGN).prescription, TaggedMesh.load(geometry / manifest.mesh), spec)).scene
+    scene_file = out.with_suffix(".scene.toml")  # the shipped scene with `pixels` a side; the design's finishes
+    scene_file.write_text(SCENE.read_text().replace("pixels = [600, 600]", f"pixels = [{pixels}, {pixels}]"))
+    prepared = prepare(DESIGN, scene_file, out.with_suffix(".geometry"))
+    spec, scene = prepared.spec, plan(prepared.scene).scene
     tracer = Tracer(scene)
     if how != "none":
         photon_target._pilot = displace(photon_target._pilot, how)
