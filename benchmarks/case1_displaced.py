@@ -79,9 +79,13 @@ def report(path: Path, reference: float) -> None:
     honest = [c or r["bias"] is None for c, r in zip(cover, rows)]
     flagged = ["note" in r["plan_line"] or "warning" in r["plan_line"] for r in rows]
     ratio = [r["value"] / reference for r in rows]
+    passes = np.concatenate([r["passes"] for r in rows])
+    print(f"pooled over {len(passes)} passes: {passes.mean():.5g} ± {passes.std(ddof=1) / np.sqrt(len(passes)):.2g}")
+    heavy = sum(r["heavy"] or "warning" in r["plan_line"] for r in rows)
     print(f"{len(rows)} runs: value / reference {min(ratio):.3f} … {max(ratio):.3f} (mean {np.mean(ratio):.4f}); "
-          f"2 se + bias bound covers {reference:.5g} in {sum(cover)} ({100 * np.mean(cover):.0f} %), or the run cannot "
-          f"bound its bias: {sum(honest)}; flagged {sum(flagged)}")
+          f"2 se + bias bound covers {reference:.5g} in {sum(cover)} ({100 * np.mean(cover):.1f} %), that or the run "
+          f"cannot bound its bias in {sum(honest)}; ring flagged (note or warning) in {sum(flagged)}; heavy-tailed "
+          f"(tail or warning: not converged) {heavy}")
 
 
 if __name__ == "__main__":
