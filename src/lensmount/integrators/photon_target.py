@@ -68,8 +68,8 @@ MAX_RINGS = 3  # rings through which the pilot may find the edge lit
 RING_SIGMAS = 4.0  # hits beyond this many residual spreads of a ring belong to another (as `targets.robust_fit`)
 RING_SPREAD = 2.0  # a further ring's spread at most this many times the first's: hits on a ring, not the first ring's tails
 # The check (`_checked`): a share of the edge's light found outside the fitted ring(s) above this is a miss, mended.
-# Good fits leave 0-8.4 % there on case 1 (100 seeds, median 1 %: near misses, counted in the check's ~40 hits of 2.5 % each), a
-# ring 12 half widths off 96-100 % (docs/accuracy.md, "A displaced learned ring").
+# Good fits leave 0-8.4 % there on case 1 (100 seeds, median 1 %: near misses, counted in the check's ~40 hits
+# of 2.5 % each), a ring 12 half widths off 96-100 % (docs/accuracy.md, "A displaced learned ring").
 CHECK_MISSED = 0.1
 _K = 4  # harmonics of φ
 _PLANE_SHIFTS = np.linspace(-40.0, 40.0, 21)  # mm along d₀ from the paraxial entrance pupil, tried by the fit
