@@ -235,7 +235,8 @@ def tally_edge_flux(diagnostics: dict, component: np.ndarray, flux: np.ndarray) 
         diagnostics[EDGE_FLUX_SQ + name] = diagnostics.get(EDGE_FLUX_SQ + name, 0.0) + float(f @ f)
 
 
-def edge_band(scene, tracer, broad: np.ndarray, seed: int, n_photons: int = PILOT_PHOTONS) -> EdgeBand | EdgeRings | None:
+def edge_band(scene, tracer, broad: np.ndarray, seed: int,
+              n_photons: int = PILOT_PHOTONS) -> EdgeBand | EdgeRings | None:
     """The pilot's EdgeBand (EdgeRings) for (scene, tracer, seed), checked (`_checked`), or None: no
     diaphragm edge, another face that scatters too (case 2: aiming photons at the edge would starve the
     faces that carry most of the light), a source other than the sun or a collimated one, too few pilot
@@ -567,4 +568,5 @@ def _ring(rho, phi, wl, n_wl):
 
 
 __all__ = ["EdgeBand", "EdgeRings", "PilotCheck", "COMPONENTS", "CHECK_MISSED", "emission_component", "aims_at_edge",
-           "edge_band", "entrance_pupil", "guided_photons", "pilot_check", "pilot_check_diagnostics", "tally_edge_flux", "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
+           "edge_band", "entrance_pupil", "guided_photons", "pilot_check", "pilot_check_diagnostics", "tally_edge_flux",
+           "UNIFORM_SHARE", "WIDE_SHARE", "WIDE_FACTOR"]
