@@ -207,3 +207,21 @@ def immersed_singlet(bsdf, *, medium="1.333/0", off_axis_deg=20.0, pixels=(16, 1
                  solid_index_of_tag=solid_index_of_tag(lens, mesh, wl),
                  solid_absorption_of_tag=solid_absorption_of_tag(lens, mesh, wl),
                  field_of_view_deg=imaged_field_deg(lens, detector))
+
+
+def bare_edge(off_axis_deg=7.0, *, r=5.0, width=0.2, pixels=(4, 4)):
+    """A diaphragm alone (hole radius r, plate `width` thick) under the sun, its cylindrical inner edge the
+    only face that scatters (Lambertian 10 %), in a black barrel; no lens, so the edge's entrance pupil is
+    its own rim. Sunlight of unit irradiance along d (θ off axis) falls on the lit half of the edge with
+    flux 2 r · width · sin θ (its projection along d: no other face shades it for width · tan θ ≪ r)."""
+    mesh = TaggedMesh.concatenate([diaphragm(0.0, r, r + 4.0, width, segments=256),
+                                   barrel(-10.0, 32.0, r + 4.0, r + 6.0, segments=64)])
+    bsdfs = [make_bsdf("lambertian", reflectance=0.1) if t.role == "diaphragm-edge" else make_bsdf("absorber")
+             for t in mesh.tag_table]
+    d = source_direction(off_axis_deg, 90.0)
+    disc = EmissionDisc(tuple(float(x) for x in np.array([0.0, 0.0, -10.0]) - 100.0 * d), r + 7.0)
+    n = len(mesh.tag_table)
+    return Scene(mesh=mesh, optical=[], bsdf_of_tag=bsdfs, source=SunSource(off_axis_deg, 90.0, disc),
+                 detector=Detector(6.0, 6.0, *pixels, 30.0), wavelengths_um=np.array([0.5875618]),
+                 effects=Effects(True, False, False), entrance_pupil_area_mm2=math.pi * r * r,
+                 solid_index_of_tag=np.ones((n, 1)), solid_absorption_of_tag=np.zeros((n, 1)))

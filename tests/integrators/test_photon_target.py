@@ -225,3 +225,22 @@ def test_one_ring_stays_one_band():
     rng = np.random.default_rng(6)
     hit |= rng.random(len(hit)) < 5e-5  # a few stray hits anywhere: scattered, not a ring
     assert isinstance(PT._fit(rays, hit, CENTRE, D0, 1, per_wavelength=True), PT.EdgeBand)
+
+
+def test_the_check_adds_a_ring_the_fit_left_out():
+    """Issue 29, 1: a fit holding only the first of two lit rings (the second carries ~26 % of the edge's light)
+    is mended by the check's hits: a ring on the second, shares by the light each holds, the density the
+    mixture's. (The check's photons here cross P uniformly in ρ: each carries light ∝ ρ.)"""
+    first, second = (lambda f: 10.0 + 0.3 * np.cos(f)), (lambda f: 12.0 + 0.1 * np.sin(2 * f))
+    rays, hit = _pilot_rays([(first, 1.0), (second, 0.3)], n=100_000, seed=8)
+    coef = np.zeros((1, 2 * PT._K + 1))
+    coef[0, 0], coef[0, 1] = 10.0, 0.3
+    fit = PT.EdgeBand(CENTRE, tuple(D0), coef, np.array([0.03]), np.full(PT.N_PHI, 1.0 / PT.N_PHI))
+    rho, _ = fit.crossing(rays.origin, rays.direction)
+    light = np.where(hit, rho, 0.0)
+    mended, added = PT._mended(fit, rays, hit, light)
+    assert added == 1 and isinstance(mended, PT.EdgeRings) and mended.rings[0] is fit
+    f = np.linspace(-3, 3, 7)
+    assert np.allclose(mended.rings[1].radius(f, np.zeros(7, int)), second(f), atol=0.01)
+    want = 0.3 * 12.0 / (10.0 + 0.3 * 12.0)  # hits ∝ rate (uniform in ρ and φ), each carrying ∝ ρ: 0.265
+    assert mended.share[1] == pytest.approx(want, abs=0.03)

@@ -44,6 +44,8 @@ def print_plan(console, block: dict | None) -> None:
         share = item.get("edge_flux_share")
         table.add_row(item["what"], item["why"] + (" · edge light by component: " + ", ".join(
             f"{c} {100 * v:.1f} %" for c, v in share.items()) if share else ""))
+        if item.get("note"):  # e.g. the pilot's ring missed the lit edge and was mended (`plan.edge_flux_components`)
+            table.add_row("", f"note: {item['note']}")
         if item.get("warning"):
             table.add_row("", f"warning: {item['warning']}", style="yellow")
     for item in block["skipped"]:

@@ -61,12 +61,13 @@ import numpy as np
 
 from lensmount.integrators.connect import connect_to_detector
 from lensmount.integrators.estimate import (
-    AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
+    AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
     film_channels, phase_clock, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share, search_groups
 from lensmount.integrators.paths import FaceTally
-from lensmount.integrators.photon_target import COMPONENTS, aims_at_edge, edge_band, emission_component, guided_photons
+from lensmount.integrators.photon_target import (
+    aims_at_edge, edge_band, emission_component, guided_photons, pilot_check, pilot_check_diagnostics, tally_edge_flux)
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
@@ -190,12 +191,14 @@ class Bidirectional:
         # pilot found the edge too rarely lit (uniform emission: correct, far slower; the plan says so)
         diagnostics[AIMED_PASSES] = float(band is not None)
         diagnostics[UNAIMED_PASSES] = float(aim and band is None)
+        if band is not None:
+            diagnostics.update(pilot_check_diagnostics(pilot_check(scene, tracer, broad, seed)))
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
             ev = step.events
             at_face = ev.kind == FACE
             at_face[at_face] &= scatters[ev.tag[at_face]] & (ev.weight[at_face] > 0)
             if band is not None and step.scatterings == 0:  # the edge is the only scatterer (`aims_at_edge`)
-                _tally_edge_flux(diagnostics, emission_component(seed, self.purpose, ev.id[at_face]), ev.weight[at_face])
+                tally_edge_flux(diagnostics, emission_component(seed, self.purpose, ev.id[at_face]), ev.weight[at_face])
             if at_face.any() and (len(hits.weight) or connects):
                 start = phase_clock()
                 f = np.flatnonzero(at_face)
@@ -261,15 +264,6 @@ class ViewMap:
     seen: FaceTally
     diagnostics: dict[str, float]
     seconds: np.ndarray
-
-
-def _tally_edge_flux(diagnostics: dict, component: np.ndarray, flux: np.ndarray) -> None:
-    """Σ Φ and Σ Φ² of the photons' first arrivals at the edge, per emission component: how much of the
-    edge's light each part of the mixture carries, and in how few photons (issue 29, item 1)."""
-    for k, name in enumerate(COMPONENTS):
-        f = flux[component == k]
-        diagnostics[EDGE_FLUX + name] = diagnostics.get(EDGE_FLUX + name, 0.0) + float(f.sum())
-        diagnostics[EDGE_FLUX_SQ + name] = diagnostics.get(EDGE_FLUX_SQ + name, 0.0) + float(f @ f)
 
 
 def radius_scale_of(pass_index: int, settings: EstimatorSettings) -> float:

@@ -102,6 +102,10 @@ UNAIMED_PASSES = "passes/diaphragm edge too rarely lit to aim at"  # diagnostics
 # Σ Φ and Σ Φ² (mm², mm⁴), summed over passes; `plan.Plan.as_dict` turns them into shares and spreads.
 EDGE_FLUX = "edge flux/"
 EDGE_FLUX_SQ = "edge flux squared/"
+# The pilot's check of its ring (`photon_target.PilotCheck`), summed over aimed passes: the share of the edge's
+# light its check photons found outside the fitted ring(s), the rings added for it, the share outside after.
+PILOT_MISSED, PILOT_RINGS_ADDED, PILOT_MISSED_AFTER = (
+    "pilot check/edge light outside the ring", "pilot check/rings added", "pilot check/edge light outside after")
 PHASES = {"view_map": "scatter: view map (hit points)", "gather": "scatter: gather at hit points",
           "walk": "photon walk (scatter, direct and ghosts together)",
           "ghost_routes": "ghosts: deterministic two- (four-) reflection routes"}

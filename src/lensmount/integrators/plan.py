@@ -50,8 +50,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lensmount.integrators.estimate import AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, TIME_PREFIX, UNAIMED_PASSES
-from lensmount.integrators.photon_target import COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
+from lensmount.integrators.estimate import (
+    AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, PILOT_MISSED, PILOT_MISSED_AFTER, PILOT_RINGS_ADDED, TIME_PREFIX,
+    UNAIMED_PASSES)
+from lensmount.integrators.photon_target import CHECK_MISSED, COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
@@ -119,21 +121,47 @@ def edge_flux_components(diagnostics: dict, passes: int) -> dict:
     disc, wide band, aimed ring) its share of the flux first arriving at the edge and the relative
     spread it alone gives a pass, √(Σ Φ² / passes) / (edge flux per pass). A uniform or wide share
     carried by few heavy photons (spread ≥ HEAVY_COMPONENT_SPREAD) makes passes heavy-tailed: the
-    ring misses part of the lit edge (issue 29, item 1); `warning` says so."""
-    total = sum(diagnostics.get(EDGE_FLUX + c, 0.0) for c in COMPONENTS)
-    if not total > 0 or passes < 1:
+    ring misses part of the lit edge (issue 29, item 1); `warning` says so. `pilot_check`: what the
+    pilot's check found (`photon_target.PilotCheck`); a ring that missed more than CHECK_MISSED of the
+    light its check photons brought to the edge is a `note` (it was mended with rings fitted to those
+    hits) and, when the mended rings still miss that much, a `warning`."""
+    if passes < 1:
         return {}
+    out = _pilot_check(diagnostics, passes)
+    total = sum(diagnostics.get(EDGE_FLUX + c, 0.0) for c in COMPONENTS)
+    if not total > 0:
+        return out
     per_pass = total / passes
     share = {c: diagnostics.get(EDGE_FLUX + c, 0.0) / total for c in COMPONENTS}
     spread = {c: math.sqrt(diagnostics.get(EDGE_FLUX_SQ + c, 0.0) / passes) / per_pass for c in COMPONENTS}
-    out = {"edge_flux_share": {c: round(share[c], 6) for c in COMPONENTS},
-           "edge_flux_pass_spread": {c: round(spread[c], 6) for c in COMPONENTS}}
+    out.update({"edge_flux_share": {c: round(share[c], 6) for c in COMPONENTS},
+                "edge_flux_pass_spread": {c: round(spread[c], 6) for c in COMPONENTS}})
     heavy = [c for c in ("uniform", "wide") if spread[c] >= HEAVY_COMPONENT_SPREAD]
     if heavy:
-        out["warning"] = (" and ".join(f"the {c} photons ({100 * share[c]:.1f} % of the edge's light, {spread[c]:.2f} "
-                                       "of a pass in spread)" for c in heavy)
-                          + " carry the edge's light in few heavy photons: the learned ring misses part of the "
-                            "lit edge, the passes are heavy-tailed and the error bar is not to be trusted")
+        out["warning"] = "; ".join(w for w in (out.get("warning"), " and ".join(
+            f"the {c} photons ({100 * share[c]:.1f} % of the edge's light, {spread[c]:.2f} of a pass in spread)"
+            for c in heavy) + " carry the edge's light in few heavy photons: the learned ring misses part of the lit "
+                              "edge, the passes are heavy-tailed, the error bar is not to be trusted and the run does "
+                              "not count as converged") if w)
+    return out
+
+
+def _pilot_check(diagnostics: dict, passes: int) -> dict:
+    """The plan line's `pilot_check` (and its note or warning) from the passes' PILOT_* diagnostics."""
+    if PILOT_MISSED not in diagnostics:
+        return {}
+    missed, after = diagnostics[PILOT_MISSED] / passes, diagnostics.get(PILOT_MISSED_AFTER, 0.0) / passes
+    added = diagnostics.get(PILOT_RINGS_ADDED, 0.0) / passes
+    out = {"pilot_check": {"edge_light_outside_ring": round(missed, 6), "rings_added": round(added, 3),
+                           "edge_light_outside_after": round(after, 6)}}
+    if missed > CHECK_MISSED:
+        out["note"] = (f"the pilot's fitted ring missed {100 * missed:.1f} % of the edge's light its check photons "
+                       f"(drawn over the whole pupil rim) found; {added:g} ring(s) fitted to those hits were added, "
+                       f"{100 * after:.1f} % outside after")
+    if after > CHECK_MISSED:
+        out["warning"] = (f"the aimed rings miss {100 * after:.1f} % of the edge's light the pilot's check found "
+                          f"(more than {100 * CHECK_MISSED:g} %): it comes in few heavy photons, the passes are "
+                          "heavy-tailed and the run does not count as converged")
     return out
 
 
