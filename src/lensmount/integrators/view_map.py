@@ -129,30 +129,9 @@ def _sample_layout(det: Detector, samples_per_pixel: int, pitch: int = 1) -> tup
     """(block, sample) of every backward sample of a pass, block-major. A block is `pitch` × `pitch`
     pixels (fewer at the detector's right and top edges); at pitch 1 a block is a pixel."""
     s = int(samples_per_pixel)
-    n_blocks = _blocks(det.nx, pitch) * _blocks(det.ny, pitch)
+    across, up = det.blocks(pitch)
+    n_blocks = across * up
     return np.repeat(np.arange(n_blocks, dtype=np.int64), s), np.tile(np.arange(s, dtype=np.int64), n_blocks)
-
-
-def _blocks(n_pixels: int, pitch: int) -> int:
-    return -(-int(n_pixels) // int(pitch))
-
-
-def block_points(det: Detector, block: np.ndarray, pitch: int,
-                 u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N, 3) points uniform in `pitch` × `pitch` pixel blocks (N,) from uniforms u (N, 2), the pixel
-    each lies in, and each block's size in pixels: a sample stands for its whole block, so its weight
-    is that many pixels'. At pitch 1 these are `Detector.sample_points`, bit for bit, and sizes 1."""
-    if pitch == 1:
-        return det.sample_points(block, u), np.asarray(block, np.int64), np.ones(len(block))
-    by, bx = np.divmod(np.asarray(block, np.int64), _blocks(det.nx, pitch))
-    ix0, iy0 = bx * pitch, by * pitch
-    wx, wy = np.minimum(pitch, det.nx - ix0), np.minimum(pitch, det.ny - iy0)
-    x = -0.5 * det.width + (ix0 + u[:, 0] * wx) * (det.width / det.nx)
-    y = -0.5 * det.height + (iy0 + u[:, 1] * wy) * (det.height / det.ny)
-    ix = ix0 + np.minimum((u[:, 0] * wx).astype(np.int64), wx - 1)
-    iy = iy0 + np.minimum((u[:, 1] * wy).astype(np.int64), wy - 1)
-    points = np.column_stack([x, y, np.full(len(x), float(det.z))])
-    return points, iy * det.nx + ix, (wx * wy).astype(np.float64)
 
 
 def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixel: int, pitch: int = 1) -> Streams:
@@ -248,7 +227,7 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarr
     m = len(block)
     n_wl = len(scene.wavelengths_um)
     u = paths.random((m, 6))
-    x, pixel, block_pixels = block_points(det, block, pitch, u[:, 0:2])
+    x, pixel, block_pixels = det.sample_blocks(block, pitch, u[:, 0:2])
     wl = np.minimum((u[:, 5] * n_wl).astype(np.int32), n_wl - 1)
     omega, w = sample_toward_exit(x, u[:, 2:5], targets, weights, wl)
     response = scene.detector.spectral_weight

@@ -77,10 +77,25 @@ class Detector:
 
     def sample_points(self, pixel: np.ndarray, u: np.ndarray) -> np.ndarray:
         """(N, 3) points uniform in flat pixels (N,), from uniforms u (N, 2)."""
-        iy, ix = np.divmod(np.asarray(pixel, np.int64), self.nx)
-        x = -0.5 * self.width + (ix + u[:, 0]) * (self.width / self.nx)
-        y = -0.5 * self.height + (iy + u[:, 1]) * (self.height / self.ny)
-        return np.column_stack([x, y, np.full(len(x), float(self.z))])
+        return self.sample_blocks(pixel, 1, u)[0]
+
+    def blocks(self, pitch: int) -> tuple[int, int]:
+        """(across, up) blocks of `pitch` × `pitch` pixels that tile the detector (the last ones cut by its edges)."""
+        return -(-self.nx // int(pitch)), -(-self.ny // int(pitch))
+
+    def sample_blocks(self, block: np.ndarray, pitch: int, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 3) points uniform in flat blocks (N,) of `pitch` × `pitch` pixels (`blocks`; pitch 1: pixels), from
+        uniforms u (N, 2); the flat pixel each lies in; each block's size in pixels (fewer where the detector's
+        edges cut it)."""
+        by, bx = np.divmod(np.asarray(block, np.int64), self.blocks(pitch)[0])
+        ix0, iy0 = bx * pitch, by * pitch
+        wx, wy = np.minimum(pitch, self.nx - ix0), np.minimum(pitch, self.ny - iy0)
+        x = -0.5 * self.width + (ix0 + u[:, 0] * wx) * (self.width / self.nx)
+        y = -0.5 * self.height + (iy0 + u[:, 1] * wy) * (self.height / self.ny)
+        ix = ix0 + np.minimum((u[:, 0] * wx).astype(np.int64), wx - 1)
+        iy = iy0 + np.minimum((u[:, 1] * wy).astype(np.int64), wy - 1)
+        points = np.column_stack([x, y, np.full(len(x), float(self.z))])
+        return points, iy * self.nx + ix, (wx * wy).astype(np.float64)
 
     def deposit(self, points: np.ndarray, flux: np.ndarray, wavelength: np.ndarray | None = None) -> np.ndarray:
         """Irradiance image (ny, nx), E/E_sun, from photons of flux (N,) [E_sun·mm²] landing at points."""
