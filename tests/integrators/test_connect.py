@@ -24,16 +24,22 @@ def barrel():
     return scene, Tracer(scene)
 
 
-def test_direct_hit_points_are_those_that_see_the_detector_straight(barrel):
+def test_the_view_map_leaves_out_the_hit_points_that_see_the_detector_straight(barrel):
     """Checked by the geometry, not by the backward ray's bits: from a hit point along ω_o, the first
-    thing met is the detector's front, in the hit point's own pixel, exactly for the direct ones (the
-    barrel behind the singlet); the others look back into the glass."""
+    thing met is the detector's front, in the hit point's own pixel, exactly for the points the view map
+    leaves out when the photons are connected (the barrel behind the singlet); the points it keeps look
+    back into the glass, and are the same points, bit for bit, as without connections."""
     scene, tracer = barrel
-    hits = Bidirectional().view_pass(scene, tracer, 0, 3).hits
-    seen = tracer.intersect(RayBatch.make(hits.position, hits.omega_o), origin_normal=hits.normal)
-    straight = seen.detector & seen.detector_front & (scene.detector.pixel_of(seen.point) == hits.pixel)
-    assert hits.direct.sum() > 100 and (~hits.direct).sum() > 10
-    assert np.mean(hits.direct == straight) > 0.999, (hits.direct.sum(), straight.sum())
+    every = Bidirectional(EstimatorSettings(connect_direct_view=False)).view_pass(scene, tracer, 0, 3).hits
+    kept = Bidirectional().view_pass(scene, tracer, 0, 3).hits
+    seen = tracer.intersect(RayBatch.make(every.position, every.omega_o), origin_normal=every.normal)
+    straight = seen.detector & seen.detector_front & (scene.detector.pixel_of(seen.point) == every.pixel)
+    rows = {tuple(p) for p in np.column_stack([kept.position, kept.pixel])}
+    in_kept = np.array([tuple(p) in rows for p in np.column_stack([every.position, every.pixel])])
+    assert in_kept.sum() == len(kept) and (~in_kept).sum() > 100 and in_kept.sum() > 10
+    assert np.mean(in_kept == ~straight) > 0.999, ((~in_kept).sum(), straight.sum())
+    on_both = np.flatnonzero(in_kept)
+    assert np.array_equal(every.weight[on_both], kept.weight)
 
 
 def test_connections_and_the_gather_read_the_same_barrel(barrel):

@@ -31,7 +31,7 @@ are counted the same forward way when the scene turns `direct` or `ghosts` on, e
 A broad vertex whose last segment runs straight to the detector (a face behind the last lens that
 the detector sees without glass: the housing, a field stop, a vane) is counted by its photon instead:
 each photon there is connected to a random point of the detector (`connect`, light tracing), and the
-hit points the backward rays reached straight from the detector (`HitPoints.direct`) gather nothing.
+backward rays that reach such a face straight from the detector make no hit point there.
 Why: such a face is often lit in a small spot (off the field, the sun's image), which a gather sees
 only through the few hit points near it; the connections see every photon of the spot (case 2: a
 pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's.
@@ -155,10 +155,8 @@ class Bidirectional:
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, pitch=cfg.view_map_pitch, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
-                              faces=seen) if broad.any() else HitPoints.empty()
-        # the hit points a backward ray reached straight from the detector gather nothing: their light is the
-        # photons' connections' (`connect`), so that each path is counted once
-        groups = search_groups(hits, ~hits.direct if cfg.connect_direct_view else None)
+                              faces=seen, connected=cfg.connect_direct_view) if broad.any() else HitPoints.empty()
+        groups = search_groups(hits)
         return ViewMap(int(pass_index), int(seed), scale, hits, groups, core, seen, diagnostics, phase_clock() - clock)
 
     def photon_pass(self, scene, tracer, view: "ViewMap", pass_index: int, photons: int, seed: int) -> PassEstimate:
@@ -184,7 +182,8 @@ class Bidirectional:
                             groups=view.groups)
         connects = cfg.connect_direct_view  # the view map's direct hit points are in no search tree (view_pass)
         gather_s = phase_clock() - clock
-        aim = bool(cfg.edge_photons and len(hits.weight) and aims_at_edge(scene, broad))
+        met = len(hits.weight) or diagnostics.get("view_map_direct_hit_points", 0)  # broad faces the detector sees
+        aim = bool(cfg.edge_photons and met and aims_at_edge(scene, broad))
         band = edge_band(scene, tracer, broad, seed) if aim else None
         rays = guided_photons(scene, band, seed, self.purpose, int(pass_index) * int(photons), photons)
         # summed over passes in the summary: how many passes aimed, and how many would have but the

@@ -15,9 +15,9 @@ at every scattering vertex x on a broad face, one point y is drawn uniformly on 
 
 lands in y's pixel if the segment x → y meets nothing before the detector's front (`Tracer.intersect`).
 The expectation over y is Φ's irradiance on the detector by that segment, exactly. A path whose last
-segment crosses glass (or any other path the gather sees) stays the gather's: the hit points made by
-backward rays that met no optical surface (`HitPoints.direct`) gather nothing. Every path is still
-counted once. A glossy core the photons count themselves (`gather_cores`) is left out of f here as
+segment crosses glass (or any other path the gather sees) stays the gather's: backward rays that meet
+a broad face with no optical surface on the way make no hit point (`view_map.build_view_map`,
+`connected`). Every path is still counted once. A glossy core the photons count themselves (`gather_cores`) is left out of f here as
 there. No kernel, so no kernel bias: these paths leave the ladder of radii flat.
 """
 

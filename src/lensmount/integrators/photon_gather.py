@@ -60,8 +60,6 @@ class HitPoints:
     area : (H,) mm², the part of the gather disc on the hit point's face (π r² away from boundaries)
     area_ladder : (H, L) mm², the same for the discs of radius r · BIAS_LADDER[l] (the bias estimate,
         `Gatherer.radiance_ladder`)
-    direct : (H,) bool, the backward ray met no optical surface on its way here (`connect.direct_view`):
-        the light such a point would gather is counted by the photons' connections to the detector
     """
 
     position: np.ndarray
@@ -74,12 +72,9 @@ class HitPoints:
     radius: np.ndarray
     area: np.ndarray | None = None
     area_ladder: np.ndarray | None = None
-    direct: np.ndarray | None = None
 
     def __post_init__(self):
         r = np.asarray(self.radius, np.float64)
-        if self.direct is None:
-            self.direct = np.zeros(len(r), bool)
         if self.area is None:
             self.area = np.pi * r ** 2
         if self.area_ladder is None:
@@ -92,7 +87,7 @@ class HitPoints:
     def empty(cls) -> "HitPoints":
         z3, z = np.zeros((0, 3)), np.zeros(0)
         return cls(z3, z3.copy(), z3.copy(), z, np.zeros(0, np.int64), np.zeros(0, np.int32),
-                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))), np.zeros(0, bool))
+                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))))
 
     def subset(self, index) -> "HitPoints":
         return HitPoints(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -172,15 +167,13 @@ def gatherable_share(bsdf, core: float, n_u: int = 48) -> float:
 REACH = max(BIAS_LADDER)  # the widest disc the pair search must find, relative to a hit point's r
 
 
-def search_groups(hits: HitPoints, members: np.ndarray | None = None) -> dict[int, list[tuple[np.ndarray, cKDTree, float]]]:
+def search_groups(hits: HitPoints) -> dict[int, list[tuple[np.ndarray, cKDTree, float]]]:
     """The hit points by face and radius octave, one KD-tree a group: {tag: [(indices, tree, reach)]}, reach
     the farthest a pair of the group can lie (REACH × its largest radius). They read the hit points alone, so
     they belong to the view map (`bidirectional.ViewMap.groups`: built once a pass, every source's photons
-    gathered at them; `pst` gathered each angle's at trees of its own, ~7 % of an angle's pass).
-    members : (H,) bool, the hit points that gather (None: all); the others are in no tree, so they gather
-    nothing (the direct ones, whose light the photons' connections count: `connect`)."""
+    gathered at them; `pst` gathered each angle's at trees of its own, ~7 % of an angle's pass)."""
     groups: dict[int, list[tuple[np.ndarray, cKDTree, float]]] = {}
-    index = np.arange(len(hits)) if members is None else np.flatnonzero(members)
+    index = np.arange(len(hits))
     if len(index) == 0:
         return groups
     octave = np.floor(np.log2(np.maximum(hits.radius[index], 1e-12))).astype(np.int64)

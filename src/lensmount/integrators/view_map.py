@@ -144,12 +144,18 @@ def view_map_streams(seed: int, pass_index: int, det: Detector, samples_per_pixe
 def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    pitch: int = 1, mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
-                   radius_cap_mm: float = 5.0, stats: dict | None = None, faces=None) -> HitPoints:
+                   radius_cap_mm: float = 5.0, stats: dict | None = None, faces=None,
+                   connected: bool = True) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     rng : `view_map_streams(...)` (one stream per sample), or a Generator (keys drawn from it)
-    stats : when given, gets `view_map_samples` and `view_map_lost_samples` (backward rays ended by
-        the tracer's numerical guards: their pixels see nothing this pass) added to it
+    stats : when given, gets `view_map_samples`, `view_map_lost_samples` (backward rays ended by
+        the tracer's numerical guards: their pixels see nothing this pass) and `view_map_direct_hit_points`
+        (below) added to it
+    connected : the photons are connected to the detector (`connect`), so the broad faces a backward ray
+        reached straight from the detector, meeting no optical surface (`connect.direct_view`), make no
+        hit point: their light is the connections' (each path counted once), and a hit point there would
+        cost its radius and areas for nothing (62 % of case 2's)
     faces : when given (a `paths.FaceTally`), gets the projected solid angle (τ / n_wl, sr) of every
         sample at the first face it meets, whatever the finish (the faces the detector sees: critical)
 
@@ -191,9 +197,11 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     if not len(hit["tag"]):
         return HitPoints.empty()
     tag, tau = hit["tag"], hit["weight"]
-    ok = np.ones(len(tag), bool)
+    ok = ~hit["direct"] if connected else np.ones(len(tag), bool)
+    if stats is not None:
+        stats["view_map_direct_hit_points"] = stats.get("view_map_direct_hit_points", 0) + int(hit["direct"].sum())
     if learned is not None:  # Russian roulette on the edge's hit points: their cost (area, gather) is per point
-        on_edge = np.isin(tag, edge_tags(scene, broad))
+        on_edge = np.isin(tag, edge_tags(scene, broad)) & ok
         keep_p = min(1.0, MAX_EDGE_HITS / max(int(on_edge.sum()), 1))
         if keep_p < 1.0:
             ok &= ~on_edge | (hit["u_roulette"] < keep_p)
@@ -214,7 +222,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
                      pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=wavelength.astype(np.int32), radius=radius, area=area,
-                     area_ladder=area_ladder, direct=hit["direct"][ok])
+                     area_ladder=area_ladder)
 
 
 def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarray, pitch: int, targets, weights,
