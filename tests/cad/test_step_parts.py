@@ -453,9 +453,9 @@ def test_compare_between_revisions_that_differ_only_in_the_step_file(step_housin
     run(tmp_path / "rev-b")
     res = runner.invoke(app, ["compare", str(tmp_path / "rev-a"), str(tmp_path / "rev-b")])
     assert res.exit_code in (0, 1), res.output
-    assert "housing.step changed" in res.output
+    assert "file housing.step: changed" in res.output
     verdict = json.loads((tmp_path / "rev-b" / "compare" / "compare.json").read_text())
-    assert "housing.step changed" in verdict["notes"] and "verdict" in verdict
+    assert "file housing.step: changed" in verdict["design_changes"] and "verdict" in verdict
 
 
 def tomllib_loads(text: str) -> dict:

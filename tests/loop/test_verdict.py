@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from lensmount.analysis.compare import (
-    IMPROVEMENT, NO_REGRESSION, REGRESSION, UNDECIDED, Measurement, interval, judge, parse_fraction)
+    IMPROVEMENT, NO_REGRESSION, REGRESSION, UNDECIDED, Measurement, interval, judge, parse_fraction, to_decide)
 from lensmount.analysis.passes import t_factor
 
 
@@ -234,3 +234,14 @@ def test_the_interval_covers_a_zero_change_at_its_confidence_not_more(name, draw
         low, high = interval(of_passes(a), of_passes(b), 0.99)
         covered += low <= 0 <= high
     assert 985 <= covered <= 995, covered
+
+
+def test_a_run_whose_terms_give_no_error_bar_decides_nothing():
+    """A run whose passes' terms are too heavy-tailed for an error bar has an infinite standard error
+    (`Accumulator.flux_std_error`): the verdict is undecided and says why, and no number of passes is promised
+    (it raised ValueError on the NaN share of the passes to add)."""
+    heavy, plain = Measurement(1.0, math.inf, 0.0, 4, 8000, 4.0), Measurement(1.5, 0.01, 0.0, 4, 8000, 4.0)
+    for old, new in ((heavy, plain), (plain, heavy)):
+        v = judge(old, new, 0.0, 0.99)
+        assert v.verdict == UNDECIDED and "heavy-tailed" in v.note, v
+        assert to_decide(old, new, 0.0, 0.99) is None

@@ -171,8 +171,8 @@ def to_decide(old: Measurement, new: Measurement, threshold: float, confidence: 
     change lies (module docstring), cheapest by each run's time (else photons) per pass; None when
     no number of passes would (the bias bounds alone reach the threshold, or the change is on it).
     grows : which runs may take more passes (a stored run of an earlier revision cannot)."""
-    if old.bias_unbounded or new.bias_unbounded:
-        return None  # the error is unknown, not small: more passes of the same radii do not bound it
+    if old.bias_unbounded or new.bias_unbounded or not (math.isfinite(old.std_error) and math.isfinite(new.std_error)):
+        return None  # the error is unknown, not small: no number of passes can be promised
     above = new.value - old.value > threshold
     cost = [(m.time_s or m.photons or 1.0) / max(m.passes, 1) for m in (old, new)]
 
@@ -223,6 +223,9 @@ def judge(old: Measurement, new: Measurement, tolerance: float = 0.05, confidenc
                        note="a run with fewer than 3 passes has no error bar; run more passes")
     unbounded = [f"the {name} run cannot bound its kernel bias ({m.bias_unbounded})"
                  for name, m in (("old", old), ("new", new)) if m.bias_unbounded]
+    unbounded += [f"the {name} run's passes sum terms too heavy-tailed for an error bar (a few photons carry the "
+                  "run; `simulate` warns which)" for name, m in (("old", old), ("new", new))
+                  if not math.isfinite(m.std_error)]
     if unbounded:
         return Verdict(UNDECIDED, old.value, new.value, change, rel, -math.inf, math.inf, threshold, confidence,
                        note="; ".join(unbounded) + ": its error is unknown, so nothing is decided on it")

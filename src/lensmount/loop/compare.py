@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
-from lensmount.analysis.passes import Accumulator
+from lensmount.analysis.passes import MIN_PASSES, Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs
 from lensmount.loop.progress import expected_s
@@ -63,9 +63,10 @@ class Run:
         bound = self.no_signal_bound()
         if bound is not None and metric == "stray_flux_mm2":
             bound *= float(s.get("aperture_flux_mm2") or math.inf)
-        return Measurement(float(s[value]), s.get(error), float(s.get(bias) or 0.0) if bias else 0.0,
-                           int(s.get("passes", 2)), int(s.get("photons", 0)), float(s.get("time_s", 0.0)), bound,
-                           s.get("stray_fraction_bias_unbounded"))
+        passes = int(s.get("passes", 2))
+        return Measurement(float(s[value]), _std_error(s.get(error), passes),
+                           float(s.get(bias) or 0.0) if bias else 0.0, passes, int(s.get("photons", 0)),
+                           float(s.get("time_s", 0.0)), bound, s.get("stray_fraction_bias_unbounded"))
 
     def no_signal_bound(self) -> float | None:
         """The stray fraction's 95 % bound for a figure that read zero in every pass (older summaries
@@ -75,9 +76,16 @@ class Run:
 
     def part(self, name: str) -> Measurement:
         p = self.summary.get("per_part", {}).get(name, {"fraction": 0.0, "std_error": 0.0})
-        return Measurement(float(p.get("fraction") or 0.0), p.get("std_error"), float(p.get("bias_bound") or 0.0),
-                           int(self.summary.get("passes", 2)), int(self.summary.get("photons", 0)),
+        passes = int(self.summary.get("passes", 2))
+        return Measurement(float(p.get("fraction") or 0.0), _std_error(p.get("std_error"), passes),
+                           float(p.get("bias_bound") or 0.0), passes, int(self.summary.get("photons", 0)),
                            float(self.summary.get("time_s", 0.0)), self.no_signal_bound(), p.get("bias_unbounded"))
+
+
+def _std_error(stored: float | None, passes: int) -> float | None:
+    """A summary's standard error: JSON holds no infinity, so a run of enough passes whose terms gave no
+    error bar (`analysis.passes.Tail`) stored null; that is an unknown error (inf), not too few passes (None)."""
+    return math.inf if stored is None and passes >= MIN_PASSES else stored
 
 
 @dataclass(frozen=True)
