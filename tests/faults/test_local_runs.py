@@ -67,7 +67,7 @@ def _params(kind: str, n: int, fast: int):
             for i, s in enumerate(seeds(kind, n))]
 
 
-@pytest.mark.parametrize("seed", _params("planar-signal", 14, 1))
+@pytest.mark.parametrize("seed", _params("planar-signal", 8, 1))
 def test_signal_at_a_seeded_moment_resumes_identically(seed, straight, tmp_path):
     rng = random.Random(seed)
     after, pause, signum = rng.randint(1, PASSES - 2), rng.uniform(0.0, 0.3), rng.choice([signal.SIGINT,
@@ -92,7 +92,7 @@ def test_signal_at_a_seeded_moment_resumes_identically(seed, straight, tmp_path)
     assert resumed["flux"] == straight["flux"]
 
 
-@pytest.mark.parametrize("seed", _params("pool-kill", 12, 1))
+@pytest.mark.parametrize("seed", _params("pool-kill", 8, 1))
 def test_killed_pool_workers_are_replaced_identically(seed, straight, tmp_path):
     rng = random.Random(seed)
     after, which = rng.randint(1, PASSES - 2), rng.choice(["one", "all"])

@@ -8,7 +8,7 @@ sun's image misses the detector and lands on the housing bore just behind the de
 before the gather stopped at that plane this read +12 % in total (+28 % housing, z = 2.5) and
 its passes were heavy-tailed (spread 17 %, skew 1.2; now 6 %, skew 0).
 
-Slow. Sizes here (to keep the file near 4 min on 2 cores): the reference 6 × 10⁶ forward
+Slow. Sizes here (to keep the file near 4 min on 2 cores): the reference 4 × 10⁶ forward
 photons; the agreement run 16 passes × 10⁵ (the issue's); the coverage runs 20 seeds × 5 passes
 × 2 × 10⁴ on the same scene at 150 × 100 pixels (the total flux is what is compared). Full-size figures are in the report of the change that added this file.
 """
@@ -71,7 +71,7 @@ def cooke_coarse(cooke):
 @pytest.fixture(scope="module")
 def forward_reference(cooke):
     scene, tracer = cooke
-    est = [forward_pass(scene, tracer, 400_000, 101, i) for i in range(15)]
+    est = [forward_pass(scene, tracer, 400_000, 101, i) for i in range(10)]
     flux = np.array([e.flux for e in est])
     parts = np.array([e.part_flux for e in est])
     n = len(flux)

@@ -83,7 +83,7 @@ def bidirectional_case(reference):
 
     def run(case):
         if case not in runs:
-            runs[case] = _run(_scene(reference, case), "bidirectional", 8, 200_000, schedule=True,
+            runs[case] = _run(_scene(reference, case), "bidirectional", 8, 50_000, schedule=True,
                               samples_per_pixel=SAMPLES_PER_PIXEL[case])
         return runs[case]
     return run
@@ -125,7 +125,7 @@ def test_sun_image_on_the_housing_bore_at_the_edge_of_what_the_detector_sees(ref
     front of the plane, which the detector sees at grazing angles, and behind it, which it
     cannot see. Case 2 finishes; default radius schedule against forward."""
     scene = _scene(reference, "case2-lambertian", off_axis_deg=5.3)
-    bi = _run(scene, "bidirectional", 8, 100_000, schedule=True, samples_per_pixel=16)
+    bi = _run(scene, "bidirectional", 8, 50_000, schedule=True, samples_per_pixel=16)
     fw = _run(scene, "forward", 8, 200_000, seed=2)
     assert fw[2]["housing"] > 0.2 * fw[0], fw[2]  # the case is the one described: the housing matters
     assert abs(bi[0] - fw[0]) <= 3 * math.hypot(bi[1] + bi[3], fw[1]), (bi[0], bi[1], bi[3], fw[:2])
