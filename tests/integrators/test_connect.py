@@ -1,7 +1,6 @@
 """Light on faces the detector sees straight (`integrators.connect`): which hit points give way to the
 photons' connections, and that both ways of counting that light read the same."""
 
-import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -13,7 +12,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import singlet_barrel  # noqa: E402
 
 from lensmount.integrators.bidirectional import Bidirectional  # noqa: E402
-from lensmount.integrators.photon_gather import search_groups  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.physics.rays import RayBatch  # noqa: E402
@@ -34,8 +32,6 @@ def test_the_view_map_leaves_out_the_hit_points_that_see_the_detector_straight(b
     scene, tracer = barrel
     every = Bidirectional(EstimatorSettings(connect_direct_view=False)).view_pass(scene, tracer, 0, 3).hits
     kept = Bidirectional().view_pass(scene, tracer, 0, 3).hits
-    assert (kept.via >= 0).any()  # the relayed ones: a second generation, checked below
-    kept = kept.subset(kept.via < 0)
     seen = tracer.intersect(RayBatch.make(every.position, every.omega_o), origin_normal=every.normal)
     straight = seen.detector & seen.detector_front & (scene.detector.pixel_of(seen.point) == every.pixel)
     rows = {tuple(p) for p in np.column_stack([kept.position, kept.pixel])}
@@ -59,40 +55,3 @@ def test_connections_and_the_gather_read_the_same_barrel(barrel):
     (a, sa), (b, sb) = reads[False], reads[True]
     assert a > 0 and abs(a - b) < 3 * math.hypot(sa, sb), reads
     assert sb < sa, reads  # and the connections are the less noisy way
-
-
-RELAY = EstimatorSettings(samples_per_pixel=16)
-
-
-def _relayed_share(scene, tracer, passes: int, photons: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per pass the flux, and the same pass's photons gathered without the relayed hit points (the view map's
-    other hit points, the connections and the photons unchanged: the difference is the relayed part alone)."""
-    run = Bidirectional(RELAY)
-    full, without = [], []
-    for i in range(passes):
-        view = run.view_pass(scene, tracer, i, seed)
-        first = view.hits.subset(view.hits.via < 0)
-        bare = dataclasses.replace(view, hits=first, groups=search_groups(first))
-        full.append(run.photon_pass(scene, tracer, view, i, photons, seed).flux)
-        without.append(run.photon_pass(scene, tracer, bare, i, photons, seed).flux)
-    return np.array(full), np.array(without)
-
-
-def test_relayed_hit_points_count_the_light_the_optics_bring_to_a_face_the_detector_sees(monkeypatch):
-    """Sun at 35°: the barrel ahead of the singlet (albedo 0.5) scatters the light through the lens onto the
-    barrel behind it, which the detector sees straight: those paths are the relayed hit points' (at the front
-    barrel), not the connections' (`bidirectional`, "Relayed hit points"). Their part is a real share of the
-    total (~20 %), and the total agrees with the connections counting that light instead (every relaying
-    face switched off): a path counted twice, or by neither, would show as the relayed share itself."""
-    import lensmount.integrators.bidirectional as bidirectional
-
-    scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.5), off_axis_deg=35.0, pixels=(16, 16))
-    tracer = Tracer(scene)
-    full, without = _relayed_share(scene, tracer, 8, 20_000, 11)
-    relayed = full - without
-    assert np.all(relayed >= 0) and relayed.mean() > 0.05 * full.mean(), (relayed.mean(), full.mean())
-    monkeypatch.setattr(bidirectional, "relaying_faces", lambda core: np.zeros(len(core), bool))
-    off = np.array([Bidirectional(RELAY).run_pass(scene, tracer, i, 20_000, 11).flux for i in range(8)])
-    se = math.hypot(full.std(ddof=1), off.std(ddof=1)) / math.sqrt(8)
-    assert abs(full.mean() - off.mean()) < 3 * se, (full.mean(), off.mean(), se, relayed.mean())
-    assert 3 * se < relayed.mean(), (se, relayed.mean())  # the check can see the relayed part go missing

@@ -36,18 +36,6 @@ Why: such a face is often lit in a small spot (off the field, the sun's image), 
 only through the few hit points near it; the connections see every photon of the spot (case 2: a
 pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's.
 
-Relayed hit points. Off the field the light that reaches such a face has often come through the optics
-from another scatter (at 20° on the reference design: hood → spacer-2 → through the rear group → the
-housing → detector): few photons make that last step (~5 of 2 × 10⁴ a pass), so the connections count a
-handful of rare photons and a pass reads ±300 %. So where a backward ray meets a broad face straight from
-the detector (a face whose whole lobe is gathered, `relaying_faces`), the view map scatters it once more
-by that face's BSDF and traces it on; where it then meets a broad face after crossing an optical surface,
-it makes a *relayed* hit point there (`HitPoints.via` names the face that relayed it), which gathers the
-many photons at the earlier scatter. The last-vertex rule splits the paths one step further: a path whose
-last segment runs straight from a relaying face x to the detector, and whose segment into x crossed an
-optical surface from a gathered scatter y, is counted by the relayed hit points at y; every other path
-ending straight from a broad face, by the connection at x. Every path is still counted once.
-
 A mirror's coated face with a finish (`[assign] "surface:N"`) is counted by the photons too, a
 decision, not an approximation: the tracer ends a ray there only with probability p (at least
 the finish's albedo a; `Tracer.next_event`), backward rays included, so a hit point there would
@@ -128,12 +116,6 @@ def _scene_tables(scene, cap_mm: float = EstimatorSettings.radius_cap_mm,
     return _CACHE[key][1:]
 
 
-def relaying_faces(core: np.ndarray) -> np.ndarray:
-    """(n_tags,) bool, the broad faces whose whole lobe is gathered (core 0): where the detector sees one
-    straight, the view map relays one bounce further back through the optics (module docstring)."""
-    return np.asarray(core) == 0.0
-
-
 class Bidirectional:
     """Bidirectional stochastic ray tracing (see the module docstring); the `Integrator` contract:
     `channels(scene)`, `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`, and its
@@ -173,8 +155,7 @@ class Bidirectional:
                               half_widths=half_widths, radius_scale=scale, boundaries=boundaries,
                               samples_per_pixel=cfg.samples_per_pixel, pitch=cfg.view_map_pitch, mixture_c=cfg.mixture_c, pilot_seed=seed,
                               neighbours=cfg.neighbours, radius_cap_mm=cfg.radius_cap_mm, stats=diagnostics,
-                              faces=seen, connected=cfg.connect_direct_view,
-                              relay=relaying_faces(core)) if broad.any() else HitPoints.empty()
+                              faces=seen, connected=cfg.connect_direct_view) if broad.any() else HitPoints.empty()
         groups = search_groups(hits)
         return ViewMap(int(pass_index), int(seed), scale, hits, groups, core, seen, diagnostics, phase_clock() - clock)
 
@@ -199,8 +180,7 @@ class Bidirectional:
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
                             detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths,
                             groups=view.groups)
-        connects = cfg.connect_direct_view  # the view map made no hit point where the detector sees a face straight
-        relay = relaying_faces(core)
+        connects = cfg.connect_direct_view  # the view map's direct hit points are in no search tree (view_pass)
         gather_s = phase_clock() - clock
         met = len(hits.weight) or diagnostics.get("view_map_direct_hit_points", 0)  # broad faces the detector sees
         aim = bool(cfg.edge_photons and met and aims_at_edge(scene, broad))
@@ -225,10 +205,7 @@ class Bidirectional:
                 gatherer.gather(PhotonHits(ev.position[f], ev.direction[f], ev.normal[f], ev.weight[f],
                                            ev.tag[f].astype(np.int32), ev.wavelength[f], signature))
                 if connects:  # every pass, whether or not its view map has direct hit points (unbiased)
-                    # a photon that came through the optics from a gathered scatter onto a relaying face: the
-                    # relayed hit points at that scatter count its light (module docstring)
-                    relayed = relay[ev.tag[f]] & step.gathered_last[f] & ~step.straight[f]
-                    c = np.flatnonzero(broad[ev.tag[f]] & ~relayed)
+                    c = np.flatnonzero(broad[ev.tag[f]])
                     connect_to_detector(scene, tracer, film, ev.position[f][c], ev.direction[f][c], ev.normal[f][c],
                                         ev.weight[f][c], ev.tag[f][c], ev.wavelength[f][c], signature[c],
                                         ev.id[f][c], step.scatterings, core, seed, self.purpose)

@@ -60,8 +60,6 @@ class HitPoints:
     area : (H,) mm², the part of the gather disc on the hit point's face (π r² away from boundaries)
     area_ladder : (H, L) mm², the same for the discs of radius r · BIAS_LADDER[l] (the bias estimate,
         `Gatherer.radiance_ladder`)
-    via : (H,) int32, the face a relayed hit point's light reaches the detector from, straight (`view_map`,
-        "Relayed"); −1: the detector sees this hit point itself. The light's channel and path end there.
     """
 
     position: np.ndarray
@@ -74,12 +72,9 @@ class HitPoints:
     radius: np.ndarray
     area: np.ndarray | None = None
     area_ladder: np.ndarray | None = None
-    via: np.ndarray | None = None
 
     def __post_init__(self):
         r = np.asarray(self.radius, np.float64)
-        if self.via is None:
-            self.via = np.full(len(r), -1, np.int32)
         if self.area is None:
             self.area = np.pi * r ** 2
         if self.area_ladder is None:
@@ -88,16 +83,11 @@ class HitPoints:
     def __len__(self) -> int:
         return len(self.weight)
 
-    @property
-    def last_tag(self) -> np.ndarray:
-        """(H,) the face the detector sees the light come from: `via` where relayed, else `tag`."""
-        return np.where(self.via >= 0, self.via, self.tag)
-
     @classmethod
     def empty(cls) -> "HitPoints":
         z3, z = np.zeros((0, 3)), np.zeros(0)
         return cls(z3, z3.copy(), z3.copy(), z, np.zeros(0, np.int64), np.zeros(0, np.int32),
-                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))), np.zeros(0, np.int32))
+                   np.zeros(0, np.int32), z.copy(), z.copy(), np.zeros((0, len(BIAS_LADDER))))
 
     def subset(self, index) -> "HitPoints":
         return HitPoints(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -304,18 +294,13 @@ class Gatherer:
             self.radiance += np.bincount(hi_r, weights=value, minlength=len(h))
             self.largest.add(h.weight[hi_r] * value)
             if self.paths is not None:
-                signature = photons.signature[pj[inside]]
-                relayed = np.flatnonzero(h.via[hi_r] >= 0)
-                if len(relayed):  # the path goes on by the face that relayed the hit point
-                    signature = signature.copy()
-                    signature[relayed] = self.paths.extend(signature[relayed], h.via[hi_r][relayed])
-                self.paths.add(signature, h.pixel[hi_r], h.weight[hi_r] * value)
+                self.paths.add(photons.signature[pj[inside]], h.pixel[hi_r], h.weight[hi_r] * value)
 
     def part_flux_ladder(self, channel_of_tag: np.ndarray, n_channels: int) -> np.ndarray:
         """(L, C) Σ τ L_o per channel at each radius of BIAS_LADDER, as a sum over pixels (multiply by the
         pixel area)."""
         h = self.hits
-        ch = (channel_of_tag[h.last_tag] if len(h) else np.zeros(0, np.int64)).astype(np.int64)
+        ch = (channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)).astype(np.int64)
         return np.array([np.bincount(ch, weights=h.weight * self.radiance_ladder[:, rung], minlength=n_channels)
                          [:n_channels] for rung in range(len(BIAS_LADDER))])
 
@@ -330,7 +315,7 @@ class Gatherer:
             raise FloatingPointError(f"non-finite hit-point value at {len(bad)} hit point(s), e.g. pixel "
                                      f"{int(h.pixel[bad[0]])} on face tag {int(h.tag[bad[0]])}")
         image = np.bincount(h.pixel, weights=value, minlength=ny * nx)[: ny * nx].reshape(ny, nx)
-        ch = channel_of_tag[h.last_tag] if len(h) else np.zeros(0, np.int64)
+        ch = channel_of_tag[h.tag] if len(h) else np.zeros(0, np.int64)
         flat = ch.astype(np.int64) * (ny * nx) + h.pixel
         per_channel = np.bincount(flat, weights=value, minlength=n_channels * ny * nx)[: n_channels * ny * nx]
         return image, per_channel.reshape(n_channels, ny, nx)

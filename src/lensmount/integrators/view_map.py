@@ -22,12 +22,6 @@ sampled in about 1/k² of the passes, so the image fills in over passes while th
 (the stray fraction) costs k² fewer backward rays a pass. Since the direct view of broad
 faces is counted by connections (`connect`), the total's error hardly depends on how dense
 the view map is (docs/performance.md, "The view map's pitch").
-
-Relayed: with connections, a backward ray that meets a broad face straight from the detector makes no hit
-point there; on a relaying face (`bidirectional.relaying_faces`) it is scattered once more by the face's
-BSDF (its ω_o as the incidence, by reciprocity: weight f cos / pdf) and traced on, and where it meets a broad
-face after crossing an optical surface it makes a hit point there with `via` = the relaying face
-(`bidirectional`'s module docstring says which paths those count).
 """
 
 from __future__ import annotations
@@ -42,7 +36,6 @@ from lensmount.integrators.neighbours import kth_distance
 from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
 from lensmount.integrators.radius import initial_radii
 from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
-from lensmount.integrators.walk import sample_bsdf
 from lensmount.integrators.media import detector_radiance_factor
 from lensmount.physics.detector import Detector
 from lensmount.physics.rays import RayBatch
@@ -152,7 +145,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
                    half_widths: np.ndarray, radius_scale: float, boundaries=None, samples_per_pixel: int = 1,
                    pitch: int = 1, mixture_c: float = 0.9, pilot_seed: int | None = None, neighbours: int = 8,
                    radius_cap_mm: float = 5.0, stats: dict | None = None, faces=None,
-                   connected: bool = False, relay: np.ndarray | None = None) -> HitPoints:
+                   connected: bool = False) -> HitPoints:
     """Trace the backward samples and return the hit points with their pass radii.
 
     rng : `view_map_streams(...)` (one stream per sample), or a Generator (keys drawn from it)
@@ -163,8 +156,6 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         reached straight from the detector, meeting no optical surface (`connect.direct_view`), make no
         hit point: their light is the connections' (each path counted once), and a hit point there would
         cost its radius and areas for nothing (62 % of case 2's)
-    relay : (n_tags,) bool, with `connected`: the faces whose direct hit points relay the view one bounce
-        further back, through the optics (module docstring, "Relayed"); None: none
     faces : when given (a `paths.FaceTally`), gets the projected solid angle (τ / n_wl, sr) of every
         sample at the first face it meets, whatever the finish (the faces the detector sees: critical)
 
@@ -195,28 +186,20 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
         targets, weights = [disc], [mixture_c]
     # Traced in chunks: a sample's numbers and path depend on its own stream only, so the hit
     # points are the same as from one batch, and memory stays bounded at any detector size.
-    def traced(a: int) -> dict:
-        first = _trace_samples(scene, tracer, det, paths.take(slice(a, a + VIEW_MAP_CHUNK)),
-                               block[a:a + VIEW_MAP_CHUNK], pitch, targets, weights, broad, n_wl / s, faces)
-        first["via"] = np.full(len(first["tag"]), -1, np.int32)
-        rows = np.flatnonzero(first["direct"] & relay[first["tag"]]) if connected and relay is not None else []
-        if not len(rows):
-            return first
-        second, lost = _relayed(scene, tracer, first, rows, broad)
-        both = {k: np.concatenate([first[k], second[k]]) for k in second}
-        return dict(both, lost=first["lost"] + lost)
-
-    chunks = [traced(a) for a in range(0, n, VIEW_MAP_CHUNK)]
+    chunks = [_trace_samples(scene, tracer, det, paths.take(slice(a, a + VIEW_MAP_CHUNK)),
+                             block[a:a + VIEW_MAP_CHUNK], pitch, targets, weights, broad, n_wl / s, faces)
+              for a in range(0, n, VIEW_MAP_CHUNK)]
     lost = sum(c.pop("lost") for c in chunks)
-    hit = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
     if stats is not None:
-        for name, count in (("samples", n), ("lost_samples", lost), ("direct_hit_points", int(hit["direct"].sum())),
-                            ("relayed_hit_points", int((hit["via"] >= 0).sum()))):
-            stats["view_map_" + name] = stats.get("view_map_" + name, 0) + count
+        stats["view_map_samples"] = stats.get("view_map_samples", 0) + n
+        stats["view_map_lost_samples"] = stats.get("view_map_lost_samples", 0) + lost
+    hit = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
     if not len(hit["tag"]):
         return HitPoints.empty()
     tag, tau = hit["tag"], hit["weight"]
     ok = ~hit["direct"] if connected else np.ones(len(tag), bool)
+    if stats is not None:
+        stats["view_map_direct_hit_points"] = stats.get("view_map_direct_hit_points", 0) + int(hit["direct"].sum())
     if learned is not None:  # Russian roulette on the edge's hit points: their cost (area, gather) is per point
         on_edge = np.isin(tag, edge_tags(scene, broad)) & ok
         keep_p = min(1.0, MAX_EDGE_HITS / max(int(on_edge.sum()), 1))
@@ -239,7 +222,7 @@ def build_view_map(scene, tracer, det: Detector, rng, *, broad: np.ndarray,
     return HitPoints(position=pos, normal=nrm, omega_o=-direction, weight=tau,
                      pixel=hit["pixel"][ok].astype(np.int64), tag=tg.astype(np.int32),
                      wavelength=wavelength.astype(np.int32), radius=radius, area=area,
-                     area_ladder=area_ladder, via=hit["via"][ok])
+                     area_ladder=area_ladder)
 
 
 def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarray, pitch: int, targets, weights,
@@ -260,16 +243,8 @@ def _trace_samples(scene, tracer, det: Detector, paths: Streams, block: np.ndarr
         w = w * np.asarray(response, np.float64)[wl]
     live = w > 0
     rays = RayBatch.make(x[live], omega[live], weight=w[live] * (weight_scale * block_pixels[live]), wavelength=wl[live], ids=pixel[live])
-    return _first_faces(scene, tracer, rays, paths.take(live), broad, faces)
-
-
-def _first_faces(scene, tracer, rays: RayBatch, paths: Streams, broad: np.ndarray, faces=None,
-                 start_normal: np.ndarray | None = None) -> dict:
-    """Backward rays (ids = pixel) traced to the first face they meet: `_trace_samples`'s dict, with `key` (each
-    sample's stream, `Streams.keys`), `row` (its ray in `rays`) and `direct` (met no optical surface on the
-    way, `connect.direct_view`)."""
-    n_wl = len(scene.wavelengths_um)
-    step = tracer.next_event(rays, paths, start_normal) if len(rays) else None
+    paths = paths.take(live)
+    step = tracer.next_event(rays, paths) if len(rays) else None
     if step is None:
         ok = np.zeros(0, bool)
         step_lost = 0
@@ -289,32 +264,11 @@ def _first_faces(scene, tracer, rays: RayBatch, paths: Streams, broad: np.ndarra
         empty = np.zeros(0)
         return dict(position=np.zeros((0, 3)), normal=np.zeros((0, 3)), tag=np.zeros(0, np.int32), weight=empty,
                     direction=np.zeros((0, 3)), air=empty.copy(), wavelength=np.zeros(0, np.int32),
-                    pixel=np.zeros(0, np.int64), u_roulette=empty.copy(), direct=np.zeros(0, bool),
-                    key=np.zeros(0, np.uint64), row=np.zeros(0, np.int64), lost=step_lost)
+                    pixel=np.zeros(0, np.int64), u_roulette=empty.copy(), direct=np.zeros(0, bool), lost=step_lost)
     direct = direct_view(rays.direction[ok], rays.weight[ok], step.direction[ok], step.weight[ok])
     return dict(position=step.position[ok], normal=step.normal[ok], tag=step.tag[ok], weight=step.weight[ok],
                 direction=step.direction[ok], air=air[ok], wavelength=step.wavelength[ok],
-                pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), direct=direct,
-                key=paths.keys[ok], row=np.flatnonzero(ok), lost=step_lost)
-
-
-def _relayed(scene, tracer, hit: dict, rows: np.ndarray, broad: np.ndarray) -> tuple[dict, int]:
-    """The second generation (module docstring, "Relayed"): from the direct hit points `rows` of `hit`, one
-    backward scatter by the face's own BSDF (ω_o toward the detector as its incidence, by reciprocity), traced
-    to the next face; kept where it crossed an optical surface on the way and met a broad face. Each keeps
-    the pixel of its sample and `via`, the face it was relayed by; and the rays the tracer's guards ended."""
-    wo = -hit["direction"][rows]
-    streams = Streams.of_keys(hit["key"][rows]).later(1)
-    d2, f = sample_bsdf(scene, hit["tag"][rows], wo, hit["normal"][rows], streams, None)
-    live = f > 0
-    rays = RayBatch.make(hit["position"][rows][live], d2[live],
-                         weight=(hit["weight"] * hit["air"])[rows][live] * f[live],
-                         wavelength=hit["wavelength"][rows][live], ids=hit["pixel"][rows][live])
-    second = _first_faces(scene, tracer, rays, streams.take(live), broad, start_normal=hit["normal"][rows][live])
-    keep = ~second["direct"]
-    out = {k: v[keep] for k, v in second.items() if k != "lost"}
-    out["via"] = hit["tag"][rows][live][out["row"]]
-    return out, second["lost"]
+                pixel=step.id[ok], u_roulette=paths.at(np.flatnonzero(ok), 6), direct=direct, lost=step_lost)
 
 
 __all__ = ["exit_disc", "build_view_map", "view_map_streams"]

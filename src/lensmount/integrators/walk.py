@@ -30,7 +30,6 @@ from typing import Iterator
 
 import numpy as np
 
-from lensmount.integrators.connect import direct_view
 from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
@@ -55,8 +54,6 @@ class Bounce:
     reflections : (N,) Fresnel reflections so far along the path (ghosts)
     scatterings : scattering events so far (the same for every photon of the step)
     signature : (N,) int64 path signature up to the event (`integrators.paths`), not yet the face reached
-    gathered_last : (N,) the photon's last scatter is the gather's to count (the `gathered` rule below)
-    straight : (N,) the step to the event met no optical surface (`connect.direct_view`)
     """
 
     events: Events
@@ -64,8 +61,6 @@ class Bounce:
     reflections: np.ndarray
     scatterings: int
     signature: np.ndarray
-    gathered_last: np.ndarray
-    straight: np.ndarray
 
 
 def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int) -> RayBatch:
@@ -116,8 +111,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
         _to_film(film, ledger, ev, part, by_gather, reflections, signature)
-        yield Bounce(ev, part, reflections, bounce, signature, by_gather,
-                     direct_view(rays.direction, rays.weight, ev.direction, ev.weight))
+        yield Bounce(ev, part, reflections, bounce, signature)
 
         face = np.flatnonzero(ev.kind == FACE)
         tag = ev.tag[face]
@@ -129,7 +123,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         live = scatters[tag]
         ledger.add_by("absorbed", parts, part_of_tag[tag[~live]], w_in[~live])
         idx, tag, w_in = face[live], tag[live], w_in[live]
-        wo, f = sample_bsdf(scene, tag, -ev.direction[idx], ev.normal[idx], streams, idx)
+        wo, f = _sample_bsdf(scene, tag, -ev.direction[idx], ev.normal[idx], streams, idx)
         w = w_in * f
         ledger.add_by("absorbed", parts, part_of_tag[tag], w_in - w)
         if bounce + 1 >= settings.roulette_after:
@@ -174,7 +168,7 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, 
     ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted & ~by_routes])
 
 
-def sample_bsdf(scene, tag, wi, n, streams: Streams, rows):
+def _sample_bsdf(scene, tag, wi, n, streams: Streams, rows):
     """Outgoing directions and weights f·cos/pdf, one vectorised call per finish (not per ray)."""
     m = len(tag)
     wo = np.zeros((m, 3))
@@ -203,4 +197,4 @@ def _require_finite(values: np.ndarray, what: str, where: str) -> None:
                              f"photon(s) at {where}")
 
 
-__all__ = ["photon_walk", "emit_photons", "sample_bsdf", "Bounce", "NonFiniteError"]
+__all__ = ["photon_walk", "emit_photons", "Bounce", "NonFiniteError"]

@@ -86,17 +86,6 @@ class Streams:
         """Streams for callers that hold a Generator (tests, one-off tools): one random key per path."""
         return cls._from_key(_mix(rng.integers(0, 2**63, size=int(n), dtype=np.int64).astype(np.uint64)))
 
-    @classmethod
-    def of_keys(cls, keys: np.ndarray) -> "Streams":
-        """The streams whose `keys` these are (carried through arrays that are split and joined)."""
-        return cls._from_key(np.ascontiguousarray(keys, dtype=np.uint64))
-
-    def later(self, step: int) -> "Streams":
-        """The same paths' numbers for a later step (≥ 1), independent of this one's and of each other."""
-        if int(step) < 1:
-            raise ValueError(f"a later step is >= 1, got {step}")
-        return Streams._from_key(_combine(self._key, np.uint64(1 << 40) + np.uint64(int(step))))
-
     def __len__(self) -> int:
         return len(self._key)
 
