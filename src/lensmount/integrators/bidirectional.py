@@ -180,7 +180,7 @@ class Bidirectional:
         gatherer = Gatherer(hits, scene.bsdf_of_tag, max_normal_deg=cfg.normal_limit_deg,
                             detector_z=scene.detector.z, core_of_tag=np.where(broad, core, 0.0), paths=film.paths,
                             groups=view.groups)
-        connects = cfg.connect_direct_view  # the view map's direct hit points are in no search tree (view_pass)
+        connects = cfg.connect_direct_view  # the view map made no hit point where the detector sees a face straight
         gather_s = phase_clock() - clock
         met = len(hits.weight) or diagnostics.get("view_map_direct_hit_points", 0)  # broad faces the detector sees
         aim = bool(cfg.edge_photons and met and aims_at_edge(scene, broad))
