@@ -10,7 +10,10 @@ directions gathers every direction's photons of pass i at pass i's view map, `Vi
 2. Photons: Φ = A_S/N each (units of E_sun), traced forward through the optics; at
    every scattering face they meet they deposit into the hit points on the same face
    within r (`photon_gather.Gatherer`: Σ f Φ / (π r²)), then continue by sampling the
-   BSDF, with Russian roulette on the throughput, so inter-reflections count.
+   BSDF, with Russian roulette on the throughput, so inter-reflections count. On a broad
+   mechanical face in front of an optical surface half the directions are drawn toward that
+   surface's clear aperture instead, weighted by the mixture's density (`scatter_aim`): light
+   scattered in front of the stop reaches the rear optics twenty times as often.
 3. Update: pixel E_j = Σ_hit τ L_o, split by the part of the hit point's face, and by the
    gathered photon's path signature (its scatter faces, then the hit point's face).
 
@@ -69,6 +72,7 @@ from lensmount.integrators.paths import FaceTally
 from lensmount.integrators.photon_target import (
     aims_at_edge, edge_band, emission_component, guided_photons, pilot_check, pilot_check_diagnostics, tally_edge_flux)
 from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
+from lensmount.integrators.scatter_aim import aperture_targets
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.view_map import build_view_map, view_map_streams
 from lensmount.integrators.walk import photon_walk
@@ -192,7 +196,13 @@ class Bidirectional:
         diagnostics[UNAIMED_PASSES] = float(aim and band is None)
         if band is not None:
             diagnostics.update(pilot_check_diagnostics(pilot_check(scene, tracer, broad, seed)))
-        for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core):
+        # A scatter whose lobe the gather counts whole leans toward the optics ahead, where another face can
+        # still scatter the photon (case 1's lone edge: its photons' further way counts for nothing, aimed or not).
+        apertures = aperture_targets(scene)
+        aimable = (core == 0) & (np.count_nonzero(scatters) - scatters > 0)
+        apertures = apertures.only(aimable) if apertures is not None else None
+        for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core,
+                                aim=apertures):
             ev = step.events
             at_face = ev.kind == FACE
             at_face[at_face] &= scatters[ev.tag[at_face]] & (ev.weight[at_face] > 0)

@@ -17,7 +17,10 @@ One walk, bounce by bounce (pbrt's SPPM photon phase):
 5. *Scatter* at mechanical faces by the face's BSDF, Φ ← Φ · f cos θo / pdf; absorbers (and
    every face when `effects.scatter` is off, or outside its `scatterers`) end the photon. From `roulette_after` scatterings
    on, Russian roulette keeps a photon with q = min(1, Φ / (roulette_level · Φ0)) and divides
-   Φ by q (unbiased). At `max_bounces` scatterings the walk stops.
+   Φ by q (unbiased). At `max_bounces` scatterings the walk stops. With `aim` (the bidirectional
+   estimator) a photon on a face ahead of an optical surface draws half its directions toward that
+   surface's clear aperture and carries f cos θo over the mixture's density (`scatter_aim`); its
+   "absorbed" entry is then Φ_in − Φ_out, negative for a photon that carries more than it brought.
 
 Every flux that leaves the walk is entered in the `EnergyLedger` under its name; a non-finite
 BSDF value is an error naming the finish and part, never a silent zero.
@@ -33,6 +36,7 @@ import numpy as np
 from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
+from lensmount.integrators.scatter_aim import ApertureTargets, aimed_scatter
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
@@ -73,7 +77,8 @@ def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int
 
 
 def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings: EstimatorSettings, film: Film,
-                ledger: EnergyLedger, gathered: np.ndarray | None = None) -> Iterator[Bounce]:
+                ledger: EnergyLedger, gathered: np.ndarray | None = None,
+                aim: ApertureTargets | None = None) -> Iterator[Bounce]:
     """Walk photons `rays` (ids = global photon index) until they die; see the module docstring.
 
     gathered : (n_tags,) per tag the core of the lobe (direction cosines around the mirror
@@ -123,7 +128,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         live = scatters[tag]
         ledger.add_by("absorbed", parts, part_of_tag[tag[~live]], w_in[~live])
         idx, tag, w_in = face[live], tag[live], w_in[live]
-        wo, f = _sample_bsdf(scene, tag, -ev.direction[idx], ev.normal[idx], streams, idx)
+        wo, f = _scatter(scene, tag, ev.position[idx], -ev.direction[idx], ev.normal[idx], streams, idx, aim)
         w = w_in * f
         ledger.add_by("absorbed", parts, part_of_tag[tag], w_in - w)
         if bounce + 1 >= settings.roulette_after:
@@ -166,6 +171,21 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, 
     ledger.add_by("detector_gathered", film.channels, channel[by_gather], ev.weight[by_gather])
     ledger.add("detector_ghost_routes", ev.weight[by_routes])
     ledger.add("detector_effect_off", ev.weight[hit & ~by_gather & ~counted & ~by_routes])
+
+
+def _scatter(scene, tag, position, wi, n, streams: Streams, rows, aim: ApertureTargets | None):
+    """Outgoing directions and weights: toward the next clear aperture in part (`scatter_aim`) where
+    `aim` has a target for the face, else by the BSDF alone."""
+    aimed = aim.aimed(tag, position) if aim is not None else np.zeros(len(tag), bool)
+    if not aimed.any():
+        return _sample_bsdf(scene, tag, wi, n, streams, rows)
+    wo, f = np.zeros((len(tag), 3)), np.zeros(len(tag))
+    a, plain = np.flatnonzero(aimed), np.flatnonzero(~aimed)
+    wo[plain], f[plain] = _sample_bsdf(scene, tag[plain], wi[plain], n[plain], streams, rows[plain])
+    wo[a], f[a] = aimed_scatter(scene, aim, tag[a], position[a], wi[a], n[a], streams, rows[a])
+    for t in np.unique(tag[a][~np.isfinite(f[a])]):
+        _require_finite(f[a][tag[a] == t], "aimed scatter weight (the BSDF's value or density)", _face_name(scene, int(t)))
+    return wo, f
 
 
 def _sample_bsdf(scene, tag, wi, n, streams: Streams, rows):
