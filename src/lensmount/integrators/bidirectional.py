@@ -12,8 +12,8 @@ directions gathers every direction's photons of pass i at pass i's view map, `Vi
    within r (`photon_gather.Gatherer`: Σ f Φ / (π r²)), then continue by sampling the
    BSDF, with Russian roulette on the throughput, so inter-reflections count. On a broad
    mechanical face in front of an optical surface half the directions are drawn toward that
-   surface's clear aperture instead, weighted by the mixture's density (`scatter_aim`): light
-   scattered in front of the stop reaches the rear optics twenty times as often.
+   surface's clear aperture instead, weighted by the mixture's density (`scatter_aim`), so that
+   light scattered in front of the stop finds the rear optics more often.
 3. Update: pixel E_j = Σ_hit τ L_o, split by the part of the hit point's face, and by the
    gathered photon's path signature (its scatter faces, then the hit point's face).
 
