@@ -16,25 +16,27 @@ from lens_scenes import double_gauss_case, singlet_barrel  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.bidirectional import Bidirectional  # noqa: E402
-from lensmount.integrators.scatter_aim import (AIMED_SHARE, ApertureTargets, aimed_scatter,  # noqa: E402
-                                               aperture_targets)
+from lensmount.integrators.scatter_aim import AIMED_SHARE, ApertureTargets, aperture_targets  # noqa: E402
+from lensmount.integrators.walk import NonFiniteError  # noqa: E402
+from lensmount.integrators.walk import _scatter as walk_scatter  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.physics.sampler import Streams  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 M = 400_000
+FACE = SimpleNamespace(part="barrel", role="mount", finish="test")
 
 
 def _scatter(bsdf, normal, wi, h=10.0, radius=4.0, seed=3):
     """M photons at the origin on a face with `normal`, aimed at a disc of `radius` at z = h on the axis."""
-    scene = SimpleNamespace(bsdf_of_tag=[bsdf])
+    scene = SimpleNamespace(bsdf_of_tag=[bsdf], mesh=SimpleNamespace(tag_table=[FACE]))
     targets = ApertureTargets((ExitDisc(z=h, radius=radius, facing=1.0),), np.array([True]))
     rows = np.arange(M)
     n = np.tile(np.asarray(normal, float) / np.linalg.norm(normal), (M, 1))
     wi = np.tile(np.asarray(wi, float) / np.linalg.norm(wi), (M, 1))
     position = np.zeros((M, 3))
     assert targets.aimed(np.zeros(M, np.int64), position).all()
-    wo, w = aimed_scatter(scene, targets, np.zeros(M, np.int64), position, wi, n, Streams(seed, "test-aim", rows), rows)
+    wo, w = walk_scatter(scene, np.zeros(M, np.int64), position, wi, n, Streams(seed, "test-aim", rows), rows, targets)
     t = h / np.where(wo[:, 2] > 0, wo[:, 2], np.inf)
     through = (wo[:, 2] > 0) & (np.hypot(wo[:, 0] * t, wo[:, 1] * t) <= radius)
     return wo, w, through
@@ -124,8 +126,6 @@ def test_aimed_bidirectional_reads_what_the_forward_walk_reads_past_the_field():
 
 def test_a_finish_whose_value_is_not_finite_is_named_not_zeroed():
     """A BSDF that returns NaN on an aimed face: the walk stops with the finish's name (never a silent 0)."""
-    from lensmount.integrators.walk import NonFiniteError, _scatter
-
     class Broken:
         def sample(self, wi, n, u):
             return n.copy(), np.ones(len(n)), np.ones(len(n))
@@ -142,4 +142,4 @@ def test_a_finish_whose_value_is_not_finite_is_named_not_zeroed():
     rows = np.arange(8)
     n = np.tile([0.0, 0.0, 1.0], (8, 1))
     with pytest.raises(NonFiniteError, match="broken"):
-        _scatter(scene, np.zeros(8, np.int64), np.zeros((8, 3)), n, n, Streams(1, "t", rows), rows, targets)
+        walk_scatter(scene, np.zeros(8, np.int64), np.zeros((8, 3)), n, n, Streams(1, "t", rows), rows, targets)

@@ -105,34 +105,39 @@ def _targets(scene) -> ApertureTargets | None:
     return ApertureTargets(tuple(sorted(discs, key=lambda d: d.z)), mechanical)
 
 
-def aimed_scatter(scene, targets: ApertureTargets, tag, position, wi, n, streams: Streams, rows):
-    """Directions (M, 3) and weights f cos θ / mixture density (M,) for photons `targets.aimed` at
-    (tag, position) arriving from wi (toward the light) on normals n; `rows` index `streams`."""
-    m = len(tag)
+def drawn_toward(streams: Streams, rows) -> np.ndarray:
+    """(M,) which of the aimed photons `rows` take their direction from the disc (the rest: from the BSDF)."""
+    return streams.at(rows, DIM_CHOICE) < AIMED_SHARE
+
+
+def disc_directions(targets: ApertureTargets, position, streams: Streams, rows) -> np.ndarray:
+    """(M, 3) unit directions from `position` toward uniform points of each point's disc."""
     disc = targets.disc_of(position)
-    toward = streams.at(rows, DIM_CHOICE) < AIMED_SHARE
-    u_bsdf = np.column_stack([streams.at(rows, 0), streams.at(rows, 1)])
-    u_disc = np.column_stack([streams.at(rows, DIM_DISC), streams.at(rows, DIM_DISC + 1)])
-    wo = np.zeros((m, 3))
-    for t in np.unique(tag[~toward]):
-        sel = np.flatnonzero(~toward & (tag == t))
-        wo[sel] = scene.bsdf_of_tag[int(t)].sample(wi[sel], n[sel], u_bsdf[sel])[0]
-    for k in np.unique(disc[toward]):
-        sel = np.flatnonzero(toward & (disc == k))
-        to_q = targets.discs[int(k)].sample_points(position[sel], u_disc[sel]) - position[sel]
+    u = np.column_stack([streams.at(rows, DIM_DISC), streams.at(rows, DIM_DISC + 1)])
+    wo = np.zeros((len(disc), 3))
+    for k in np.unique(disc):
+        sel = np.flatnonzero(disc == k)
+        to_q = targets.discs[int(k)].sample_points(position[sel], u[sel]) - position[sel]
         wo[sel] = to_q / np.maximum(np.linalg.norm(to_q, axis=1), 1e-300)[:, None]
+    return wo
+
+
+def mixture_weight(scene, targets: ApertureTargets, tag, position, wi, n, wo) -> np.ndarray:
+    """(M,) f cos θ / ((1 − c) p_bsdf + c p_disc) of aimed photons at (tag, position), arriving from wi (toward
+    the light) on normals n and leaving along wo, however wo was drawn (module docstring); NaN where the
+    finish's value or density is not finite (the walk names it, never a silent 0)."""
     cos_o = np.einsum("ij,ij->i", wo, n)
-    f_cos, p_bsdf = np.zeros(m), np.zeros(m)
+    f_cos, p_bsdf = np.zeros(len(tag)), np.zeros(len(tag))
     for t in np.unique(tag):
         sel = np.flatnonzero(tag == t)
         bsdf = scene.bsdf_of_tag[int(t)]
         f_cos[sel] = np.asarray(bsdf.eval(wi[sel], wo[sel], n[sel]), np.float64) * np.maximum(cos_o[sel], 0.0)
         p_bsdf[sel] = np.asarray(bsdf.pdf(wi[sel], wo[sel], n[sel]), np.float64)
-    p = (1.0 - AIMED_SHARE) * p_bsdf + AIMED_SHARE * disc_pdf(targets, disc, position, wo)
+    p = (1.0 - AIMED_SHARE) * p_bsdf + AIMED_SHARE * disc_pdf(targets, targets.disc_of(position), position, wo)
     good = (p > 0) & (cos_o > 0) & (f_cos > 0)  # below the face, or where the BSDF has nothing: no light
     weight = np.where(good, f_cos / np.where(good, p, 1.0), 0.0)
-    weight[~(np.isfinite(f_cos) & np.isfinite(p))] = np.nan  # never zeroed: the walk names the finish
-    return wo, weight
+    weight[~(np.isfinite(f_cos) & np.isfinite(p))] = np.nan
+    return weight
 
 
 def disc_pdf(targets: ApertureTargets, disc: np.ndarray, position: np.ndarray, wo: np.ndarray) -> np.ndarray:
@@ -151,4 +156,4 @@ def disc_pdf(targets: ApertureTargets, disc: np.ndarray, position: np.ndarray, w
     return pdf
 
 
-__all__ = ["ApertureTargets", "aimed_scatter", "aperture_targets", "disc_pdf"]
+__all__ = ["ApertureTargets", "aperture_targets", "disc_directions", "disc_pdf", "drawn_toward", "mixture_weight"]

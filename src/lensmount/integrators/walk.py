@@ -36,7 +36,7 @@ import numpy as np
 from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
 from lensmount.integrators.paths import EMPTY, ghost_code
 from lensmount.integrators.photon_gather import outside_core
-from lensmount.integrators.scatter_aim import ApertureTargets, aimed_scatter
+from lensmount.integrators.scatter_aim import ApertureTargets, disc_directions, drawn_toward, mixture_weight
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
@@ -174,17 +174,21 @@ def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, 
 
 
 def _scatter(scene, tag, position, wi, n, streams: Streams, rows, aim: ApertureTargets | None):
-    """Outgoing directions and weights: toward the next clear aperture in part (`scatter_aim`) where
-    `aim` has a target for the face, else by the BSDF alone."""
+    """Outgoing directions and weights: by the BSDF, or, for a share of the photons `aim` aims (`scatter_aim`),
+    toward the next clear aperture, all of those weighted by the mixture's density."""
     aimed = aim.aimed(tag, position) if aim is not None else np.zeros(len(tag), bool)
     if not aimed.any():
         return _sample_bsdf(scene, tag, wi, n, streams, rows)
+    a = np.flatnonzero(aimed)
+    toward = np.zeros(len(tag), bool)
+    toward[a] = drawn_toward(streams, rows[a])
+    t, b = np.flatnonzero(toward), np.flatnonzero(~toward)
     wo, f = np.zeros((len(tag), 3)), np.zeros(len(tag))
-    a, plain = np.flatnonzero(aimed), np.flatnonzero(~aimed)
-    wo[plain], f[plain] = _sample_bsdf(scene, tag[plain], wi[plain], n[plain], streams, rows[plain])
-    wo[a], f[a] = aimed_scatter(scene, aim, tag[a], position[a], wi[a], n[a], streams, rows[a])
-    for t in np.unique(tag[a][~np.isfinite(f[a])]):
-        _require_finite(f[a][tag[a] == t], "aimed scatter weight (the BSDF's value or density)", _face_name(scene, int(t)))
+    wo[b], f[b] = _sample_bsdf(scene, tag[b], wi[b], n[b], streams, rows[b])
+    wo[t] = disc_directions(aim, position[t], streams, rows[t])
+    f[a] = mixture_weight(scene, aim, tag[a], position[a], wi[a], n[a], wo[a])
+    for k in np.unique(tag[a][~np.isfinite(f[a])]):
+        _require_finite(f[a][tag[a] == k], "aimed scatter weight (the BSDF's value or density)", _face_name(scene, int(k)))
     return wo, f
 
 
