@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 LM     := $(VENV)/bin/lensmount
 DESIGN := examples/double-gauss-360
 
-.PHONY: install install-test browser demo test test-all bench clean
+.PHONY: install install-test browser demo test test-all test-latest lock bench clean
 
 # The runtime alone for the demo; the test extra (pytest, CadQuery as an independent STEP reader) for tests.
 # opticalglass declares PySide6 (673 MB, for its glass-map window) as a requirement; lensmount only reads
@@ -16,18 +16,21 @@ REQUIREMENTS = $(PY) -c "import sys, tomllib; p = tomllib.load(open('pyproject.t
   r = p['dependencies'] + [x for e in sys.argv[1:] for x in p['optional-dependencies'][e]]; \
   print('\n'.join(x for x in r if not x.startswith('opticalglass')))"
 GLASS = $(shell sed -n 's/^ *"\(opticalglass[^"]*\)".*/\1/p' pyproject.toml)
+# Installs reproduce: every version comes from constraints.txt (the versions the suite passed with).
+# `make test-latest` clears CONSTRAINTS to try today's newest versions in .venv-latest.
+CONSTRAINTS ?= -c constraints.txt
 
-$(VENV)/.installed: pyproject.toml
+$(VENV)/.installed: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(REQUIREMENTS) > $(VENV)/requirements.txt
-	$(PY) -m pip install --quiet -r $(VENV)/requirements.txt
-	$(PY) -m pip install --quiet --no-deps -e . '$(GLASS)'
+	$(PY) -m pip install --quiet $(CONSTRAINTS) -r $(VENV)/requirements.txt
+	$(PY) -m pip install --quiet $(CONSTRAINTS) --no-deps -e . '$(GLASS)'
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed
 	$(REQUIREMENTS) test > $(VENV)/requirements-test.txt
-	$(PY) -m pip install --quiet -r $(VENV)/requirements-test.txt
+	$(PY) -m pip install --quiet $(CONSTRAINTS) -r $(VENV)/requirements-test.txt
 	touch $@
 
 # numba compiles the tracer's kernels once, here, not in the first run (again when their source changes).
@@ -73,9 +76,21 @@ test-all: install-test browser
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q $(PYTEST_WORKERS)
 
+# The fast suite on the newest versions the registries serve (no constraints), in a venv of its own.
+test-latest:
+	$(MAKE) VENV=.venv-latest CONSTRAINTS= test
+
+# Re-resolve the newest versions and write them to constraints.txt (run test-latest first: pin what passes).
+lock:
+	rm -rf .venv-lock
+	$(MAKE) VENV=.venv-lock CONSTRAINTS= install-test
+	{ sed -n '1,/^# `make test-latest`/p' constraints.txt; .venv-lock/bin/pip freeze --exclude-editable | grep -v '^lensmount'; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
+	rm -rf .venv-lock
+
 bench: install-test
-	$(PY) -m pip install --quiet -e '.[test,bench]'
+	$(PY) -m pip install --quiet $(CONSTRAINTS) -e '.[test,bench]'
 	$(PY) benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) .venv-latest .venv-lock out .pytest_cache
