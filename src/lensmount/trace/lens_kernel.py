@@ -20,7 +20,7 @@ A step is taken only when it is proven, else the ray is handed back unchanged:
 
 The refraction, total internal reflection, coating reflectance (coatings as per-surface
 tables: kind code and constant R) and the Fresnel branch are the formulas of
-`trace.interfaces` and `Tracer._interface`, written per ray in the same order. The branch's
+`physics.interfaces` and `Tracer._interface`, written per ray in the same order. The branch's
 uniform is `sampler.Streams.at`'s splitmix64 hash of the ray's key and dimension
 FRESNEL_DIM + its interface count, so it is the same number either path draws.
 """
