@@ -1,6 +1,6 @@
 """Compiled per-ray kernels of the tracer's analytic steps (numba).
 
-Why compiled: the profile of `Tracer.next_event` (docs/performance.md) showed Embree itself a
+Why compiled: the profile of `Tracer.next_event` (CHANGELOG.md, "Compiled kernels") showed Embree itself a
 small share; the time went to numpy temporaries around each query — the sequential step alone
 built ~60 (n,) float64 arrays per call to find one conic crossing per ray. Here each ray is one
 loop iteration over a few scalars: the same arithmetic, in the same order, as the numpy

@@ -1,6 +1,6 @@
 """The walk of rays through the lens as one compiled loop (numba): no Embree, no numpy per step.
 
-Why: after the sequential step and the conic roots were compiled (docs/performance.md), the
+Why: after the sequential step and the conic roots were compiled (CHANGELOG.md, "The walk through the lens"), the
 time of `Tracer.next_event` went to the live-set bookkeeping around each step — ~15 arrays
 fancy-indexed per refraction — and to Snell + Fresnel in numpy. Here a ray stays in one loop
 iteration from glass surface to glass surface until something needs Embree.
