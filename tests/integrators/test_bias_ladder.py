@@ -2,7 +2,7 @@
 
 Every scene is a real density estimate (the gather's counting and on-face length, on a line:
 `line_gather.LineScene`; or the bidirectional pass itself on a planar scene), so the bias comes from
-the mechanism it names, not from a formula the bound assumes. Issue 29 item 2: the old bound
+the mechanism it names, not from a formula the bound assumes. The bound it replaced,
 |2 D̄| + se(2 D̄) read 0.035 of the truth against a bias of −0.98 with the radius far wider than a lit
 spot in a narrow seen window, under-covered two bias orders of opposite sign, and covered a pure first-
 order bias in 88 % of 8-pass runs. What must hold now, over ≥ 200 independent runs per scene: the
