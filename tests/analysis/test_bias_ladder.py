@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from line_gather import LineScene  # noqa: E402
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, judge  # noqa: E402
