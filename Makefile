@@ -1,11 +1,12 @@
 # make demo | make test | make test-all | make bench — each creates .venv and installs the project first.
+# make docs — the API reference from the docstrings into out/site (installs only the docs extra).
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 LM     := $(VENV)/bin/lensmount
 DESIGN := examples/double-gauss-360
 
-.PHONY: install install-test browser demo test test-all test-latest lock bench clean
+.PHONY: install install-test install-docs browser demo test test-all test-latest lock bench docs clean
 
 # The runtime alone for the demo; the test extra (pytest, CadQuery as an independent STEP reader) for tests.
 # opticalglass declares PySide6 (673 MB, for its glass-map window) as a requirement; lensmount only reads
@@ -42,8 +43,17 @@ $(VENV)/.warm: $(VENV)/.installed src/lensmount/trace/kernels.py src/lensmount/t
 	$(PY) -m lensmount.integrators.warm
 	touch $@
 
+# The docs extra alone: mkdocstrings reads src/ without importing it, so no runtime is installed.
+$(VENV)/.installed-docs: pyproject.toml constraints.txt
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -c "import tomllib; print('\\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" \
+	  > $(VENV)/requirements-docs.txt
+	$(PY) -m pip install --quiet $(CONSTRAINTS) -r $(VENV)/requirements-docs.txt
+	touch $@
+
 install: $(VENV)/.installed $(VENV)/.warm
 install-test: $(VENV)/.installed-test $(VENV)/.warm
+install-docs: $(VENV)/.installed-docs
 
 demo: install
 	$(LM) regenerate $(DESIGN) --out out/double-gauss-360
@@ -83,10 +93,15 @@ test-latest:
 # Re-resolve the newest versions and write them to constraints.txt (run test-latest first: pin what passes).
 lock:
 	rm -rf .venv-lock
-	$(MAKE) VENV=.venv-lock CONSTRAINTS= install-test
+	$(MAKE) VENV=.venv-lock CONSTRAINTS= install-test install-docs
 	{ sed -n '1,/^# `make test-latest`/p' constraints.txt; .venv-lock/bin/pip freeze --exclude-editable | grep -v '^lensmount'; } > constraints.txt.new
 	mv constraints.txt.new constraints.txt
 	rm -rf .venv-lock
+
+# The API reference (mkdocs.yml): --strict makes every warning, a docstring griffe cannot parse
+# included, an error. The hand-written pages' lensmount names are checked by tests/docs.
+docs: install-docs
+	$(VENV)/bin/mkdocs build --strict
 
 bench: install-test
 	$(PY) -m pip install --quiet $(CONSTRAINTS) -e '.[test,bench]'

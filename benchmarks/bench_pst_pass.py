@@ -3,7 +3,7 @@
 Case 2 of the reference design (600 × 600 px, 10⁵ photons a pass), pass PASS (default 0), one
 process: the tracer's build, `Bidirectional.view_pass` once, `photon_pass` (+ `totals`) per angle
 with its walk and gather. Before the view map was shared, each angle paid view map + photons; now a
-pass of A angles costs one view map + A × photons (docs/performance.md, "pst with one view map").
+pass of A angles costs one view map + A × photons (CHANGELOG.md, "The loop", "pst with one view map").
 
     python benchmarks/bench_pst_pass.py [ANGLES=0,10,20,30] [PASS=0] [GEOMETRY=examples/double-gauss-360/build]
 

@@ -1,5 +1,5 @@
-"""The kernel-bias bound from the ladder of radii on a real case, one run per seed (docs/performance.md,
-"After: the ladder of radii").
+"""The kernel-bias bound from the ladder of radii on a real case, one run per seed (CHANGELOG.md,
+"The view map", "After: the ladder of radii").
 
     python benchmarks/bias_ladder.py run DESIGN SCENE PHOTONS PASSES FIRST_SEED SEEDS OUT.npz
     python benchmarks/bias_ladder.py table OUT.npz[,MORE.npz] [PASSES]

@@ -62,7 +62,7 @@ def test_unknown_view_is_an_input_error(tmp_path, design_copier):
 
 
 def test_the_two_views_write_separate_files(reference):
-    """Issue 26 item 9: `check` and `check --from aperture` wrote the same check.png/check.json."""
+    """`check --from aperture` writes check-aperture.png/.json and leaves the detector view's check.json as it was."""
     design, out, _ = reference
     res = CliRunner().invoke(app, ["check", str(design), "--out", str(out), "--exclusion-deg", "30"])
     assert res.exit_code == 0, res.output

@@ -1,6 +1,6 @@
 """Glass and metal touch where they are meant to and keep the designed clearance elsewhere:
-no sub-micrometre sliver between a lens face and a seat, shoulder or barrel step (issue 13, 8a:
-the reference's barrel step lay 0.07 µm from lens 6 at r = 31.0 mm, and spacer 1 ran within
+no sub-micrometre sliver between a lens face and a seat, shoulder or barrel step (on the reference
+the barrel step once lay 0.07 µm from lens 6 at r = 31.0 mm, and spacer 1 ran within
 0.05 µm of lens 1's concave face for 0.44 mm)."""
 
 import dataclasses

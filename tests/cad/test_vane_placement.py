@@ -76,8 +76,8 @@ def test_line_of_sight_vanes_hide_every_lit_wall(examples_dir, example, exclusio
 
 
 def test_a_count_under_line_of_sight_placement_is_an_error_naming_the_key(examples_dir):
-    """Issue 26 item 8: `count` was silently ignored under line-of-sight placement (the default), so
-    `sweep --param mount.vanes.count=3,5,7` built three identical mounts."""
+    """`count` is not silently ignored under line-of-sight placement (the default): otherwise
+    `sweep --param mount.vanes.count=3,5,7` would build three identical mounts."""
     from lensmount.errors import InputError
 
     text = (examples_dir / "double-gauss-360" / "mount.toml").read_text().replace(

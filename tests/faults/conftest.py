@@ -1,4 +1,4 @@
-"""The fault-injection suite (issue 27): every case injects faults and records them (fault_log.record);
+"""The fault-injection suite: every case injects faults and records them (fault_log.record);
 each test's count travels in its report (also to the pytest-xdist controller), and tests/conftest.py
 prints the total at the end of the session ("injected faults: N")."""
 

@@ -1,4 +1,4 @@
-"""Inputs that used to change the answer silently (issue 13, item 9), through `lensmount simulate`:
+"""Inputs that could change the answer silently, through `lensmount simulate`:
 each is one paragraph naming the file, field and line, exit 2 and nothing written; or, where the
 input is legal but suspicious, a warning printed and recorded in summary.json."""
 

@@ -1,5 +1,5 @@
 """`simulate --resume` into the same --out records a new store row and leaves the earlier row's
-files as they were (issue 26: row 2's summary and images then held run 3's data); a paint change
+files as they were (row 2's summary and images must not hold run 3's data); a paint change
 in finishes.toml is a new input hash, a longer run of the same design is not. Tiny runs on the
 Cooke triplet (12 × 8 pixels, 2000 photons per pass)."""
 

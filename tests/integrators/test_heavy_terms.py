@@ -1,8 +1,8 @@
-"""Error bars on passes that sum heavy-tailed terms (issue 29, item 4): the tail index of every pass's largest
+"""Error bars on passes that sum heavy-tailed terms: the tail index of every pass's largest
 terms (`PassEstimate.largest`, `analysis.passes.tail_index`) widens the error bar of a run whose tail is heavy
 and keeps one whose tail has no bound (index ≤ 1) from stopping on its target.
 
-Against what the issue measured: with `--target-rel-error` on heavy-tailed passes the runs that stop are the
+Why: with `--target-rel-error` on heavy-tailed passes the runs that stop are the
 ones whose passes look benign (they have not met the tail yet), and read low with a small error. The terms a
 pass sums show the tail in every pass. Checked against Pareto terms of known index, against the analytic cap
 of a connection's term (a Lambertian spot under the detector: f Φ cos cos / d² · A ≤ ρ/π Φ A / D²), and over

@@ -160,7 +160,7 @@ def test_a_dimly_lit_edge_is_found_with_more_pilot_rounds(case1):
 
 
 def test_band_photons_started_beside_the_source_disc_carry_nothing():
-    """Issue 29, 6: the bands' photons are moved back to the disc's plane; where that lands beside the
+    """The bands' photons are moved back to the disc's plane; where that lands beside the
     disc there is no sunlight. A band straddling the disc's rim: Σ Φ through the region of P whose
     starts lie on the disc is its area, and every photon started off the disc has Φ = 0."""
     scene, n = _sun(), 200_000
@@ -199,8 +199,8 @@ def _pilot_rays(rings, n=200_000, seed=4):
 
 
 def test_an_edge_lit_through_two_rings_gets_both():
-    """Issue 29, 1: hits on a second, dimmer ring were dropped by the single-valued fit's rejection;
-    now the pilot's fit keeps a ring for each, shares by their hits, and a density that is the
+    """Hits on a second, dimmer ring are not dropped as a single-valued fit's outliers: the pilot's
+    fit keeps a ring for each, shares by their hits, and a density that is the
     mixture's. (Two rings about equally lit are not separated: the first fit runs between them.)"""
     first, second = (lambda f: 10.0 + 0.3 * np.cos(f)), (lambda f: 12.0 + 0.1 * np.sin(2 * f))
     rays, hit = _pilot_rays([(first, 1.0), (second, 0.04)])
@@ -228,7 +228,7 @@ def test_one_ring_stays_one_band():
 
 
 def test_the_check_adds_a_ring_the_fit_left_out():
-    """Issue 29, 1: a fit holding only the first of two lit rings (the second carries ~26 % of the edge's light)
+    """A fit holding only the first of two lit rings (the second carries ~26 % of the edge's light)
     is mended by the check's hits: a ring on the second, shares by the light each holds, the density the
     mixture's. (The check's photons here cross P uniformly in ρ: each carries light ∝ ρ.)"""
     first, second = (lambda f: 10.0 + 0.3 * np.cos(f)), (lambda f: 12.0 + 0.1 * np.sin(2 * f))

@@ -1,7 +1,7 @@
 """The effects planner (`integrators.plan`): what it decides, and that each piece of work it skips
 adds nothing, measured against a run that does the work.
 
-Per-effect agreement (issue 15, "What must show"): a scene with scatter, ghosts and direct on and
+Per-effect agreement: a scene with scatter, ghosts and direct on and
 the same scene restricted to one effect read that effect's channel the same within error bars.
 The singlet in its scattering barrel (`lens_scenes.singlet_barrel`) with uncoated glass makes all
 three effects non-zero and cheap; the forward estimator is the unbiased reference.
@@ -72,7 +72,7 @@ def test_summary_says_when_photons_were_aimed_at_the_edge():
 
 
 def test_each_phase_reports_its_wall_and_cpu_seconds():
-    """The plan's times: every phase of a bidirectional pass in wall and CPU seconds (issue 28), the
+    """The plan's times: every phase of a bidirectional pass in wall and CPU seconds, the
     CPU of a busy phase neither zero nor beyond what the process spent."""
     import time
 

@@ -1,4 +1,4 @@
-"""The paper's case 1 through the planner (issue 15, "What must show"): hit points only on the
+"""The paper's case 1 through the planner: hit points only on the
 diaphragm edge, and the edge's channel the same as with every finish scattering and every effect
 on. The speed ratio is `benchmarks/bench_planner.py`'s (printed here, not asserted: wall time on a
 shared machine is no test)."""

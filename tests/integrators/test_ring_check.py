@@ -1,4 +1,4 @@
-"""Issue 29, item 1: the pilot's check of its learned ring (`photon_target._checked`), what the run says
+"""The pilot's check of its learned ring (`photon_target._checked`), what the run says
 about it, and the error bar of runs whose ring was displaced on purpose.
 
 The displacement is injected where a reviewer would: in the fit's output (`photon_target._pilot`), before

@@ -117,7 +117,7 @@ def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(built, tmp_
     args = ["compare", str(with_vanes), str(without), "--scene", "small2", "--method", "forward", "--workers", "1"]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 1, result.output
-    # Not a terminal: one progress line per pass with the value and its error (issue 19), for both runs.
+    # Not a terminal: one progress line per pass with the value and its error, for both runs.
     assert sum(line.startswith("pass 16 · 800,000 photons") and "±" in line for line in result.output.splitlines()) == 2
     runs = {d: json.loads(next((d / ".lensmount" / "runs").glob("small2-*/summary.json")).read_text())
             for d in (with_vanes, without)}
@@ -136,7 +136,7 @@ def test_removing_the_hood_vanes_is_a_regression_with_the_right_sign(built, tmp_
 
 
 def test_until_decided_resumes_the_vanes_removed_change_to_a_regression(built, tmp_path, monkeypatch):
-    """Issue 26: 4 against 4 forward passes of 20 000 photons leave the vanes-removed change (about
+    """4 against 4 forward passes of 20 000 photons leave the vanes-removed change (about
     +20 %) undecided at 99 %; --until-decided resumes both runs by the passes `to_decide` asks for
     and looks again (each look stricter) until the interval clears the 5 % tolerance: exit 1."""
     monkeypatch.delenv("LENSMOUNT_STORE", raising=False)

@@ -94,8 +94,8 @@ def test_a_run_where_nothing_reached_the_detector_has_no_error_bar():
 
 
 def test_the_relative_standard_error_column_is_the_standard_error_alone():
-    """Issue 29, 6: `rel_std_error` was (se + bias)/value. Now se/value, with (se + bias)/value beside it
-    as `rel_error` (what --target-rel-error stops on)."""
+    """`rel_std_error` is se/value (the 1/√t curve), not (se + bias)/value, which sits beside it as
+    `rel_error` (what --target-rel-error stops on)."""
     statuses = [PassStatus(n, 1000 * n, 10.0 * n, 2.0, 0.1, 0.15, None, None, None, None) for n in range(1, 9)]
     curve = _curve("bidirectional", statuses, level_times(80, 3), {"stray_fraction_bias_bound": 0.1}, reference=None)
     assert all(lv.rel_std_error == pytest.approx(0.05) and lv.rel_error == pytest.approx(0.15) for lv in curve.levels)

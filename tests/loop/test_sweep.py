@@ -92,7 +92,7 @@ def _written(tmp_path, *params):
 
 
 def test_a_parameter_that_builds_identical_mounts_is_refused_before_any_run(tmp_path):
-    """Issue 26 item 8: values of a key that does not change the mount (here [hood] exclusion_deg
+    """Values of a key that does not change the mount (here [hood] exclusion_deg
     under even vane placement, which only line-of-sight vanes follow) would only measure noise."""
     from lensmount.loop.sweep import SweepOptions, refuse_identical_layouts, sweep
 
@@ -116,8 +116,9 @@ def test_a_parameter_that_builds_identical_mounts_is_refused_before_any_run(tmp_
 
 
 def test_the_plot_is_honest_about_scale_ticks_and_missing_bars():
-    """Issue 26 item 9: ticks at 1.2 vanes, an offset label over the title, a 0.002 % difference
-    drawn as a steep drop, no error bars without a word although the axis said ±2σ."""
+    """The sweep plot reads right: integer ticks for a count (no 1.2 vanes), no offset label over the
+    title, a 0.002 % difference not drawn as a steep drop, and missing error bars said when the axis
+    says ±2σ."""
     import matplotlib.pyplot as plt
 
     from lensmount.loop.sweep import NO_ERROR_BAR, figure

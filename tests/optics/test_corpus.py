@@ -83,7 +83,7 @@ def _lensmount_materials(path: Path, lens):
 
 def test_the_corpus_holds_the_kinds_of_file_the_issue_names():
     texts = {p.name: p.read_bytes() for p in FILES}
-    assert len(FILES) + len(OUT_OF_SCOPE) + len(REFUSED_FILES) >= 35          # issue 25: at least 35 public files
+    assert len(FILES) + len(OUT_OF_SCOPE) + len(REFUSED_FILES) >= 35          # at least 35 public files
     sources = (CORPUS / "SOURCES.md").read_text(encoding="utf-8")
     assert len(set(re.findall(r"\| ([\w.-]+/[\w.-]+), ", sources))) >= 6     # from at least six repositories
     assert {"thorlabs", "edmund", "cots"} <= {p.name.split("-")[0] for p in FILES}  # three vendors' catalogues

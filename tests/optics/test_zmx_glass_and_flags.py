@@ -78,8 +78,8 @@ def test_a_mema_picked_up_from_an_automatic_one_is_automatic_and_a_pickup_of_a_f
 
 
 def test_an_automatic_mema_beyond_the_spheres_reach_is_no_refusal(tmp_path):
-    """Issue 25, item 1: Zemax's double Gauss was refused for a MEMA larger than a face's radius;
-    an automatic MEMA is OpticStudio's computed value, not a given one."""
+    """An automatic MEMA is OpticStudio's computed value, not a given one: a MEMA larger than a face's
+    radius (as in Zemax's own double Gauss) does not refuse the lens."""
     text = _zmx(surf1="  DIAM 8 1 0 0 1 \"\"\n  MEMA 60 0 0 0 1 \"\"", surf2="  MEMA 60 0 0 0 1 \"\"")
     path = tmp_path / "mema.zmx"
     path.write_text(text)
@@ -95,7 +95,8 @@ def test_an_automatic_mema_beyond_the_spheres_reach_is_no_refusal(tmp_path):
 
 
 def test_a_model_glass_with_vd_0_is_a_constant_index():
-    """Issue 25, item 3: GLAS ___BLANK 1 0 1.52825 0 became the name '1.52825/1e+09'."""
+    """GLAS ___BLANK 1 0 1.52825 0 is the model glass n_d 1.52825 with V_d 0 (no dispersion), named
+    '1.52825/0', not '1.52825/1e+09'."""
     lens, notes = _convert(_zmx(glass1="___BLANK 1 0 1.52825 0 0 0 0 0 0 0"))
     assert lens.surfaces[0].material == "1.52825/0"
     for wl in (0.4, D_LINE, 1.0):
@@ -113,8 +114,8 @@ def test_an_unknown_glass_with_placeholders_names_file_line_surface_catalogues_a
 
 
 def test_a_glass_with_data_on_one_surface_and_placeholders_on_another_resolves_the_same_on_both():
-    """Issue 25, item 4: D263T with n_d/V_d on one GLAS line and 1.5/40 on the other. Schott's
-    D 263 T eco data (refractiveindex.info, CC0): n_d 1.5233, and both surfaces take it."""
+    """One catalogue name with different model data on two GLAS lines: D263T with n_d/V_d on one and
+    1.5/40 on the other. Schott's D 263 T eco data (refractiveindex.info, CC0): n_d 1.5233, and both surfaces take it."""
     lens, notes = _convert(_zmx(glass1="D263T 0 0 1.5231 55 0 0 0 0 0 0").replace(
         "SURF 2\n  CURV -0.0125\n  DISZ 90", "SURF 2\n  CURV 0\n  DISZ 2\n  GLAS D263T 0 0 1.5 40\n"
         "SURF 4\n  CURV -0.0125\n  DISZ 90").replace("SURF 3", "SURF 5"))

@@ -1,4 +1,4 @@
-"""The kernel-bias bound on a real scene built to break it (issue 29, item 2): the bidirectional pass
+"""The kernel-bias bound on a real scene built to break it: the bidirectional pass
 itself, on the planar world (tests/integrators/planar.py), against the forward estimator (no kernel).
 
 A Lambertian plate lit by a beam 0.02 mm across, seen by the detector only through a 0.2 mm slit in

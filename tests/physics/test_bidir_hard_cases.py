@@ -83,8 +83,8 @@ def test_point_source_exactly_on_axis_gives_exactly_zero():
                             time_s=1.0, aperture_flux_mm2=scene.entrance_pupil_area_mm2,
                             input_hash="x", estimator_settings=EstimatorSettings().as_dict())
     assert summary["stray_fraction_rel_error"] is None
-    # < 3 photons expected over the 4 × 50 000 traced, each carrying the disc's area / 50 000 (issue 26:
-    # the bound took 3 photons of one pass, 4× loose)
+    # < 3 photons expected over the 4 × 50 000 traced, each carrying the disc's area / 50 000 (the
+    # bound counts the photons of every pass, not 3 photons of one: that would be 4× loose)
     bound = 3.0 * scene.source.disc.area / 50_000 / 4 / scene.entrance_pupil_area_mm2
     assert summary["stray_fraction_upper_bound"] == pytest.approx(bound)
 
@@ -185,7 +185,7 @@ def _wall_quadrature(cos_i, D=5.0, rho=0.3, n=400):
 
 
 def test_light_the_detector_cannot_see_is_never_gathered():
-    """Issue 13, item 1: the sun's image on the wall lies behind the detector plane (z from D + 1
+    """The sun's image on the wall lies behind the detector plane (z from D + 1
     to D + 9). The detector sees none of it, so the answer is exactly zero; a gather disc on the
     visible wall just below the plane (r₀ is millimetres here) used to collect it."""
     scene, _ = _wall_scene(lit_z=5.0 + 5.0, beam_radius=4.0)

@@ -1,15 +1,15 @@
-"""Issue 13, "What must show": the bidirectional estimate on the default radius schedule agrees
+"""The bidirectional estimate on the default radius schedule agrees
 with a long forward reference within 3σ of (standard error + bias bound), and its reported 2σ
 interval covers the reference in at least 18 of 20 seeds.
 
-Case (issue 13, item 1): the cooke-triplet example, every mount face and lens edge Lambertian
+Case: the cooke-triplet example, every mount face and lens edge Lambertian
 5 %, the sun at 25° (outside the ±20° field), a 36 × 24 mm detector at 300 × 200 pixels. The
 sun's image misses the detector and lands on the housing bore just behind the detector plane:
 before the gather stopped at that plane this read +12 % in total (+28 % housing, z = 2.5) and
 its passes were heavy-tailed (spread 17 %, skew 1.2; now 6 %, skew 0).
 
 Slow. Sizes here (to keep the file near 4 min on 2 cores): the reference 4 × 10⁶ forward
-photons; the agreement run 16 passes × 10⁵ (the issue's); the coverage runs 20 seeds × 5 passes
+photons; the agreement run 16 passes × 10⁵; the coverage runs 20 seeds × 5 passes
 × 2 × 10⁴ on the same scene at 150 × 100 pixels (the total flux is what is compared). Full-size figures are in the report of the change that added this file.
 """
 
@@ -96,7 +96,7 @@ def _allowance(bound, ladder: np.ndarray) -> float:
     Why not assert a bound: on this scene the ladder is flat within its noise (64 passes of 4 seeds:
     every step within 1.2σ of zero and under 0.4 % of the flux), and the rule's model check is a test at
     a fixed level (`bias.SHAPE_P`), so on a bias-free ladder it refuses a fixed share of runs however many
-    photons they have: 9 % of these passes' resamplings, 2 of seeds 1-4 (issue notes of this change).
+    photons they have: 9 % of these passes' resamplings, 2 of seeds 1-4.
     A single-seed `bounded` would fail that share of runs with nothing wrong."""
     if bound.bounded:
         return bound.bound

@@ -109,7 +109,7 @@ def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
 
 @pytest.mark.parametrize("case", ["case2-lambertian", "case3-gaussian"])
 def test_bidirectional_agrees_with_forward_on_the_reference_design(reference, bidirectional_case, case):
-    """Issue 13: the default radius schedule (not s = 1), within 3σ of (standard error + bias bound).
+    """The default radius schedule (not s = 1) agrees with forward within 3σ of (standard error + bias bound).
 
     Case 1 is not here: forward tracing sees no photon from the 50 µm edge in 8 × 10⁶ photons
     (bidirectional reads 3.3e-5 ± 0.5e-5 mm², bias bound 0.2e-5), so a forward reference for it
@@ -120,7 +120,7 @@ def test_bidirectional_agrees_with_forward_on_the_reference_design(reference, bi
 
 
 def test_sun_image_on_the_housing_bore_at_the_edge_of_what_the_detector_sees(reference):
-    """Issue 13: at 5.3° the sun's image (radius 360 mm · tan 5.3° = 33.4 mm) lands where the
+    """At 5.3° the sun's image (radius 360 mm · tan 5.3° = 33.4 mm) lands where the
     housing bore (R = 33.47 mm) meets the detector plane: the f/7 cone lights the bore both in
     front of the plane, which the detector sees at grazing angles, and behind it, which it
     cannot see. Case 2 finishes; default radius schedule against forward."""

@@ -96,7 +96,7 @@ def test_direct_and_ghost_channels_match_forward():
 
 
 def test_black_paint_abg_is_gathered_outside_its_core_and_agrees_with_forward():
-    """Issue 13, item 3: ABg A = 2e-3, B = 1e-3, g = 2 has a 1.8° half width but most of its
+    """ABg A = 2e-3, B = 1e-3, g = 2 has a 1.8° half width but most of its
     albedo in the wings. It used to be routed to the photons by its half width alone; now its
     wings are gathered at hit points and only the core (within sin 15° of the mirror direction)
     is left to the photons. The split must not lose or double count: bidirectional = forward."""

@@ -1,4 +1,4 @@
-"""Issue 32: case 1 as shipped (600 × 600, 20 000 photons a pass, 8 passes) has no pass that dominates.
+"""Case 1 as shipped (600 × 600, 20 000 photons a pass, 8 passes) has no pass that dominates.
 
 Before, seed 21's pass 1 read 4.35× the median: one backward sample through the exit disc met the
 diaphragm edge 1.01 half widths outside the view map's learned band (Δφ = 168°, s = 0.73), with

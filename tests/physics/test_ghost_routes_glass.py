@@ -1,4 +1,4 @@
-"""Ghost routes count the glass the tracer sees (issue 29, item 3): on the example ghost scenes, with
+"""Ghost routes count the glass the tracer sees: on the example ghost scenes, with
 lens.toml's `mechanical_semi_diameter` omitted (then it equals the clear semi-diameter while the
 mesh's glass reaches 0.8–15 mm further) and given, the routes' two-reflection light agrees with the
 photons of the same passes that made those paths (ledger `detector_ghost_routes`: the light the
@@ -67,7 +67,7 @@ def test_ghost_routes_carry_what_their_photons_do(tmp_path, example, given):
     if given:
         beyond = BEYOND_CLEAR[example]
         assert all(s.mechanical_semi_diameter == pytest.approx(s.clear_semi_diameter + beyond, abs=1e-3) for s in glass)
-    if not given:  # the case the issue names: the mesh's glass reaches beyond the mechanical semi-diameter
+    if not given:  # the case that matters: the mesh's glass reaches beyond the mechanical semi-diameter
         rims = glass_rims(scene)
         assert any(rims[s.index].radius > s.mechanical_semi_diameter + 0.5 for s in glass)
     tracer = Tracer(scene)
@@ -79,7 +79,7 @@ def test_ghost_routes_carry_what_their_photons_do(tmp_path, example, given):
     combined = math.hypot(*se)
     print(f"\n{example} ({'given' if given else 'omitted'}): routes {routes.mean():.5g} ± {se[0]:.2g} mm², "
           f"photons {photons.mean():.5g} ± {se[1]:.2g} mm², {(routes.mean() - photons.mean()) / combined:+.2f} σ")
-    # 3σ, not 1σ: a correct code sits beyond 1σ in a third of runs (the measured values are in the issue's note)
+    # 3σ, not 1σ: a correct code sits beyond 1σ in a third of runs
     assert routes.mean() == pytest.approx(photons.mean(), abs=3 * combined)
     assert 3 * combined < 0.5 * photons.mean()  # teeth: a channel off by half fails
 

@@ -1,4 +1,4 @@
-"""Issue 15, "paths down to the CAD face": the paper's case 2 on the reference design.
+"""Paths down to the CAD face: the paper's case 2 on the reference design.
 
 One small bidirectional run through `loop.simulate` (detector 60 × 60, 4 passes of 60 000
 photons), then `lensmount paths RESULT --faces`. The checks compare two independent

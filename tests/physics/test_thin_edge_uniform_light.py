@@ -1,4 +1,4 @@
-"""Issue 13, item 2: a 50 µm cylindrical edge under uniform light reads the truth within 2 %
+"""A 50 µm cylindrical edge under uniform light reads the truth within 2 %
 at R = 2, 4.5, 9 and 25 mm, at every gather radius the code uses.
 
 The gather keeps only photons whose face normal lies within 30° of the hit point's, so on a
@@ -133,7 +133,7 @@ def _three_hit_points(R):
 
 @pytest.mark.parametrize("R", [4.5, 16.3])
 def test_grazing_skew_light_on_a_cylindrical_edge_reads_the_truth_at_every_radius(R):
-    """Issue 29: light meeting the bore at grazing incidence, skewed along it (cos i = 0.05, a tangential
+    """Light meeting the bore at grazing incidence, skewed along it (cos i = 0.05, a tangential
     part ±0.2 in each facet's own frame: the field of a source on the axis, the same at every azimuth, so
     the irradiance is uniform and L = ρ E / π exactly). A photon at azimuth Δφ from the hit point has its
     world direction behind the hit point's tangent plane once tan Δφ > 0.05 / 0.2 (14°): tested so, the

@@ -37,7 +37,7 @@ def chromium():
 def open_offline(chromium):
     """open_offline(path) -> (page, urls requested). Any request that is not the file itself
     or an inline data: URI is recorded and aborted, so a page that needs the network shows it."""
-    context = chromium.new_context(offline=True, viewport={"width": 1400, "height": 1000})  # issue 26: fits 1400 px
+    context = chromium.new_context(offline=True, viewport={"width": 1400, "height": 1000})  # pages must fit 1400 px
     page = context.new_page()
     requested = []
 

@@ -94,8 +94,8 @@ def test_compare_writes_a_report_with_the_verdict_and_shared_scale_images(tmp_pa
 
 
 def test_comparison_report_fits_1400_px_and_marks_what_differs(tmp_path, open_offline):
-    """Issue 26 item 9: the provenance table pushed its "new" column off screen at 1400 px (64-digit
-    hashes, long paths and command lines do not wrap) and did not mark the fields that differ. A
+    """The provenance table fits 1400 px (64-digit hashes, long paths and command lines wrap instead of
+    pushing the "new" column off screen) and marks the fields that differ. A
     1400 px screenshot is kept for a reader; the check is that nothing overflows sideways."""
     from .conftest import horizontal_overflow
 

@@ -1,4 +1,4 @@
-"""The tracer is exact at close faces and knife edges (issue 13, item 8a).
+"""The tracer is exact at close faces and knife edges.
 
 - A ray leaving glass finds metal beyond it however close: glass-to-metal gaps from 0 to 5 µm,
   flat and curved glass, at normal and oblique exit.

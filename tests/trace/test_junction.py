@@ -1,4 +1,4 @@
-"""No ray passes through metal at a T-junction (issue 29, item 5): a vane's root on a spacer's bore wall.
+"""No ray passes through metal at a T-junction: a vane's root on a spacer's bore wall.
 
 The double Gauss's vane-5 (an annulus z 174.47–175.47, r 19.41–28.98) stands on spacer-3's bore wall
 (r 28.98, one triangle from z 153.89 to 196.05): the vane's faces end on the wall without sharing its

@@ -106,7 +106,7 @@ def test_detector_hit_from_behind_is_flagged():
     assert t[2] == np.inf  # starting on the detector: no self-hit
 
 
-# ---------------------------------------------------------------- the sun at and beyond 90° (issue 13, 8b)
+# ---------------------------------------------------------------- the sun at and beyond 90°
 
 def test_directions_are_exact_at_right_angles():
     assert source_direction(90.0, 90.0)[2] == 0.0  # not cos(π/2) = 6e-17

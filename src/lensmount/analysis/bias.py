@@ -7,7 +7,7 @@ kernel bias is b(r) = E[F(r)] − truth; what the ladder can say about it, and w
 - **The step outward.** D = F(2r) − F(r). For a bias c·ρ^k with k ≥ 1 (first order at a kink of the
   detector's importance, second order on smooth light) b(r) = D / (2^k − 1), at most D. The discs of
   2r hold 4× the photons and hit points of r, so D is far less noisy than the step inward to r/2 was
-  (whose quarter of the photons made the old bound |2 D̄| + se as noisy as the estimate: issue 28).
+  (whose quarter of the photons made the old bound |2 D̄| + se as noisy as the estimate).
 - **Its noise, counted once.** The interval the run reports is flux ± (2·se + bound). Write the
   flux as (F(r) − D) + D: the first term is unbiased for k = 1 and over-corrected for k > 1 (then
   |D| ≥ 3|b|), with its own standard error se* over the passes. |flux − truth| ≤ |D̄| + 2 se* whenever
@@ -21,12 +21,12 @@ kernel bias is b(r) = E[F(r)] − truth; what the ladder can say about it, and w
   the bound is widened by 1/(g² − 1) instead, `_flattening`), or (c) the estimate moves by more than
   MAX_STEP between r and 2r (a bias of the order of the value). That is light concentrated on a
   feature far smaller than r inside a narrow seen window (F ∝ 1/ρ: the estimate diluted by the disc),
-  two orders of opposite sign, a disc wider than its face (issue 29, item 2): `compare` and the
+  two orders of opposite sign, a disc wider than its face: `compare` and the
   stopping rule take such a run's error as unknown, not as zero.
 
 A gather that loses photons on its wider discs flattens the curve the same way: 19 % of default case-1
 runs could not bound their bias while grazing photons on the curved diaphragm bore were dropped by a
-test of their world direction (`photon_gather.turned` keeps them; docs/performance.md, issue 29).
+test of their world direction (`photon_gather.turned` keeps them; CHANGELOG.md, "Case 1's runs that could not bound their bias").
 
 What no ladder of radii ≥ r/√2 can see is a bias that appears only below r/√2 and is flat above it;
 the radius caps (`radius.radius_caps`: r_0 below the face's half width and its bend's chord) are

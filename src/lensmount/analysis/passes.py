@@ -27,11 +27,11 @@ What the error bar includes (docs/bidirectional.md, "What the error bar includes
 - the spread of the passes is an error bar only while no single pass dominates them. `tail()`
   tests the largest pass against the others (Grubbs's outlier test, one-sided, and at least
   TAIL_RATIO medians): a rare event
-  that makes one pass several times the rest (issue 32: one pass in 432 at 4.4× the median on
+  that makes one pass several times the rest (one pass in 432 at 4.4× the median on
   case 1) inflates the spread and moves the mean by more than the quoted error says, and runs
   that have not met it yet read low with a small error. Such a run is flagged `heavy`, names the
   path that carried the excess, and does not count as converged (`converged`);
-- nor is it while the terms a pass sums are heavy-tailed (issue 29 item 4). A pass is a sum over many
+- nor is it while the terms a pass sums are heavy-tailed. A pass is a sum over many
   photons (and photon × hit-point pairs); every pass keeps its LARGEST largest terms
   (`PassEstimate.largest`), and Hill's estimate over the run's TAIL_K largest (`tail_index`) gives the
   tail's index α (P(term > x) ∝ x^−α): the terms show it in every pass, long before one pass is large
@@ -336,7 +336,7 @@ class Accumulator:
     def converged(self, target_rel_error: float) -> bool:
         """The relative error is at most the target and no single pass dominates (`tail`): a run that
         has met a rare event once cannot quote its error from the spread, and one that stops on a
-        low spread before meeting it reads low (issue 29, optional stopping). The relative error holds the
+        low spread before meeting it reads low (optional stopping). The relative error holds the
         tail allowance of heavy-tailed terms and is unknown (never met) where that has no bound. Nor while the aimed
         photons' uniform or wide components carry the edge's light in few heavy photons
         (`plan.edge_flux_components`: the learned ring misses part of the lit edge)."""

@@ -213,7 +213,7 @@ def warm(design_dir) -> None:
     beam envelope and every part's tessellation kept in this process (`cad.assembly`). A long-lived process
     (`lensmount watch`) whose geometry came from the disk cache then pays, at an edit, only for the parts
     the edit changed, not for the kernel's import and all 17 parts (13.8 CPU s on the reference design, 2.2
-    warm: docs/performance.md)."""
+    warm: CHANGELOG.md, "Around the passes")."""
     design = load_design(design_dir)
     _build(design, design.mount)
 

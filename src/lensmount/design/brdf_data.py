@@ -1,4 +1,4 @@
-"""Measured BRDF files → points (ρ = |β − β0|, f) for `trace.bsdf.tabulated`.
+"""Measured BRDF files → points (ρ = |β − β0|, f) for `physics.bsdf.tabulated`.
 
 Two formats:
 

@@ -239,7 +239,7 @@ class SceneSpec(ReadFromFile, _Strict):
     def coating_of_surface(self, index0: int, lens_coating: str | None = None, mirror: bool = False):
         """Coating of 0-based surface: the scene's per-surface entry, else the lens file's, else default.
         The default is a glass coating: a mirror without its own keeps its reflectance
-        (`trace.interfaces.mirror_reflectance`), so `default = "R=0.01"` for ghosts leaves mirrors alone."""
+        (`physics.interfaces.mirror_reflectance`), so `default = "R=0.01"` for ghosts leaves mirrors alone."""
         key = f"surface-{index0 + 1}"
         if key in self.coatings:
             return parse_coating(self.coatings[key])

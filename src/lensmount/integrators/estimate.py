@@ -119,7 +119,7 @@ class Largest:
 
     Why a pass keeps them: a pass is a sum over many photons (and photon × hit-point pairs), and how its
     largest terms fall off, x_(i) ∝ i^(−1/α), shows a heavy tail (α ≤ 3) in every pass, long before one
-    pass is large enough to stand out among the others (`analysis.passes.tail_index`, issue 29 item 4)."""
+    pass is large enough to stand out among the others (`analysis.passes.tail_index`)."""
 
     def __init__(self):
         self.values = np.zeros(LARGEST)  # descending

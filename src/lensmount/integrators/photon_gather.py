@@ -16,7 +16,7 @@ curved face lies behind the tangent plane of hit points a few degrees around the
 dropped there: on case 1's bore (R = 16.3 mm, light at 1–3° grazing near the ends of the lit arc)
 0.2–1 % of a pass's flux at r, more at each wider radius of the bias ladder. That loss is a kernel
 bias of no power of the radius: the ladder read it as a curve flattening outward and 19 % of
-default case-1 runs could not bound their bias (issue 29).
+default case-1 runs could not bound their bias.
 
 Neighbour search: hit points are grouped by (tag, radius octave) and each group gets
 one cKDTree per view map (`search_groups`); photons of a tag get one tree per bounce; the pairs come back
@@ -40,7 +40,7 @@ from lensmount.integrators.settings import EstimatorSettings
 # the same photons (`Gatherer.radiance_ladder`): the curve Ê(ρ) near ρ = r that the bias estimate reads
 # (`analysis.bias`). Wider than r, where the discs hold more photons and hit points, so that the curve's
 # steps are far less noisy than a step to r/2 (whose quarter of the photons made the old bound as noisy as
-# the estimate itself: issue 28; r/2 stays on the ladder so a run can still be compared with that bound).
+# the estimate itself; r/2 stays on the ladder so a run can still be compared with that bound).
 # Index 0 is r itself.
 BIAS_LADDER = (1.0, math.sqrt(2.0), 2.0, math.sqrt(0.5), 0.5)
 

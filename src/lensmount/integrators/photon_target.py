@@ -228,7 +228,7 @@ class PilotCheck:
 def tally_edge_flux(diagnostics: dict, component: np.ndarray, flux: np.ndarray) -> None:
     """Add Σ Φ and Σ Φ² of photons' first arrivals at the edge, per emission component (`emission_component`),
     to a pass's diagnostics: how much of the edge's light each part of the mixture carries, and in how few
-    photons (issue 29, item 1; `plan.edge_flux_components` reads them)."""
+    photons (`plan.edge_flux_components` reads them)."""
     for k, name in enumerate(COMPONENTS):
         f = flux[component == k]
         diagnostics[EDGE_FLUX + name] = diagnostics.get(EDGE_FLUX + name, 0.0) + float(f.sum())
@@ -269,7 +269,7 @@ def _checked(scene, tracer, broad, seed, n_photons, fit):
     misses the lit edge.
 
     Why. A ring fitted in the wrong place (a second ring the fit dropped, a fit misled, or a ring
-    displaced on purpose: issue 29 gives the 12-half-width case) leaves the edge's light to the
+    displaced on purpose by 12 half widths) leaves the edge's light to the
     uniform and wide photons, a few heavy ones per pass: the mean stays right but passes spread 2×,
     8-pass runs read 0 to 4× the truth and ±2 se holds it in 63-70 % of runs. So the check runs
     after the fit, whatever made it: rounds of `n_photons` from the stream "photon-pilot/check" drawn

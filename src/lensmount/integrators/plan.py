@@ -121,7 +121,7 @@ def edge_flux_components(diagnostics: dict, passes: int) -> dict:
     disc, wide band, aimed ring) its share of the flux first arriving at the edge and the relative
     spread it alone gives a pass, √(Σ Φ² / passes) / (edge flux per pass). A uniform or wide share
     carried by few heavy photons (spread ≥ HEAVY_COMPONENT_SPREAD) makes passes heavy-tailed: the
-    ring misses part of the lit edge (issue 29, item 1); `warning` says so. `pilot_check`: what the
+    ring misses part of the lit edge; `warning` says so. `pilot_check`: what the
     pilot's check found (`photon_target.PilotCheck`); a ring that missed more than CHECK_MISSED of the
     light its check photons brought to the edge is a `note` (it was mended with rings fitted to those
     hits) and, when the mended rings still miss that much, a `warning`."""

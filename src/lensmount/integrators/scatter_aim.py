@@ -22,7 +22,7 @@ So the estimate is unbiased whatever the disc (it only moves samples), and a pho
 (a spacer's lip, the glass, the stop) is traced as before. The target is a function of the point
 alone (its z), so a single long tube in a user's CAD is aimed at the surface ahead of each point.
 
-Measured across 12 seeds on the case-2 scene (docs/performance.md, "Aimed scatter"): 16 times less
+Measured across 12 seeds on the case-2 scene (docs/performance.md, "Do the error bars hold?"; CHANGELOG.md, "Aimed scatter"): 16 times less
 variance at 15°, 1.75 times at 20°, none at 2°, at the same cost a pass.
 
 Not aimed: faces of lens parts (the photon is in or on the glass), points behind the last surface

@@ -32,7 +32,7 @@ wide, every azimuth alike (the photon side's wide band, `photon_target`). At som
 the window is wider than the fit's mean spread, and a sample that meets the edge just outside
 ±h was a disc sample carrying ~23 000 times a band sample's τ: on case 1 (seed 21, pass 1) one
 such hit point, 1.01 h outside the band at Δφ = 168°, s = 0.73, held 76 % of the pass's light and
-made the pass read 4.35 times the median (issue 32). In the wide band it carries ~40 times.
+made the pass read 4.35 times the median. In the wide band it carries ~40 times.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ block's pixel count. Each pass stays unbiased for every pixel and for the total;
 sampled in about 1/k² of the passes, so the image fills in over passes while the total
 (the stray fraction) costs k² fewer backward rays a pass. Since the direct view of broad
 faces is counted by connections (`connect`), the total's error hardly depends on how dense
-the view map is (docs/performance.md, "The view map's pitch").
+the view map is (CHANGELOG.md, "The view map's pitch").
 """
 
 from __future__ import annotations

@@ -177,7 +177,7 @@ def _curve(method, statuses, times, summary, reference) -> MethodCurve:
         last = s is statuses[-1]
         while k < len(times) and (s.elapsed_s >= times[k] or (last and k == len(times) - 1)):
             # All passes zero (nothing reached the detector yet) is no error bar of 0: unknown.
-            # rel_std_error is the standard error alone (the 1/√t curve); it was (se + bias)/value (issue 29, 6).
+            # rel_std_error is the standard error alone (the 1/√t curve); (se + bias)/value is `rel_error`.
             signal = s.value != 0 and s.std_error is not None
             rel_se = s.std_error / abs(s.value) if signal else None
             rel = s.rel_error if signal and math.isfinite(s.rel_error) else None

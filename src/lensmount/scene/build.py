@@ -4,7 +4,7 @@
   catalogue, coatings: scene per-surface > lens file > scene default);
 - scene objects (disk, rectangle, STL/STEP mesh) appended to the mesh with their finish;
 - one BSDF per face tag from the finish library and the assignment rules (a mirror's coated
-  face: its `"surface:N"` finish as `trace.bsdf.MirrorFinish`, the scatter on top of R);
+  face: its `"surface:N"` finish as `physics.bsdf.mirror_finish.MirrorFinish`, the scatter on top of R);
 - the source's emission disc covering the front opening, outside the assembly;
 - the detector at the image plane unless the scene file moves it.
 """

@@ -5,7 +5,7 @@
           + one BSDF per face tag (None for optical faces)
           + source + detector + wavelengths + effects
 
-Fields follow docs/architecture.md; additions are marked "(addition)".
+Each field, with its shape and unit: the `Scene` docstring below.
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def scattering_tags(scene) -> np.ndarray:
 
 def scattering_mirror_tags(scene) -> dict[int, int]:
     """{mirror surface index (0-based): tag of its coated face} where the scene lets that face
-    scatter (`scattering_tags`); its BSDF is a `trace.bsdf.MirrorFinish`. Mirrors without one
+    scatter (`scattering_tags`); its BSDF is a `physics.bsdf.mirror_finish.MirrorFinish`. Mirrors without one
     reflect specularly only."""
     mirrors = {s.index for s in scene.optical if s.mirror}
     if not mirrors:  # a refracting lens: no face to look at
@@ -126,7 +126,7 @@ class OpticalSurface:
     absorption_before, absorption_after: (W,) bulk absorption coefficient (1/mm) of the media
         in front of / behind the surface (0 in air), paired with n_before / n_after.
     mirror: the surface reflects every ray (Zemax GLAS MIRROR) with reflectance
-        `trace.interfaces.mirror_reflectance(coating)`; nothing is transmitted. Its coated face may
+        `physics.interfaces.mirror_reflectance(coating)`; nothing is transmitted. Its coated face may
         carry a scatter finish (`[assign] "surface:N"`, its tag's BSDF).
     """
 
@@ -139,7 +139,7 @@ class OpticalSurface:
     coating: Coating
     absorption_before: np.ndarray
     absorption_after: np.ndarray
-    mechanical_semi_diameter: float = math.inf  # (addition)
+    mechanical_semi_diameter: float = math.inf
     mirror: bool = False
 
 
@@ -162,7 +162,7 @@ class Scene:
     mesh: tagged triangles (mm, assembly frame).
     optical: analytic surfaces, any order; `optical_of_surface[i]` finds surface i.
     bsdf_of_tag: (n_tags,) BSDF per mesh tag, None for optical tags (a mirror's coated face with a
-        finish: `trace.bsdf.MirrorFinish` of it).
+        finish: `physics.bsdf.mirror_finish.MirrorFinish` of it).
     source: SunSource | CollimatedSource.
     detector: Detector.
     wavelengths_um: (W,).
@@ -181,7 +181,7 @@ class Scene:
         summary.json by the CLI).
     field_of_view_deg: the largest off-axis angle the detector images (the lens's field or the
         detector's half diagonal through the focal length, the larger; `scene.build.imaged_field_deg`),
-        180 when unknown; the planner skips the direct path for a source well beyond it. (addition)
+        180 when unknown; the planner skips the direct path for a source well beyond it.
     """
 
     mesh: TaggedMesh

@@ -16,7 +16,8 @@ class Retainer(RevolvedPart):
     """A retaining ring.
 
     Args:
-        contact_r, contact_z: inner corner touching the lens, mm.
+        contact_r: radius of the inner corner touching the lens, mm.
+        contact_z: axial position of that corner, mm.
         slope: contact-face cone slope (z moves away from the lens by slope per mm outward).
         side: -1 when the ring is in front of the lens (object side), +1 behind it.
         outer_radius: thread (outside) radius, mm.

@@ -24,10 +24,12 @@ class Spacer(RevolvedPart):
     """A spacer ring.
 
     Args:
-        front_r, front_z: inner corner touching the object-side neighbour (mm).
+        front_r: radius of the inner corner touching the object-side neighbour, mm.
+        front_z: axial position of that corner, mm.
         front_slope: end-face cone slope at the front (z grows outward by front_slope per mm;
             negative for tangent contact on a surface convex toward the spacer).
-        back_r, back_z: inner corner touching the image-side neighbour.
+        back_r: radius of the inner corner touching the image-side neighbour, mm.
+        back_z: axial position of that corner, mm.
         back_slope: end-face cone slope at the back (z shrinks outward by back_slope per mm).
         outer_radius: outside radius, mm.
         tube_radius: bore of a long spacer between its end lips; None = straight bore

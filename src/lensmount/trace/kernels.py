@@ -1,6 +1,6 @@
 """Compiled per-ray kernels of the tracer's analytic steps (numba).
 
-Why compiled: the profile of `Tracer.next_event` (docs/performance.md) showed Embree itself a
+Why compiled: the profile of `Tracer.next_event` (CHANGELOG.md, "Compiled kernels") showed Embree itself a
 small share; the time went to numpy temporaries around each query — the sequential step alone
 built ~60 (n,) float64 arrays per call to find one conic crossing per ray. Here each ray is one
 loop iteration over a few scalars: the same arithmetic, in the same order, as the numpy
@@ -306,7 +306,7 @@ def box_grid(box):
     """A uniform grid over the boxes (box (T, 2, 3): lo, hi), for `boxes_near`: (origin (3,), cell edge
     (3,), dims (3,), first (cells + 1,), member (k,)), each box listed (CSR, ascending) in every cell its
     box overlaps. About 2 cells per axis per ∛T, at most GRID_CELLS_MAX: on a 5 × 10⁴-face mount ~60 boxes a
-    cell where the query used to test all of them (issue 28: 2 s of case 1's 3 s view map per pass)."""
+    cell where a brute-force query tests all of them (on case 1 that search was 2 s of a pass's 3 s view map)."""
     box = np.ascontiguousarray(box, np.float64).reshape(-1, 2, 3)
     t_n = len(box)
     side = int(min(GRID_CELLS_MAX, max(1, round(2.0 * t_n ** (1.0 / 3.0)))))

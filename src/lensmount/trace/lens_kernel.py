@@ -1,6 +1,6 @@
 """The walk of rays through the lens as one compiled loop (numba): no Embree, no numpy per step.
 
-Why: after the sequential step and the conic roots were compiled (docs/performance.md), the
+Why: after the sequential step and the conic roots were compiled (CHANGELOG.md, "The walk through the lens"), the
 time of `Tracer.next_event` went to the live-set bookkeeping around each step — ~15 arrays
 fancy-indexed per refraction — and to Snell + Fresnel in numpy. Here a ray stays in one loop
 iteration from glass surface to glass surface until something needs Embree.
@@ -20,7 +20,7 @@ A step is taken only when it is proven, else the ray is handed back unchanged:
 
 The refraction, total internal reflection, coating reflectance (coatings as per-surface
 tables: kind code and constant R) and the Fresnel branch are the formulas of
-`trace.interfaces` and `Tracer._interface`, written per ray in the same order. The branch's
+`physics.interfaces` and `Tracer._interface`, written per ray in the same order. The branch's
 uniform is `sampler.Streams.at`'s splitmix64 hash of the ray's key and dimension
 FRESNEL_DIM + its interface count, so it is the same number either path draws.
 """

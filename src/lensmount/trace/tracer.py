@@ -504,7 +504,7 @@ class Tracer:
         probability p = max(a, MIRROR_SCATTER_MIN_SHARE) (a(wi): the finish's albedo at that
         incidence; p = 0 where a = 0; dimension MIRROR_SCATTER_DIM + k), and reflects specularly
         otherwise with R(1 − a)/(1 − p): R(1 − a) specular and R·a scattered on average, the walk
-        sampling the scatter (`trace.bsdf.MirrorFinish`). Without `rng` every ray reflects
+        sampling the scatter (`physics.bsdf.mirror_finish.MirrorFinish`). Without `rng` every ray reflects
         specularly with R. The input batch is not modified.
 
         origin_normal (N, 3), optional (addition to the architecture's signature): the normal of

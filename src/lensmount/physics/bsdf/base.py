@@ -1,6 +1,6 @@
 """What every BSDF offers, and the small geometry every model shares.
 
-Conventions (docs/architecture.md, fixed): `wi` (toward the light) and `wo`
+Conventions (every model, every caller): `wi` (toward the light) and `wo`
 (toward the viewer) are (N, 3) unit vectors pointing AWAY from the surface;
 `n` (N, 3) is the unit normal on the side of `wi` (the caller flips it).
 Reflection only: a `wo` or `wi` at or below the surface gives f = 0.

@@ -49,7 +49,7 @@ def test_std_error_covers_the_truth_at_the_nominal_rate():
 
 
 def test_few_normal_passes_cover_the_truth_at_the_nominal_rate():
-    """Issue 13, 8(c): with 4 passes the plain standard error covers only 88 % at ±2 SE (t with 3
+    """With 4 passes the plain standard error covers only 88 % at ±2 SE (t with 3
     degrees of freedom); the Student-t widened one covers 95 %."""
     rng = np.random.default_rng(17)
     trials, inside = 3000, 0
@@ -71,11 +71,11 @@ def test_no_error_bar_from_two_passes():
 
 
 def test_no_signal_is_never_converged_and_has_an_upper_bound():
-    """Issue 13, item 4: all-zero passes used to give 0 ± 0 and relative error 0 (a stopping rule
-    on it stopped). Now the relative error is unknown and the 95 % bound is 3 photons' worth of
+    """All-zero passes are no error bar of 0 ± 0 (a stopping rule on that would stop): the relative
+    error is unknown and the 95 % bound is 3 photons' worth of
     the emitted flux over the run's 8000 photons (the ledger's `source`, 5 mm² per pass of 1000
     photons here): no photon in 8000 means a chance below 3/8000 per photon, so the mean pass
-    flux is below 5 · 3/8000 (issue 26: it read 5 · 3/1000, 8× loose)."""
+    flux is below 5 · 3/8000 (not 5 · 3/1000, the bound of one pass: 8× loose)."""
     acc = Accumulator.empty((2, 2), ["p"], 1.0)
     assert acc.rel_error() == math.inf and acc.flux == 0.0 and acc.upper_bound() is None
     assert np.all(acc.std_error_image == 0) and np.all(np.isfinite(acc.mean_image))
@@ -92,7 +92,7 @@ def test_no_signal_is_never_converged_and_has_an_upper_bound():
 
 
 def test_no_signal_bound_of_aimed_photons_takes_the_heaviest_weight():
-    """Issue 29 item 6: photons aimed at the diaphragm edge weigh up to A_S / (N · UNIFORM_SHARE)
+    """Photons aimed at the diaphragm edge weigh up to A_S / (N · UNIFORM_SHARE)
     (the disc's uniform share, 5× the mean weight); the bound must take that weight, not the mean.
     Checked against Poisson directly: photons of weight 5w hitting with probability p give the mean
     flux 5w·p·N per pass, and the bound must lie above it whenever all-zero runs are common (p·N·n = 3)."""

@@ -2,7 +2,7 @@
 
 Every scene is a real density estimate (the gather's counting and on-face length, on a line:
 `line_gather.LineScene`; or the bidirectional pass itself on a planar scene), so the bias comes from
-the mechanism it names, not from a formula the bound assumes. Issue 29 item 2: the old bound
+the mechanism it names, not from a formula the bound assumes. The bound it replaced,
 |2 D̄| + se(2 D̄) read 0.035 of the truth against a bias of −0.98 with the radius far wider than a lit
 spot in a narrow seen window, under-covered two bias orders of opposite sign, and covered a pure first-
 order bias in 88 % of 8-pass runs. What must hold now, over ≥ 200 independent runs per scene: the
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from line_gather import LineScene  # noqa: E402
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, judge  # noqa: E402

@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+# The planar world is the module `planar` (its tracer is named "planar:PlanarTracer" to the workers), as in
+# planar_run.py.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from planar import Collimated, Detector, Face, Lambert, PlanarScene  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402

@@ -1,4 +1,4 @@
-"""The tail diagnostic (issue 32, issue 29 item 4): one pass that dominates the others is flagged,
+"""The tail diagnostic: one pass that dominates the others is flagged,
 named by its path, keeps the run from stopping on its target, and the test flags passes drawn from
 one normal distribution at its nominal rate."""
 
@@ -42,7 +42,7 @@ def test_outlier_test_flags_normal_passes_at_its_nominal_rate(n):
 
 
 def test_the_case1_spike_is_flagged_named_and_keeps_the_run_from_stopping():
-    """Issue 32's run: 32 passes within ±5 %, pass 1 at 4.35× the median through a near miss of the
+    """A case-1 run as measured: 32 passes within ±5 %, pass 1 at 4.35× the median through a near miss of the
     learned band. Its relative error (~10 %) meets a 30 % target, but the run is not converged."""
     rng = np.random.default_rng(21)
     values = rng.uniform(0.95, 1.05, 32)
@@ -92,7 +92,7 @@ def _edge(aimed, wide, uniform, passes=8):
 
 
 def test_a_uniform_share_in_few_heavy_photons_is_flagged_and_not_converged():
-    """Issue 29, 1: 8 passes of 3 900 ring photons of Φ = 1 at the edge; the wide band's 4 photons of
+    """8 passes of 3 900 ring photons of Φ = 1 at the edge; the wide band's 4 photons of
     75 are the reference design's ~1 % near misses (spread 0.02 a pass), one uniform photon of 8 000
     makes one pass read 3× (spread 0.57): flagged, and the run does not stop on its target."""
     from lensmount.integrators.plan import edge_flux_components
@@ -112,7 +112,7 @@ def test_a_uniform_share_in_few_heavy_photons_is_flagged_and_not_converged():
 
 
 def test_an_all_zero_aimed_run_bounds_by_its_heaviest_photon():
-    """Issue 29, 6: aimed photons weigh up to A_S / (UNIFORM_SHARE N) (the uniform share, off the
+    """Aimed photons weigh up to A_S / (UNIFORM_SHARE N) (the uniform share, off the
     bands), five times the mean Φ: the no-signal bound takes that, not the mean."""
     from lensmount.integrators.estimate import AIMED_PASSES
     from lensmount.integrators.photon_target import UNIFORM_SHARE

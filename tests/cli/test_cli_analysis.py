@@ -61,8 +61,8 @@ def test_fit_abg_prints_the_finish_lines(tmp_path):
 
 
 def test_fit_abg_warns_on_a_poor_fit_and_its_help_keeps_the_brackets(tmp_path):
-    """Issue 26 item 9: a 0.59-decade rms fit was accepted without a word, and --help lost
-    "[finishes]" to rich markup. A BRDF with a second, wide lobe 1000x below the specular peak
+    """A fit that misses by decades (0.59-decade rms) is not accepted without a word, and --help keeps
+    "[finishes]" (not eaten as rich markup). A BRDF with a second, wide lobe 1000x below the specular peak
     is no ABg curve: the fit misses it by decades."""
     import math
 

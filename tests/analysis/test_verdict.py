@@ -3,7 +3,7 @@
 
 The runs carry standard errors as the summaries give them: Student-t widened for their own passes
 (`analysis.passes.t_factor`). Fed plain ones, these tests never saw compare widen a second time
-(issue 26: a nominal 99 % interval was 99.95 %)."""
+(widened twice, a nominal 99 % interval covered 99.95 %)."""
 
 import math
 from pathlib import Path
@@ -113,8 +113,8 @@ def test_no_signal_in_either_run_is_judged_through_the_bounds():
 
 
 def test_an_all_zero_run_enters_through_its_upper_bound():
-    """Issue 26 item 2: old 1.42e-8 against an all-zero run read "improvement", the reverse
-    "regression" (exit 1), as if the zero were exact. The zero run's bound U (95 %: 3 photons' worth)
+    """An all-zero run is not an exact zero: old 1.42e-8 against it must not read "improvement", nor the
+    reverse "regression" (exit 1). The zero run's bound U (95 %: 3 photons' worth)
     is the most it could be; at 99 % it is U · ln(1/0.0025) / 3."""
     rng = np.random.default_rng(11)
     old = of_passes(rng.normal(1.42e-8, 0.3e-8, 4))
@@ -184,7 +184,7 @@ def _until_decided(rng, change, confidence, tolerance=0.1, start=4, max_passes=2
 
 
 def test_looking_again_until_decided_keeps_the_error_rate():
-    """Issue 26: resuming undecided runs and judging again spends the error once per look. With the
+    """Resuming undecided runs and judging again spends the error once per look. With the
     looks' shares α · 6/(π² j²) the wrong verdicts stay within 1 − c over whole sequences: at c = 0.9
     same-design pairs (true change 0, tolerance 10 %) read "regression" at most (1 − c)/2 = 5 % of the
     time; at c at every look the same sequences do so more often."""
@@ -218,8 +218,8 @@ REAL_PASSES = Path(__file__).parent / "data" / "case2-small-forward-passes.txt"
     ("real case-2 passes", None, (4, 4)),
 ])
 def test_the_interval_covers_a_zero_change_at_its_confidence_not_more(name, draw, passes):
-    """Issue 26 item 3: the summaries' errors are t-widened and compare widened again: a nominal
-    99 % interval covered 99.95 %. Over 1000 same-design pairs it must cover between 98.5 % and
+    """The summaries' errors are t-widened; compare takes that back and widens once (widened twice, a
+    nominal 99 % interval covered 99.95 %). Over 1000 same-design pairs it must cover between 98.5 % and
     99.5 %. The real case is 1000 pairs of 4-pass runs drawn from 2000 real passes of 250 seeds
     (every pair's 8 passes distinct)."""
     rng = np.random.default_rng(31)
