@@ -121,6 +121,24 @@ def test_the_step_housing_replaces_the_generated_one_face_by_face(step_housing, 
     assert "field 5°: 0.00 %" in notes
 
 
+def test_a_design_with_a_step_part_comes_from_the_cache_when_unchanged(step_housing):
+    """Every file the build wrote (the face picture too) is what the cache check reads: a second
+    regenerate with unchanged inputs, and a simulate or check after it, do not run the CAD kernel."""
+    from lensmount.cad.pipeline import regenerate
+
+    design, out, first = step_housing
+    again = regenerate(design)
+    assert again.cached and again.checksums == first.checksums
+    assert "parts/housing.faces.png" in first.checksums
+    res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert res.exit_code == 0 and "from the cache (inputs unchanged)" in res.output, res.output
+    # a damaged face picture is rebuilt, never served
+    (out / "parts" / "housing.faces.png").write_bytes(b"damaged")
+    assert not regenerate(design).cached
+    assert regenerate(design).cached
+    assert (out / "parts" / "housing.faces.png").read_bytes().startswith(b"\x89PNG")
+
+
 @pytest.mark.slow  # a whole case-2 run (~20 s); the STEP housing's faces and tags are checked in the fast tests above
 def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path):
     import tomllib
