@@ -232,6 +232,26 @@ def test_an_open_shell_is_refused_naming_where(tmp_path):
                           < 1e-6 for x, y, z in points)
 
 
+def test_a_truncated_step_file_is_one_paragraph_with_what_the_reader_said(tmp_path, capfd):
+    """The kernel's own messages (C++ writing to file descriptor 2) do not reach the terminal beside
+    the paragraph; the line it stumbled on is folded into it."""
+    from build123d import Cylinder
+
+    from lensmount.cad.step_parts import read_step
+
+    path = write_step(tmp_path / "ring.stp", [("ring", Cylinder(30.0, 5.0) - Cylinder(25.0, 5.0), {}, {}, {})])
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])
+    capfd.readouterr()  # what the writer printed
+    with pytest.raises(InputError) as err:
+        read_step(path, "hood")
+    printed = capfd.readouterr()
+    assert printed.out == "" and printed.err == ""
+    paragraph = str(err.value)
+    assert "\n" not in paragraph and "not a readable STEP file" in paragraph and "parts.hood.step" in paragraph
+    assert re.search(r"the STEP reader says: .*Line [0-9]+", paragraph), paragraph
+
+
 def test_a_file_in_inches_is_placed_at_its_size_in_mm(tmp_path, reference_layout):
     from build123d import Cylinder
 
