@@ -11,6 +11,7 @@ import json
 import math
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -53,8 +54,8 @@ def make_design(base: Path, entry: str, solids=None, unit="MM", scenes=True) -> 
     base.mkdir(parents=True, exist_ok=True)
     for f in ("lens.toml", "mount.toml"):
         shutil.copy2(ex / f, base / f)
-    # The design's treatment without its "*" rule: the STEP part's faces keep the finishes its colours
-    # and names give them (a "*" rule in finishes.toml would paint over them, as over any mount finish).
+    # The design's treatment without its "*" rule: the generated parts keep their mount finishes (the
+    # STEP part's faces keep the finishes its colours and names give them either way).
     treatment = (ex / "finishes.toml").read_text()
     (base / "finishes.toml").write_text("\n".join(line for line in treatment.splitlines()
                                                  if not line.startswith('"*"')) + "\n")
@@ -137,6 +138,51 @@ def test_a_design_with_a_step_part_comes_from_the_cache_when_unchanged(step_hous
     assert not regenerate(design).cached
     assert regenerate(design).cached
     assert (out / "parts" / "housing.faces.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_the_step_parts_own_face_finishes_outrank_a_star_rule_and_a_rule_deciding_nothing_is_said(
+        step_housing, tmp_path):
+    """finishes.toml's "*" paints the generated parts, not the faces mount.toml finished face by face;
+    a part: rule whose every face has its own finish decides nothing, and the scene says so."""
+    from lensmount.loop.prepare import prepare
+    from lensmount.mesh import TaggedMesh
+
+    design = Path(shutil.copytree(step_housing[0], tmp_path / "d"))
+    (design / "finishes.toml").write_text((ROOT / "examples" / "double-gauss-360" / "finishes.toml").read_text()
+                                          + '"part:housing" = "edge-lambert-10"\n')
+    prepared = prepare(design, design / "scenes" / "case2-lambertian.toml")
+    mesh = TaggedMesh.load(prepared.built.folder / "mesh.npz")
+    finishes = dict(zip(mesh.tag_table, prepared.scene.finish_of_tag))
+    housing = [t for t in mesh.tag_table if t.part == "housing"]
+    assert housing and all(t.assigned for t in housing)
+    assert [finishes[t] for t in housing] == [t.finish for t in housing]  # absorber, black-anodised, ground-glass
+    assert {finishes[t] for t in mesh.tag_table if t.part == "barrel"} == {"black-paint"}
+    [warning] = [w for w in prepared.scene.warnings if "part:housing" in w]
+    assert "decides no face" in warning and "housing face" in warning and "by its colour" in warning
+
+
+def test_a_face_rule_that_selects_no_face_is_refused_and_one_deciding_none_is_noted(tmp_path, reference_layout):
+    from build123d import Cylinder
+
+    from lensmount.cad.assembly import step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    path = write_step(tmp_path / "tube.step", [("tube", Cylinder(60.0, 40.0) - Cylinder(55.0, 40.0), {}, {}, {})])
+    entry = {"step": "tube.step", "datum": "image-plane", "offset_mm": [0, 0, 30.0], "kind": "baffle",
+             "allow_vignetting": True,
+             "rules": [{"finish": "absorber", "r_min_mm": 54.0}, {"finish": "mirror", "normal": [0, 0, 1]}]}
+    ok = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    noted = replace(layout, notes=[])
+    [part] = step_built_parts(noted, ok, {"camera": path}, {}, set())
+    assert set(part.face_finishes) == {"absorber"}  # every face of the tube lies at r >= 55 mm
+    notes = " ".join(noted.notes)
+    assert "camera: rule 2 (normal = (0.0, 0.0, 1.0), within_deg = 10.0) decides no face" in notes
+    entry["rules"][0]["r_min_mm"] = 70.0  # outside the tube: no face
+    bad = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    with pytest.raises(InputError) as err:
+        step_built_parts(replace(layout, notes=[]), bad, {"camera": path}, {}, set())
+    assert "parts.camera.rules.0" in str(err.value) and "selects no face" in str(err.value)
 
 
 @pytest.mark.slow  # a whole case-2 run (~20 s); the STEP housing's faces and tags are checked in the fast tests above
@@ -437,14 +483,17 @@ def test_a_public_step_file_as_the_cooke_triplets_hood(tmp_path):
 def test_the_step_housing_agrees_with_the_generated_one(step_housing, tmp_path):
     """Case 2 (sun 7°) on the reference with its generated housing and with the same housing read
     from STEP: the stray fractions agree within the combined error. Both designs keep the example's
-    own treatment, whose "*" rule paints every face black-paint (the STEP faces' colours too), so
-    the two differ in where the housing's solid came from and nothing else; case 2 scatters at
-    every black-paint face."""
+    own treatment, whose "*" rule paints every generated face black-paint; the STEP faces keep the
+    finishes their colours give them, which `finish:` rules re-map to black-paint, so the two differ
+    in where the housing's solid came from and nothing else; case 2 scatters at every black-paint face."""
     step_design = Path(shutil.copytree(step_housing[0], tmp_path / "step"))  # the module's design stays as it is
     generated = make_design(tmp_path / "generated", "")
     results = {}
     for name, design in (("generated", generated), ("step", step_design)):
         shutil.copy2(ROOT / "examples" / "double-gauss-360" / "finishes.toml", design / "finishes.toml")
+        if name == "step":
+            with open(design / "finishes.toml", "a") as f:
+                f.write("".join(f'"finish:{n}" = "black-paint"\n' for n in ("absorber", "black-anodised", "ground-glass")))
         doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
         doc["detector"]["pixels"] = [60, 60]  # the stray fraction is what is compared: a coarse view map reads it
         (design / "scenes" / "case2-check.toml").write_text(tomli_dumps(doc))

@@ -44,6 +44,7 @@ class BuiltPart:
     field: str = ""  # the mount.toml field that names the user's file
     face_finishes: list[str] | None = None  # a STEP part's finish per face (else plan.finish)
     face_labels: list[str] | None = None  # a STEP part's face names
+    face_assigned: list[str] | None = None  # how each face's finish was given face by face ("" its part's)
 
     @property
     def name(self) -> str:
@@ -167,12 +168,12 @@ def _part_mesh(bp: BuiltPart, tol) -> TaggedMesh:
     (everything its solid depends on, as for its STEP file), its face roles, finishes and labels, and the
     tolerances."""
     key = (bp.hash, tuple(bp.roles), tuple(bp.face_finishes or ()), tuple(bp.face_labels or ()),
-           tol.linear_tolerance_mm, tol.angular_tolerance_deg)
+           tuple(bp.face_assigned or ()), tol.linear_tolerance_mm, tol.angular_tolerance_deg)
     m = _PART_MESHES.get(key)
     if m is None:
         m = tessellate_part(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, bp.roles,
                             tol.linear_tolerance_mm, tol.angular_tolerance_deg, finishes=bp.face_finishes,
-                            labels=bp.face_labels)
+                            labels=bp.face_labels, assigned=bp.face_assigned)
         if len(_PART_MESHES) >= _PART_MESHES_KEPT:
             _PART_MESHES.pop(next(iter(_PART_MESHES)))  # the oldest
         _PART_MESHES[key] = m
@@ -246,10 +247,11 @@ def step_built_parts(layout: Layout, spec: MountSpec, step_paths: dict[str, Path
             pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name, z0))
             faces = len(finishes.finishes)
             out.append(BuiltPart(pp, placed, [("mount", -1)] * faces, path, part_hash(pp, None),
-                                 f"parts.{name}.step", finishes.finishes, list(solid.face_names)))
+                                 f"parts.{name}.step", finishes.finishes, list(solid.face_names),
+                                 [why if why != "default" else "" for why in finishes.sources]))
             layout.notes.append(f"{part}: from {path.name} ({step.unit}), {faces} faces: "
                                 + _finish_summary(finishes))
-        check_used(entry, name, used, step)
+        layout.notes += check_used(entry, name, used, step)
     return out
 
 

@@ -302,8 +302,8 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
                   default: str) -> FaceFinishes:
     """Each face's finish: its STEP name (or the solid's) by `names`, its colour by `colours`, its
     layers by `layers`, then the first `rules` entry that matches, then `default` (the entry's
-    `finish`, or `[finishes] PART`). `used` collects the table keys that matched a face (a key
-    matching none is an error: `check_used`)."""
+    `finish`, or `[finishes] PART`). `used` collects the table keys that decided a face and, under
+    "selected", the rules that select one whether or not an earlier source decided it (`check_used`)."""
     colours = {k.lower(): v for k, v in entry.colours.items()}
     out = FaceFinishes([])
     for k, face in enumerate(placed.faces()):
@@ -322,11 +322,10 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
             key = next((ln for ln in layers if ln in entry.layers), None)
             if key is not None:
                 hit = (entry.layers[key], f"layer '{key}'", ("layers", key))
-        if hit is None:
-            for j, rule in enumerate(entry.rules):
-                if _rule_matches(rule, part, k, face):
-                    hit = (rule.finish, f"rule {j + 1}", ("rules", str(j)))
-                    break
+        selected = [j for j, rule in enumerate(entry.rules) if _rule_matches(rule, part, k, face)]
+        used.setdefault("selected", set()).update(selected)
+        if hit is None and selected:
+            hit = (entry.rules[selected[0]].finish, f"rule {selected[0] + 1}", ("rules", selected[0]))
         if hit is None:
             hit = (default, "default", None)
         out.finishes.append(hit[0])
@@ -336,9 +335,11 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
     return out
 
 
-def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile) -> None:
+def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile) -> list[str]:
     """InputError for a names/colours/layers key no face matched (a misspelt colour would leave the
-    faces the default finish without a word), listing what the file carries."""
+    faces the default finish without a word), listing what the file carries, and for a `rules` entry
+    that selects no face. Returns notes for the rules that select faces but decide none (an earlier
+    source finished every face they select)."""
     carried = {"names": sorted({n for s in step.solids for n in s.face_names + [s.name] if n}),
                "colours": sorted({c for s in step.solids for c in s.face_colours if c}),
                "layers": sorted({ln for s in step.solids for fl in s.face_layers for ln in fl})}
@@ -348,6 +349,23 @@ def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile)
                 raise InputError(f"no face of {step.path.name} has the {table[:-1]} {key!r}",
                                  field=_field(name, f"{table}.{key}"),
                                  valid=f"a {table[:-1]} the file carries: " + (", ".join(carried[table]) or "(none)"))
+    notes = []
+    for j, rule in enumerate(entry.rules):
+        if j not in used.get("selected", set()):
+            raise InputError(f"rule {j + 1} of [parts.{name}] ({_criteria(rule)}) selects no face of {step.path.name}",
+                             field=_field(name, f"rules.{j}"),
+                             valid="criteria a face meets: its index (parts/NAME.faces.png), its outward normal "
+                                   "within `within_deg`, its radial extent, the part's name")
+        if j not in used.get("rules", set()):
+            notes.append(f"{name}: rule {j + 1} ({_criteria(rule)}) decides no face: every face it selects is "
+                         "finished by its name, colour, layer or an earlier rule")
+    return notes
+
+
+def _criteria(rule) -> str:
+    given = {k: v for k, v in rule.model_dump(exclude_none=True).items()
+             if k != "finish" and (k != "within_deg" or rule.normal is not None)}
+    return ", ".join(f"{k} = {v}" for k, v in given.items()) or "every face"
 
 
 def _near(a: str, b: str) -> bool:
