@@ -373,6 +373,34 @@ def test_a_step_part_that_cuts_a_generated_part_is_refused(tmp_path, reference_l
         check_user_parts(step_built_parts(layout, spec, {"collar": path}, {}, set()) + generated)
 
 
+def test_a_step_hood_that_collides_with_the_hoods_vanes_says_what_to_set(tmp_path, reference_layout):
+    """The generated vanes stand in the generated hood; a user's hood with a narrower bore meets them,
+    and the error says which mount.toml setting leaves them out (the reference places its hood vanes
+    evenly: `count`)."""
+    from build123d import Cylinder, Pos
+
+    from lensmount.cad.assembly import build_assembly
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    hood = layout.part("hood").template
+    ri, z0, z1 = hood.inner_radius, hood.z_front, hood.z_back - 3.0
+    assert {p.template.outer_radius for p in layout.parts if p.kind == "vane" and p.template.z_front < z1} == {ri}
+    tube = Pos(0, 0, 0.5 * (z0 + z1)) * (Cylinder(ri + 2.0, z1 - z0) - Cylinder(ri - 0.5, z1 - z0))
+    path = write_step(tmp_path / "hood.step", [("hood", tube, {}, {}, {})])
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}),
+                        "parts": {"hood": {"step": "hood.step", "offset_mm": [0, 0, -layout.prescription.vertex_z[0]]}}})
+    with pytest.raises(GeometryError) as err:
+        build_assembly(layout.prescription, spec, None, None, {"hood": path})
+    text = str(err.value)
+    assert re.search(r"hood and vane-[0-9] overlap by", text), text
+    assert "[vanes] count = 0 (no vanes in the hood) in mount.toml" in text
+    vanes = {k: v for k, v in spec.vanes.model_dump().items() if k != "count"} | {"placement": "line-of-sight"}
+    line_of_sight = parse_mount({**spec.model_dump(), "vanes": vanes})
+    with pytest.raises(GeometryError, match=r"\[vanes\] positions_mm = \[\] \(no vanes in the hood\)"):
+        build_assembly(layout.prescription, line_of_sight, None, None, {"hood": path})
+
+
 def test_a_sliver_to_the_glass_is_found():
     from build123d import Box, Pos
 

@@ -115,8 +115,23 @@ def _common(a, b):
     return Shape.cast(op.Shape())
 
 
-def check_user_parts(parts: list[BuiltPart]) -> None:
-    """3D interference of user-template parts with every other part (OCC boolean common)."""
+def leave_out(plan: PartPlan, layout: Layout, spec: MountSpec) -> str:
+    """The mount.toml setting that leaves a generated part out: what a user's part that collides with
+    it (often the generated hood's vanes inside a hood the user replaced) asks the user to set."""
+    vs = spec.vanes
+    if plan.kind == "vane" and plan.template.z_front < datum_z("barrel-front", layout):  # in the hood
+        return ("[vanes] count = 0" if vs.placement == "even" and vs.positions_mm is None
+                else "[vanes] positions_mm = []") + " (no vanes in the hood)"
+    settings = {"vane": "[vanes] in_air_gaps = 0 (no vanes in the spacer tubes)", "hood": "[hood] enabled = false",
+                "housing": "[housing] enabled = false"}
+    if plan.name == "rear-baffle":
+        return "[housing] rear_baffle = false"
+    return settings.get(plan.kind, f"[parts.{plan.name}] (your own part in its place)")
+
+
+def check_user_parts(parts: list[BuiltPart], leave_out: dict[str, str] | None = None) -> None:
+    """3D interference of user-template parts with every other part (OCC boolean common). `leave_out`:
+    for a generated part, the mount.toml setting that removes it, which the error then offers."""
     for a in parts:
         if a.user_template is None:
             continue
@@ -133,9 +148,12 @@ def check_user_parts(parts: list[BuiltPart]) -> None:
             if vol > USER_OVERLAP_TOL_MM3:
                 box = common.bounding_box()
                 depth = min(box.size.X, box.size.Y, box.size.Z)
+                remove = (leave_out or {}).get(b.name) if b.user_template is None else None
                 raise GeometryError(f"{a.name} and {b.name} overlap by {depth:.3f} mm ({vol:.3f} mm³)",
                                     file=str(a.user_template), field=a.field,
-                                    valid="a part that stays clear of its neighbours")
+                                    valid="a part that stays clear of its neighbours"
+                                          + (f", or the generated {b.name} left out: {remove} in mount.toml"
+                                             if remove else ""))
 
 
 def check_user_beam(layout: Layout, part: BuiltPart, mesh: TaggedMesh) -> None:
@@ -215,7 +233,7 @@ def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=N
         progress("checks", 1, 1)
     parts = build_parts(layout, spec, template_paths, progress)
     parts += step_built_parts(layout, spec, step_paths or {}, replaced, {p.name for p in parts})
-    check_user_parts(parts)
+    check_user_parts(parts, {p.name: leave_out(p.plan, layout, spec) for p in parts if p.user_template is None})
     lenses = [(p.name, p.solid) for p in parts if p.plan.kind == "lens"]
     for bp in parts:
         if isinstance(bp.plan.template, StepSource):
