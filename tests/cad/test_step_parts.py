@@ -229,7 +229,7 @@ def test_a_hood_in_the_beam_reports_vignetting_per_field_and_stops_regenerate(tm
     res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
     assert res.exit_code == 2, res.output
     text = " ".join(res.output.split())
-    assert "field 'parts.hood'" in text and "clears the beam envelope by -" in text
+    assert "field 'parts.hood'" in text and "cuts into the beam envelope by " in text and "by -" not in text
     lost = {float(f): float(v) for f, v in re.findall(r"field ([0-9.]+)°: ([0-9.]+) %", text)}
     assert set(lost) == {0.0, 3.5, 5.0}, text
     assert lost[0.0] / 100 == pytest.approx(1 - 0.8 ** 2, abs=0.03), text
@@ -239,25 +239,32 @@ def test_a_hood_in_the_beam_reports_vignetting_per_field_and_stops_regenerate(tm
     res = CliRunner().invoke(app, ["regenerate", str(design)])
     assert res.exit_code == 0, res.output
     manifest = json.loads((design / "build" / "manifest.json").read_text())
-    assert any("hood: clears the beam envelope by -" in n and "vignetting field 0°:" in n for n in manifest["notes"])
+    assert not any("vignetting field 0°:" in n for n in manifest["notes"])  # a warning, not a note among notes
+    [warning] = manifest["warnings"]
+    assert warning.startswith("hood: cuts into the beam envelope by ") and "vignetting field 0°:" in warning
+    assert "allow_vignetting = true" in warning and f"warning: {warning}" in res.output
 
 
 def test_vignetting_follows_the_part_not_the_envelope(reference_layout):
     """A screen across half the beam at the image side cuts about half of every field's rays."""
     from build123d import Box, Pos
 
-    from lensmount.cad.step_beam import vignetting
+    from lensmount.cad.step_beam import beam_report, vignetting
     from lensmount.cad.tessellate import tessellate_part
 
     layout, _ = reference_layout
     zi = layout.prescription.image_z
     half = Pos(100.0, 0, zi - 20.0) * Box(200.0, 400.0, 1.0)  # x > 0 blocked, 20 mm before the image
     mesh = tessellate_part(half, "screen", "baffle", "absorber", [("mount", -1)] * 6, 0.05, 6.0)
-    fields, mean, worst = vignetting(layout, mesh)
+    fields, mean, worst, azimuth = vignetting(layout, mesh)
     assert list(fields) == [0.0, 3.5, 5.0]
     assert np.allclose(mean, 0.5, atol=0.03)  # averaged over opposite azimuths: half the pupil, any field
     assert worst[0] == pytest.approx(mean[0], abs=0.03)  # on axis every azimuth loses half
     assert np.all(worst[1:] > mean[1:] + 0.1)  # off axis the beam stands beside the axis: more at one azimuth
+    # the most where the image point lies on the screen's side, +x (azimuth 0°), and the report says so
+    assert np.all(np.minimum(azimuth[1:], 360.0 - azimuth[1:]) < 5.0), azimuth
+    said = beam_report(layout, mesh).lines("°")
+    assert re.search(r"field 5°: [0-9.]+ % \(up to 100\.00 % at azimuth 0°\)", said), said
 
 
 def test_an_open_shell_is_refused_naming_where(tmp_path):

@@ -289,14 +289,21 @@ def check_step_beam(layout: Layout, spec: MountSpec, part: BuiltPart, mesh: Tagg
     report = beam_report(layout, mesh)
     unit = " mm" if layout.prescription.finite_object else "°"
     r, z = report.at
-    clear = (f"clears the beam envelope by {report.clearance:.3f} mm at r = {r:.2f} mm, z = {z:.2f} mm"
-             if math.isfinite(report.clearance) else "lies outside the beam's z range")
+    if not math.isfinite(report.clearance):
+        clear = "lies outside the beam's z range"
+    else:
+        clear = (f"clears the beam envelope by {report.clearance:.3f} mm" if report.clearance >= 0
+                 else f"cuts into the beam envelope by {-report.clearance:.3f} mm") + f" at r = {r:.2f} mm, z = {z:.2f} mm"
     text = f"{part.name}: {clear} (margin {margin} mm); vignetting {report.lines(unit)}"
-    layout.notes.append(text)
-    if (report.clearance < margin or report.worst.max() > 0) and not entry.allow_vignetting:
+    short = report.clearance < margin or report.worst.max() > 0
+    if short and not entry.allow_vignetting:
         raise GeometryError(text, field=f"parts.{name}",
                             valid=f"a part at least {margin} mm outside the beam envelope, or "
                                   "allow_vignetting = true in its entry")
+    if short:  # built as allowed, but a loss of signal the user must see, not a note among the others
+        layout.warnings.append(f"{text} (built: [parts.{name}] allow_vignetting = true)")
+    else:
+        layout.notes.append(text)
 
 
 __all__ = ["BuiltPart", "build_parts", "build_assembly", "tessellate", "part_hash", "check_user_parts"]

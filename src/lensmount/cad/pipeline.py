@@ -72,6 +72,7 @@ class Manifest:
     mesh: str = MESH
     tessellation: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # what the user should know before a run (printed as such)
     checksums: dict[str, str] = field(default_factory=dict)  # sha256 of every output file but manifest.json
     cached: bool = False  # not written: True when this run came from the cache
 
@@ -198,7 +199,8 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
         write_text(new / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume),
                                         bp.plan.template) for bp in parts], layout.prescription, spec))
         manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(),
-                            notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes))
+                            notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes),
+                            warnings=list(layout.warnings))
         manifest.checksums = {f: _sha256(new / f) for f in manifest.files()}
         write_text(new / MANIFEST, manifest.to_json())
     cache.store(out, key, manifest.files() + [MANIFEST])
