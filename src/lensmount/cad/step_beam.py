@@ -40,8 +40,12 @@ class BeamReport:
     worst_azimuth_deg: np.ndarray
 
     def lines(self, unit: str) -> str:
-        return ", ".join(f"field {f:g}{unit}: {100 * v:.2f} %" + (f" (up to {100 * w:.2f} % at azimuth {a:.0f}°)"
-                                                                  if w > v + 1e-9 else "")
+        def worst(f, v, w, a) -> str:
+            if w <= v + 1e-9:
+                return ""
+            return f" (up to {100 * w:.2f} % at " + (f"azimuth {round(a) % 360}°)" if f != 0 else "one azimuth)")
+
+        return ", ".join(f"field {f:g}{unit}: {100 * v:.2f} %{worst(f, v, w, a)}"
                          for f, v, w, a in zip(self.fields, self.vignetting, self.worst, self.worst_azimuth_deg))
 
 
