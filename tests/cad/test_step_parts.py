@@ -408,6 +408,35 @@ def test_a_step_hood_that_collides_with_the_hoods_vanes_says_what_to_set(tmp_pat
         build_assembly(layout.prescription, line_of_sight, None, None, {"hood": path})
 
 
+@pytest.mark.parametrize("steps", [3, 30])
+def test_face_numbers_on_a_round_part_do_not_overlap(steps):
+    """A stepped ring: every annulus and cylinder has its highest point on the same vertical line, where
+    the numbers used to pile up. Each number's box stands apart from every other's in both views."""
+    import itertools
+
+    import matplotlib.pyplot as plt
+    from build123d import Cylinder, Pos
+    from matplotlib.text import Text
+
+    from lensmount.cad.step_parts import face_figure
+    from lensmount.cad.tessellate import tessellate_part
+
+    ring = Cylinder(30.0, 2.0)
+    for k in range(1, steps):
+        ring = ring + Pos(0, 0, 2.0 * k) * Cylinder(30.0 - 0.5 * k, 2.0)
+    ring = ring - Cylinder(10.0, 4.0 * steps)
+    n = len(ring.faces())
+    mesh = tessellate_part(ring, "ring", "hood", "absorber", [("mount", -1)] * n, 0.05, 6.0)
+    fig = face_figure(mesh, "ring")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [Text.get_window_extent(t, renderer) for t in ax.texts]  # the number's box, not its leader
+        assert sorted(int(t.get_text()) for t in ax.texts) == list(range(n))
+        assert not [(a, b) for a, b in itertools.combinations(boxes, 2) if a.overlaps(b)]
+    plt.close(fig)
+
+
 def test_a_sliver_to_the_glass_is_found():
     from build123d import Box, Pos
 

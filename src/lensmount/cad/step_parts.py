@@ -7,7 +7,7 @@ solids' names (TDataStd_Name), face names (STEP ADVANCED_FACE names, read with
 layers (XCAFDoc_LayerTool). An assembly's solids become several parts, keeping their names.
 
 Face indices are the order of `solid.faces()` of the solid as read (the file's face order), the
-index `FaceTag.face` keeps, the numbers `parts/NAME-faces.png` draws and a `faces = [...]` rule
+index `FaceTag.face` keeps, the numbers `parts/NAME.faces.png` draws and a `faces = [...]` rule
 names. The solid must be valid (BRepCheck) and closed: an open shell is refused with the free
 edges' positions and the faces they bound.
 """
@@ -459,8 +459,20 @@ def raise_sliver(name: str, found, clearance: float) -> None:
 
 
 def face_picture(mesh, title: str, path: Path) -> None:
-    """parts/NAME.faces.png: the part from the side (z across) and from the front (x across), each
-    face shaded and numbered with its STEP face index (the numbers a `faces = [...]` rule takes)."""
+    """parts/NAME.faces.png (`face_figure`)."""
+    import matplotlib.pyplot as plt  # lazy: pyplot takes ~1 s to load; only the face picture needs it
+
+    fig = face_figure(mesh, title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+
+
+def face_figure(mesh, title: str):
+    """The part from the side (z across) and from the front (x across), each face shaded and numbered
+    with its STEP face index (the numbers a `faces = [...]` rule takes). The numbers stand on a ring
+    around the part, in the order of the points they mark, with a leader line to a point of their face:
+    on a round part the faces' own points crowd together (every annulus has its top at the same place)."""
     import matplotlib  # lazy: pyplot takes ~1 s to load; only the face picture needs it
 
     matplotlib.use("Agg")
@@ -470,26 +482,62 @@ def face_picture(mesh, title: str, path: Path) -> None:
     v, tri, tags = mesh.vertices, mesh.triangles, mesh.tags
     fig, axes = plt.subplots(1, 2, figsize=(14, 7))
     cmap = plt.get_cmap("tab20")
+    faces = sorted(set(int(t) for t in tags))
     for ax, (i, j, xlabel) in zip(axes, ((2, 1, "z (mm)"), (0, 1, "x (mm)"))):
-        faces = sorted(set(int(t) for t in tags))
         for t in faces:
-            sel = tri[tags == t]
-            ax.add_collection(PolyCollection(v[sel][:, :, [i, j]], facecolors=cmap(t % 20), edgecolors="none",
-                                             alpha=0.35))
-            pts = v[sel].reshape(-1, 3)
-            top = pts[np.argmax(pts[:, j])]  # label at the face's highest point in this view
-            ax.annotate(str(mesh.tag_table[t].face), (top[i], top[j]), fontsize=7, ha="center",
-                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0.3})
-        ax.autoscale()
+            ax.add_collection(PolyCollection(v[tri[tags == t]][:, :, [i, j]], facecolors=cmap(t % 20),
+                                             edgecolors="none", alpha=0.35))
+        flat = v[:, [i, j]]
+        centre = 0.5 * (flat.min(axis=0) + flat.max(axis=0))
+        reach = max(float(np.linalg.norm(flat - centre, axis=1).max()), 1e-9)
+        anchors = _anchors(v[tri][:, :, [i, j]].mean(axis=1), tags, faces)
+        ax.set_xlim(centre[0] - 1.7 * reach, centre[0] + 1.7 * reach)
+        ax.set_ylim(centre[1] - 1.7 * reach, centre[1] + 1.7 * reach)
         ax.set_aspect("equal")
+        fig.canvas.draw()  # the axes' final size: how long 20 pt (a three-digit number's box, corner to corner) is in mm
+        ends = ax.transData.inverted().transform([[0, 0], [20 * fig.dpi / 72, 0]])
+        spacing = float(ends[1, 0] - ends[0, 0])
+        for t, at, label_at in zip(faces, anchors, _ring(anchors, centre, 1.15 * reach, spacing)):
+            ax.annotate(str(mesh.tag_table[t].face), at, xytext=label_at, fontsize=7, ha="center", va="center",
+                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.9, "lw": 0.3},
+                        arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "0.4"})
         ax.set_xlabel(xlabel)
         ax.set_ylabel("y (mm)")
     fig.suptitle(title)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
-__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
+def _anchors(centroids: np.ndarray, tags: np.ndarray, faces: list[int]) -> np.ndarray:
+    """One point per face (a triangle's centroid), each as far as can be from those chosen before: faces
+    that lie on one another in the view (an annulus at the front and at the back) get apart points."""
+    chosen: list[np.ndarray] = []
+    for t in faces:
+        own = centroids[tags == t]
+        if chosen:
+            gap = np.linalg.norm(own[:, None, :] - np.asarray(chosen)[None], axis=2).min(axis=1)
+            chosen.append(own[int(np.argmax(gap))])
+        else:
+            chosen.append(own[len(own) // 2])
+    return np.asarray(chosen)
+
+
+def _ring(anchors: np.ndarray, centre: np.ndarray, radius: float, spacing: float) -> np.ndarray:
+    """Label positions on rings around the part, evenly spread in the order of their anchors' angle
+    about the centre (leader lines do not cross), each ring `spacing` apart and holding as many labels
+    as fit at `spacing` along it."""
+    n = len(anchors)
+    angle = np.arctan2(anchors[:, 1] - centre[1], anchors[:, 0] - centre[0])
+    order = np.argsort(angle)
+    out = np.zeros((n, 2))
+    per_ring = max(1, int(2 * np.pi * radius / spacing))
+    rings = -(-n // per_ring)
+    for rank, k in enumerate(order):
+        r = radius + spacing * (rank % rings)
+        a = angle[order[0]] + 2 * np.pi * rank / n
+        out[k] = centre + r * np.array([np.cos(a), np.sin(a)])
+    return out
+
+
+__all__ = ["face_picture", "face_figure", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
            "free_edges", "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
            "sliver_to_glass", "raise_sliver", "FaceFinishes"]
