@@ -14,9 +14,15 @@ edges' positions and the faces they bound.
 
 from __future__ import annotations
 
+import ctypes
 import fnmatch
 import hashlib
 import math
+import os
+import re
+import sys
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -103,6 +109,57 @@ def file_unit(reader) -> str:
     return units[0] if len(units) == 1 else "+".join(units)
 
 
+@contextmanager
+def kernel_output():
+    """What OCC says while the block runs, kept from the terminal and handed back: a list that holds
+    the lines when the block ends (colour codes and star frames removed), for the error paragraph
+    that needs them. OCC's messenger prints through a C++ stream whose buffer may empty long after
+    the block, so its printers are replaced for the block by one that writes to a file; anything the
+    kernel writes straight to file descriptors 1 and 2 (past Python's sys.stdout and sys.stderr)
+    goes to that file too, the descriptors pointed at it for the block."""
+    from OCP.Message import Message, Message_Gravity, Message_PrinterOStream  # lazy: OCP takes seconds to load
+
+    said: list[str] = []
+    messenger = Message.DefaultMessenger_s()
+    printers = [messenger.Printers().Value(i) for i in range(1, messenger.Printers().Length() + 1)]
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    with tempfile.TemporaryDirectory() as folder:
+        log = Path(folder) / "kernel.txt"
+        direct = Path(folder) / "direct.txt"
+        printer = Message_PrinterOStream(str(log), False, Message_Gravity.Message_Warning)
+        printer.SetToColorize(False)
+        for p in printers:
+            messenger.RemovePrinter(p)
+        messenger.AddPrinter(printer)
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            with open(direct, "wb") as sink:
+                os.dup2(sink.fileno(), 1)
+                os.dup2(sink.fileno(), 2)
+                try:
+                    yield said
+                finally:
+                    ctypes.CDLL(None).fflush(None)  # the C stdio buffers, before the descriptors go back
+                    os.dup2(saved[0], 1)
+                    os.dup2(saved[1], 2)
+        finally:
+            for fd in saved:
+                os.close(fd)
+            printer.Close()
+            messenger.RemovePrinter(printer)
+            for p in printers:
+                messenger.AddPrinter(p)
+        text = "\n".join(f.read_bytes().decode(errors="replace") for f in (log, direct) if f.is_file())
+        said += [ln for ln in (raw.strip(" *\t") for raw in re.sub(r"\x1b\[[0-9;]*m", "", text).splitlines()) if ln]
+
+
+def _kernel_said(said: list[str]) -> str:
+    """The kernel's error lines as a clause of the paragraph ('' when it said none)."""
+    errors = [ln.removeprefix("ERR").strip() for ln in said if "ERR" in ln or "rror" in ln]
+    return f" (the STEP reader says: {'; '.join(dict.fromkeys(errors[:3]))})" if errors else ""
+
+
 def read_step(path: Path, name: str) -> StepFile:
     """Every solid of the file (assembly locations applied), mm, with face names, colours, layers."""
     from build123d import Location, Shape  # lazy: build123d/OCP take seconds to load; only STEP parts need them
@@ -122,14 +179,19 @@ def read_step(path: Path, name: str) -> StepFile:
     reader.SetNameMode(True)
     reader.SetColorMode(True)
     reader.SetLayerMode(True)
-    if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
-        raise InputError("not a readable STEP file", file=str(path), field=_field(name),
-                         valid="an ISO 10303-21 (AP203/AP214/AP242) file")
+    with kernel_output() as said:
+        status = reader.ReadFile(str(path))
+    if status != IFSelect_ReturnStatus.IFSelect_RetDone:
+        raise InputError("not a readable STEP file" + _kernel_said(said), file=str(path), field=_field(name),
+                         valid="an ISO 10303-21 (AP203/AP214/AP242) file, whole (re-export it if it was cut short)")
     unit = file_unit(reader.Reader())
     doc = TDocStd_Document(TCollection_ExtendedString("XCAF"))
-    if not reader.Transfer(doc):
-        raise InputError("the STEP file holds no shape OCC can transfer", file=str(path), field=_field(name),
-                         valid="a STEP file with solids (or closed shells)")
+    with kernel_output() as more:
+        transferred = reader.Transfer(doc)
+    said += more
+    if not transferred:
+        raise InputError("the STEP file holds no shape OCC can transfer" + _kernel_said(said), file=str(path),
+                         field=_field(name), valid="a STEP file with solids (or closed shells)")
     tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     colours = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
     layer_tool = XCAFDoc_DocumentTool.LayerTool_s(doc.Main())
@@ -194,7 +256,7 @@ def read_step(path: Path, name: str) -> StepFile:
     for i in range(1, free.Length() + 1):
         walk(free.Value(i), TopLoc_Location())
     if not out:
-        raise InputError("the STEP file holds no solid", file=str(path), field=_field(name),
+        raise InputError("the STEP file holds no solid" + _kernel_said(said), file=str(path), field=_field(name),
                          valid="a STEP file with at least one solid (or closed shell)")
     return StepFile(path, unit, out)
 
