@@ -304,6 +304,18 @@ def test_a_truncated_step_file_is_one_paragraph_with_what_the_reader_said(tmp_pa
     assert "\n" not in paragraph and "not a readable STEP file" in paragraph and "parts.hood.step" in paragraph
     assert re.search(r"the STEP reader says: .*Line [0-9]+", paragraph), paragraph
 
+    # through regenerate: the mount.toml line of the field that names the file, the file beside it
+    design = make_design(tmp_path / "d", '[parts.hood]\nstep = "ring.stp"\n', [("ring", _box(), {}, {}, {})],
+                         scenes=False)
+    shutil.copy2(path, design / "ring.stp")
+    line = (design / "mount.toml").read_text().splitlines().index('step = "ring.stp"') + 1
+    capfd.readouterr()
+    res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert res.exit_code == 2, res.output
+    text = " ".join(res.output.split())
+    assert f"mount.toml, line {line}, field 'parts.hood.step' ({design / 'ring.stp'}): not a readable STEP file" in text
+    assert capfd.readouterr().err == ""
+
 
 def test_a_file_in_inches_is_placed_at_its_size_in_mm(tmp_path, reference_layout):
     from build123d import Cylinder
