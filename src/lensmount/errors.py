@@ -12,8 +12,9 @@ class InputError(ValueError):
     """Bad user input: which file, which field or line, and what would be valid."""
 
     def __init__(self, message: str, *, file: str | None = None, field: str | None = None,
-                 line: int | None = None, valid: str | None = None):
+                 line: int | None = None, valid: str | None = None, names_file: str | None = None):
         self.file = file
+        self.names_file = names_file  # the file the field names (a STEP file, a template), when the fault is in it
         self.field = field
         self.line = line
         self.valid = valid
@@ -27,7 +28,7 @@ class InputError(ValueError):
         if self.line is not None:
             where.append(f"line {self.line}")
         if self.field:
-            where.append(f"field '{self.field}'")
+            where.append(f"field '{self.field}'" + (f" ({self.names_file})" if self.names_file else ""))
         text = (", ".join(where) + ": " if where else "") + self.detail.rstrip(".") + "."
         if self.valid:
             text += f" Valid: {self.valid.rstrip('.')}."
@@ -35,11 +36,17 @@ class InputError(ValueError):
 
     def located(self, file: str | None, line: int | None = None) -> "InputError":
         """The same error with the file (and line) filled in where it has none (for loaders that
-        learn them late)."""
+        learn them late). A line is the line of `file`: an error about another file (the STEP file
+        or template a field of `file` names) is placed at that field's line of `file` and names its
+        own file beside the field."""
+        if self.file and file and line is not None and self.line is None and str(self.file) != str(file):
+            return type(self)(self.detail, file=file, field=self.field, line=line, valid=self.valid,
+                              names_file=self.file)
         if (self.file or not file) and (self.line is not None or line is None):
             return self
         return type(self)(self.detail, file=self.file or file, field=self.field,
-                          line=self.line if self.line is not None else line, valid=self.valid)
+                          line=self.line if self.line is not None else line, valid=self.valid,
+                          names_file=self.names_file)
 
 
 class GeometryError(InputError):

@@ -31,6 +31,9 @@ class FaceTag:
         surface: 0-based prescription surface index for optical faces, else -1.
         face: CAD face index within the part (a STEP part's: the face's index in the file's solid).
         label: the face's name in a user's STEP file ("" for generated faces).
+        assigned: how the mount file gave this face its own finish (a STEP part's `names`, `colours`,
+            `layers` or `rules`: "colour #1a1a1a"); "" when the face has its part's finish. A face's
+            own finish is more specific than any finishes.toml rule but `finish:NAME`.
     """
 
     part: str
@@ -40,6 +43,7 @@ class FaceTag:
     surface: int = -1
     face: int = 0
     label: str = ""
+    assigned: str = ""
 
 
 @dataclass

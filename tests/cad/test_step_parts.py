@@ -11,6 +11,7 @@ import json
 import math
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -53,8 +54,8 @@ def make_design(base: Path, entry: str, solids=None, unit="MM", scenes=True) -> 
     base.mkdir(parents=True, exist_ok=True)
     for f in ("lens.toml", "mount.toml"):
         shutil.copy2(ex / f, base / f)
-    # The design's treatment without its "*" rule: the STEP part's faces keep the finishes its colours
-    # and names give them (a "*" rule in finishes.toml would paint over them, as over any mount finish).
+    # The design's treatment without its "*" rule: the generated parts keep their mount finishes (the
+    # STEP part's faces keep the finishes its colours and names give them either way).
     treatment = (ex / "finishes.toml").read_text()
     (base / "finishes.toml").write_text("\n".join(line for line in treatment.splitlines()
                                                  if not line.startswith('"*"')) + "\n")
@@ -121,6 +122,69 @@ def test_the_step_housing_replaces_the_generated_one_face_by_face(step_housing, 
     assert "field 5°: 0.00 %" in notes
 
 
+def test_a_design_with_a_step_part_comes_from_the_cache_when_unchanged(step_housing):
+    """Every file the build wrote (the face picture too) is what the cache check reads: a second
+    regenerate with unchanged inputs, and a simulate or check after it, do not run the CAD kernel."""
+    from lensmount.cad.pipeline import regenerate
+
+    design, out, first = step_housing
+    again = regenerate(design)
+    assert again.cached and again.checksums == first.checksums
+    assert "parts/housing.faces.png" in first.checksums
+    res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert res.exit_code == 0 and "from the cache (inputs unchanged)" in res.output, res.output
+    # a damaged face picture is rebuilt, never served
+    (out / "parts" / "housing.faces.png").write_bytes(b"damaged")
+    assert not regenerate(design).cached
+    assert regenerate(design).cached
+    assert (out / "parts" / "housing.faces.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_the_step_parts_own_face_finishes_outrank_a_star_rule_and_a_rule_deciding_nothing_is_said(
+        step_housing, tmp_path):
+    """finishes.toml's "*" paints the generated parts, not the faces mount.toml finished face by face;
+    a part: rule whose every face has its own finish decides nothing, and the scene says so."""
+    from lensmount.loop.prepare import prepare
+    from lensmount.mesh import TaggedMesh
+
+    design = Path(shutil.copytree(step_housing[0], tmp_path / "d"))
+    (design / "finishes.toml").write_text((ROOT / "examples" / "double-gauss-360" / "finishes.toml").read_text()
+                                          + '"part:housing" = "edge-lambert-10"\n')
+    prepared = prepare(design, design / "scenes" / "case2-lambertian.toml")
+    mesh = TaggedMesh.load(prepared.built.folder / "mesh.npz")
+    finishes = dict(zip(mesh.tag_table, prepared.scene.finish_of_tag))
+    housing = [t for t in mesh.tag_table if t.part == "housing"]
+    assert housing and all(t.assigned for t in housing)
+    assert [finishes[t] for t in housing] == [t.finish for t in housing]  # absorber, black-anodised, ground-glass
+    assert {finishes[t] for t in mesh.tag_table if t.part == "barrel"} == {"black-paint"}
+    [warning] = [w for w in prepared.scene.warnings if "part:housing" in w]
+    assert "decides no face" in warning and "housing face" in warning and "by its colour" in warning
+
+
+def test_a_face_rule_that_selects_no_face_is_refused_and_one_deciding_none_is_noted(tmp_path, reference_layout):
+    from build123d import Cylinder
+
+    from lensmount.cad.assembly import step_built_parts
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    path = write_step(tmp_path / "tube.step", [("tube", Cylinder(60.0, 40.0) - Cylinder(55.0, 40.0), {}, {}, {})])
+    entry = {"step": "tube.step", "datum": "image-plane", "offset_mm": [0, 0, 30.0], "kind": "baffle",
+             "allow_vignetting": True,
+             "rules": [{"finish": "absorber", "r_min_mm": 54.0}, {"finish": "mirror", "normal": [0, 0, 1]}]}
+    ok = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    noted = replace(layout, notes=[])
+    [part] = step_built_parts(noted, ok, {"camera": path}, {}, set())
+    assert set(part.face_finishes) == {"absorber"}  # every face of the tube lies at r >= 55 mm
+    notes = " ".join(noted.notes)
+    assert "camera: rule 2 (normal = (0.0, 0.0, 1.0), within_deg = 10.0) decides no face" in notes
+    entry["rules"][0]["r_min_mm"] = 70.0  # outside the tube: no face
+    bad = parse_mount({**spec.model_dump(exclude={"parts"}), "parts": {"camera": entry}})
+    with pytest.raises(InputError) as err:
+        step_built_parts(replace(layout, notes=[]), bad, {"camera": path}, {}, set())
+    assert "parts.camera.rules.0" in str(err.value) and "selects no face" in str(err.value)
+
+
 @pytest.mark.slow  # a whole case-2 run (~20 s); the STEP housing's faces and tags are checked in the fast tests above
 def test_case2_simulates_and_paths_names_the_users_faces(step_housing, tmp_path):
     import tomllib
@@ -165,7 +229,7 @@ def test_a_hood_in_the_beam_reports_vignetting_per_field_and_stops_regenerate(tm
     res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
     assert res.exit_code == 2, res.output
     text = " ".join(res.output.split())
-    assert "field 'parts.hood'" in text and "clears the beam envelope by -" in text
+    assert "field 'parts.hood'" in text and "cuts into the beam envelope by " in text and "by -" not in text
     lost = {float(f): float(v) for f, v in re.findall(r"field ([0-9.]+)°: ([0-9.]+) %", text)}
     assert set(lost) == {0.0, 3.5, 5.0}, text
     assert lost[0.0] / 100 == pytest.approx(1 - 0.8 ** 2, abs=0.03), text
@@ -175,25 +239,32 @@ def test_a_hood_in_the_beam_reports_vignetting_per_field_and_stops_regenerate(tm
     res = CliRunner().invoke(app, ["regenerate", str(design)])
     assert res.exit_code == 0, res.output
     manifest = json.loads((design / "build" / "manifest.json").read_text())
-    assert any("hood: clears the beam envelope by -" in n and "vignetting field 0°:" in n for n in manifest["notes"])
+    assert not any("vignetting field 0°:" in n for n in manifest["notes"])  # a warning, not a note among notes
+    [warning] = manifest["warnings"]
+    assert warning.startswith("hood: cuts into the beam envelope by ") and "vignetting field 0°:" in warning
+    assert "allow_vignetting = true" in warning and f"warning: {warning}" in res.output
 
 
 def test_vignetting_follows_the_part_not_the_envelope(reference_layout):
     """A screen across half the beam at the image side cuts about half of every field's rays."""
     from build123d import Box, Pos
 
-    from lensmount.cad.step_beam import vignetting
+    from lensmount.cad.step_beam import beam_report, vignetting
     from lensmount.cad.tessellate import tessellate_part
 
     layout, _ = reference_layout
     zi = layout.prescription.image_z
     half = Pos(100.0, 0, zi - 20.0) * Box(200.0, 400.0, 1.0)  # x > 0 blocked, 20 mm before the image
     mesh = tessellate_part(half, "screen", "baffle", "absorber", [("mount", -1)] * 6, 0.05, 6.0)
-    fields, mean, worst = vignetting(layout, mesh)
+    fields, mean, worst, azimuth = vignetting(layout, mesh)
     assert list(fields) == [0.0, 3.5, 5.0]
     assert np.allclose(mean, 0.5, atol=0.03)  # averaged over opposite azimuths: half the pupil, any field
     assert worst[0] == pytest.approx(mean[0], abs=0.03)  # on axis every azimuth loses half
     assert np.all(worst[1:] > mean[1:] + 0.1)  # off axis the beam stands beside the axis: more at one azimuth
+    # the most where the image point lies on the screen's side, +x (azimuth 0°), and the report says so
+    assert np.all(np.minimum(azimuth[1:], 360.0 - azimuth[1:]) < 5.0), azimuth
+    said = beam_report(layout, mesh).lines("°")
+    assert re.search(r"field 5°: [0-9.]+ % \(up to 100\.00 % at azimuth 0°\)", said), said
 
 
 def test_an_open_shell_is_refused_naming_where(tmp_path):
@@ -212,6 +283,38 @@ def test_an_open_shell_is_refused_naming_where(tmp_path):
     points = [tuple(map(float, m)) for m in re.findall(r"\((-?[0-9.]+), (-?[0-9.]+), (-?[0-9.]+)\) mm", text)]
     assert points and all(abs(z - 25.0) < 1e-6 and min(abs(math.hypot(x, y) - 25), abs(math.hypot(x, y) - 30))
                           < 1e-6 for x, y, z in points)
+
+
+def test_a_truncated_step_file_is_one_paragraph_with_what_the_reader_said(tmp_path, capfd):
+    """The kernel's own messages (C++ writing to file descriptor 2) do not reach the terminal beside
+    the paragraph; the line it stumbled on is folded into it."""
+    from build123d import Cylinder
+
+    from lensmount.cad.step_parts import read_step
+
+    path = write_step(tmp_path / "ring.stp", [("ring", Cylinder(30.0, 5.0) - Cylinder(25.0, 5.0), {}, {}, {})])
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])
+    capfd.readouterr()  # what the writer printed
+    with pytest.raises(InputError) as err:
+        read_step(path, "hood")
+    printed = capfd.readouterr()
+    assert printed.out == "" and printed.err == ""
+    paragraph = str(err.value)
+    assert "\n" not in paragraph and "not a readable STEP file" in paragraph and "parts.hood.step" in paragraph
+    assert re.search(r"the STEP reader says: .*Line [0-9]+", paragraph), paragraph
+
+    # through regenerate: the mount.toml line of the field that names the file, the file beside it
+    design = make_design(tmp_path / "d", '[parts.hood]\nstep = "ring.stp"\n', [("ring", _box(), {}, {}, {})],
+                         scenes=False)
+    shutil.copy2(path, design / "ring.stp")
+    line = (design / "mount.toml").read_text().splitlines().index('step = "ring.stp"') + 1
+    capfd.readouterr()
+    res = CliRunner().invoke(app, ["regenerate", str(design), "--quiet"])
+    assert res.exit_code == 2, res.output
+    text = " ".join(res.output.split())
+    assert f"mount.toml, line {line}, field 'parts.hood.step' ({design / 'ring.stp'}): not a readable STEP file" in text
+    assert capfd.readouterr().err == ""
 
 
 def test_a_file_in_inches_is_placed_at_its_size_in_mm(tmp_path, reference_layout):
@@ -287,6 +390,63 @@ def test_a_step_part_that_cuts_a_generated_part_is_refused(tmp_path, reference_l
     generated = [p for p in build_parts(layout, spec) if p.name in ("barrel", "lens-6")]
     with pytest.raises(GeometryError, match=r"collar and barrel overlap by"):
         check_user_parts(step_built_parts(layout, spec, {"collar": path}, {}, set()) + generated)
+
+
+def test_a_step_hood_that_collides_with_the_hoods_vanes_says_what_to_set(tmp_path, reference_layout):
+    """The generated vanes stand in the generated hood; a user's hood with a narrower bore meets them,
+    and the error says which mount.toml setting leaves them out (the reference places its hood vanes
+    evenly: `count`)."""
+    from build123d import Cylinder, Pos
+
+    from lensmount.cad.assembly import build_assembly
+    from lensmount.design.mount import parse_mount
+
+    layout, spec = reference_layout
+    hood = layout.part("hood").template
+    ri, z0, z1 = hood.inner_radius, hood.z_front, hood.z_back - 3.0
+    assert {p.template.outer_radius for p in layout.parts if p.kind == "vane" and p.template.z_front < z1} == {ri}
+    tube = Pos(0, 0, 0.5 * (z0 + z1)) * (Cylinder(ri + 2.0, z1 - z0) - Cylinder(ri - 0.5, z1 - z0))
+    path = write_step(tmp_path / "hood.step", [("hood", tube, {}, {}, {})])
+    spec = parse_mount({**spec.model_dump(exclude={"parts"}),
+                        "parts": {"hood": {"step": "hood.step", "offset_mm": [0, 0, -layout.prescription.vertex_z[0]]}}})
+    with pytest.raises(GeometryError) as err:
+        build_assembly(layout.prescription, spec, None, None, {"hood": path})
+    text = str(err.value)
+    assert re.search(r"hood and vane-[0-9] overlap by", text), text
+    assert "[vanes] count = 0 (no vanes in the hood) in mount.toml" in text
+    vanes = {k: v for k, v in spec.vanes.model_dump().items() if k != "count"} | {"placement": "line-of-sight"}
+    line_of_sight = parse_mount({**spec.model_dump(), "vanes": vanes})
+    with pytest.raises(GeometryError, match=r"\[vanes\] positions_mm = \[\] \(no vanes in the hood\)"):
+        build_assembly(layout.prescription, line_of_sight, None, None, {"hood": path})
+
+
+@pytest.mark.parametrize("steps", [3, 30])
+def test_face_numbers_on_a_round_part_do_not_overlap(steps):
+    """A stepped ring: every annulus and cylinder has its highest point on the same vertical line, where
+    the numbers used to pile up. Each number's box stands apart from every other's in both views."""
+    import itertools
+
+    import matplotlib.pyplot as plt
+    from build123d import Cylinder, Pos
+    from matplotlib.text import Text
+
+    from lensmount.cad.step_parts import face_figure
+    from lensmount.cad.tessellate import tessellate_part
+
+    ring = Cylinder(30.0, 2.0)
+    for k in range(1, steps):
+        ring = ring + Pos(0, 0, 2.0 * k) * Cylinder(30.0 - 0.5 * k, 2.0)
+    ring = ring - Cylinder(10.0, 4.0 * steps)
+    n = len(ring.faces())
+    mesh = tessellate_part(ring, "ring", "hood", "absorber", [("mount", -1)] * n, 0.05, 6.0)
+    fig = face_figure(mesh, "ring")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [Text.get_window_extent(t, renderer) for t in ax.texts]  # the number's box, not its leader
+        assert sorted(int(t.get_text()) for t in ax.texts) == list(range(n))
+        assert not [(a, b) for a, b in itertools.combinations(boxes, 2) if a.overlaps(b)]
+    plt.close(fig)
 
 
 def test_a_sliver_to_the_glass_is_found():
@@ -399,14 +559,17 @@ def test_a_public_step_file_as_the_cooke_triplets_hood(tmp_path):
 def test_the_step_housing_agrees_with_the_generated_one(step_housing, tmp_path):
     """Case 2 (sun 7°) on the reference with its generated housing and with the same housing read
     from STEP: the stray fractions agree within the combined error. Both designs keep the example's
-    own treatment, whose "*" rule paints every face black-paint (the STEP faces' colours too), so
-    the two differ in where the housing's solid came from and nothing else; case 2 scatters at
-    every black-paint face."""
+    own treatment, whose "*" rule paints every generated face black-paint; the STEP faces keep the
+    finishes their colours give them, which `finish:` rules re-map to black-paint, so the two differ
+    in where the housing's solid came from and nothing else; case 2 scatters at every black-paint face."""
     step_design = Path(shutil.copytree(step_housing[0], tmp_path / "step"))  # the module's design stays as it is
     generated = make_design(tmp_path / "generated", "")
     results = {}
     for name, design in (("generated", generated), ("step", step_design)):
         shutil.copy2(ROOT / "examples" / "double-gauss-360" / "finishes.toml", design / "finishes.toml")
+        if name == "step":
+            with open(design / "finishes.toml", "a") as f:
+                f.write("".join(f'"finish:{n}" = "black-paint"\n' for n in ("absorber", "black-anodised", "ground-glass")))
         doc = tomllib_loads((design / "scenes" / "case2-lambertian.toml").read_text())
         doc["detector"]["pixels"] = [60, 60]  # the stray fraction is what is compared: a coarse view map reads it
         (design / "scenes" / "case2-check.toml").write_text(tomli_dumps(doc))

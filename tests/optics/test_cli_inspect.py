@@ -125,3 +125,28 @@ def test_console_entry_point_prints_no_traceback(tmp_path):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "file not found" in proc.stderr
+
+
+def test_a_recomputed_semi_diameter_reads_apart_from_the_files_or_is_said_to_be_it():
+    """A semi-diameter the import recomputes from real rays is shown beside the file's value with
+    the digits it takes to tell them apart; one equal to the file's to 1 µm says so instead of
+    reading "64.39 mm ... -> 64.39 mm"."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from lensmount.cli.inspect import inspect_document
+    from lensmount.design.lens import import_notes, load_lens
+
+    path = Path(__file__).parent / "corpus" / "US05831776-1.zmx"
+    lens = load_lens(path)
+    notes = [n for n in import_notes(path) if n.file_value_mm is not None]
+    assert notes
+    for row in inspect_document(lens, notes)["import_notes"]:
+        given, shown = row["what"].split(" -> ")
+        first = given.split(" mm")[0].split()[-1]
+        assert f": {first} mm" not in shown or "the file's value to 1 µm" in shown, row
+    note = notes[0]
+    got = lens.surfaces[note.surface].clear_semi_diameter
+    near = replace(note, file_value_mm=got + 0.002)  # apart in the 5th digit of 64.39 mm
+    [row] = inspect_document(lens, [near])["import_notes"]
+    assert f": {got:.5g} mm (the file's {got + 0.002:.5g} mm)" in row["what"], row

@@ -106,6 +106,17 @@ def test_assignment_priority():
     assert finish_of(FaceTag("lens-1", "lens", "optical", "x", surface=0), assign, lib) is None
 
 
+def test_a_face_finished_face_by_face_in_the_mount_file_outranks_every_rule_but_finish():
+    """A STEP part's face given its finish by colour is more specific than "*", kind:, role: or part:
+    (which choose faces); finish:NAME (which defines what the name means) still re-maps it."""
+    assign = {"*": "absorber", "part:hood": "mirror", "kind:hood": "mirror", "role:mount": "mirror"}
+    lib = {k: {} for k in ("absorber", "black-anodised", "ground-glass", "mirror")}
+    own = FaceTag("hood", "hood", "mount", "black-anodised", face=3, assigned="colour #1a1a1a")
+    assert finish_of(own, assign, lib) == "black-anodised"
+    assert finish_of(FaceTag("hood", "hood", "mount", "black-anodised", face=4), assign, lib) == "mirror"
+    assert finish_of(own, assign | {"finish:black-anodised": "ground-glass"}, lib) == "ground-glass"
+
+
 def test_build_scene_objects_coatings_media():
     p = double_gauss()
     spec = scene_from_dict(scene_dict(

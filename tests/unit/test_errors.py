@@ -21,6 +21,16 @@ def test_located_fills_in_a_missing_file_only():
     assert InputError("bad", file="b.toml").located("a.toml").file == "b.toml"
 
 
+def test_a_line_stays_with_its_file_and_the_named_file_is_said_beside_the_field():
+    """An error about the content of a file a field names (a STEP file) placed at that field's line of
+    mount.toml: the line is mount.toml's, the STEP file is named separately."""
+    err = InputError("not a readable STEP file", file="d/cad/ring.stp", field="parts.hood.step")
+    text = err.located("d/mount.toml", line=57).paragraph()
+    assert text.startswith("d/mount.toml, line 57, field 'parts.hood.step' (d/cad/ring.stp): not a readable")
+    assert "d/cad/ring.stp, line 57" not in text
+    assert err.located("d/mount.toml").file == "d/cad/ring.stp"  # no line: nothing to place
+
+
 def test_cli_without_arguments_shows_help_not_a_traceback():
     proc = subprocess.run([sys.executable, "-c", "from lensmount.cli import main; main()"],
                           capture_output=True, text=True)

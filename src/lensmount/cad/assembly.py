@@ -44,6 +44,7 @@ class BuiltPart:
     field: str = ""  # the mount.toml field that names the user's file
     face_finishes: list[str] | None = None  # a STEP part's finish per face (else plan.finish)
     face_labels: list[str] | None = None  # a STEP part's face names
+    face_assigned: list[str] | None = None  # how each face's finish was given face by face ("" its part's)
 
     @property
     def name(self) -> str:
@@ -114,8 +115,23 @@ def _common(a, b):
     return Shape.cast(op.Shape())
 
 
-def check_user_parts(parts: list[BuiltPart]) -> None:
-    """3D interference of user-template parts with every other part (OCC boolean common)."""
+def leave_out(plan: PartPlan, layout: Layout, spec: MountSpec) -> str:
+    """The mount.toml setting that leaves a generated part out: what a user's part that collides with
+    it (often the generated hood's vanes inside a hood the user replaced) asks the user to set."""
+    vs = spec.vanes
+    if plan.kind == "vane" and plan.template.z_front < datum_z("barrel-front", layout):  # in the hood
+        return ("[vanes] count = 0" if vs.placement == "even" and vs.positions_mm is None
+                else "[vanes] positions_mm = []") + " (no vanes in the hood)"
+    settings = {"vane": "[vanes] in_air_gaps = 0 (no vanes in the spacer tubes)", "hood": "[hood] enabled = false",
+                "housing": "[housing] enabled = false"}
+    if plan.name == "rear-baffle":
+        return "[housing] rear_baffle = false"
+    return settings.get(plan.kind, f"[parts.{plan.name}] (your own part in its place)")
+
+
+def check_user_parts(parts: list[BuiltPart], leave_out: dict[str, str] | None = None) -> None:
+    """3D interference of user-template parts with every other part (OCC boolean common). `leave_out`:
+    for a generated part, the mount.toml setting that removes it, which the error then offers."""
     for a in parts:
         if a.user_template is None:
             continue
@@ -132,9 +148,12 @@ def check_user_parts(parts: list[BuiltPart]) -> None:
             if vol > USER_OVERLAP_TOL_MM3:
                 box = common.bounding_box()
                 depth = min(box.size.X, box.size.Y, box.size.Z)
+                remove = (leave_out or {}).get(b.name) if b.user_template is None else None
                 raise GeometryError(f"{a.name} and {b.name} overlap by {depth:.3f} mm ({vol:.3f} mm³)",
                                     file=str(a.user_template), field=a.field,
-                                    valid="a part that stays clear of its neighbours")
+                                    valid="a part that stays clear of its neighbours"
+                                          + (f", or the generated {b.name} left out: {remove} in mount.toml"
+                                             if remove else ""))
 
 
 def check_user_beam(layout: Layout, part: BuiltPart, mesh: TaggedMesh) -> None:
@@ -167,12 +186,12 @@ def _part_mesh(bp: BuiltPart, tol) -> TaggedMesh:
     (everything its solid depends on, as for its STEP file), its face roles, finishes and labels, and the
     tolerances."""
     key = (bp.hash, tuple(bp.roles), tuple(bp.face_finishes or ()), tuple(bp.face_labels or ()),
-           tol.linear_tolerance_mm, tol.angular_tolerance_deg)
+           tuple(bp.face_assigned or ()), tol.linear_tolerance_mm, tol.angular_tolerance_deg)
     m = _PART_MESHES.get(key)
     if m is None:
         m = tessellate_part(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, bp.roles,
                             tol.linear_tolerance_mm, tol.angular_tolerance_deg, finishes=bp.face_finishes,
-                            labels=bp.face_labels)
+                            labels=bp.face_labels, assigned=bp.face_assigned)
         if len(_PART_MESHES) >= _PART_MESHES_KEPT:
             _PART_MESHES.pop(next(iter(_PART_MESHES)))  # the oldest
         _PART_MESHES[key] = m
@@ -214,7 +233,7 @@ def build_assembly(prescription: Prescription, spec: MountSpec, template_paths=N
         progress("checks", 1, 1)
     parts = build_parts(layout, spec, template_paths, progress)
     parts += step_built_parts(layout, spec, step_paths or {}, replaced, {p.name for p in parts})
-    check_user_parts(parts)
+    check_user_parts(parts, {p.name: leave_out(p.plan, layout, spec) for p in parts if p.user_template is None})
     lenses = [(p.name, p.solid) for p in parts if p.plan.kind == "lens"]
     for bp in parts:
         if isinstance(bp.plan.template, StepSource):
@@ -246,10 +265,11 @@ def step_built_parts(layout: Layout, spec: MountSpec, step_paths: dict[str, Path
             pp = PartPlan(part, kind, default, StepSource(path, digest, name, entry, solid.name, z0))
             faces = len(finishes.finishes)
             out.append(BuiltPart(pp, placed, [("mount", -1)] * faces, path, part_hash(pp, None),
-                                 f"parts.{name}.step", finishes.finishes, list(solid.face_names)))
+                                 f"parts.{name}.step", finishes.finishes, list(solid.face_names),
+                                 [why if why != "default" else "" for why in finishes.sources]))
             layout.notes.append(f"{part}: from {path.name} ({step.unit}), {faces} faces: "
                                 + _finish_summary(finishes))
-        check_used(entry, name, used, step)
+        layout.notes += check_used(entry, name, used, step)
     return out
 
 
@@ -269,14 +289,21 @@ def check_step_beam(layout: Layout, spec: MountSpec, part: BuiltPart, mesh: Tagg
     report = beam_report(layout, mesh)
     unit = " mm" if layout.prescription.finite_object else "°"
     r, z = report.at
-    clear = (f"clears the beam envelope by {report.clearance:.3f} mm at r = {r:.2f} mm, z = {z:.2f} mm"
-             if math.isfinite(report.clearance) else "lies outside the beam's z range")
+    if not math.isfinite(report.clearance):
+        clear = "lies outside the beam's z range"
+    else:
+        clear = (f"clears the beam envelope by {report.clearance:.3f} mm" if report.clearance >= 0
+                 else f"cuts into the beam envelope by {-report.clearance:.3f} mm") + f" at r = {r:.2f} mm, z = {z:.2f} mm"
     text = f"{part.name}: {clear} (margin {margin} mm); vignetting {report.lines(unit)}"
-    layout.notes.append(text)
-    if (report.clearance < margin or report.worst.max() > 0) and not entry.allow_vignetting:
+    short = report.clearance < margin or report.worst.max() > 0
+    if short and not entry.allow_vignetting:
         raise GeometryError(text, field=f"parts.{name}",
                             valid=f"a part at least {margin} mm outside the beam envelope, or "
                                   "allow_vignetting = true in its entry")
+    if short:  # built as allowed, but a loss of signal the user must see, not a note among the others
+        layout.warnings.append(f"{text} (built: [parts.{name}] allow_vignetting = true)")
+    else:
+        layout.notes.append(text)
 
 
 __all__ = ["BuiltPart", "build_parts", "build_assembly", "tessellate", "part_hash", "check_user_parts"]

@@ -2,8 +2,8 @@
 
 Key: `Design.input_hash` (lens file, mount.toml, user templates, lensmount version).
 Store: `OUT/.cache/<key>/` holds a complete copy of the outputs (hard links where
-the file system allows, so no extra space) — assembly.step, parts/*.step and the part
-drawings (parts/*.svg, *.dxf), mesh.npz, bom.csv, manifest.json. A re-run with the same key restores OUT from there without touching
+the file system allows, so no extra space) of the files `Manifest.files()` lists (one list: what a
+build writes is what its checksums cover and what is kept here) and manifest.json. A re-run with the same key restores OUT from there without touching
 the CAD kernel; switching a parameter back and forth restores the earlier outputs.
 Delete `OUT/.cache` to empty it.
 """
@@ -16,7 +16,6 @@ import tempfile
 from pathlib import Path
 
 CACHE_DIR = ".cache"
-PART_SUFFIXES = (".step", ".svg", ".dxf")  # per-part files in OUT/parts: the STEP and its drawings
 
 
 def cache_dir(out_dir: Path, key: str) -> Path:
@@ -74,4 +73,4 @@ def restore(entry: Path, out_dir: Path) -> None:
         place(entry / rel, Path(out_dir) / rel)
 
 
-__all__ = ["cache_dir", "store", "restore", "place", "CACHE_DIR", "PART_SUFFIXES"]
+__all__ = ["cache_dir", "store", "restore", "place", "CACHE_DIR"]

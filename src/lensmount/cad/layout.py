@@ -72,6 +72,7 @@ class Layout:
     contacts: list[Contact]
     envelope: "Envelope"
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # built, but the user should act or know (allowed vignetting)
     beam: object = None  # a folded path's rays (cad.catadioptric.BeamPaths): the beam check runs on them
 
     def part(self, name: str) -> PartPlan:

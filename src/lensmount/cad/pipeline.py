@@ -7,7 +7,7 @@ manifest.json:
      "assembly": "assembly.step", "mesh": "mesh.npz",
      "tessellation": {"linear_tolerance_mm": .., "angular_tolerance_deg": ..},
      "parts": [{"name", "kind", "finish", "step", "volume_mm3", "triangles", "hash",
-                "svg", "dxf", "drawing_hash"}, ...],
+                "svg", "dxf", "drawing_hash", "faces"}, ...],   # faces: NAME.faces.png of a STEP part, else ""
      "notes": [...]}
 
 A part's STEP file is rewritten only when its own hash (its template parameters,
@@ -57,6 +57,10 @@ class PartEntry:
     svg: str
     dxf: str
     drawing_hash: str
+    faces: str = ""  # parts/NAME.faces.png of a STEP part: its face indices drawn
+
+    def files(self) -> list[str]:
+        return [self.step, self.svg, self.dxf] + ([self.faces] if self.faces else [])
 
 
 @dataclass
@@ -68,6 +72,7 @@ class Manifest:
     mesh: str = MESH
     tessellation: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # what the user should know before a run (printed as such)
     checksums: dict[str, str] = field(default_factory=dict)  # sha256 of every output file but manifest.json
     cached: bool = False  # not written: True when this run came from the cache
 
@@ -85,6 +90,11 @@ class Manifest:
         d["parts"] = [PartEntry(**p) for p in d["parts"]]
         return cls(**d, cached=cached)
 
+    def files(self) -> list[str]:
+        """Every file the build wrote but manifest.json: what `checksums` covers, what the cache keeps
+        and what a folder must hold to be served from it."""
+        return [self.assembly, self.mesh, BOM] + [f for p in self.parts for f in p.files()]
+
     def part(self, name: str) -> PartEntry:
         for p in self.parts:
             if p.name == name:
@@ -101,7 +111,7 @@ def _previous(out: Path) -> Manifest | None:
         manifest = Manifest.from_json((out / MANIFEST).read_text())
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    files = [manifest.assembly, manifest.mesh, BOM] + [f for p in manifest.parts for f in (p.step, p.svg, p.dxf)]
+    files = manifest.files()
     if set(files) != set(manifest.checksums) or any(_sha256(out / f) != manifest.checksums[f] for f in files):
         return None
     return manifest
@@ -165,21 +175,21 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
         prev_drawing = {p.name: p.drawing_hash for p in prev.parts} if prev else {}
         for p in prev.parts if prev else []:  # a part's files are kept while it is unchanged (hard links)
             if p.name in triangles:
-                for rel in (p.step, p.svg, p.dxf):
+                for rel in p.files():
                     cache.place(out / rel, new / rel)
-        entries, pictures = [], []
+        entries = []
         for k, bp in enumerate(parts):
             rel = f"parts/{bp.name}.step"
             if prev_hash.get(bp.name) != bp.hash or not (new / rel).is_file():
                 write_part_step(bp.solid, bp.name, bp.plan.kind, bp.plan.finish, new / rel)
             svg, dxf, d_hash = _drawings(new, bp, layout, spec, prev_drawing.get(bp.name))
+            picture = ""
             if isinstance(bp.plan.template, StepSource):  # the face numbers a rule names
                 picture = f"parts/{bp.name}.faces.png"
                 face_picture(mesh.select(np.array([t.part == bp.name for t in mesh.tag_table])[mesh.tags]),
                              f"{bp.name} from {bp.user_template.name}: STEP face indices", new / picture)
-                pictures.append(picture)
             entries.append(PartEntry(bp.name, bp.plan.kind, bp.plan.finish, rel, float(bp.solid.volume),
-                                     triangles[bp.name], bp.hash, svg, dxf, d_hash))
+                                     triangles[bp.name], bp.hash, svg, dxf, d_hash, picture))
             if progress:
                 progress("export", k + 1, len(parts) + 2)
         write_assembly_step([(bp.solid, bp.name, bp.plan.kind, bp.plan.finish) for bp in parts], new / ASSEMBLY)
@@ -188,12 +198,12 @@ def regenerate(design_dir, out_dir=None, progress=None, use_cache: bool = True,
             progress("export", len(parts) + 2, len(parts) + 2)
         write_text(new / BOM, bom_csv([(bp.name, bp.plan.kind, bp.plan.finish, float(bp.solid.volume),
                                         bp.plan.template) for bp in parts], layout.prescription, spec))
-        files = [ASSEMBLY, MESH, BOM] + [f for e in entries for f in (e.step, e.svg, e.dxf)] + pictures
         manifest = Manifest(key, entries, tessellation=spec.tessellation.model_dump(),
                             notes=[f"lens: {w}" for w in design.lens_warnings] + list(layout.notes),
-                            checksums={f: _sha256(new / f) for f in files})
+                            warnings=list(layout.warnings))
+        manifest.checksums = {f: _sha256(new / f) for f in manifest.files()}
         write_text(new / MANIFEST, manifest.to_json())
-    cache.store(out, key, files + [MANIFEST])
+    cache.store(out, key, manifest.files() + [MANIFEST])
     return manifest
 
 

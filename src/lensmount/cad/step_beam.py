@@ -29,18 +29,24 @@ PUPIL_GRID = 25  # ~490 rays a field: a vignetted fraction to about ±2 %
 class BeamReport:
     """clearance: smallest radial distance (mm) of the part outside the envelope (negative: inside),
     at (r, z); fields (F,) as the lens file lists them (deg or mm); vignetting (F,) mean fraction over
-    azimuths; worst (F,) the largest at one azimuth."""
+    azimuths; worst (F,) the largest at one azimuth; worst_azimuth_deg (F,) that azimuth: the direction
+    of the field's image point from +x towards +y."""
 
     clearance: float
     at: tuple[float, float]
     fields: np.ndarray
     vignetting: np.ndarray
     worst: np.ndarray
+    worst_azimuth_deg: np.ndarray
 
     def lines(self, unit: str) -> str:
-        return ", ".join(f"field {f:g}{unit}: {100 * v:.2f} %" + (f" (up to {100 * w:.2f} % at one azimuth)"
-                                                                  if w > v + 1e-9 else "")
-                         for f, v, w in zip(self.fields, self.vignetting, self.worst))
+        def worst(f, v, w, a) -> str:
+            if w <= v + 1e-9:
+                return ""
+            return f" (up to {100 * w:.2f} % at " + (f"azimuth {round(a) % 360}°)" if f != 0 else "one azimuth)")
+
+        return ", ".join(f"field {f:g}{unit}: {100 * v:.2f} %{worst(f, v, w, a)}"
+                         for f, v, w, a in zip(self.fields, self.vignetting, self.worst, self.worst_azimuth_deg))
 
 
 def beam_clearance(layout, mesh: TaggedMesh) -> tuple[float, tuple[float, float]]:
@@ -58,8 +64,9 @@ def beam_clearance(layout, mesh: TaggedMesh) -> tuple[float, tuple[float, float]
     return float(exact[k]), (float(r[inside][near][k]), float(z[inside][near][k]))
 
 
-def vignetting(layout, mesh: TaggedMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(fields, mean vignetting per field, worst azimuth's) caused by the part `mesh`."""
+def vignetting(layout, mesh: TaggedMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(fields, mean vignetting per field, the worst azimuth's, that azimuth in degrees) caused by the part
+    `mesh`. The azimuth is where the field's image point lies, from +x towards +y (0 on axis)."""
     p = layout.prescription
     fields = np.unique(np.concatenate([[0.0], np.abs(np.asarray(p.field_values, dtype=np.float64))]))
     wl = p.primary_wavelength_um
@@ -72,6 +79,7 @@ def vignetting(layout, mesh: TaggedMesh) -> tuple[np.ndarray, np.ndarray, np.nda
     hits = MountHits(mesh)
     per = len(o) // len(fields)
     lost = np.zeros((AZIMUTHS, len(fields)))
+    azimuth = np.zeros((AZIMUTHS, len(fields)))
     for a in range(AZIMUTHS):
         c, s = np.cos(2 * np.pi * a / AZIMUTHS), np.sin(2 * np.pi * a / AZIMUTHS)
         turned = path.copy()
@@ -85,7 +93,14 @@ def vignetting(layout, mesh: TaggedMesh) -> tuple[np.ndarray, np.ndarray, np.nda
             sl = slice(f * per, (f + 1) * per)
             n = int(arrived[sl].sum())
             lost[a, f] = blocked[sl].sum() / n if n else 0.0
-    return fields, lost.mean(axis=0), lost.max(axis=0)
+            if n and fields[f] != 0:
+                x, y = turned[-1, sl][arrived[sl]].mean(axis=0)[:2]
+                azimuth[a, f] = np.degrees(np.arctan2(y, x)) % 360.0
+    # several azimuths may lose the most alike (a wall across a whole side): their circular mean
+    tied = lost >= lost.max(axis=0) - 1e-9
+    angle = np.radians(azimuth)
+    worst = np.degrees(np.arctan2((np.sin(angle) * tied).sum(axis=0), (np.cos(angle) * tied).sum(axis=0))) % 360.0
+    return fields, lost.mean(axis=0), lost.max(axis=0), np.where(fields != 0, worst, 0.0)
 
 
 def pupil_grid(n: int) -> np.ndarray:
@@ -98,8 +113,8 @@ def pupil_grid(n: int) -> np.ndarray:
 
 def beam_report(layout, mesh: TaggedMesh) -> BeamReport:
     clearance, at = beam_clearance(layout, mesh)
-    fields, mean, worst = vignetting(layout, mesh)
-    return BeamReport(clearance, at, fields, mean, worst)
+    fields, mean, worst, azimuth = vignetting(layout, mesh)
+    return BeamReport(clearance, at, fields, mean, worst, azimuth)
 
 
 __all__ = ["BeamReport", "beam_clearance", "vignetting", "beam_report", "pupil_grid"]

@@ -7,16 +7,22 @@ solids' names (TDataStd_Name), face names (STEP ADVANCED_FACE names, read with
 layers (XCAFDoc_LayerTool). An assembly's solids become several parts, keeping their names.
 
 Face indices are the order of `solid.faces()` of the solid as read (the file's face order), the
-index `FaceTag.face` keeps, the numbers `parts/NAME-faces.png` draws and a `faces = [...]` rule
+index `FaceTag.face` keeps, the numbers `parts/NAME.faces.png` draws and a `faces = [...]` rule
 names. The solid must be valid (BRepCheck) and closed: an open shell is refused with the free
 edges' positions and the faces they bound.
 """
 
 from __future__ import annotations
 
+import ctypes
 import fnmatch
 import hashlib
 import math
+import os
+import re
+import sys
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -103,6 +109,57 @@ def file_unit(reader) -> str:
     return units[0] if len(units) == 1 else "+".join(units)
 
 
+@contextmanager
+def kernel_output():
+    """What OCC says while the block runs, kept from the terminal and handed back: a list that holds
+    the lines when the block ends (colour codes and star frames removed), for the error paragraph
+    that needs them. OCC's messenger prints through a C++ stream whose buffer may empty long after
+    the block, so its printers are replaced for the block by one that writes to a file; anything the
+    kernel writes straight to file descriptors 1 and 2 (past Python's sys.stdout and sys.stderr)
+    goes to that file too, the descriptors pointed at it for the block."""
+    from OCP.Message import Message, Message_Gravity, Message_PrinterOStream  # lazy: OCP takes seconds to load
+
+    said: list[str] = []
+    messenger = Message.DefaultMessenger_s()
+    printers = [messenger.Printers().Value(i) for i in range(1, messenger.Printers().Length() + 1)]
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    with tempfile.TemporaryDirectory() as folder:
+        log = Path(folder) / "kernel.txt"
+        direct = Path(folder) / "direct.txt"
+        printer = Message_PrinterOStream(str(log), False, Message_Gravity.Message_Warning)
+        printer.SetToColorize(False)
+        for p in printers:
+            messenger.RemovePrinter(p)
+        messenger.AddPrinter(printer)
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            with open(direct, "wb") as sink:
+                os.dup2(sink.fileno(), 1)
+                os.dup2(sink.fileno(), 2)
+                try:
+                    yield said
+                finally:
+                    ctypes.CDLL(None).fflush(None)  # the C stdio buffers, before the descriptors go back
+                    os.dup2(saved[0], 1)
+                    os.dup2(saved[1], 2)
+        finally:
+            for fd in saved:
+                os.close(fd)
+            printer.Close()
+            messenger.RemovePrinter(printer)
+            for p in printers:
+                messenger.AddPrinter(p)
+        text = "\n".join(f.read_bytes().decode(errors="replace") for f in (log, direct) if f.is_file())
+        said += [ln for ln in (raw.strip(" *\t") for raw in re.sub(r"\x1b\[[0-9;]*m", "", text).splitlines()) if ln]
+
+
+def _kernel_said(said: list[str]) -> str:
+    """The kernel's error lines as a clause of the paragraph ('' when it said none)."""
+    errors = [ln.removeprefix("ERR").strip() for ln in said if "ERR" in ln or "rror" in ln]
+    return f" (the STEP reader says: {'; '.join(dict.fromkeys(errors[:3]))})" if errors else ""
+
+
 def read_step(path: Path, name: str) -> StepFile:
     """Every solid of the file (assembly locations applied), mm, with face names, colours, layers."""
     from build123d import Location, Shape  # lazy: build123d/OCP take seconds to load; only STEP parts need them
@@ -122,14 +179,19 @@ def read_step(path: Path, name: str) -> StepFile:
     reader.SetNameMode(True)
     reader.SetColorMode(True)
     reader.SetLayerMode(True)
-    if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
-        raise InputError("not a readable STEP file", file=str(path), field=_field(name),
-                         valid="an ISO 10303-21 (AP203/AP214/AP242) file")
+    with kernel_output() as said:
+        status = reader.ReadFile(str(path))
+    if status != IFSelect_ReturnStatus.IFSelect_RetDone:
+        raise InputError("not a readable STEP file" + _kernel_said(said), file=str(path), field=_field(name),
+                         valid="an ISO 10303-21 (AP203/AP214/AP242) file, whole (re-export it if it was cut short)")
     unit = file_unit(reader.Reader())
     doc = TDocStd_Document(TCollection_ExtendedString("XCAF"))
-    if not reader.Transfer(doc):
-        raise InputError("the STEP file holds no shape OCC can transfer", file=str(path), field=_field(name),
-                         valid="a STEP file with solids (or closed shells)")
+    with kernel_output() as more:
+        transferred = reader.Transfer(doc)
+    said += more
+    if not transferred:
+        raise InputError("the STEP file holds no shape OCC can transfer" + _kernel_said(said), file=str(path),
+                         field=_field(name), valid="a STEP file with solids (or closed shells)")
     tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     colours = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
     layer_tool = XCAFDoc_DocumentTool.LayerTool_s(doc.Main())
@@ -194,7 +256,7 @@ def read_step(path: Path, name: str) -> StepFile:
     for i in range(1, free.Length() + 1):
         walk(free.Value(i), TopLoc_Location())
     if not out:
-        raise InputError("the STEP file holds no solid", file=str(path), field=_field(name),
+        raise InputError("the STEP file holds no solid" + _kernel_said(said), file=str(path), field=_field(name),
                          valid="a STEP file with at least one solid (or closed shell)")
     return StepFile(path, unit, out)
 
@@ -302,8 +364,8 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
                   default: str) -> FaceFinishes:
     """Each face's finish: its STEP name (or the solid's) by `names`, its colour by `colours`, its
     layers by `layers`, then the first `rules` entry that matches, then `default` (the entry's
-    `finish`, or `[finishes] PART`). `used` collects the table keys that matched a face (a key
-    matching none is an error: `check_used`)."""
+    `finish`, or `[finishes] PART`). `used` collects the table keys that decided a face and, under
+    "selected", the rules that select one whether or not an earlier source decided it (`check_used`)."""
     colours = {k.lower(): v for k, v in entry.colours.items()}
     out = FaceFinishes([])
     for k, face in enumerate(placed.faces()):
@@ -322,11 +384,10 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
             key = next((ln for ln in layers if ln in entry.layers), None)
             if key is not None:
                 hit = (entry.layers[key], f"layer '{key}'", ("layers", key))
-        if hit is None:
-            for j, rule in enumerate(entry.rules):
-                if _rule_matches(rule, part, k, face):
-                    hit = (rule.finish, f"rule {j + 1}", ("rules", str(j)))
-                    break
+        selected = [j for j, rule in enumerate(entry.rules) if _rule_matches(rule, part, k, face)]
+        used.setdefault("selected", set()).update(selected)
+        if hit is None and selected:
+            hit = (entry.rules[selected[0]].finish, f"rule {selected[0] + 1}", ("rules", selected[0]))
         if hit is None:
             hit = (default, "default", None)
         out.finishes.append(hit[0])
@@ -336,9 +397,11 @@ def face_finishes(entry: StepPart, part: str, solid: StepSolid, placed, used: di
     return out
 
 
-def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile) -> None:
+def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile) -> list[str]:
     """InputError for a names/colours/layers key no face matched (a misspelt colour would leave the
-    faces the default finish without a word), listing what the file carries."""
+    faces the default finish without a word), listing what the file carries, and for a `rules` entry
+    that selects no face. Returns notes for the rules that select faces but decide none (an earlier
+    source finished every face they select)."""
     carried = {"names": sorted({n for s in step.solids for n in s.face_names + [s.name] if n}),
                "colours": sorted({c for s in step.solids for c in s.face_colours if c}),
                "layers": sorted({ln for s in step.solids for fl in s.face_layers for ln in fl})}
@@ -348,6 +411,23 @@ def check_used(entry: StepPart, name: str, used: dict[str, set], step: StepFile)
                 raise InputError(f"no face of {step.path.name} has the {table[:-1]} {key!r}",
                                  field=_field(name, f"{table}.{key}"),
                                  valid=f"a {table[:-1]} the file carries: " + (", ".join(carried[table]) or "(none)"))
+    notes = []
+    for j, rule in enumerate(entry.rules):
+        if j not in used.get("selected", set()):
+            raise InputError(f"rule {j + 1} of [parts.{name}] ({_criteria(rule)}) selects no face of {step.path.name}",
+                             field=_field(name, f"rules.{j}"),
+                             valid="criteria a face meets: its index (parts/NAME.faces.png), its outward normal "
+                                   "within `within_deg`, its radial extent, the part's name")
+        if j not in used.get("rules", set()):
+            notes.append(f"{name}: rule {j + 1} ({_criteria(rule)}) decides no face: every face it selects is "
+                         "finished by its name, colour, layer or an earlier rule")
+    return notes
+
+
+def _criteria(rule) -> str:
+    given = {k: v for k, v in rule.model_dump(exclude_none=True).items()
+             if k != "finish" and (k != "within_deg" or rule.normal is not None)}
+    return ", ".join(f"{k} = {v}" for k, v in given.items()) or "every face"
 
 
 def _near(a: str, b: str) -> bool:
@@ -441,8 +521,20 @@ def raise_sliver(name: str, found, clearance: float) -> None:
 
 
 def face_picture(mesh, title: str, path: Path) -> None:
-    """parts/NAME.faces.png: the part from the side (z across) and from the front (x across), each
-    face shaded and numbered with its STEP face index (the numbers a `faces = [...]` rule takes)."""
+    """parts/NAME.faces.png (`face_figure`)."""
+    import matplotlib.pyplot as plt  # lazy: pyplot takes ~1 s to load; only the face picture needs it
+
+    fig = face_figure(mesh, title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+
+
+def face_figure(mesh, title: str):
+    """The part from the side (z across) and from the front (x across), each face shaded and numbered
+    with its STEP face index (the numbers a `faces = [...]` rule takes). The numbers stand on a ring
+    around the part, in the order of the points they mark, with a leader line to a point of their face:
+    on a round part the faces' own points crowd together (every annulus has its top at the same place)."""
     import matplotlib  # lazy: pyplot takes ~1 s to load; only the face picture needs it
 
     matplotlib.use("Agg")
@@ -452,26 +544,62 @@ def face_picture(mesh, title: str, path: Path) -> None:
     v, tri, tags = mesh.vertices, mesh.triangles, mesh.tags
     fig, axes = plt.subplots(1, 2, figsize=(14, 7))
     cmap = plt.get_cmap("tab20")
+    faces = sorted(set(int(t) for t in tags))
     for ax, (i, j, xlabel) in zip(axes, ((2, 1, "z (mm)"), (0, 1, "x (mm)"))):
-        faces = sorted(set(int(t) for t in tags))
         for t in faces:
-            sel = tri[tags == t]
-            ax.add_collection(PolyCollection(v[sel][:, :, [i, j]], facecolors=cmap(t % 20), edgecolors="none",
-                                             alpha=0.35))
-            pts = v[sel].reshape(-1, 3)
-            top = pts[np.argmax(pts[:, j])]  # label at the face's highest point in this view
-            ax.annotate(str(mesh.tag_table[t].face), (top[i], top[j]), fontsize=7, ha="center",
-                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0.3})
-        ax.autoscale()
+            ax.add_collection(PolyCollection(v[tri[tags == t]][:, :, [i, j]], facecolors=cmap(t % 20),
+                                             edgecolors="none", alpha=0.35))
+        flat = v[:, [i, j]]
+        centre = 0.5 * (flat.min(axis=0) + flat.max(axis=0))
+        reach = max(float(np.linalg.norm(flat - centre, axis=1).max()), 1e-9)
+        anchors = _anchors(v[tri][:, :, [i, j]].mean(axis=1), tags, faces)
+        ax.set_xlim(centre[0] - 1.7 * reach, centre[0] + 1.7 * reach)
+        ax.set_ylim(centre[1] - 1.7 * reach, centre[1] + 1.7 * reach)
         ax.set_aspect("equal")
+        fig.canvas.draw()  # the axes' final size: how long 20 pt (a three-digit number's box, corner to corner) is in mm
+        ends = ax.transData.inverted().transform([[0, 0], [20 * fig.dpi / 72, 0]])
+        spacing = float(ends[1, 0] - ends[0, 0])
+        for t, at, label_at in zip(faces, anchors, _ring(anchors, centre, 1.15 * reach, spacing)):
+            ax.annotate(str(mesh.tag_table[t].face), at, xytext=label_at, fontsize=7, ha="center", va="center",
+                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.9, "lw": 0.3},
+                        arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "0.4"})
         ax.set_xlabel(xlabel)
         ax.set_ylabel("y (mm)")
     fig.suptitle(title)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
-__all__ = ["face_picture", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
+def _anchors(centroids: np.ndarray, tags: np.ndarray, faces: list[int]) -> np.ndarray:
+    """One point per face (a triangle's centroid), each as far as can be from those chosen before: faces
+    that lie on one another in the view (an annulus at the front and at the back) get apart points."""
+    chosen: list[np.ndarray] = []
+    for t in faces:
+        own = centroids[tags == t]
+        if chosen:
+            gap = np.linalg.norm(own[:, None, :] - np.asarray(chosen)[None], axis=2).min(axis=1)
+            chosen.append(own[int(np.argmax(gap))])
+        else:
+            chosen.append(own[len(own) // 2])
+    return np.asarray(chosen)
+
+
+def _ring(anchors: np.ndarray, centre: np.ndarray, radius: float, spacing: float) -> np.ndarray:
+    """Label positions on rings around the part, evenly spread in the order of their anchors' angle
+    about the centre (leader lines do not cross), each ring `spacing` apart and holding as many labels
+    as fit at `spacing` along it."""
+    n = len(anchors)
+    angle = np.arctan2(anchors[:, 1] - centre[1], anchors[:, 0] - centre[0])
+    order = np.argsort(angle)
+    out = np.zeros((n, 2))
+    per_ring = max(1, int(2 * np.pi * radius / spacing))
+    rings = -(-n // per_ring)
+    for rank, k in enumerate(order):
+        r = radius + spacing * (rank % rings)
+        a = angle[order[0]] + 2 * np.pi * rank / n
+        out[k] = centre + r * np.array([np.cos(a), np.sin(a)])
+    return out
+
+
+__all__ = ["face_picture", "face_figure", "read_step", "read_entry", "StepFile", "StepSolid", "StepSource", "closed_solids",
            "free_edges", "datum_z", "placement", "face_finishes", "check_used", "part_names", "file_sha256", "step_part_kind",
            "sliver_to_glass", "raise_sliver", "FaceFinishes"]

@@ -78,15 +78,17 @@ def check_watertight(name: str, vertices: np.ndarray, triangles: np.ndarray) -> 
 
 def tessellate_part(solid, name: str, kind: str, finish: str, roles: list[tuple[str, int]],
                     linear_mm: float, angular_deg: float, check: bool = True,
-                    finishes: list[str] | None = None, labels: list[str] | None = None) -> TaggedMesh:
-    """One part's TaggedMesh; tags are per CAD face (role from `roles[face]`; finish and label from
-    `finishes[face]`, `labels[face]` when given: a STEP part's faces)."""
+                    finishes: list[str] | None = None, labels: list[str] | None = None,
+                    assigned: list[str] | None = None) -> TaggedMesh:
+    """One part's TaggedMesh; tags are per CAD face (role from `roles[face]`; finish, label and how the
+    finish was assigned from `finishes[face]`, `labels[face]`, `assigned[face]` when given: a STEP part's
+    faces)."""
     verts, tris, tags, table = [], [], [], []
     v0 = 0
     for k, nodes, t in face_triangulations(solid, linear_mm, angular_deg):
         role, surface = roles[k]
         table.append(FaceTag(name, kind, role, finishes[k] if finishes else finish, int(surface), int(k),
-                             labels[k] if labels else ""))
+                             labels[k] if labels else "", assigned[k] if assigned else ""))
         verts.append(nodes)
         tris.append(t + v0)
         tags.append(np.full(len(t), len(table) - 1, np.int32))

@@ -94,13 +94,27 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
 
 def _recomputed(prescription, note, clipped) -> str:
     """': 9.005 mm' for a note on a value the import left to real rays, as the loaded lens has it
-    (the beam's own value beside the clipped one for a surface edged inside the beam)."""
+    (the beam's own value beside the clipped one for a surface edged inside the beam), with the digits
+    it takes to differ from the file's value, or said to be the file's value to 1 µm."""
     if note.surface is None or prescription.surfaces[note.surface].clear_semi_diameter is None:
         return ""
     got = prescription.surfaces[note.surface].clear_semi_diameter
-    if note.surface in clipped:
-        return f": {clipped[note.surface]:.4g} mm, clipped to {got:.4g} mm"
-    return f": {got:.4g} mm"
+    beam = clipped.get(note.surface, got)
+    was = note.file_value_mm
+    if was is not None and abs(beam - was) < 5e-4:
+        text = f": {beam:.4g} mm, the file's value to 1 µm"
+    else:
+        digits = _digits_apart(beam, was)
+        text = f": {beam:.{digits}g} mm" + (f" (the file's {was:.{digits}g} mm)" if digits > 4 else "")
+    return text + (f", clipped to {got:.4g} mm" if note.surface in clipped else "")
+
+
+def _digits_apart(value: float, other: float | None) -> int:
+    """The significant digits (4 at least) at which `value` and `other` read differently."""
+    digits = 4
+    while other is not None and digits < 12 and f"{value:.{digits}g}" == f"{other:.{digits}g}":
+        digits += 1
+    return digits
 
 
 def _print_tables(doc: dict) -> None:

@@ -63,6 +63,8 @@ def regenerate(
     manifest, target, tri = result.manifest, result.folder, result.triangles
     how = "from the cache (inputs unchanged)" if manifest.cached else "built"
     typer.echo(f"{target}: {len(manifest.parts)} parts, {tri} triangles, {how}; input hash {manifest.input_hash[:12]}")
+    for warning in manifest.warnings:
+        typer.echo(f"warning: {warning}")
     for note in manifest.notes:
         typer.echo(f"note: {note}")
     if check:

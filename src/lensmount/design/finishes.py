@@ -33,9 +33,12 @@ Built-in library (`[finishes]` adds to or overrides it):
 
 Assignment (`[assign]`), most specific wins:
 `part:NAME` > `role:ROLE` > `kind:KIND` > `finish:NAME` (the finish the mount file gave the face)
-> `"*"`. A face matched by no rule keeps the finish its mount file gave it, which must be
-defined (an undefined one is an error, never a silent absorber); a rule that matches no face is
-an error too (scene.build). Optical faces are never assigned a finish (the tracer refracts
+> `"*"`. A face the mount file finished face by face (a STEP part's `names`, `colours`, `layers`
+or `rules`: `FaceTag.assigned`) is more specific than all of them: it keeps that finish, which only a
+`finish:NAME` rule (a definition of the name, not a choice of faces) re-maps. A face matched by no
+rule keeps the finish its mount file gave it, which must be defined (an undefined one is an error,
+never a silent absorber); a rule that matches no face is an error, and one that decides no face (every
+face it selects has a more specific assignment) a warning the run prints (scene.build). Optical faces are never assigned a finish (the tracer refracts
 there), except a mirror's coated face by `"surface:N"` (N its 1-based surface number): that
 finish is the scatter on top of the specular reflection (micro-roughness, dust). Only the rule
 naming the surface reaches it: `"*"` or `part:` rules meant for the blank and the cells would
@@ -98,17 +101,27 @@ def check_rules(assign: dict[str, str], library: dict[str, dict], *, file: str |
                              field=f"assign.{key}", valid=", ".join(sorted(library)))
 
 
+def deciding_rule(tag: FaceTag, assign: dict[str, str]) -> str | None:
+    """The `[assign]` key that gives a face tag its finish (None: the face keeps its mount finish).
+    A face the mount file finished face by face is reached by `finish:NAME` only."""
+    if tag.role == "optical":
+        key = surface_rule(tag.surface) if tag.surface >= 0 else None
+        return key if key in assign else None
+    for prefix in ("finish",) if tag.assigned else _PRIORITY:
+        key = f"{prefix}:{getattr(tag, prefix)}"
+        if key in assign:
+            return key
+    return "*" if "*" in assign and not tag.assigned else None
+
+
 def finish_of(tag: FaceTag, assign: dict[str, str], library: dict[str, dict]) -> str | None:
     """The finish name for a face tag; for an optical face the `surface:N` rule's finish, else None
     (whether surface N is a mirror is `scene.build.check_rules_match`'s to say)."""
+    key = deciding_rule(tag, assign)
+    if key is not None:
+        return assign[key]
     if tag.role == "optical":
-        return assign.get(surface_rule(tag.surface)) if tag.surface >= 0 else None
-    for prefix in _PRIORITY:
-        key = f"{prefix}:{getattr(tag, prefix)}"
-        if key in assign:
-            return assign[key]
-    if "*" in assign:
-        return assign["*"]
+        return None
     if tag.finish not in library:  # never absorb silently: a misspelt mount finish would read as black
         raise InputError(f"part '{tag.part}' has the finish '{tag.finish}' from its mount file, which is not defined, "
                          "and no [assign] rule covers it", field="assign",
@@ -245,4 +258,4 @@ def old_layout_error(scene_file: str, tables: list[str]) -> InputError:
 
 
 __all__ = ["BUILTIN_FINISHES", "FINISHES_NAME", "Finishes", "finish_library", "check_rules", "check_coatings",
-           "check_finishes", "check_mount_finishes", "finish_of", "load_finishes", "old_layout_error", "surface_rule"]
+           "check_finishes", "check_mount_finishes", "deciding_rule", "finish_of", "load_finishes", "old_layout_error", "surface_rule"]

@@ -183,7 +183,7 @@ class FaceRule(_Strict):
 
     finish: str
     part: str | None = Field(None, description="the solid's part name (an assembly's solids are parts)")
-    faces: list[int] | None = Field(None, description="STEP face indices (parts/NAME-faces.svg numbers them)")
+    faces: list[int] | None = Field(None, description="STEP face indices (parts/NAME.faces.png numbers them)")
     normal: tuple[float, float, float] | None = Field(None, description="outward normal direction (any length), "
                                                       "assembly frame, at the face's middle")
     within_deg: float = Field(10.0, gt=0, le=180, description="largest angle between the face normal and `normal`")

@@ -23,7 +23,7 @@ from lensmount.optics.glass import absorption_coefficient, refractive_index
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.scene import primitives
-from lensmount.design.finishes import finish_library, finish_of
+from lensmount.design.finishes import deciding_rule, finish_library, finish_of
 from lensmount.optics.paraxial import paraxial
 from lensmount.scene.scene import Effects, FrontOpening, OpticalSurface, Scene, faces_selected
 from lensmount.physics.bsdf import make_bsdf
@@ -194,7 +194,7 @@ def build_scene(prescription: Prescription, mesh: TaggedMesh, spec, *, bsdf_fact
                  solid_index_of_tag=solid_index_of_tag(prescription, mesh, wavelengths),
                  solid_absorption_of_tag=solid_absorption_of_tag(prescription, mesh, wavelengths),
                  front_opening=opening, finish_of_tag=finishes, description=spec.description,
-                 warnings=detector_warnings(mesh, detector),
+                 warnings=detector_warnings(mesh, detector) + undecisive_rules(spec.assign, assign, mesh),
                  field_of_view_deg=imaged_field_deg(prescription, detector))
 
 
@@ -308,6 +308,25 @@ def check_rules_match(assign: dict[str, str], mesh: TaggedMesh, mirrors: set[int
                              valid="surface:N for the mirror surfaces " + (", ".join(present["surface"]) or "(none)"))
         raise InputError(f"assignment rule '{key}' matches no face of the assembly{hint}", field=f"assign.{key}",
                          valid="; ".join(f"{p}: {', '.join(v) or '(none)'}" for p, v in present.items()))
+
+
+def undecisive_rules(rules: dict[str, str], assign: dict[str, str], mesh: TaggedMesh) -> list[str]:
+    """A warning for each finishes.toml rule (`rules`) that selects faces but decides none, each of them
+    having a more specific assignment in `assign` or in the mount file (a STEP part's face finishes):
+    the rule does nothing, which its author should know."""
+    decided = {deciding_rule(t, assign) for t in mesh.tag_table}
+    out = []
+    for key in rules:
+        if key in decided or key.startswith("surface:"):
+            continue
+        prefix, _, value = key.partition(":")
+        selected = [t for t in mesh.tag_table if t.role != "optical" and (key == "*" or str(getattr(t, prefix)) == value)]
+        why = sorted({f"{t.part} face {t.face} by its {t.assigned} in mount.toml [parts]" if t.assigned
+                      else f"{t.part} by '{deciding_rule(t, assign)}'" for t in selected})
+        out.append(f"finishes.toml [assign] '{key}' = '{rules[key]}' decides no face: every face it selects has a more "
+                   f"specific assignment ({'; '.join(why[:3])}{' …' if len(why) > 3 else ''}); a face's own finish in "
+                   "mount.toml is re-mapped only by a 'finish:NAME' rule")
+    return out
 
 
 def detector_warnings(mesh: TaggedMesh, detector: Detector) -> list[str]:

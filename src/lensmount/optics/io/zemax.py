@@ -139,6 +139,7 @@ class ImportNote:
     where: str
     what: str
     surface: int | None = None  # lensmount's 0-based surface, for a value the import leaves to real rays
+    file_value_mm: float | None = None  # the value the file held there (what the recomputed one is set beside)
 
 
 def read_text(path) -> str:
@@ -532,7 +533,7 @@ def _semi_diameters(lens: ZmxLens, zs: ZmxSurface, s: float, notes, automatic: s
     if zs.number in automatic:
         notes.append(ImportNote("substituted", where, f"semi-diameter {clear:.4g} mm, automatic in the file (what "
                                 "Zemax last computed, not an aperture) -> recomputed from real rays of the "
-                                "file's fields and aperture", surface=index))
+                                "file's fields and aperture", surface=index, file_value_mm=clear))
         clear = None
     elif clear is not None:
         kind = {0: "automatic, the stop's: the diaphragm's size", 1: "fixed",
