@@ -132,7 +132,7 @@ def tails(series: np.ndarray) -> str:
 
 def compare(rows: dict, reference: str) -> None:
     """Print each row's difference from `reference`: independent and paired (same seed) errors."""
-    from lensmount.analysis.passes import t_factor
+    from lensmount.analysis.error_bar import t_factor
 
     _, a, sa, ba, _, pa = rows[reference]
     for label, (_, x, sx, bx, _, px) in rows.items():

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lensmount.cad.plan import PartPlan
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.templates.hood import Hood
@@ -118,8 +119,6 @@ def hood_and_vanes(spec: MountSpec, env, z_front: float, r_barrel: float, bore_f
             lens's surface over its clear aperture), as `line_of_sight` takes them.
         exclusion_deg: the smallest sun angle off the axis (line-of-sight vanes).
     """
-    from lensmount.cad.layout import PartPlan  # here: layout imports this module
-
     hood, vs, min_t = spec.hood, spec.vanes, spec.checks.min_thickness_mm
     vanes: list[tuple[float, float, float]] = []  # (z_front, inner, outer)
     hood_part = None
@@ -195,8 +194,6 @@ def housing(spec: MountSpec, env, image_z: float, z_back: float, r_barrel: float
     straight rays' |r|), so the chords between samples stay outside it. The housing's bore
     grows to leave the baffle `rear_baffle_wall_mm` of wall.
     """
-    from lensmount.cad.layout import PartPlan  # here: layout imports this module
-
     hs = spec.housing
     if not hs.enabled:
         if hs.rear_baffle:
