@@ -21,12 +21,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.cad.baffles import hood_and_vanes, housing
+import lensmount.cad.kinds.hood  # noqa: F401  (the built-in part kinds register as they load, in this order)
+import lensmount.cad.kinds.housing  # noqa: F401
 from lensmount.cad.catadioptric import plan_catadioptric
 from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group, thin_plate
+from lensmount.cad.plan import Contact, Envelope, Layout, PartPlan
 from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, contact_slope, diaphragm_spacer_ends,
                                  glass_seat_bore, radii_to_rim, ring_opening, stop_diaphragm)
-from lensmount.cad.plan import Contact, Envelope, Layout, PartPlan
+from lensmount.cad.stages import Mount, place_kinds
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.apertures import with_clear_semi_diameters
@@ -77,7 +79,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     z_front = mount.front_seat()
     mount.gaps()
     z_back = mount.rear_seat()
-    return mount.baffles(z_front, z_back, mount.barrel())
+    return mount.part_kinds(z_front, z_back, mount.barrel())
 
 
 @dataclass
@@ -546,27 +548,18 @@ class _MountPlanner:
         self.parts.insert(0, PartPlan("barrel", "barrel", finish, barrel))
         return r_barrel
 
-    def baffles(self, z_front: float, z_back: float, r_barrel: float) -> Layout:
-        """The hood and vanes in front of the barrel and the detector housing behind it
-        (lensmount.cad.baffles: [hood], [vanes], [housing]), and the layout of every part in order."""
+    def part_kinds(self, z_front: float, z_back: float, r_barrel: float) -> Layout:
+        """Around the seated stack, every registered part kind's parts (`cad.stages`: the built-in hood with
+        its vanes and detector housing, `cad.kinds`, then any plug-in's), and the layout of every part in order."""
         spec, p = self.spec, self.p
         i0 = self.groups[0][0]
         rho = np.linspace(0.0, self.clear[i0], APERTURE_SAMPLES)
         aperture = (rho, self._seated(0, 0).template.front_z(rho))  # the first surface over its clear aperture
-        hood_part, vane_parts = hood_and_vanes(spec, self.env, z_front, r_barrel, self.bore_pts[0][0], self.spacers,
-                                               self.notes, aperture, spec.exclusion_deg(p.max_field_deg))
-        housing_part, rear_baffle = housing(spec, self.env, p.image_z, z_back, r_barrel, self.bore_pts[-1][0],
-                                            self.notes)
         parts = self.parts
         ordered = [parts[0]] + [pp for grp in self.lens_parts for pp in grp] + self.retainers + self.spacers + parts[1:]
-        if hood_part:
-            ordered.append(hood_part)
-        ordered += vane_parts
-        if housing_part:
-            ordered.append(housing_part)
-        if rear_baffle:
-            ordered.append(rear_baffle)
-        return Layout(p, ordered, self.contacts, self.env, self.notes)
+        mount = Mount(p, spec, self.env, tuple(ordered), self.notes, z_front, z_back, r_barrel, self.bore_pts[0][0],
+                      self.bore_pts[-1][0], aperture)
+        return Layout(p, ordered + place_kinds(mount), self.contacts, self.env, self.notes)
 
 
 __all__ = ["plan", "group_rim"]
