@@ -24,7 +24,7 @@ import numpy as np
 import lensmount.cad.kinds.hood  # noqa: F401  (the built-in part kinds register as they load, in this order)
 import lensmount.cad.kinds.housing  # noqa: F401
 from lensmount.cad.catadioptric import plan_catadioptric
-from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group, thin_plate
+from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, group_rim, lens_group, seat_of_group, thin_plate
 from lensmount.cad.plan import Contact, Envelope, Layout, PartPlan
 from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, contact_slope, diaphragm_spacer_ends,
                                  glass_seat_bore, radii_to_rim, ring_opening, stop_diaphragm)
@@ -40,19 +40,6 @@ from lensmount.templates.retainer import Retainer
 from lensmount.templates.spacer import Spacer
 
 APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance aperture (vane sight lines)
-
-
-def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:
-    """Mechanical semi-diameter (mm) of a lens group whose first element is number `first`: the largest
-    `lens_edge.semi_diameter_mm` of its elements, else the largest of the file's mechanical
-    semi-diameters (clear + `allowance_mm` where the file gives none). `p` has its clear semi-diameters."""
-    given = edge.semi_diameter_mm
-    overrides = [given[first + k] for k in range(len(group) - 1) if first + k in given]
-    if overrides:
-        return float(max(overrides))
-    surf = p.surfaces
-    return float(max(surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
-                     else float(surf[i].clear_semi_diameter) + edge.allowance_mm for i in group))
 
 
 def _size_keys(part: str) -> list[str]:
@@ -562,4 +549,4 @@ class _MountPlanner:
         return Layout(p, ordered + place_kinds(mount), self.contacts, self.env, self.notes)
 
 
-__all__ = ["plan", "group_rim"]
+__all__ = ["plan"]

@@ -72,6 +72,7 @@ class Stage(Protocol):
 
     def __call__(self, params: BaseModel, *, mount: Mount) -> list[PartPlan]: ...
 
+
 PART_KINDS: Registry[list[PartPlan]] = Registry("part kind", where="mount.toml's [kinds] table")
 
 

@@ -49,10 +49,9 @@ import math
 
 import numpy as np
 
-from lensmount.cad.layout import group_rim
-from lensmount.cad.plan import Envelope
-from lensmount.cad.lens_groups import lens_group, seat_of_group, thin_plate
+from lensmount.cad.lens_groups import group_rim, lens_group, seat_of_group, thin_plate
 from lensmount.cad.mount_search import find_mount
+from lensmount.cad.plan import Envelope
 from lensmount.design.mount import LensEdge, MountSpec
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
