@@ -115,7 +115,7 @@ def main() -> None:
               f"{e.merit:.3g} photons/s to the same error")
     a, b = rows["case 1 as written"], rows["everything on"]
     print(f"  ratio (case 1 / everything on), photons per second to the same error = {a.merit / b.merit:.2f}")
-    from lensmount.analysis.passes import t_factor
+    from lensmount.analysis.error_bar import t_factor
 
     z = (a.mean - b.mean) / math.hypot(a.std_error * t_factor(a.passes), b.std_error * t_factor(b.passes))
     print(f"  edge channels differ by {a.mean - b.mean:+.3g} mm² = {z:+.2f} σ (errors widened by Student's t)")

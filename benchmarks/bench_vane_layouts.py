@@ -97,8 +97,8 @@ def hood_cutoff_deg(layout, prescription) -> float:
     """The steepest sun angle at which a straight sun ray still reaches the first lens's clear
     aperture past every hood vane (the sun's centre; its 0.27° radius comes on top): the
     openings are both ends of each hood vane's edge land and surface 1's clear aperture at
-    the sag of its rim (`cad.baffles.steepest_sun_slope`)."""
-    from lensmount.cad.baffles import steepest_sun_slope
+    the sag of its rim (`cad.kinds.hood.steepest_sun_slope`)."""
+    from lensmount.cad.kinds.hood import steepest_sun_slope
     from lensmount.optics.profiles import Profile
 
     s = prescription.surfaces[0]
@@ -132,7 +132,7 @@ def tails(series: np.ndarray) -> str:
 
 def compare(rows: dict, reference: str) -> None:
     """Print each row's difference from `reference`: independent and paired (same seed) errors."""
-    from lensmount.analysis.passes import t_factor
+    from lensmount.analysis.error_bar import t_factor
 
     _, a, sa, ba, _, pa = rows[reference]
     for label, (_, x, sx, bx, _, px) in rows.items():

@@ -12,7 +12,7 @@ LIGHT_TAIL). A run is honest when its interval mean ± (2 se + allowance) holds 
 
 Each run adds passes drawn from one distribution and stops at the first n >= 8 (runner.Stopping's
 min_passes) where the rule holds; a stopped run covers when |mean - truth| <= 2 x its quoted standard
-error (batch means x Student's t, `analysis.passes.t_factor`). Rules: the shipped one (standard error
+error (batch means x Student's t, `analysis.error_bar.t_factor`). Rules: the shipped one (standard error
 <= target x mean and no dominant pass: Grubbs p < TAIL_P and >= TAIL_RATIO medians), and candidates
 tried on the way (Hill tail-index allowance, variance-of-variance, Cochran's n >= c G1^2). Also the
 coverage of ±2 standard errors at a fixed number of passes, which bounds what any stopping rule
@@ -25,7 +25,8 @@ import sys
 import numpy as np
 from scipy.stats import t as student
 
-from lensmount.analysis.passes import UNBOUNDED_TAIL, TAIL_K, TAIL_P, TAIL_RATIO, t_factor, tail_allowance, tail_index
+from lensmount.analysis.error_bar import t_factor
+from lensmount.analysis.passes import UNBOUNDED_TAIL, TAIL_K, TAIL_P, TAIL_RATIO, tail_allowance, tail_index
 from lensmount.integrators.estimate import LARGEST
 
 

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lensmount.cad.baffles import steepest_sun_slope  # noqa: E402
+from lensmount.cad.kinds.hood import steepest_sun_slope  # noqa: E402
 from lensmount.cad.layout import plan  # noqa: E402
 from lensmount.design.lens import load_lens  # noqa: E402
 from lensmount.design.mount import parse_mount  # noqa: E402

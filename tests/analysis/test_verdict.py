@@ -2,7 +2,7 @@
 "undecided" says how many photons would decide — checked by giving it those photons.
 
 The runs carry standard errors as the summaries give them: Student-t widened for their own passes
-(`analysis.passes.t_factor`). Fed plain ones, these tests never saw compare widen a second time
+(`analysis.error_bar.t_factor`). Fed plain ones, these tests never saw compare widen a second time
 (widened twice, a nominal 99 % interval covered 99.95 %)."""
 
 import math
@@ -13,7 +13,7 @@ import pytest
 
 from lensmount.analysis.compare import (
     IMPROVEMENT, NO_REGRESSION, REGRESSION, UNDECIDED, Measurement, interval, judge, parse_fraction, to_decide)
-from lensmount.analysis.passes import t_factor
+from lensmount.analysis.error_bar import t_factor
 
 
 def of_passes(x, photons_per_pass=100_000, seconds_per_pass=1.0, no_signal_bound=None) -> Measurement:

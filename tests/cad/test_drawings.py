@@ -87,7 +87,7 @@ def test_every_built_in_kind_is_dimensioned_from_its_template():
     """Hood, housing, tube spacer, retainer, rear baffle: the values a turner needs, from the
     template's own numbers (no CAD kernel)."""
     from lensmount.cad.drawing import dimensions
-    from lensmount.cad.layout import PartPlan
+    from lensmount.cad.plan import PartPlan
     from lensmount.design.mount import Drawing
     from lensmount.templates.hood import Hood
     from lensmount.templates.housing import Housing
@@ -116,7 +116,7 @@ def test_every_built_in_kind_is_dimensioned_from_its_template():
 def test_catadioptric_parts_are_dimensioned_from_their_templates():
     """A mirror blank with a hole, a cell and a spider cell (lensmount.cad.catadioptric)."""
     from lensmount.cad.drawing import dimensions
-    from lensmount.cad.layout import PartPlan
+    from lensmount.cad.plan import PartPlan
     from lensmount.design.mount import Drawing
     from lensmount.templates.cell import Cell, SpiderCell
     from lensmount.templates.lens_element import OpticalFace

@@ -8,7 +8,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lensmount.cad.checks import glass_gaps, outline, slivers
+from lensmount.cad.checks import glass_gaps, slivers
+from lensmount.templates.profile import outline
 from lensmount.cad.layout import plan
 from lensmount.design.lens import load_lens
 from lensmount.design.mount import load_mount

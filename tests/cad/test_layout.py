@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.cad.checks import check_interference, outline
+from lensmount.cad.checks import check_interference
+from lensmount.templates.profile import outline
 from lensmount.cad.layout import plan
 from lensmount.errors import GeometryError
 from lensmount.templates.spacer import Spacer
@@ -114,11 +115,11 @@ def test_tangent_contact_follows_the_sphere_slope(reference_layout):
 
 
 def test_envelope_never_returns_nan(monkeypatch, reference_layout):
-    import lensmount.cad.layout as layout_module
-    from lensmount.cad.layout import Envelope
+    import lensmount.cad.plan as plan_module
+    from lensmount.cad.plan import Envelope
 
     layout, _ = reference_layout
-    monkeypatch.setattr(layout_module, "beam_envelope", lambda p, z, land=None: np.full(np.shape(z), np.nan))
+    monkeypatch.setattr(plan_module, "beam_envelope", lambda p, z, land=None: np.full(np.shape(z), np.nan))
     env = Envelope(layout.prescription, -10.0, 10.0, step=1.0)
     assert np.isfinite(env.at(np.linspace(-20, 20, 9))).all()
     assert np.isfinite(env.max_over(-5.0, 5.0))

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from lensmount.cad.checks import outline, penetration
+from lensmount.cad.checks import penetration
+from lensmount.templates.profile import outline
 from lensmount.cad.layout import plan
 from lensmount.design.lens import load_lens
 from lensmount.design.mount import parse_mount

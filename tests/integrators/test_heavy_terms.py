@@ -22,7 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from planar import Collimated, Detector, Face, PlanarScene, PlanarTracer  # noqa: E402
 
-from lensmount.analysis.passes import (LIGHT_TAIL, UNBOUNDED_TAIL, Accumulator, t_factor,  # noqa: E402
+from lensmount.analysis.error_bar import t_factor  # noqa: E402
+from lensmount.analysis.passes import (LIGHT_TAIL, UNBOUNDED_TAIL, Accumulator,  # noqa: E402
                                        tail_allowance, tail_index)
 from lensmount.analysis.summary import build_summary  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402

@@ -15,7 +15,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import singlet_barrel  # noqa: E402
 
-from lensmount.analysis.passes import Accumulator, t_factor  # noqa: E402
+from lensmount.analysis.error_bar import t_factor  # noqa: E402
+from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.analysis.paths import PathSums, signature_from_hex, top_paths  # noqa: E402
 from lensmount.mesh import FaceTag  # noqa: E402
 from lensmount.integrators.estimate import PassEstimate  # noqa: E402

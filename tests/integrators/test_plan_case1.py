@@ -13,7 +13,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from bench_planner import case1_scenes, measure  # noqa: E402
 
-from lensmount.analysis.passes import t_factor  # noqa: E402
+from lensmount.analysis.error_bar import t_factor  # noqa: E402
 from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.integrators.plan import plan  # noqa: E402
 from lensmount.integrators.view_map import build_view_map, view_map_streams  # noqa: E402

@@ -12,7 +12,7 @@ from lensmount.loop.converge import (
     Level, MethodCurve, _curve, fit_slope, halving_time, level_times, read_reference, write_converge)
 from lensmount.cli import app
 from lensmount.errors import InputError
-from lensmount.loop.simulate import PassStatus
+from lensmount.loop.progress import PassStatus
 
 DESIGN = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"
 

@@ -5,7 +5,7 @@ import math
 import pytest
 
 from lensmount.cli.simulate import describe
-from lensmount.loop.simulate import PassStatus
+from lensmount.loop.progress import PassStatus
 from lensmount.loop.progress import error_slope, next_halving_s, time_to_error
 
 

@@ -27,7 +27,8 @@ from lensmount.design.edges import MAX_CLIP_VIGNETTING
 from lensmount.design.lens import load_lens, load_lens_and_clips
 from lensmount.errors import InputError
 from lensmount.optics.glass import MODEL_GLASS, refractive_index
-from lensmount.optics.io.zemax import parse_zmx, read_text, read_zmx_with_notes
+from lensmount.optics.io.zemax import parse_zmx, read_zmx_with_notes
+from lensmount.optics.io.zemax_file import read_text
 from lensmount.optics.paraxial import paraxial
 
 CORPUS = Path(__file__).parent / "corpus"

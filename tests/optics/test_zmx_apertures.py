@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from lensmount.optics.apertures import vignetted_pupils, with_clear_semi_diameters
-from lensmount.optics.io.zemax import parse_zmx, read_text, read_zmx, read_zmx_with_notes
+from lensmount.optics.io.zemax import parse_zmx, read_zmx, read_zmx_with_notes
+from lensmount.optics.io.zemax_file import read_text
 from lensmount.optics.realrays import aim, trace
 
 CORPUS = Path(__file__).parent / "corpus"

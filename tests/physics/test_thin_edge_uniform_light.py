@@ -166,7 +166,7 @@ def test_a_bore_under_grazing_skew_light_bounds_its_bias_and_holds_the_truth():
     the arc factor's steps (k = 2) stand above the photons' noise, which at 3 × 10⁴ made the ladder's shape
     a matter of the seed."""
     from lensmount.analysis.bias import ladder_bias
-    from lensmount.analysis.passes import t_factor
+    from lensmount.analysis.error_bar import t_factor
 
     R, rho, e = 16.3, 0.05, 1.0
     v, t, tags, phi, cap, fn, pos, quads = _three_hit_points(R)

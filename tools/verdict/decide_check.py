@@ -2,7 +2,7 @@
 import math, sys
 import numpy as np
 from lensmount.analysis.compare import UNDECIDED, Measurement, judge, interval
-from lensmount.analysis.passes import t_factor
+from lensmount.analysis.error_bar import t_factor
 
 def meas(x):
     n = len(x)

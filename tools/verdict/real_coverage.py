@@ -1,7 +1,7 @@
 """Coverage of compare's 99 % interval on real passes (tools/verdict/real_passes.py output), issue 26."""
 import math, numpy as np
 from lensmount.analysis.compare import Measurement, interval
-from lensmount.analysis.passes import t_factor
+from lensmount.analysis.error_bar import t_factor
 def run(x):
     n=len(x); return Measurement(float(x.mean()), float(x.std(ddof=1)/math.sqrt(n)*t_factor(n)), 0.0, n)
 v = np.load("/tmp/verdict/passes-forward-2000.npy"); v = v[np.isfinite(v).all(axis=1)]

@@ -2,7 +2,7 @@
 
 Each run gives a value with a standard error and, for the bidirectional estimator, a bound on
 its remaining bias. The summaries' standard errors are already Student-t widened for their own
-passes (`analysis.passes.t_factor`: ±2 of them cover 95 %); the comparison takes the plain
+passes (`analysis.error_bar.t_factor`: ±2 of them cover 95 %); the comparison takes the plain
 ones back (÷ t_factor(passes)) and widens once, with its own quantile. The change
 d = new − old has the standard error σ = √(σ_old² + σ_new²), Student's t with the
 Welch–Satterthwaite degrees of freedom; bias bounds add linearly (they are bounds, not random):
@@ -38,7 +38,8 @@ from dataclasses import dataclass, replace
 
 from scipy.special import stdtrit
 
-from lensmount.analysis.passes import ZERO_SIGNAL_COUNT, t_factor
+from lensmount.analysis.error_bar import t_factor
+from lensmount.analysis.passes import ZERO_SIGNAL_COUNT
 
 REGRESSION, NO_REGRESSION, IMPROVEMENT, UNDECIDED = "regression", "no regression", "improvement", "undecided"
 _MAX_MORE_PASSES = 2 ** 30  # beyond this "more photons" is no answer
@@ -47,7 +48,7 @@ _MAX_MORE_PASSES = 2 ** 30  # beyond this "more photons" is no answer
 @dataclass(frozen=True)
 class Measurement:
     """A Monte Carlo figure: value, standard error as the summaries give it (the passes' spread,
-    Student-t widened by `passes.t_factor`; None = unknown, fewer than 3 passes), bias bound,
+    Student-t widened by `error_bar.t_factor`; None = unknown, fewer than 3 passes), bias bound,
     what it cost (passes, photons, seconds), and the 95 % no-signal bound: what the figure lies
     below when it read exactly zero in every pass (None: not known; a zero then decides nothing).
     bias_unbounded : why the run could not bound its kernel bias (`analysis.bias`; None: bounded): its

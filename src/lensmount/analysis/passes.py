@@ -49,9 +49,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.special import stdtrit  # Student's t quantile; scipy.stats' t.ppf is ~70x slower per call
 
 from lensmount.analysis.bias import BiasBound, ladder_bias
+from lensmount.analysis.error_bar import MIN_PASSES, t_factor
 from lensmount.analysis.paths import PathSums
 from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
@@ -64,7 +64,6 @@ from lensmount.integrators.plan import edge_flux_components
 _STATE_VERSION = 9  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
 # scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess;
 # 8: each pass's flux on the ladder of radii instead of at half the radius; 9: each pass's largest terms
-MIN_PASSES = 3  # below this the spread of the passes is no error bar (std error: inf)
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
 TAIL_P = 0.01  # the largest pass is an outlier below this p-value: 1 % of runs with normal passes are flagged
 # ... and dominates only at this many medians: on case 1 the last pass (smallest radius, the noisiest) at 1.10×
@@ -443,17 +442,6 @@ class Accumulator:
         return acc, meta
 
 
-def t_factor(n: int) -> float:
-    """Student's t at 97.5 % with n − 1 degrees of freedom over the normal's 1.96.
-
-    Multiplies the plain standard error from n passes so that ±2 of them cover ~95 % as
-    they would with many passes (×1.31 at n = 6, ×1.12 at 12, ×1.02 at 64): six passes
-    gave a spread 1.3× the quoted error over 16 seeds before."""
-    if n < 2:
-        return math.inf
-    return float(stdtrit(n - 1, 0.975) / 1.959963984540054)
-
-
 def tail_index(terms: np.ndarray) -> np.ndarray:
     """Hill's estimate of the tail index α (P(term > x) ∝ x^−α) from the TAIL_K + 1 largest positive terms of
     each row of `terms` (..., m), any order: α̂ = k / Σ_{i<k} ln(x_(i) / x_(k)), k = min(TAIL_K, positive − 1).
@@ -523,5 +511,5 @@ def _std_error(series: np.ndarray) -> float:
     return float(np.std(series, ddof=1) / math.sqrt(n) * t_factor(n))
 
 
-__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
-           "LIGHT_TAIL", "grubbs_p", "t_factor", "tail_index", "tail_allowance"]
+__all__ = ["Accumulator", "Drift", "Tail", "TAIL_P", "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
+           "LIGHT_TAIL", "grubbs_p", "tail_index", "tail_allowance"]

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from lensmount.analysis.error_bar import MIN_PASSES, t_factor
 from lensmount.analysis.metrics import finite_or_none, stray_fraction
 from lensmount.atomic import write_npz
 from lensmount.integrators.paths import EMPTY, PassFaces, ghost_of, PassPaths, binned_pixel, binned_shape
@@ -37,8 +38,6 @@ FACE_LIST = 10  # faces per list in the report
 
 def _t_error(total: np.ndarray, total_sq: np.ndarray, n: int) -> np.ndarray:
     """Standard error of the mean from Σx and Σx² over n passes × Student-t (inf below 3 passes)."""
-    from lensmount.analysis.passes import MIN_PASSES, t_factor  # here: passes imports this module
-
     if n < MIN_PASSES:
         return np.full(len(total), math.inf)
     mean = total / n

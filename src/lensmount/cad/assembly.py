@@ -12,12 +12,14 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 import lensmount
 from lensmount.cad.checks import check_layout
-from lensmount.cad.layout import Layout, PartPlan, plan
+from lensmount.cad.layout import plan
+from lensmount.cad.plan import Layout, PartPlan
 from lensmount.mesh import TaggedMesh
 from lensmount.cad.tessellate import tessellate_part
 from lensmount.design.mount import MountSpec
@@ -29,6 +31,9 @@ from lensmount.optics.prescription import Prescription
 from lensmount.templates.profile import face_roles
 from lensmount.templates.user import declared_roles, load_template, to_solid
 
+if TYPE_CHECKING:  # build123d/OCP take seconds to load; planning and checking a layout do without them
+    from build123d import Compound, Solid
+
 USER_OVERLAP_TOL_MM3 = 1e-3
 
 
@@ -37,7 +42,7 @@ class BuiltPart:
     """A part ready for export: its plan, solid, face roles and content hash."""
 
     plan: PartPlan
-    solid: object
+    solid: Solid | Compound  # a user template's may be a compound of solids
     roles: list[tuple[str, int]]
     user_template: Path | None  # the user's file: a template, or a STEP part's file
     hash: str

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.path import Path as MplPath
 
-from lensmount.cad.layout import Envelope, Layout, PartPlan
+from lensmount.cad.plan import Envelope, Layout, PartPlan
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.apertures import ENVELOPE_FIELDS, _beam, _field_samples
@@ -81,14 +81,14 @@ class _Unit:
     templates: list = field(default_factory=list)
     z0: float = 0.0                           # the cell's z range
     z1: float = 0.0
-    cell: object = None
+    cell: Cell | SpiderCell | None = None
     cell_name: str = ""
     lips: list = field(default_factory=list)     # front and back lip thickness
     r_out: float = 0.0                             # the cell's outside radius
     hf: float = 0.0                                # lip bores, front and back
     hb: float = 0.0
     tube: tuple | None = None                      # (r_in, r_out, z0, z1) of the tube to the unit behind
-    holder: object = None                          # the unit that tube ends on
+    holder: _Unit | None = None                    # the unit that tube ends on
 
 
 class BeamPaths:

@@ -22,23 +22,15 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.path import Path as MplPath
 
-from lensmount.cad.layout import Layout
+from lensmount.cad.plan import Layout
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
+from lensmount.templates.profile import outline
 
 OVERLAP_TOL_MM = 2e-3
 BEAM_TOL_MM = 1e-3
 _SAMPLE_STEP_MM = 0.25
 _NEAR_MM = 0.3  # points this close to the interpolated envelope get the exact test
-
-
-def outline(segments) -> np.ndarray:
-    """Closed (m, 2) polyline of a profile: arcs and splines sampled densely."""
-    pts = []
-    for s in segments:
-        pl = s.polyline(256)
-        pts.append(pl[:-1])
-    return np.concatenate(pts)
 
 
 def _densify(poly: np.ndarray, step: float = _SAMPLE_STEP_MM) -> np.ndarray:
@@ -278,4 +270,4 @@ def check_layout(layout: Layout, spec: MountSpec, segments: dict[str, list]) -> 
     check_beam(layout, outlines)
 
 
-__all__ = ["check_layout", "check_thickness", "penetration", "outline", "glass_gaps", "slivers", "OVERLAP_TOL_MM"]
+__all__ = ["check_layout", "check_thickness", "penetration", "glass_gaps", "slivers", "OVERLAP_TOL_MM"]

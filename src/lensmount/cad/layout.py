@@ -17,129 +17,29 @@ vane bores. Geometry rules, all in the (r, z) half plane of the solids of revolu
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import lru_cache
+from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.cad.baffles import hood_and_vanes, housing
-from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, lens_group, seat_of_group, thin_plate
+import lensmount.cad.kinds.hood  # noqa: F401  (the built-in part kinds register as they load, in this order)
+import lensmount.cad.kinds.housing  # noqa: F401
+from lensmount.cad.catadioptric import plan_catadioptric
+from lensmount.cad.lens_groups import ends_inside, face_beyond_reach, group_rim, lens_group, seat_of_group, thin_plate
+from lensmount.cad.plan import Contact, Envelope, Layout, PartPlan
 from lensmount.cad.seats import (BEAM_CLEAR_MM, EPS_SLOPE, check_ring_wall, contact_slope, diaphragm_spacer_ends,
                                  glass_seat_bore, radii_to_rim, ring_opening, stop_diaphragm)
-from lensmount.cad.step_parts import StepSource
+from lensmount.cad.stages import Mount, place_kinds
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
-from lensmount.optics.apertures import beam_envelope, with_clear_semi_diameters
+from lensmount.optics.apertures import with_clear_semi_diameters
 from lensmount.optics.prescription import Prescription
 from lensmount.templates.barrel import Barrel
 from lensmount.templates.diaphragm import Diaphragm
-from lensmount.templates.lens_element import GroupOutline, LensElement, OpticalFace
-from lensmount.templates.profile import Template
+from lensmount.templates.lens_element import LensElement, OpticalFace
 from lensmount.templates.retainer import Retainer
 from lensmount.templates.spacer import Spacer
 
-ENVELOPE_STEP_MM = 0.25
 APERTURE_SAMPLES = 65  # points from the axis to the rim of the entrance aperture (vane sight lines)
-
-
-@dataclass
-class PartPlan:
-    """One part: name, kind, finish and what it is made from: the template that builds it, a stepped
-    cemented group's `GroupOutline` (it stands in for its elements where seats are planned; never
-    built), or the user's STEP file (`cad.step_parts.StepSource`: the solid comes from the file)."""
-
-    name: str
-    kind: str
-    finish: str
-    template: Template | GroupOutline | StepSource
-
-
-@dataclass
-class Contact:
-    """A mechanical contact on an optical surface (for the clear-aperture check)."""
-
-    part: str
-    lens: str
-    surface: int
-    height: float
-    clear: float
-
-
-@dataclass
-class Layout:
-    prescription: Prescription  # with clear semi-diameters
-    parts: list[PartPlan]
-    contacts: list[Contact]
-    envelope: "Envelope"
-    notes: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)  # built, but the user should act or know (allowed vignetting)
-    beam: object = None  # a folded path's rays (cad.catadioptric.BeamPaths): the beam check runs on them
-
-    def part(self, name: str) -> PartPlan:
-        for p in self.parts:
-            if p.name == name:
-                return p
-        raise KeyError(name)
-
-
-class Envelope:
-    """Beam envelope radius at any z, interpolated from a fine grid of real-ray envelopes.
-
-    In an air gap each ray's radius is a convex function of z, so the envelope is
-    convex there and the chord between two grid values bounds it from above; across
-    a surface it is only an approximation, which is why `exact` exists for checks.
-    """
-
-    def __init__(self, prescription: Prescription, z_min: float, z_max: float, step: float = ENVELOPE_STEP_MM):
-        n = max(2, int(np.ceil((z_max - z_min) / step)) + 1)
-        self.prescription = prescription
-        self.z = np.linspace(z_min, z_max, n)
-        self.r = _envelope_grid(prescription, float(z_min), float(z_max), n)
-
-    def exact(self, z, land: tuple[float, float, float] | None = None) -> np.ndarray:
-        """The real-ray envelope at each z (slow: traces the beam), (n,); with a diaphragm's land
-        (z0, z1, radius), of the rays it passes (`optics.apertures.beam_through_land`)."""
-        return _exact_envelope(self.prescription, z, land)
-
-    def at(self, z) -> np.ndarray:
-        """Envelope at each z by linear interpolation: (n,)."""
-        return np.interp(np.asarray(z, dtype=np.float64), self.z, self.r)
-
-    def max_over(self, z0: float, z1: float) -> float:
-        """Largest envelope radius for z in [z0, z1], mm."""
-        a, b = min(z0, z1), max(z0, z1)
-        inside = self.r[(self.z > a) & (self.z < b)]
-        ends = self.at([a, b])
-        return float(max(ends.max(), inside.max() if len(inside) else 0.0))
-
-
-@lru_cache(maxsize=8)
-def _envelope_grid(prescription: Prescription, z_min: float, z_max: float, n: int) -> np.ndarray:
-    """Envelope radii on a grid, kept per lens and grid (read-only): `init` checks the starter mount
-    with the same layout that `regenerate` then plans, and a design loop replans one lens often."""
-    r = _exact_envelope(prescription, np.linspace(z_min, z_max, n))
-    r.flags.writeable = False
-    return r
-
-
-def _exact_envelope(prescription: Prescription, z, land=None) -> np.ndarray:
-    z = np.atleast_1d(np.asarray(z, dtype=np.float64))
-    if not len(z):
-        return np.zeros(0)
-    return np.nan_to_num(beam_envelope(prescription, z, land), nan=0.0, posinf=0.0, neginf=0.0)
-
-
-def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:
-    """Mechanical semi-diameter (mm) of a lens group whose first element is number `first`: the largest
-    `lens_edge.semi_diameter_mm` of its elements, else the largest of the file's mechanical
-    semi-diameters (clear + `allowance_mm` where the file gives none). `p` has its clear semi-diameters."""
-    given = edge.semi_diameter_mm
-    overrides = [given[first + k] for k in range(len(group) - 1) if first + k in given]
-    if overrides:
-        return float(max(overrides))
-    surf = p.surfaces
-    return float(max(surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
-                     else float(surf[i].clear_semi_diameter) + edge.allowance_mm for i in group))
 
 
 def _size_keys(part: str) -> list[str]:
@@ -159,8 +59,6 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     if any(s.clear_semi_diameter is None for s in p.surfaces):
         p = with_clear_semi_diameters(p)
     if p.has_mirrors:
-        from lensmount.cad.catadioptric import plan_catadioptric  # here: catadioptric imports this module
-
         return plan_catadioptric(p, spec)
     mount = _MountPlanner(p, spec)
     mount.lens_groups()
@@ -168,7 +66,7 @@ def plan(prescription: Prescription, spec: MountSpec) -> Layout:
     z_front = mount.front_seat()
     mount.gaps()
     z_back = mount.rear_seat()
-    return mount.baffles(z_front, z_back, mount.barrel())
+    return mount.part_kinds(z_front, z_back, mount.barrel())
 
 
 @dataclass
@@ -637,27 +535,18 @@ class _MountPlanner:
         self.parts.insert(0, PartPlan("barrel", "barrel", finish, barrel))
         return r_barrel
 
-    def baffles(self, z_front: float, z_back: float, r_barrel: float) -> Layout:
-        """The hood and vanes in front of the barrel and the detector housing behind it
-        (lensmount.cad.baffles: [hood], [vanes], [housing]), and the layout of every part in order."""
+    def part_kinds(self, z_front: float, z_back: float, r_barrel: float) -> Layout:
+        """Around the seated stack, every registered part kind's parts (`cad.stages`: the built-in hood with
+        its vanes and detector housing, `cad.kinds`, then any plug-in's), and the layout of every part in order."""
         spec, p = self.spec, self.p
         i0 = self.groups[0][0]
         rho = np.linspace(0.0, self.clear[i0], APERTURE_SAMPLES)
         aperture = (rho, self._seated(0, 0).template.front_z(rho))  # the first surface over its clear aperture
-        hood_part, vane_parts = hood_and_vanes(spec, self.env, z_front, r_barrel, self.bore_pts[0][0], self.spacers,
-                                               self.notes, aperture, spec.exclusion_deg(p.max_field_deg))
-        housing_part, rear_baffle = housing(spec, self.env, p.image_z, z_back, r_barrel, self.bore_pts[-1][0],
-                                            self.notes)
         parts = self.parts
         ordered = [parts[0]] + [pp for grp in self.lens_parts for pp in grp] + self.retainers + self.spacers + parts[1:]
-        if hood_part:
-            ordered.append(hood_part)
-        ordered += vane_parts
-        if housing_part:
-            ordered.append(housing_part)
-        if rear_baffle:
-            ordered.append(rear_baffle)
-        return Layout(p, ordered, self.contacts, self.env, self.notes)
+        mount = Mount(p, spec, self.env, tuple(ordered), self.notes, z_front, z_back, r_barrel, self.bore_pts[0][0],
+                      self.bore_pts[-1][0], aperture)
+        return Layout(p, ordered + place_kinds(mount), self.contacts, self.env, self.notes)
 
 
-__all__ = ["PartPlan", "Layout", "Envelope", "Contact", "plan", "group_rim"]
+__all__ = ["plan"]

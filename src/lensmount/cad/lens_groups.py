@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from lensmount.optics.prescription import Prescription
 from lensmount.templates.lens_element import GroupOutline, LensElement, OpticalFace
 
 
@@ -127,4 +128,17 @@ def seat_of_group(elements: list, stepped: tuple[int, ...], group: tuple[int, ..
     return front, back
 
 
-__all__ = ["lens_element", "lens_group", "thin_plate", "seat_of_group", "ends_inside", "face_beyond_reach"]
+def group_rim(p: Prescription, group: tuple[int, ...], first: int, edge) -> float:
+    """Mechanical semi-diameter (mm) of a lens group whose first element is number `first`: the largest
+    `lens_edge.semi_diameter_mm` of its elements, else the largest of the file's mechanical
+    semi-diameters (clear + `allowance_mm` where the file gives none). `p` has its clear semi-diameters."""
+    given = edge.semi_diameter_mm
+    overrides = [given[first + k] for k in range(len(group) - 1) if first + k in given]
+    if overrides:
+        return float(max(overrides))
+    surf = p.surfaces
+    return float(max(surf[i].mechanical_semi_diameter if surf[i].mechanical_semi_diameter is not None
+                     else float(surf[i].clear_semi_diameter) + edge.allowance_mm for i in group))
+
+
+__all__ = ["group_rim", "lens_element", "lens_group", "thin_plate", "seat_of_group", "ends_inside", "face_beyond_reach"]

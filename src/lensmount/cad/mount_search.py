@@ -39,7 +39,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from lensmount.cad.checks import check_layout
-from lensmount.cad.layout import group_rim, plan
+from lensmount.cad.layout import plan
+from lensmount.cad.lens_groups import group_rim
 from lensmount.design.mount import parse_mount
 from lensmount.errors import InputError
 from lensmount.optics.prescription import Prescription

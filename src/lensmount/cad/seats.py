@@ -9,19 +9,15 @@ on another.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from lensmount.cad.plan import Envelope
 from lensmount.design.mount import MountSpec
 from lensmount.errors import GeometryError
 from lensmount.optics.apertures import beam_envelope
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.realrays import axial_rim_ray
 from lensmount.templates.diaphragm import Diaphragm
-
-if TYPE_CHECKING:
-    from lensmount.cad.layout import Envelope
 
 _SLOPE_SAMPLES = 256
 EPS_SLOPE = 1e-6  # keeps a contact a line, not a face, against rounding

@@ -49,14 +49,14 @@ import math
 
 import numpy as np
 
-from lensmount.cad.layout import Envelope, group_rim
-from lensmount.cad.lens_groups import lens_group, seat_of_group, thin_plate
+from lensmount.cad.lens_groups import group_rim, lens_group, seat_of_group, thin_plate
 from lensmount.cad.mount_search import find_mount
+from lensmount.cad.plan import Envelope
 from lensmount.design.mount import LensEdge, MountSpec
 from lensmount.optics.paraxial import paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
-from lensmount.optics.realrays import chief_ray
+from lensmount.optics.realrays import image_height
 from lensmount.design.finishes import surface_rule
 from lensmount.templates.lens_element import LensElement, OpticalFace
 
@@ -71,16 +71,6 @@ def _clamp(x: float, lo: float, hi: float) -> float:
 
 def _round(x: float, digits: int = 2) -> float:
     return float(round(x, digits))
-
-
-def image_height(p: Prescription) -> float:
-    """Height of the largest field's real chief ray on the image plane, mm (0 for an on-axis lens).
-    The largest field is an angle, or for a finite object the largest object height."""
-    field = max((abs(f) for f in p.field_values), default=0.0)
-    if field <= 0.0:
-        return 0.0
-    h = float(np.abs(chief_ray(p, field).image_points[..., 1]).max())
-    return h if math.isfinite(h) else 0.0
 
 
 def detector_size(p: Prescription) -> tuple[float, float]:
@@ -458,5 +448,4 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     }
 
 
-__all__ = ["starter_mount", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
-           "image_height"]
+__all__ = ["starter_mount", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size"]

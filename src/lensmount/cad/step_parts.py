@@ -25,12 +25,17 @@ import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from lensmount.atomic import atomic_path
 from lensmount.design.mount import MountSpec, StepPart
 from lensmount.errors import GeometryError, InputError
+from lensmount.templates.profile import outline
+
+if TYPE_CHECKING:  # build123d/OCP take seconds to load; only STEP parts need them
+    from build123d import Solid
 
 UNIT_NAMES = {"millimetre": "mm", "mm": "mm", "millimeter": "mm", "inch": "inch", "in": "inch"}
 COLOUR_TOL = 2.5 / 255  # sRGB: a CAD program's 8-bit colour written as a real and read back
@@ -41,7 +46,7 @@ class StepSolid:
     """One solid of a STEP file, in the file's frame (mm), with what the file says about each face."""
 
     name: str
-    solid: object  # build123d Solid
+    solid: Solid
     face_names: list[str]
     face_colours: list[str | None]  # "#rrggbb" sRGB, the face's own else the solid's
     face_layers: list[list[str]]
@@ -328,8 +333,6 @@ def closed_solids(shape, path: Path, name: str, solid_name: str) -> list:
 
 def datum_z(datum: str, layout) -> float:
     """z of a named datum on the optical axis: a surface's vertex, the image plane, the barrel's ends."""
-    from lensmount.cad.checks import outline  # here: a circle (checks -> layout -> step_parts)
-
     p = layout.prescription
     if datum == "image-plane":
         return float(p.image_z)

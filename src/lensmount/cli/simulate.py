@@ -21,7 +21,8 @@ from rich.table import Table
 from lensmount.cli import app, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
-from lensmount.loop.simulate import QUICK, Observer, PassStatus, SimulateOptions, simulate as run_simulation
+from lensmount.loop.progress import PassStatus
+from lensmount.loop.simulate import QUICK, Observer, SimulateOptions, simulate as run_simulation
 from lensmount.loop.progress import next_halving_s
 from lensmount.run.executor import WORKER_WAIT_S
 

@@ -28,7 +28,8 @@ from lensmount.design.edges import EdgeClip, clip_crossing_elements, face_gap, h
 from lensmount.errors import InputError
 from lensmount.optics.glass import MODEL_GLASS, refractive_index, resolve_glass
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
-from lensmount.optics.io.zemax import ImportNote, read_zmx, read_zmx_with_notes
+from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
+from lensmount.optics.io.zemax_file import ImportNote
 from lensmount.optics.paraxial import AFOCAL_POWER_RATIO, paraxial
 from lensmount.optics.prescription import AIR, Prescription
 from lensmount.optics.profiles import Profile

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
@@ -265,6 +265,8 @@ class MountSpec(ReadFromFile, _Strict):
     finishes: dict[str, str] = Field(default_factory=dict, description="part name → finish override")
     templates: dict[str, str] = Field(default_factory=dict, description="part kind → user template .py")
     parts: dict[str, StepPart] = Field(default_factory=dict, description="part name → a part from a STEP file")
+    kinds: dict[str, dict[str, Any]] = Field(default_factory=dict, description="part kind a plug-in registers "
+                                             "(cad.stages.PART_KINDS) → its parameters, checked by its own model")
 
     @field_validator("templates")
     @classmethod

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
-from lensmount.analysis.passes import MIN_PASSES, Accumulator
+from lensmount.analysis.error_bar import MIN_PASSES
+from lensmount.analysis.passes import Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs
 from lensmount.loop.progress import expected_s

@@ -8,12 +8,42 @@ error once more takes 3·t more (4·t in all).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from lensmount.analysis.metrics import stray_fraction
-from lensmount.loop.simulate import PassStatus
 from lensmount.run.runner import Stopping
+
+
+@dataclass(frozen=True)
+class PassStatus:
+    """The run after a merged pass, as an engineer watches it.
+
+    value, std_error : stray fraction and its standard error (None before 2 passes)
+    rel_error : relative error of the total (inf when unknown)
+    error_slope : d log(rel error) / d log(time) over the last half of the run (≈ −0.5 when it converges
+        as 1/√t); None until enough passes make it more than noise (loop.progress.error_trend)
+    error_slope_se : its standard error
+    eta_s : seconds to the target relative error at the rate so far (None without a target)
+    largest_over_median : the largest pass / the median pass (None before any pass or with a median of 0)
+    heavy_tail : one pass dominates the others (`Accumulator.tail`): the error is not the spread's, and
+        the target is not met however small the relative error reads
+    """
+
+    passes: int
+    photons: int
+    elapsed_s: float
+    value: float
+    std_error: float | None
+    rel_error: float
+    error_slope: float | None
+    target_rel_error: float | None
+    eta_s: float | None
+    max_passes: int | None
+    largest_over_median: float | None = None
+    heavy_tail: bool = False
+    error_slope_se: float | None = None
 
 
 def time_to_error(elapsed_s: float, rel_error: float, target: float) -> float | None:
@@ -114,4 +144,4 @@ def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | Non
         largest_over_median=tail.over_median, heavy_tail=tail.heavy)
 
 
-__all__ = ["expected_s", "forecast", "status_of", "time_to_error", "next_halving_s", "error_slope", "error_trend"]
+__all__ = ["PassStatus", "expected_s", "forecast", "status_of", "time_to_error", "next_halving_s", "error_slope", "error_trend"]

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
+
+if TYPE_CHECKING:  # the CAD pipeline loads matplotlib: lensmount --help must not
+    from lensmount.cad.pipeline import Manifest
 
 
 @dataclass(frozen=True)
@@ -27,7 +30,7 @@ class RegenerateOptions:
 @dataclass(frozen=True)
 class RegenerateResult:
     folder: Path
-    manifest: object  # lensmount.cad.pipeline.Manifest
+    manifest: Manifest
 
     @property
     def triangles(self) -> int:

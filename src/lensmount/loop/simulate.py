@@ -26,7 +26,9 @@ from lensmount.integrators.settings import EstimatorSettings
 from lensmount.run.executor import WORKER_WAIT_S, executor_for, local_cluster_size
 from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
 from lensmount.loop.prepare import build, read_inputs
+from lensmount.loop.progress import PassStatus, forecast, status_of
 from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
+from lensmount.optics.realrays import image_height
 from lensmount.run.results import write_run
 from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
 from lensmount.run.store import Store, default_path
@@ -109,36 +111,6 @@ def stopping(o: SimulateOptions, run) -> Stopping:
                         min_passes=least, time_after_passes=ERROR_BAR_PASSES)
     return Stopping(time_s=run.time_s, target_rel_error=run.target_rel_error, max_passes=run.passes,
                     time_after_passes=ERROR_BAR_PASSES)
-
-
-@dataclass(frozen=True)
-class PassStatus:
-    """The run after a merged pass, as an engineer watches it.
-
-    value, std_error : stray fraction and its standard error (None before 2 passes)
-    rel_error : relative error of the total (inf when unknown)
-    error_slope : d log(rel error) / d log(time) over the last half of the run (≈ −0.5 when it converges
-        as 1/√t); None until enough passes make it more than noise (loop.progress.error_trend)
-    error_slope_se : its standard error
-    eta_s : seconds to the target relative error at the rate so far (None without a target)
-    largest_over_median : the largest pass / the median pass (None before any pass or with a median of 0)
-    heavy_tail : one pass dominates the others (`Accumulator.tail`): the error is not the spread's, and
-        the target is not met however small the relative error reads
-    """
-
-    passes: int
-    photons: int
-    elapsed_s: float
-    value: float
-    std_error: float | None
-    rel_error: float
-    error_slope: float | None
-    target_rel_error: float | None
-    eta_s: float | None
-    max_passes: int | None
-    largest_over_median: float | None = None
-    heavy_tail: bool = False
-    error_slope_se: float | None = None
 
 
 class Observer:
@@ -337,8 +309,6 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
 
 
 def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
-    from lensmount.loop.progress import forecast, status_of  # here: progress imports this module
-
     design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
     warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
@@ -455,11 +425,9 @@ OBJECT_SOURCE_UNITS = {"irradiance": "E/E_ref (E_ref: the source's mean irradian
 
 def _field_radius(prescription) -> float | None:
     """Image height of the full field (the real chief ray's; finite objects included), for the preview outline."""
-    from lensmount.cad.starter import image_height  # lazy: keeps lensmount --help from loading cad and matplotlib
-
     r = image_height(prescription)
     return r if math.isfinite(r) and r > 0 else None
 
 
-__all__ = ["QUICK", "Preset", "stopping", "stored_like", "SimulateOptions", "SimulateResult", "PassStatus", "Observer", "simulate", "check_options", "input_hash",
+__all__ = ["QUICK", "Preset", "stopping", "stored_like", "SimulateOptions", "SimulateResult", "Observer", "simulate", "check_options", "input_hash",
            "planned_input_hash"]

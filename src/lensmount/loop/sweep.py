@@ -219,7 +219,7 @@ def _same(a: Variant, b: Variant, z: float) -> bool:
     return abs(a.stray_fraction - b.stray_fraction) <= z * math.hypot(sa, sb) + a.bias_bound + b.bias_bound
 
 
-NO_ERROR_BAR = "no error bar: fewer than 3 passes"  # why std_error is blank (analysis.passes.MIN_PASSES)
+NO_ERROR_BAR = "no error bar: fewer than 3 passes"  # why std_error is blank (analysis.error_bar.MIN_PASSES)
 
 
 def _csv(variants: list[Variant], params) -> str:

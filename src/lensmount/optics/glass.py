@@ -8,7 +8,7 @@ no dispersion). Air is 1.0 at every wavelength: lensmount models no air dispersi
 index error, which shifts a 360 mm focal length by far less than the 0.01 % we check).
 
 How a name found in a lens file is resolved, in order (`resolve_glass`, each step said by
-`lensmount inspect`): the user's catalogues in Zemax's .agf format (`register_catalogue`:
+`lensmount inspect`): the user's catalogues in Zemax's .agf format (`optics.io.agf.register_catalogue`:
 lens.toml `glass_catalogs`, `--glass-catalog`); the built-in catalogues (opticalglass); a
 table of legacy and technical glasses the catalogues lack (`legacy_glasses.csv`: Schott's
 B 270 and D 263 T eco, obsolete Schott glasses, LZOS, with n_d and V_d from the refractiveindex.info
@@ -29,13 +29,14 @@ import functools
 import logging
 import re
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from lensmount.errors import InputError
-from lensmount.optics.io.agf import read_agf
 from lensmount.optics.prescription import AIR
 
 CATALOGUES = ("Schott", "Ohara", "Hoya", "CDGM", "Sumita", "Hikari")
@@ -47,9 +48,6 @@ _MALITSON_C = (0.0684043**2, 0.1162414**2, 9.896161**2)  # µm^2
 MODEL_GLASS = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
 _LAMBDA_D, _LAMBDA_F, _LAMBDA_C = 0.5875618, 0.4861327, 0.6562725
 _LEGACY_TABLE = Path(__file__).with_name("legacy_glasses.csv")
-# NAME -> (path, {GLASS: AgfGlass}); see register_catalogue. Process-wide, so that a material
-# `NAME:GLASS` means the same glass wherever the lens goes (the tracer's forked workers too).
-_USER_CATALOGUES: dict[str, tuple[str, dict]] = {}
 
 
 @dataclass(frozen=True)
@@ -61,13 +59,23 @@ class Resolved:
     substituted: bool = False  # another glass (or a model of it) stands in for the name
 
 
-def register_catalogue(path) -> str:
-    """Read a user glass catalogue (.agf) and make its glasses known by name; returns the
+class CatalogueGlass(Protocol):
+    """A glass of a user's catalogue, as its reader made it (`optics.io.agf.AgfGlass`)."""
+
+    def index(self, wavelength_um) -> np.ndarray: ...
+
+
+# NAME -> (path, {GLASS: CatalogueGlass}); see add_catalogue. Process-wide, so that a material
+# `NAME:GLASS` means the same glass wherever the lens goes (the tracer's forked workers too).
+_USER_CATALOGUES: dict[str, tuple[str, Mapping[str, CatalogueGlass]]] = {}
+
+
+def add_catalogue(path: Path, glasses: Mapping[str, CatalogueGlass]) -> str:
+    """Make a user catalogue's glasses (upper-case name → glass) known by name; returns the
     catalogue's name, by which `NAME:GLASS` selects one of them: the file's stem, upper case (with
     a digest of the path added when another file of that stem is already known in this process,
-    so that each name means one file). The same file again is a no-op."""
+    so that each name means one file). The same file again replaces what it held."""
     path = Path(path).resolve()
-    glasses = read_agf(path)
     name = path.stem.upper()
     if name in (c.upper() for c in CATALOGUES):
         raise InputError(f"the glass catalogue {path.name} has the name of a built-in one ({name})", file=str(path),
@@ -75,13 +83,13 @@ def register_catalogue(path) -> str:
     known = _USER_CATALOGUES.get(name)
     if known is not None and known[0] != str(path):
         name = f"{name}-{hashlib.sha256(str(path).encode()).hexdigest()[:8].upper()}"
-    _USER_CATALOGUES[name] = (str(path), glasses)   # read again: the file may have changed
+    _USER_CATALOGUES[name] = (str(path), glasses)   # replaced: the file may have changed since
     return name
 
 
 def resolve_glass(name: str, user: tuple[str, ...] = ()) -> Resolved | None:
     """Where a glass name is found (module docstring), None if nowhere. `user`: the names of the
-    registered user catalogues (register_catalogue) a plain name is looked up in first."""
+    registered user catalogues (add_catalogue) a plain name is looked up in first."""
     name = name.strip()
     if ":" in name:
         cat, glass = (x.strip() for x in name.split(":", 1))

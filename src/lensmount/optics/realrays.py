@@ -25,6 +25,7 @@ pupil in direction cosines of the object-space NA, no stop involved.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -357,6 +358,16 @@ def chief_ray(prescription: Prescription, field_deg, wavelength_um: float | None
     return trace(prescription, o, d, wavelength_um, **kw)
 
 
+def image_height(p: Prescription) -> float:
+    """Height of the largest field's real chief ray on the image plane, mm (0 for an on-axis lens).
+    The largest field is an angle, or for a finite object the largest object height."""
+    field = max((abs(f) for f in p.field_values), default=0.0)
+    if field <= 0.0:
+        return 0.0
+    h = float(np.abs(chief_ray(p, field).image_points[..., 1]).max())
+    return h if math.isfinite(h) else 0.0
+
+
 def marginal_ray(prescription: Prescription, field_deg=0.0, wavelength_um: float | None = None,
                  pupil_y: float = 1.0, **kw) -> RealRays:
     """Rays through the stop edge at normalised pupil y = `pupil_y` (upper rim), one per field."""
@@ -404,4 +415,4 @@ def _safe_norm(v: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["RealRays", "trace", "aim", "plane_crossing", "field_direction", "axial_rim_ray", "stop_semi_diameter",
-           "pupil_rings", "chief_ray", "marginal_ray", "Spot", "spot"]
+           "pupil_rings", "chief_ray", "image_height", "marginal_ray", "Spot", "spot"]

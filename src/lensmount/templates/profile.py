@@ -57,6 +57,15 @@ class Segment:
         return pts  # spline: its defining points are dense (sag samples)
 
 
+def outline(segments) -> np.ndarray:
+    """Closed (m, 2) polyline of a profile: arcs and splines sampled densely."""
+    pts = []
+    for s in segments:
+        pl = s.polyline(256)
+        pts.append(pl[:-1])
+    return np.concatenate(pts)
+
+
 def _arc_points(a, b, c, n):
     """Points on the circle through a, b, c from a to c (through b)."""
     ax, ay = a
@@ -204,4 +213,4 @@ class RevolvedPart:
         return asdict(self)
 
 
-__all__ = ["Segment", "polygon", "revolve", "face_roles", "Template", "RevolvedPart"]
+__all__ = ["Segment", "outline", "polygon", "revolve", "face_roles", "Template", "RevolvedPart"]

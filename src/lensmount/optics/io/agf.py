@@ -28,6 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.optics.glass import add_catalogue
+from lensmount.optics.io.zemax_file import read_text
 
 FORMULAS = {1: "Schott", 2: "Sellmeier 1", 3: "Herzberger", 5: "Conrady", 6: "Sellmeier 3", 9: "Sellmeier 4",
             10: "Extended", 11: "Sellmeier 5", 12: "Extended 2"}
@@ -72,10 +74,16 @@ class AgfGlass:
 
 def read_agf(path) -> dict[str, AgfGlass]:
     """The glasses of an .agf file by upper-case name."""
-    from lensmount.optics.io.zemax import read_text  # here: a circle (zemax -> glass -> agf)
-
     path = Path(path)
     return parse_agf(read_text(path), str(path))
+
+
+def register_catalogue(path) -> str:
+    """Read a user glass catalogue (.agf) and make its glasses known by name (`optics.glass.add_catalogue`);
+    returns the catalogue's name, by which `NAME:GLASS` selects one of them. The same file again is
+    read again (it may have changed)."""
+    path = Path(path).resolve()
+    return add_catalogue(path, read_agf(path))
 
 
 def parse_agf(text: str, file: str = "catalogue.agf") -> dict[str, AgfGlass]:
@@ -122,4 +130,4 @@ def _number(token: str, file: str, line: int, what: str) -> float:
         raise InputError(f"{what} '{token}' is not a number", file=file, line=line, valid="a decimal number") from None
 
 
-__all__ = ["AgfGlass", "FORMULAS", "parse_agf", "read_agf"]
+__all__ = ["AgfGlass", "FORMULAS", "parse_agf", "read_agf", "register_catalogue"]

@@ -47,7 +47,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from lensmount.atomic import write_text
 from lensmount.validation import keys_at, line_of_key, parse_toml
 from lensmount.errors import InputError
-from lensmount.optics.glass import register_catalogue, resolve_glass
+from lensmount.optics.glass import resolve_glass
+from lensmount.optics.io.agf import register_catalogue
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
 from lensmount.optics.qtype import QType
 

@@ -57,8 +57,10 @@ import numpy as np
 
 from lensmount.errors import InputError
 from lensmount.optics.apertures import beam_heights
-from lensmount.optics.glass import CATALOGUES, register_catalogue
+from lensmount.optics.glass import CATALOGUES
+from lensmount.optics.io.agf import register_catalogue
 from lensmount.optics.io import zemax_glass
+from lensmount.optics.io.zemax_file import ImportNote, read_text
 from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
 from lensmount.optics.io.zemax_qtype import qtype_note, qtype_of
 from lensmount.optics.prescription import AIR, Aperture, Prescription, Surface
@@ -129,36 +131,6 @@ class ZmxLens:
     vignetting: dict = field(default_factory=dict)  # "VDX", "VDY", "VCX", "VCY", "VAN" -> per-field values
     catalogues: list[str] = field(default_factory=list)
     configurations: tuple[int, int] = (1, 1)  # MNUM: how many, and the active one
-
-
-@dataclass(frozen=True)
-class ImportNote:
-    """One row of what the import did: `kind` is imported, substituted or ignored."""
-
-    kind: str
-    where: str
-    what: str
-    surface: int | None = None  # lensmount's 0-based surface, for a value the import leaves to real rays
-    file_value_mm: float | None = None  # the value the file held there (what the recomputed one is set beside)
-
-
-def read_text(path) -> str:
-    """Decode a .zmx file: UTF-16 (BOM) or UTF-8, falling back to Latin-1."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path), valid="a path to an existing .zmx or lens.toml") from None
-    except OSError as exc:
-        raise InputError(f"cannot read the file ({exc})", file=str(path), valid="a readable .zmx file") from None
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return raw.decode("utf-16")
-    if raw[:200].count(b"\x00") > 20:  # UTF-16 without a BOM
-        return raw.decode("utf-16-le" if raw[1:2] == b"\x00" else "utf-16-be")
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
 
 
 def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
@@ -725,5 +697,5 @@ def read_zmx(path, glass_catalogs=()) -> Prescription:
     return read_zmx_with_notes(path, glass_catalogs)[0]
 
 
-__all__ = ["ZmxLens", "ZmxSurface", "ImportNote", "read_text", "parse_zmx", "to_prescription", "convert",
+__all__ = ["ZmxLens", "ZmxSurface", "parse_zmx", "to_prescription", "convert",
            "read_zmx", "read_zmx_with_notes"]

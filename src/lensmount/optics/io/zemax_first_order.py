@@ -15,6 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from lensmount.errors import InputError
+from lensmount.optics.io.zemax_file import ImportNote
 from lensmount.optics.paraxial import marginal_heights, marginal_start, paraxial, surface_matrices
 from lensmount.optics.prescription import Aperture, Prescription
 from lensmount.optics.realrays import chief_ray
@@ -25,17 +26,15 @@ _REAL_HEIGHT_STEPS = 30
 
 def apply_aperture_and_fields(base: Prescription, lens, numbers, notes, file) -> Prescription:
     """`base` (surfaces, wavelengths, object distance) completed with the file's aperture and fields."""
-    from lensmount.optics.io.zemax import ImportNote  # here: zemax imports this module
-
     stops = [i for i, s in enumerate(base.surfaces) if s.is_stop]
     if not stops:
         raise InputError("no surface is marked as the aperture stop", file=file,
                          valid="a STOP line on one of SURF 1..N-1")
-    p = _with_aperture(base, lens, notes, file, ImportNote)
-    return _with_fields(p, lens, notes, file, ImportNote)
+    p = _with_aperture(base, lens, notes, file)
+    return _with_fields(p, lens, notes, file)
 
 
-def _with_aperture(p: Prescription, lens, notes, file, note) -> Prescription:
+def _with_aperture(p: Prescription, lens, notes, file) -> Prescription:
     if lens.aperture is None:
         raise InputError("no system aperture", file=file,
                          valid="ENPD, FNUM, OBNA or FLOA (Zemax's system aperture)")
@@ -72,11 +71,11 @@ def _with_aperture(p: Prescription, lens, notes, file, note) -> Prescription:
         unit = paraxial(replace(p, aperture=Aperture("epd", 1.0))).stop_semi_diameter
         out = Aperture("epd", stop.clear_semi_diameter / unit)
         text = f"float by stop size {stop.clear_semi_diameter:g} mm -> entrance pupil diameter {out.value:.6g} mm"
-    notes.append(note("imported", "aperture", text))
-    return _admitted_by_the_stop(replace(p, aperture=out), lens, notes, note)
+    notes.append(ImportNote("imported", "aperture", text))
+    return _admitted_by_the_stop(replace(p, aperture=out), lens, notes)
 
 
-def _admitted_by_the_stop(p: Prescription, lens, notes, note) -> Prescription:
+def _admitted_by_the_stop(p: Prescription, lens, notes) -> Prescription:
     """The working aperture when a circular aperture (CLAP) on the stop surface is smaller than the
     beam the system aperture sends through it: OpticStudio keeps the stated pupil for its paraxial data
     and lets the stop's aperture vignette the real rays, so the beam that passes is the pupil the
@@ -90,7 +89,7 @@ def _admitted_by_the_stop(p: Prescription, lens, notes, note) -> Prescription:
     if par.stop_semi_diameter <= clap * (1.0 + 1e-9):
         return p
     epd = par.epd * clap / par.stop_semi_diameter
-    notes.append(note("substituted", "aperture",
+    notes.append(ImportNote("substituted", "aperture",
                       f"entrance pupil diameter {par.epd:.6g} mm fills the stop (SURF {stop.number}) to "
                       f"{par.stop_semi_diameter:.4g} mm, beyond its circular aperture {clap:.4g} mm, which clips "
                       f"the beam -> the entrance pupil that aperture admits: {epd:.6g} mm "
@@ -113,7 +112,7 @@ def _start_slope(p: Prescription, par) -> float:
     return marginal_start(p, par.epd, par.entrance_pupil_z)[1]
 
 
-def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
+def _with_fields(p: Prescription, lens, notes, file) -> Prescription:
     n = lens.n_fields or max(len(lens.yfields), len(lens.xfields), 1)
     ys = (lens.yfields + [0.0] * n)[:n]
     xs = (lens.xfields + [0.0] * n)[:n]
@@ -125,7 +124,7 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
                   for x, y in zip(xs, ys)]
     else:
         values = [math.hypot(x, y) * lens.unit for x, y in zip(xs, ys)]
-    factors = _vignetting(lens, xs, ys, n, notes, note)
+    factors = _vignetting(lens, xs, ys, n, notes)
     if factors:
         keep = _unique_index(values)
         values, factors = [round(float(values[k]), 12) for k in keep], [factors[k] for k in keep]
@@ -156,7 +155,7 @@ def _with_fields(p: Prescription, lens, notes, file, note) -> Prescription:
     out = replace(out, vignetting=tuple(factors))
     given = ", ".join(f"{math.hypot(x, y):g}" for x, y in zip(xs, ys))
     text = f"fields as {_FIELD_TYPES[kind]} {given}" + ("" if kind == 1 or (kind == 0 and not p.finite_object) else f" -> {shown}")
-    notes.append(note("imported", "fields", text))
+    notes.append(ImportNote("imported", "fields", text))
     return out
 
 
@@ -189,7 +188,7 @@ def _chief_height(chief_ray, p: Prescription, values) -> np.ndarray:
     return np.where(np.asarray(values) == 0.0, 0.0, h)
 
 
-def _vignetting(lens, xs, ys, n, notes, note) -> list[tuple[float, ...]]:
+def _vignetting(lens, xs, ys, n, notes) -> list[tuple[float, ...]]:
     """Per field, the file's vignetting factors in lensmount's frame (the field along +y), or [].
 
     Zemax's +y field angle and lensmount's field both send the light upward, but a +y object
@@ -201,13 +200,13 @@ def _vignetting(lens, xs, ys, n, notes, note) -> list[tuple[float, ...]]:
     out = []
     for (x, y), (vdx, vdy, vcx, vcy, van) in zip(zip(xs, ys), rows):
         if x != 0.0 and any((vdx, vdy, vcx, vcy, van)):
-            notes.append(note("ignored", "fields", "vignetting factors: a vignetted field off the y axis "
+            notes.append(ImportNote("ignored", "fields", "vignetting factors: a vignetted field off the y axis "
                               f"(x = {x:g}) has no rotationally symmetric counterpart; the automatic "
                               "semi-diameters come from the unvignetted beam"))
             return []
         flip = -1.0 if (y < 0.0) != (lens.field_type != 0) else 1.0
         out.append((vdx, flip * vdy, vcx, vcy, flip * van))
-    notes.append(note("imported", "fields", "vignetting factors (VDX, VDY, VCX, VCY, VAN) "
+    notes.append(ImportNote("imported", "fields", "vignetting factors (VDX, VDY, VCX, VCY, VAN) "
                       + "; ".join(f"{math.hypot(x, y):g}: " + ", ".join(f"{v:.4g}" for v in r)
                                   for (x, y), r in zip(zip(xs, ys), rows))
                       + ": the automatic semi-diameters come from the beam they leave"))
