@@ -73,3 +73,87 @@ def test_every_rim_enlarged_by_one_margin_builds_the_tight_triplet(tmp_path):
 @pytest.mark.slow   # init's search, then the widened rims, then regenerate's solids: ~25 s
 def test_init_builds_a_mount_for_the_tight_triplet(tmp_path):
     assert assert_init_hands_over_a_mount_that_builds_or_refuses(tight_triplet(tmp_path / "tight.zmx"), tmp_path) == 0
+
+
+# A 48 mm f/1.34 Petzval-like lens: a thin, strongly curved front crown whose faces meet 19.96 mm from the axis,
+# inside the 20.25 mm the beam of its 6° field reaches (the on-axis beam: 18 mm), the stop in the air behind it
+PETZVAL = [(52.0, 4.75, "N-LAK9"), (-260.0, 12.0, None), (None, 10.0, None), (60.0, 7.0, "N-LAK9"),
+           (-90.0, 2.0, None), (-45.0, 2.0, "SF5"), (-400.0, 30.0, None)]
+PETZVAL_STOP, PETZVAL_EPD, PETZVAL_FIELDS = 3, 36.0, (0.0, 4.0, 6.0)
+
+
+def petzval(path: Path) -> Path:
+    text = ['name = "fast Petzval"', f"aperture = {{ entrance_pupil_diameter = {PETZVAL_EPD} }}", "",
+            "[wavelengths]", "values_um = [0.4861327, 0.5875618, 0.6562725]", "primary = 2", "",
+            "[field]", f"angles_deg = [{', '.join(str(f) for f in PETZVAL_FIELDS)}]"]
+    for k, (radius, thickness, glass) in enumerate(PETZVAL, start=1):
+        text += ["", "[[surface]]", f"radius = {radius}" if radius else 'radius = "inf"', f"thickness = {thickness}"]
+        text += [f'material = "{glass}"'] if glass else []
+        text += ["stop = true"] if k == PETZVAL_STOP else []
+    path.write_text("\n".join(text) + "\n")
+    return path
+
+
+def _sag(radius: float, h: float) -> float:
+    return radius - np.sign(radius) * np.sqrt(radius * radius - h * h)
+
+
+def test_the_petzval_front_element_crosses_inside_its_beam_and_the_import_alone_refuses_it(tmp_path):
+    from lensmount.design.lens import load_lens
+    from lensmount.errors import InputError
+
+    (r1, t, _), (r2, _, _) = PETZVAL[:2]
+    edge = lambda h: t - _sag(r1, h) + _sag(r2, h)   # noqa: E731  glass between the spheres at height h
+    assert edge(PETZVAL_EPD / 2) > 0.0 > edge(20.25)    # crossed outside the on-axis beam, inside the field's
+    with pytest.raises(InputError) as refused:
+        load_lens(petzval(tmp_path / "lens.toml"))
+    assert "cross each other" in refused.value.detail
+
+
+def test_a_mount_that_allows_vignetting_loads_the_element_sized_by_its_glass(tmp_path):
+    """The design folder loads the lens as its mount says: the element edged where its faces are the
+    mount's least edge apart (checked on the spheres' own sag), the vignetting per field in its warnings,
+    none at 0° (the clip lies outside the on-axis beam, EPD/2 on the first face)."""
+    from lensmount.design.edges import clip_gap
+    from lensmount.design.folder import load_design
+    from lensmount.errors import InputError
+
+    design = tmp_path / "design"
+    design.mkdir()
+    petzval(design / "lens.toml")
+    (design / "mount.toml").write_text("[lens_edge]\nchamfer_mm = 0.1\n\n[checks]\nmin_thickness_mm = 0.3\n")
+    with pytest.raises(InputError):
+        load_design(design)
+    (design / "mount.toml").write_text("[lens_edge]\nchamfer_mm = 0.1\nallow_vignetting = true\n\n"
+                                       "[checks]\nmin_thickness_mm = 0.3\n")
+    d = load_design(design)
+    assert clip_gap(d.mount) == pytest.approx(0.5)
+    (r1, t, _), (r2, _, _) = PETZVAL[:2]
+    h = d.prescription.surfaces[0].clear_semi_diameter
+    assert t - _sag(r1, h) + _sag(r2, h) == pytest.approx(0.5, abs=1e-6)
+    assert PETZVAL_EPD / 2 < h < 19.96
+    (clip,) = d.lens_clips
+    assert clip.lost[0] == 0.0 and 0.0 < clip.lost[1] < clip.lost[2]   # more of the pupil lost further out
+    assert len(d.lens_warnings) == 1 and "% at 6°" in d.lens_warnings[0]
+
+
+@pytest.mark.slow   # two inits (each a search and the solids), regenerate with its STEP export, check: ~90 s
+def test_init_states_what_the_glass_allows_and_builds_with_allow_vignetting(tmp_path):
+    from tests.cad.test_init_builds import regenerate_refusal
+
+    lens = petzval(tmp_path / "petzval.toml")
+    design = tmp_path / "design"
+    refused = CliRunner().invoke(app, ["init", str(design), "--lens", str(lens)])
+    lines = refused.output.strip().splitlines()
+    assert refused.exit_code == 2 and len(lines) == 1, refused.output
+    assert "element 1 can be" in lines[0] and "% at 6°" in lines[0] and "--allow-vignetting" in lines[0]
+    assert not design.exists()
+    built = CliRunner().invoke(app, ["init", str(design), "--lens", str(lens), "--allow-vignetting"])
+    assert built.exit_code == 0, built.output
+    text = (design / "mount.toml").read_text()
+    assert "allow_vignetting = true" in text and "% at 6°" in text.split("\nname")[0]   # stated in the header
+    assert regenerate_refusal(design) is None
+    assert CliRunner().invoke(app, ["regenerate", str(design), "--quiet"]).exit_code == 0
+    checked = CliRunner().invoke(app, ["check", str(design)])
+    assert checked.exit_code in (0, 1), checked.output
+    assert "vignettes the designed pupil by" in checked.output and "% at 6°" in checked.output

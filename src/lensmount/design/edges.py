@@ -30,11 +30,11 @@ from lensmount.optics.profiles import Profile
 MAX_CLIP_VIGNETTING = 0.10
 
 
-def clip_gap() -> float:
-    """The glass kept between the faces at a clipped height, mm: the mount's default minimum edge
-    ([checks] min_thickness_mm) after its two default protective chamfers (lens_edge.chamfer_mm),
-    so that the mount planner can edge the element there with a flat bevel."""
-    spec = MountSpec()
+def clip_gap(spec: MountSpec | None = None) -> float:
+    """The glass kept between the faces at a clipped height, mm: the mount's minimum edge
+    ([checks] min_thickness_mm) after its two protective chamfers (lens_edge.chamfer_mm), so that
+    the mount planner can edge the element there with a flat bevel; the default mount's without `spec`."""
+    spec = MountSpec() if spec is None else spec
     return spec.checks.min_thickness_mm + 2.0 * spec.lens_edge.chamfer_mm
 _SAMPLES = 256
 
@@ -138,13 +138,16 @@ def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
     return None
 
 
-def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
-                           gap: float | None = None) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str, gap: float | None = None,
+                           max_vignetting: float | None = MAX_CLIP_VIGNETTING
+                           ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """`raw` with its automatic semi-diameters from real rays (apertures.with_clear_semi_diameters),
     where faces meet inside them (an element's own, or two neighbours' across air) those faces
     edged at the height where the gap between them is `gap`, and the clips made. Each clip is
     an aperture of the lens, so the automatic semi-diameters behind it follow the beam it leaves.
-    Raises InputError (one paragraph) when a clip would change the design's aperture."""
+    Raises InputError (one paragraph) when a clip would change the design's aperture
+    (`changes_aperture` with `max_vignetting`); None: the glass decides, whatever the clips cost
+    (the mount's `lens_edge.allow_vignetting`)."""
     gap = clip_gap() if gap is None else gap
     stop = raw.stop_index
     clippable = [j != stop and s.clear_semi_diameter is None and s.mechanical_semi_diameter is None
@@ -176,7 +179,7 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
         clips.append(EdgeClip(elements, (i, i + 1), meet, needed, height, gap,
                               tuple(float(f) for f in fields), tuple(float(v) for v in lost), unit))
     total = lost_together(clips)
-    if total[0] > 0.0 or max(total) > MAX_CLIP_VIGNETTING:
+    if max_vignetting is not None and changes_aperture(clips, max_vignetting):
         clip = next((c for c in clips if c.lost[0] > 0.0), max(clips, key=lambda c: max(c.lost)))
         i = clip.surfaces[0]
         raise InputError(
@@ -189,6 +192,31 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
             valid=f"a thickness of at least {raw.surfaces[i].thickness - _least_gap(complete, i, clip.beam()):.4g} "
                   "mm, flatter curvatures, or clear semi-diameters the faces reach")
     return complete, tuple(clips)
+
+
+def changes_aperture(clips, max_vignetting: float = MAX_CLIP_VIGNETTING) -> bool:
+    """The clips together stop an on-axis ray, or more than `max_vignetting` of a field's pupil."""
+    if not clips:
+        return False
+    total = lost_together(clips)
+    return total[0] > 0.0 or max(total) > max_vignetting
+
+
+def what_the_glass_allows(clips) -> str:
+    """One sentence per clip for a refusal: which element, to which radius its glass allows it, and
+    the vignetting per field that costs (all clips together at the end)."""
+    said = []
+    for c in clips:
+        what = f"element {c.elements[0]}" if len(c.elements) == 1 else \
+            f"the air gap between elements {c.elements[0]} and {c.elements[1]}"
+        edge = "edge" if len(c.elements) == 1 else "gap"
+        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most (surfaces {c.surfaces[0] + 1} and "
+                    f"{c.surfaces[1] + 1} meet {c.meet:.4g} mm from the axis, inside the {c.beam():.4g} mm the beam "
+                    f"of the full field reaches; at {c.height:.4g} mm its {edge} is {c.gap:.3g} mm, the least the "
+                    f"mount takes), which vignettes the designed pupil by {c.vignetting()}")
+    if len(clips) > 1:
+        said.append(f"all {len(clips)} together: {clips[0].vignetting(lost_together(clips))}")
+    return "; ".join(said)
 
 
 def lost_together(clips) -> tuple[float, ...]:
@@ -214,5 +242,5 @@ def _least_gap(p: Prescription, i: int, h: float) -> float:
 
 
 
-__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "clip_gap", "clip_warnings", "lost_together",
+__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "changes_aperture", "what_the_glass_allows", "clip_gap", "clip_warnings", "lost_together",
            "face_gap", "height_at_gap"]
