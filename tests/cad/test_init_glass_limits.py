@@ -82,11 +82,13 @@ PETZVAL = [(52.0, 4.75, "N-LAK9"), (-260.0, 12.0, None), (None, 10.0, None), (60
 PETZVAL_STOP, PETZVAL_EPD, PETZVAL_FIELDS = 3, 36.0, (0.0, 4.0, 6.0)
 
 
-def petzval(path: Path) -> Path:
+def petzval(path: Path, front_thickness: float = PETZVAL[0][1]) -> Path:
+    """The lens as lens.toml; `front_thickness`: the front crown's centre thickness, mm."""
+    rows = [(PETZVAL[0][0], front_thickness, PETZVAL[0][2])] + PETZVAL[1:]
     text = ['name = "fast Petzval"', f"aperture = {{ entrance_pupil_diameter = {PETZVAL_EPD} }}", "",
             "[wavelengths]", "values_um = [0.4861327, 0.5875618, 0.6562725]", "primary = 2", "",
             "[field]", f"angles_deg = [{', '.join(str(f) for f in PETZVAL_FIELDS)}]"]
-    for k, (radius, thickness, glass) in enumerate(PETZVAL, start=1):
+    for k, (radius, thickness, glass) in enumerate(rows, start=1):
         text += ["", "[[surface]]", f"radius = {radius}" if radius else 'radius = "inf"', f"thickness = {thickness}"]
         text += [f'material = "{glass}"'] if glass else []
         text += ["stop = true"] if k == PETZVAL_STOP else []
@@ -137,11 +139,36 @@ def test_a_mount_that_allows_vignetting_loads_the_element_sized_by_its_glass(tmp
     assert len(d.lens_warnings) == 1 and "% at 6°" in d.lens_warnings[0]
 
 
+# 0.35 mm thicker: the faces stay 0.2 mm apart at the 20.25 mm beam and meet 20.66 mm from the axis, outside it,
+# closer than the mount's least edge (0.3 mm after two 0.1 mm chamfers) inside the beam: no seat finds its edge
+NEAR = 5.1
+
+
+def test_an_element_too_thin_inside_its_beam_is_sized_by_its_glass_when_the_mount_allows_vignetting(tmp_path):
+    from lensmount.design.folder import load_design
+
+    design = tmp_path / "design"
+    design.mkdir()
+    petzval(design / "lens.toml", NEAR)
+    (design / "mount.toml").write_text("[lens_edge]\nchamfer_mm = 0.1\n\n[checks]\nmin_thickness_mm = 0.3\n")
+    plain = load_design(design)
+    assert not plain.lens_clips and plain.prescription.surfaces[0].clear_semi_diameter > 20.2   # the beam's own
+    (design / "mount.toml").write_text("[lens_edge]\nchamfer_mm = 0.1\nallow_vignetting = true\n\n"
+                                       "[checks]\nmin_thickness_mm = 0.3\n")
+    d = load_design(design)
+    (r1, _, _), (r2, _, _) = PETZVAL[:2]
+    h = d.prescription.surfaces[0].clear_semi_diameter
+    assert NEAR - _sag(r1, h) + _sag(r2, h) == pytest.approx(0.5, abs=1e-6)
+    (clip,) = d.lens_clips
+    assert clip.meet > clip.beam() > h and "come closer than 0.5 mm" in d.lens_warnings[0]
+
+
 @pytest.mark.slow   # two inits (each a search and the solids), regenerate with its STEP export, check: ~90 s
-def test_init_states_what_the_glass_allows_and_builds_with_allow_vignetting(tmp_path):
+@pytest.mark.parametrize("front", [PETZVAL[0][1], NEAR], ids=["faces-crossing", "faces-too-close"])
+def test_init_states_what_the_glass_allows_and_builds_with_allow_vignetting(tmp_path, front):
     from tests.cad.test_init_builds import regenerate_refusal
 
-    lens = petzval(tmp_path / "petzval.toml")
+    lens = petzval(tmp_path / "petzval.toml", front)
     design = tmp_path / "design"
     refused = CliRunner().invoke(app, ["init", str(design), "--lens", str(lens)])
     lines = refused.output.strip().splitlines()

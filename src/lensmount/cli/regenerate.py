@@ -125,21 +125,25 @@ def init(
     typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")
 
 
-def _starter_for_lens(lens: Path, name: str | None = None):
+def _starter_for_lens(lens: Path):
     """(prescription, mount.toml dict, why no mount builds or None, the clips the glass sets or ()).
     When the file's elements need clips that change the design's aperture (design.edges: faces crossing
-    inside the beam), each is edged where its glass allows at the mount's own least edge, and the mount
-    says so (lens_edge.allow_vignetting), as regenerate then loads the lens."""
+    inside the beam), or no mount builds and an element's faces come closer than the mount's least edge
+    inside the beam, each such element is edged where its glass allows at the mount's own least edge,
+    and the mount says so (lens_edge.allow_vignetting), as regenerate then loads the lens."""
     # lazy: keeps lensmount --help from loading cad and matplotlib
     from lensmount.cad.starter import least_edge, starter_mount
 
     prescription, clips = load_lens_and_clips(lens, max_clip_vignetting=None)
-    name = name or (prescription.name if prescription.name not in ("", "lens") else lens.stem)
+    name = prescription.name if prescription.name not in ("", "lens") else lens.stem
     if not changes_aperture(clips):   # the import's own clips (if any), within what it allows: load_lens's lens
-        return (prescription, *starter_mount(prescription, name), ())
+        mount, problem = starter_mount(prescription, name)
+        if problem is None or not load_lens_and_clips(lens, clip_edge_mm=least_edge(prescription),
+                                                      max_clip_vignetting=None, clip_thin=True)[1]:
+            return prescription, mount, problem, ()
     gap = least_edge(prescription)
     for _ in range(2):   # the search may change the chamfers: the glass's size follows the mount's least edge
-        prescription, clips = load_lens_and_clips(lens, clip_edge_mm=gap, max_clip_vignetting=None)
+        prescription, clips = load_lens_and_clips(lens, clip_edge_mm=gap, max_clip_vignetting=None, clip_thin=True)
         mount, problem = starter_mount(prescription, name)
         mount["lens_edge"]["allow_vignetting"] = True
         if problem or abs(clip_gap(parse_mount(mount)) - gap) < 1e-9:

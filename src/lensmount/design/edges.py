@@ -83,9 +83,10 @@ class EdgeClip:
     def message(self) -> str:
         a, b = self.surfaces
         what = "its edge" if len(self.elements) == 1 else "the air gap"
-        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} meet "
-                f"{self.meet:.4g} mm from the axis, inside the {self.beam():.4g} mm the beam of the full field "
-                f"reaches, and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
+        meet = f"meet {self.meet:.4g} mm from the axis, inside" if self.meet < self.beam() else \
+            f"come closer than {self.gap:g} mm (they meet {self.meet:.4g} mm from the axis) inside"
+        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} {meet} "
+                f"the {self.beam():.4g} mm the beam of the full field reaches, and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
                 f"min_thickness_mm, after two protective chamfers, lens_edge.chamfer_mm); the clip vignettes "
                 f"the designed pupil by {self.vignetting()}")
 
@@ -116,10 +117,12 @@ def _element_numbers(p: Prescription) -> list[int]:
     return out
 
 
-def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
+def _first_crossing(p: Prescription, clippable: list[bool], gap: float, thin: bool = False):
     """(i, needed, meet, height) of the first pair of faces i, i + 1 that meet inside the beam's
     semi-diameters (in glass the larger, across air the smaller, as design.lens._check_crossings),
-    one of them clippable, and the height where the gap between them is still `gap`; None."""
+    or with `thin` an element's faces that come closer than `gap` there, one of them clippable, and
+    the height where the gap between them is still `gap`; None. `meet`: where the faces meet (at
+    most where both end)."""
     for i in range(len(p.surfaces) - 1):
         if not (clippable[i] or clippable[i + 1]):
             continue
@@ -128,18 +131,22 @@ def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
         reach = min(Profile.of(p.surfaces[j]).max_radius() for j in (i, i + 1))
         r = np.linspace(0.0, min(h, reach), _SAMPLES)
         along = face_gap(p, i, r)
-        if along.min() >= -1e-9 or along[0] < gap:   # no crossing, or too thin on the axis: nothing to edge
+        least = gap if thin and not p.surfaces[i].is_air_after else 0.0
+        if along.min() >= least - 1e-9 or along[0] < gap:   # apart enough, or too thin on the axis: nothing to edge
             continue
-        k, m = int(np.argmax(along < gap)), int(np.argmax(along < -1e-9))
+        k = int(np.argmax(along < gap))
         height = height_at_gap(p, i, r[k - 1], r[k], gap)
         if not p.surfaces[i].is_air_after and any(not clippable[j] and needed[j - i] > height for j in (i, i + 1)):
             continue   # the element's edge is a size the file gives (or the stop's): design.lens refuses it
-        return i, needed, height_at_gap(p, i, r[m - 1], r[m], 0.0), height
+        out = np.linspace(0.0, reach, 4 * _SAMPLES) if along.min() >= -1e-9 else r   # they meet beyond the beam
+        crossed = face_gap(p, i, out) < -1e-9
+        m = int(np.argmax(crossed))
+        return i, needed, height_at_gap(p, i, out[m - 1], out[m], 0.0) if crossed.any() else reach, height
     return None
 
 
 def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str, gap: float | None = None,
-                           max_vignetting: float | None = MAX_CLIP_VIGNETTING
+                           max_vignetting: float | None = MAX_CLIP_VIGNETTING, thin: bool = False
                            ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """`raw` with its automatic semi-diameters from real rays (apertures.with_clear_semi_diameters),
     where faces meet inside them (an element's own, or two neighbours' across air) those faces
@@ -147,7 +154,8 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str, gap: 
     an aperture of the lens, so the automatic semi-diameters behind it follow the beam it leaves.
     Raises InputError (one paragraph) when a clip would change the design's aperture
     (`changes_aperture` with `max_vignetting`); None: the glass decides, whatever the clips cost
-    (the mount's `lens_edge.allow_vignetting`)."""
+    (the mount's `lens_edge.allow_vignetting`). `thin`: an element whose faces come closer than `gap`
+    inside the beam without crossing is edged there too (its glass ends where the mount's edge can)."""
     gap = clip_gap() if gap is None else gap
     stop = raw.stop_index
     clippable = [j != stop and s.clear_semi_diameter is None and s.mechanical_semi_diameter is None
@@ -155,7 +163,7 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str, gap: 
     lens, found = raw, []
     complete = with_clear_semi_diameters(lens, margin_mm)
     for _ in range(len(raw.surfaces)):
-        crossing = _first_crossing(complete, clippable, gap)
+        crossing = _first_crossing(complete, clippable, gap, thin)
         if crossing is None:
             break
         i, needed, meet, height = crossing
@@ -210,10 +218,13 @@ def what_the_glass_allows(clips) -> str:
         what = f"element {c.elements[0]}" if len(c.elements) == 1 else \
             f"the air gap between elements {c.elements[0]} and {c.elements[1]}"
         edge = "edge" if len(c.elements) == 1 else "gap"
-        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most (surfaces {c.surfaces[0] + 1} and "
-                    f"{c.surfaces[1] + 1} meet {c.meet:.4g} mm from the axis, inside the {c.beam():.4g} mm the beam "
-                    f"of the full field reaches; at {c.height:.4g} mm its {edge} is {c.gap:.3g} mm, the least the "
-                    f"mount takes), which vignettes the designed pupil by {c.vignetting()}")
+        faces, beam = f"surfaces {c.surfaces[0] + 1} and {c.surfaces[1] + 1}", \
+            f"the {c.beam():.4g} mm the beam of the full field reaches"
+        how = f"{faces} meet {c.meet:.4g} mm from the axis, inside {beam}" if c.meet < c.beam() else \
+            f"{faces} come closer than {c.gap:.3g} mm inside {beam} (they meet at {c.meet:.4g} mm)"
+        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most ({how}; at {c.height:.4g} mm its "
+                    f"{edge} is {c.gap:.3g} mm, the least the mount takes), which vignettes the designed pupil by "
+                    f"{c.vignetting()}")
     if len(clips) > 1:
         said.append(f"all {len(clips)} together: {clips[0].vignetting(lost_together(clips))}")
     return "; ".join(said)

@@ -131,7 +131,8 @@ def load_design(directory: str | Path) -> Design:
                              valid="a .step/.stp file path relative to the design folder")
         steps[name] = path
     # the mount may let the glass size an element whose faces cross inside the beam (its own least edge)
-    edged = {"clip_edge_mm": clip_gap(mount), "max_clip_vignetting": None} if mount.lens_edge.allow_vignetting else {}
+    edged = {"clip_edge_mm": clip_gap(mount), "max_clip_vignetting": None, "clip_thin": True} \
+        if mount.lens_edge.allow_vignetting else {}
     prescription, clips = load_lens_and_clips(lens_path, **edged)
     _check_element_numbers(mount, prescription)
     scenes_dir = root / "scenes"

@@ -57,7 +57,7 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
 
 def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
                         glass_catalogs=(), afocal_ok: bool = False, clip_edge_mm: float | None = None,
-                        max_clip_vignetting: float | None = MAX_CLIP_VIGNETTING
+                        max_clip_vignetting: float | None = MAX_CLIP_VIGNETTING, clip_thin: bool = False
                         ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
@@ -77,6 +77,7 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
             (design.edges.clip_gap: the default mount's least edge when None).
         max_clip_vignetting: the largest share of a field's pupil such clips may stop before the lens
             is refused (any on-axis ray refused too); None: the glass decides, whatever they cost.
+        clip_thin: also edge there an element whose faces come closer than that gap inside the beam.
     """
     path = _resolve(Path(path))
     file = str(path)
@@ -88,7 +89,8 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
     margin = file_margin if margin_mm is None else margin_mm
     try:
         validate(prescription, file, afocal_ok)
-        complete, clips = clip_crossing_elements(prescription, margin, file, clip_edge_mm, max_clip_vignetting)
+        complete, clips = clip_crossing_elements(prescription, margin, file, clip_edge_mm, max_clip_vignetting,
+                                                 clip_thin)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
         _check_image(complete, file, afocal_ok)
