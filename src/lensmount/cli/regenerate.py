@@ -20,7 +20,7 @@ from lensmount.cli.check import run_check
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import TerminalObserver
 from lensmount.design.edges import changes_aperture, clip_gap, what_the_glass_allows
-from lensmount.design.lens import load_lens, load_lens_and_clips
+from lensmount.design.lens import load_lens_and_clips
 from lensmount.design.mount import parse_mount
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
@@ -125,6 +125,10 @@ def init(
     typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")
 
 
+def _lens_name(p, lens: Path) -> str:
+    return p.name if p.name not in ("", "lens") else lens.stem
+
+
 def _starter_for_lens(lens: Path):
     """(prescription, mount.toml dict, why no mount builds or None, the clips the glass sets or ()).
     When the file's elements need clips that change the design's aperture (design.edges: faces crossing
@@ -135,15 +139,17 @@ def _starter_for_lens(lens: Path):
     from lensmount.cad.starter import least_edge, starter_mount
 
     prescription, clips = load_lens_and_clips(lens, max_clip_vignetting=None)
-    name = prescription.name if prescription.name not in ("", "lens") else lens.stem
+    name, gap = _lens_name(prescription, lens), least_edge(prescription)
+
+    def sized_by_glass(gap: float):
+        return load_lens_and_clips(lens, clip_edge_mm=gap, max_clip_vignetting=None, clip_thin=True)
+
     if not changes_aperture(clips):   # the import's own clips (if any), within what it allows: load_lens's lens
         mount, problem = starter_mount(prescription, name)
-        if problem is None or not load_lens_and_clips(lens, clip_edge_mm=least_edge(prescription),
-                                                      max_clip_vignetting=None, clip_thin=True)[1]:
+        if problem is None or not sized_by_glass(gap)[1]:
             return prescription, mount, problem, ()
-    gap = least_edge(prescription)
     for _ in range(2):   # the search may change the chamfers: the glass's size follows the mount's least edge
-        prescription, clips = load_lens_and_clips(lens, clip_edge_mm=gap, max_clip_vignetting=None, clip_thin=True)
+        prescription, clips = sized_by_glass(gap)
         mount, problem = starter_mount(prescription, name)
         mount["lens_edge"]["allow_vignetting"] = True
         if problem or abs(clip_gap(parse_mount(mount)) - gap) < 1e-9:
@@ -161,7 +167,7 @@ def _init_from_lens(directory: Path, lens: Path, allow_vignetting: bool = False)
     from lensmount.cad.starter import case2_scene, object_scene, starter_finishes
 
     prescription, mount, problem, clips = _starter_for_lens(lens)
-    name = mount["name"].removesuffix(" mount")
+    name = _lens_name(prescription, lens)
     glass = f"; its glass limits it: {what_the_glass_allows(clips)}" if clips else ""
     if problem:
         raise InputError(f"no mount that builds was found for this lens: {problem}{glass}", file=str(lens),
