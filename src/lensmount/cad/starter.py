@@ -515,5 +515,5 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     }
 
 
-__all__ = ["starter_mount", "least_edge", "rim_margins", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
-           "image_height"]
+__all__ = ["starter_mount", "least_edge", "rim_margins", "starter_finishes", "case2_scene", "POLISHED_MIRROR",
+           "object_scene", "detector_size", "image_height"]

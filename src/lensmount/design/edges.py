@@ -80,13 +80,18 @@ class EdgeClip:
         """The beam's semi-diameter the faces must share: in glass the larger, across air the smaller."""
         return max(self.needed) if len(self.elements) == 1 else min(self.needed)
 
+    def faces_meet(self) -> str:
+        """Where the faces meet, against the beam: inside it, or beyond it but closer than `gap` inside."""
+        beam = f"the {self.beam():.4g} mm the beam of the full field reaches"
+        if self.meet < self.beam():
+            return f"meet {self.meet:.4g} mm from the axis, inside {beam}"
+        return f"come closer than {self.gap:g} mm inside {beam} (they meet {self.meet:.4g} mm from the axis)"
+
     def message(self) -> str:
         a, b = self.surfaces
         what = "its edge" if len(self.elements) == 1 else "the air gap"
-        meet = f"meet {self.meet:.4g} mm from the axis, inside" if self.meet < self.beam() else \
-            f"come closer than {self.gap:g} mm (they meet {self.meet:.4g} mm from the axis) inside"
-        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} {meet} "
-                f"the {self.beam():.4g} mm the beam of the full field reaches, and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
+        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} {self.faces_meet()}, "
+                f"and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
                 f"min_thickness_mm, after two protective chamfers, lens_edge.chamfer_mm); the clip vignettes "
                 f"the designed pupil by {self.vignetting()}")
 
@@ -218,13 +223,9 @@ def what_the_glass_allows(clips) -> str:
         what = f"element {c.elements[0]}" if len(c.elements) == 1 else \
             f"the air gap between elements {c.elements[0]} and {c.elements[1]}"
         edge = "edge" if len(c.elements) == 1 else "gap"
-        faces, beam = f"surfaces {c.surfaces[0] + 1} and {c.surfaces[1] + 1}", \
-            f"the {c.beam():.4g} mm the beam of the full field reaches"
-        how = f"{faces} meet {c.meet:.4g} mm from the axis, inside {beam}" if c.meet < c.beam() else \
-            f"{faces} come closer than {c.gap:.3g} mm inside {beam} (they meet at {c.meet:.4g} mm)"
-        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most ({how}; at {c.height:.4g} mm its "
-                    f"{edge} is {c.gap:.3g} mm, the least the mount takes), which vignettes the designed pupil by "
-                    f"{c.vignetting()}")
+        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most (surfaces {c.surfaces[0] + 1} and "
+                    f"{c.surfaces[1] + 1} {c.faces_meet()}; at {c.height:.4g} mm its {edge} is {c.gap:.3g} mm, the "
+                    f"least the mount takes), which vignettes the designed pupil by {c.vignetting()}")
     if len(clips) > 1:
         said.append(f"all {len(clips)} together: {clips[0].vignetting(lost_together(clips))}")
     return "; ".join(said)
@@ -253,5 +254,6 @@ def _least_gap(p: Prescription, i: int, h: float) -> float:
 
 
 
-__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "changes_aperture", "what_the_glass_allows", "clip_gap", "clip_warnings", "lost_together",
+__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "changes_aperture", "what_the_glass_allows",
+           "clip_gap", "clip_warnings", "lost_together",
            "face_gap", "height_at_gap"]
