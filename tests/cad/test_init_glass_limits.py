@@ -42,7 +42,7 @@ def tight_triplet(path: Path) -> Path:
 
 
 def test_tight_triplet_rims_sit_the_chip_zone_outside_the_clear_aperture_and_one_wider_rim_is_not_enough(tmp_path):
-    from lensmount.cad.mount_search import refusal
+    from lensmount.cad.mount_search import alternatives, refusal
     from lensmount.cad.starter import _mount
     from lensmount.design.lens import load_lens
 
@@ -50,8 +50,17 @@ def test_tight_triplet_rims_sit_the_chip_zone_outside_the_clear_aperture_and_one
     for g in p.lens_groups():
         rim = max(p.surfaces[i].mechanical_semi_diameter or 0.0 for i in g)
         assert rim - max(p.surfaces[i].clear_semi_diameter for i in g) == pytest.approx(CHIP_ZONE, abs=1e-9)
-    first = refusal(p, _mount(p, "tight", True))
+    mount = _mount(p, "tight", True)
+    first = refusal(p, mount)
     assert first is not None and "beyond the edge chamfer" in first.message
+    # one element's rim wider (the planner's own alternative): the same fault moves to another element's face
+    wider = [(what, alt) for what, alt in alternatives(p, mount, first) if re.fullmatch(r"element \d's rim .*", what)
+             and float(re.search(r"rim ([\d.]+)", what).group(1)) > float(re.search(r"was ([\d.]+)", what).group(1))]
+    assert wider
+    for what, alt in wider:
+        again = refusal(p, alt)
+        assert again is not None and "beyond the edge chamfer" in again.message, what
+        assert again.message.split(":")[0] != first.message.split(":")[0], what   # "surface N": another face
 
 
 def test_every_rim_enlarged_by_one_margin_builds_the_tight_triplet(tmp_path):
