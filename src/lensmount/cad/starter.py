@@ -26,8 +26,10 @@ dimension follows from the lens itself, in the mount layer's own keys
   (design.edges); an element whose faces cross inside its rim keeps its rim (its flat
   bevels carry the edge), and one held by a ring is wide enough for the ring's wall above
   the beam; where the planner refuses the mount, its alternatives are tried where the refusal
-  points (cad.mount_search: seats, rims, flat faces, margins) and `init` refuses the lens when
-  none builds;
+  points (cad.mount_search: seats, rims, flat faces, margins), then every rim enlarged together by
+  one margin over its clear aperture (`rim_margins`: the file's rims set aside, as an engineer does
+  where they all sit too close to the light for a chamfer and a seat), and `init` refuses the lens
+  when none builds;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -298,8 +300,9 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     faces). Each is checked as `regenerate` checks it (the layout planner, the profile checks, then
     the solids: cad.mount_search.refusal); the first that passes wins. When none does, the planner's
     alternatives are tried where its refusal points (cad.mount_search: seats, rims, flat faces,
-    margins). When nothing builds,
-    the first seating is returned with the refusals met on the way.
+    margins), and when none does, the seatings again with every rim enlarged together (`_wider_rims`,
+    a search of its own). When nothing builds, the first seating is returned with the refusals met on
+    the way.
     """
     gap = _faces_curling_toward_the_stop(p)
     base: dict[bool, dict] = {}   # each seating's mount.toml made once (0.5-1 s), when it is needed
