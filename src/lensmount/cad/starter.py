@@ -26,8 +26,10 @@ dimension follows from the lens itself, in the mount layer's own keys
   (design.edges); an element whose faces cross inside its rim keeps its rim (its flat
   bevels carry the edge), and one held by a ring is wide enough for the ring's wall above
   the beam; where the planner refuses the mount, its alternatives are tried where the refusal
-  points (cad.mount_search: seats, rims, flat faces, margins) and `init` refuses the lens when
-  none builds;
+  points (cad.mount_search: seats, rims, flat faces, margins), then every rim enlarged together by
+  one margin over its clear aperture (`rim_margins`: the file's rims set aside, as an engineer does
+  where they all sit too close to the light for a chamfer and a seat), and `init` refuses the lens
+  when none builds;
 - the hood shades the first lens from the sun at the exclusion angle when that takes
   at most two entrance diameters, else it stops there; its bore is the beam at the
   mouth plus room for vanes; one vane per bay as long as the hood's bore is wide;
@@ -46,6 +48,7 @@ from __future__ import annotations
 
 import copy
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -287,8 +290,9 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
     faces). Each is checked as `regenerate` checks it (the layout planner, the profile checks, then
     the solids: cad.mount_search.refusal); the first that passes wins. When none does, the planner's
     alternatives are tried where its refusal points (cad.mount_search: seats, rims, flat faces,
-    margins). When nothing builds,
-    the first seating is returned with the refusals met on the way.
+    margins), and when none does, the seatings again with every rim enlarged together (`_wider_rims`,
+    a search of its own). When nothing builds, the first seating is returned with the refusals met on
+    the way.
     """
     gap = _faces_curling_toward_the_stop(p)
     base: dict[bool, dict] = {}   # each seating's mount.toml made once (0.5-1 s), when it is needed
@@ -305,7 +309,34 @@ def starter_mount(p: Prescription, name: str) -> tuple[dict, str | None]:
                 yield mount
 
     mount, refused = find_mount(p, starts())
-    return (mount, None) if mount is not None else (base[True], _why_not(refused))
+    if mount is None:
+        mount, _ = find_mount(p, _wider_rims(p, name, gap))
+    return (mount, None) if mount is not None else (base[True], _why_not(refused) + "; nor with every rim "
+            f"enlarged together, {', '.join(f'{m:.3g}' for m in rim_margins(p))} mm outside its clear aperture")
+
+
+RIM_MARGINS = (1.0, 1.5, 2.0, 3.0)   # every rim's margin over its clear aperture, in edge allowances
+
+
+def rim_margins(p: Prescription) -> tuple[float, ...]:
+    """The margins of every rim over its element's clear aperture that init tries together, mm."""
+    return tuple(round(f * _allowance(p), 3) for f in RIM_MARGINS)
+
+
+def _wider_rims(p: Prescription, name: str, gap: tuple[int, ...]):
+    """The starting seatings again with every rim enlarged together: each element's mechanical
+    semi-diameter its clear one plus one margin for all (`rim_margins`, smallest first), the file's
+    own rims set aside. Where rims sit too close to the clear aperture for the chamfer and the seat's
+    contact (OpticStudio's automatic rim: the clear semi-diameter plus a small chip zone), widening one
+    element moves the fault to the next: an engineer widens them all by the same margin."""
+    for margin in rim_margins(p):
+        for flats in ((), gap) if gap else ((),):
+            for widen in (True, False):
+                mount = _mount(p, name, widen, rim_margin=margin)
+                if flats:
+                    edge = mount["lens_edge"]
+                    edge["flat_faces"] = sorted(set(flats) | set(edge.get("flat_faces", ())))
+                yield mount
 
 
 def _why_not(refused: list) -> str:
@@ -320,10 +351,28 @@ def _why_not(refused: list) -> str:
            f"(seats, rims, flat faces, margins), none builds: {tail}"
 
 
-def _mount(p: Prescription, name: str, widen: bool) -> dict:
+def _chamfer(p: Prescription) -> float:
+    return _round(min(0.1, _allowance(p) / 8), 3)
+
+
+def _min_thickness(p: Prescription) -> float:
+    a = max(float(s.clear_semi_diameter) for s in p.surfaces)
+    return _round(_clamp(0.04 * a, 0.2, MountSpec().checks.min_thickness_mm), 2)
+
+
+def least_edge(p: Prescription) -> float:
+    """The glass a starter mount needs at an element's edge, mm: its least thickness ([checks]
+    min_thickness_mm) after two protective chamfers (lens_edge.chamfer_mm): the gap between an
+    element's faces where the glass allows it to end (design.edges.clip_crossing_elements)."""
+    return _min_thickness(p) + 2.0 * _chamfer(p)
+
+
+def _mount(p: Prescription, name: str, widen: bool, rim_margin: float | None = None) -> dict:
+    """The starter's mount.toml; `rim_margin`: every rim that far outside its element's clear aperture
+    (the file's mechanical semi-diameters set aside), else the edge allowance where the file gives none."""
     a = max(float(s.clear_semi_diameter) for s in p.surfaces)
     allowance = _allowance(p)
-    chamfer = _round(min(0.1, allowance / 8), 3)
+    chamfer = _chamfer(p)
     wall = _round(_clamp(0.15 * a, 0.8, 4.0), 1)
     lip = _round(_clamp(0.1 * a, 0.5, 2.0), 1)
     field = p.max_field_deg
@@ -343,12 +392,23 @@ def _mount(p: Prescription, name: str, widen: bool) -> dict:
     contact = _round(min(0.5, allowance / 4), 3)
     edge = {"style": "chamfered", "chamfer_mm": chamfer, "allowance_mm": _round(allowance, 3),
             "contact_margin_mm": contact}
-    min_thickness = _round(_clamp(0.04 * a, 0.2, MountSpec().checks.min_thickness_mm), 2)
+    min_thickness = _min_thickness(p)
     retainer = _round(_clamp(0.05 * a, 0.3, 3.0), 1)
     # a lens with mirrors is laid out in cells (lensmount.cad.catadioptric): no seats or edges to choose,
     # and no hood or housing yet (the hood and housing tables keep the exclusion angle and the detector)
+    rims = p if rim_margin is None else p.with_surfaces([replace(s, mechanical_semi_diameter=None)
+                                                         for s in p.surfaces])
     semi, seat_of, flat = ({}, {}, ()) if p.has_mirrors else _edges_and_seats(
-        p, allowance, chamfer, contact, min_thickness, retainer, margin, widen)
+        rims, allowance if rim_margin is None else rim_margin, chamfer, contact, min_thickness, retainer, margin,
+        widen)
+    if rim_margin is not None and not p.has_mirrors:   # every rim written: the file's own would apply elsewhere
+        edge["allowance_mm"] = _round(rim_margin, 3)
+        first = 1
+        for g in p.lens_groups():
+            rim = _round(group_rim(rims, g, first, LensEdge(allowance_mm=rim_margin)), 3)
+            for k in range(first, first + len(g) - 1):
+                semi.setdefault(k, rim)
+            first += len(g) - 1
     if semi:
         edge["semi_diameter_mm"] = {str(k): v for k, v in semi.items()}
     if flat:
@@ -448,4 +508,5 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
     }
 
 
-__all__ = ["starter_mount", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size"]
+__all__ = ["starter_mount", "least_edge", "rim_margins", "starter_finishes", "case2_scene", "POLISHED_MIRROR",
+           "object_scene", "detector_size"]

@@ -52,6 +52,8 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     echo(f"entrance pupil: realised {pupil.diameter:.3f} mm (f/{efl / pupil.diameter:.2f}), designed "
          f"{pupil.design_diameter:.3f} mm (f/{efl / pupil.design_diameter:.2f}), "
          f"{100 * pupil.relative_error:+.2f} %; limited by {', '.join(limited)}")
+    for said in d.lens_warnings:   # an element edged inside the beam: the vignetting per field it costs
+        echo(f"lens: {said}")
     who = "the entrance aperture" if view == "aperture" else "the detector"
     if report.passed:
         echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing {who} sees "
@@ -75,7 +77,10 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
            "lit_vane_edges_seen": [w.__dict__ for w in report.edges],
            "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
                               "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
-                              "limited_by": limited}}
+                              "limited_by": limited},
+           "lens_vignetting": [{"surfaces": [c.surfaces[0] + 1, c.surfaces[1] + 1], "semi_diameter_mm": c.height,
+                                "fields": list(c.fields), "field_unit": c.field_unit, "lost": list(c.lost)}
+                               for c in d.lens_clips]}
     write_text(json_path, json.dumps(doc, indent=2) + "\n")
     echo(f"picture: {png}; details: {json_path}")
     return report.passed

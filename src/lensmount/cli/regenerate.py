@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import shutil
 import sys
+import textwrap
 from pathlib import Path
 from typing import Optional
 
@@ -18,7 +19,9 @@ from lensmount.cli import app, fail  # defined before lensmount.cli imports this
 from lensmount.cli.check import run_check
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import TerminalObserver
-from lensmount.design.lens import load_lens
+from lensmount.design.edges import changes_aperture, clip_gap, what_the_glass_allows
+from lensmount.design.lens import load_lens_and_clips
+from lensmount.design.mount import parse_mount
 from lensmount.errors import InputError
 from lensmount.loop.regenerate import RegenerateOptions, regenerate as run
 
@@ -85,6 +88,10 @@ def init(
         "finishes.toml and a case-2 scene are derived from it (mirrors included: cells in a straight barrel), "
         "checked as regenerate checks them; exit 2 with the reasons when no mount the planner knows builds"),
     force: bool = typer.Option(False, "--force", help="write into an existing non-empty folder"),
+    allow_vignetting: bool = typer.Option(
+        False, "--allow-vignetting", help="with --lens: an element whose faces cross inside the beam is edged "
+        "where its glass allows, whatever that vignettes (lens_edge.allow_vignetting; without it init refuses, "
+        "saying what the glass allows and the vignetting per field)"),
     glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Scaffold a design folder (lens file, mount.toml, finishes.toml, scenes/) from an example or from a lens file.
@@ -97,7 +104,7 @@ def init(
             raise InputError("the folder exists and is not empty", file=str(directory),
                              valid="a new or empty folder, or --force")
         if lens is not None:
-            _init_from_lens(directory, Path(lens))
+            _init_from_lens(directory, Path(lens), allow_vignetting)
             again = "".join(f" --glass-catalog {c}" for c in glass_catalog)   # the lens file cannot name them
             typer.echo(f"{directory}: design folder from {lens} (mount.toml, finishes.toml and "
                        f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate "
@@ -120,20 +127,60 @@ def init(
     typer.echo(f"{directory}: design folder from example {example!r}; next: lensmount regenerate {directory}")
 
 
-def _init_from_lens(directory: Path, lens: Path) -> None:
+def _lens_name(p, lens: Path) -> str:
+    return p.name if p.name not in ("", "lens") else lens.stem
+
+
+def _starter_for_lens(lens: Path):
+    """(prescription, mount.toml dict, why no mount builds or None, the clips the glass sets or ()).
+    When the file's elements need clips that change the design's aperture (design.edges: faces crossing
+    inside the beam), or no mount builds and an element's faces come closer than the mount's least edge
+    inside the beam, each such element is edged where its glass allows at the mount's own least edge,
+    and the mount says so (lens_edge.allow_vignetting), as regenerate then loads the lens."""
+    # lazy: keeps lensmount --help from loading cad and matplotlib
+    from lensmount.cad.starter import least_edge, starter_mount
+
+    prescription, clips = load_lens_and_clips(lens, max_clip_vignetting=None)
+    name, gap = _lens_name(prescription, lens), least_edge(prescription)
+
+    def sized_by_glass(gap: float):
+        return load_lens_and_clips(lens, clip_edge_mm=gap, max_clip_vignetting=None, clip_thin=True)
+
+    if not changes_aperture(clips):   # the import's own clips (if any), within what it allows: load_lens's lens
+        mount, problem = starter_mount(prescription, name)
+        if problem is None or not sized_by_glass(gap)[1]:
+            return prescription, mount, problem, ()
+    for _ in range(2):   # the search may change the chamfers: the glass's size follows the mount's least edge
+        prescription, clips = sized_by_glass(gap)
+        mount, problem = starter_mount(prescription, name)
+        mount["lens_edge"]["allow_vignetting"] = True
+        if problem or abs(clip_gap(parse_mount(mount)) - gap) < 1e-9:
+            break
+        gap = clip_gap(parse_mount(mount))
+    return prescription, mount, problem, clips
+
+
+def _init_from_lens(directory: Path, lens: Path, allow_vignetting: bool = False) -> None:
     """Copy the lens, write the derived mount.toml, finishes.toml (mirrors: their scatter included) and
     case-2 scene, and for a finite object the object-lambertian scene (everything checked before
-    writing). InputError, with nothing written, when no mount that builds was found."""
+    writing). InputError, with nothing written, when no mount that builds was found, or when one builds
+    only with an element sized by its glass and `allow_vignetting` is not given."""
     # lazy: keeps lensmount --help from loading cad and matplotlib
-    from lensmount.cad.starter import case2_scene, object_scene, starter_finishes, starter_mount
+    from lensmount.cad.starter import case2_scene, object_scene, starter_finishes
 
-    prescription = load_lens(lens)
-    name = prescription.name if prescription.name not in ("", "lens") else lens.stem
-    mount, problem = starter_mount(prescription, name)
+    prescription, mount, problem, clips = _starter_for_lens(lens)
+    name = _lens_name(prescription, lens)
+    glass = f"; its glass limits it: {what_the_glass_allows(clips)}" if clips else ""
     if problem:
-        raise InputError(f"no mount that builds was found for this lens: {problem}", file=str(lens),
+        raise InputError(f"no mount that builds was found for this lens: {problem}{glass}", file=str(lens),
                          valid="a lens whose elements leave room for seats, spacers and the diaphragm; or "
                                "start from an example (`lensmount init DIR --example NAME`) and edit mount.toml")
+    if clips and not allow_vignetting:
+        raise InputError(f"a mount builds for this lens only with an element smaller than the beam of its full "
+                         f"field: {what_the_glass_allows(clips)}", file=str(lens), field="--allow-vignetting",
+                         valid=f"`lensmount init {directory} --lens {lens} --allow-vignetting` to build that mount "
+                               "(lens_edge.allow_vignetting = true; regenerate and check state the vignetting), "
+                               "or a lens whose element is thicker at its edge")
     scene = case2_scene(prescription, mount, name)
     obj = object_scene(prescription, scene, name)
     target = "lens.zmx" if lens.suffix.lower() == ".zmx" else "lens.toml"
@@ -147,6 +194,10 @@ def _init_from_lens(directory: Path, lens: Path) -> None:
                 "adhesive bead on its ground edge: no retainer or shoulder on its face builds (a clear aperture reaching "
                 "the rim leaves no annulus for one; regenerate's notes give the sizes)")
         header += f"# {said}\n"
+        typer.echo(f"note: {said}")
+    if clips:   # allowed: said where the engineer reads the mount, not only in regenerate's notes
+        said = f"lens_edge.allow_vignetting = true: {what_the_glass_allows(clips)}"
+        header += "".join(f"# {line}\n" for line in textwrap.wrap(said, 110))
         typer.echo(f"note: {said}")
     write_text(directory / "finishes.toml", "# finishes.toml derived by `lensmount init` (lensmount.cad.starter): "
                "the design's finishes, coatings and which faces get which, shared by every scene\n"

@@ -30,11 +30,11 @@ from lensmount.optics.profiles import Profile
 MAX_CLIP_VIGNETTING = 0.10
 
 
-def clip_gap() -> float:
-    """The glass kept between the faces at a clipped height, mm: the mount's default minimum edge
-    ([checks] min_thickness_mm) after its two default protective chamfers (lens_edge.chamfer_mm),
-    so that the mount planner can edge the element there with a flat bevel."""
-    spec = MountSpec()
+def clip_gap(spec: MountSpec | None = None) -> float:
+    """The glass kept between the faces at a clipped height, mm: the mount's minimum edge
+    ([checks] min_thickness_mm) after its two protective chamfers (lens_edge.chamfer_mm), so that
+    the mount planner can edge the element there with a flat bevel; the default mount's without `spec`."""
+    spec = MountSpec() if spec is None else spec
     return spec.checks.min_thickness_mm + 2.0 * spec.lens_edge.chamfer_mm
 _SAMPLES = 256
 
@@ -80,12 +80,18 @@ class EdgeClip:
         """The beam's semi-diameter the faces must share: in glass the larger, across air the smaller."""
         return max(self.needed) if len(self.elements) == 1 else min(self.needed)
 
+    def faces_meet(self) -> str:
+        """Where the faces meet, against the beam: inside it, or beyond it but closer than `gap` inside."""
+        beam = f"the {self.beam():.4g} mm the beam of the full field reaches"
+        if self.meet < self.beam():
+            return f"meet {self.meet:.4g} mm from the axis, inside {beam}"
+        return f"come closer than {self.gap:g} mm inside {beam} (they meet {self.meet:.4g} mm from the axis)"
+
     def message(self) -> str:
         a, b = self.surfaces
         what = "its edge" if len(self.elements) == 1 else "the air gap"
-        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} meet "
-                f"{self.meet:.4g} mm from the axis, inside the {self.beam():.4g} mm the beam of the full field "
-                f"reaches, and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
+        return (f"surfaces {a + 1} and {b + 1} are edged at {self.height:.4g} mm: {self.whose()} {self.faces_meet()}, "
+                f"and at {self.height:.4g} mm {what} is {self.gap:g} mm (the minimum edge, [checks] "
                 f"min_thickness_mm, after two protective chamfers, lens_edge.chamfer_mm); the clip vignettes "
                 f"the designed pupil by {self.vignetting()}")
 
@@ -116,10 +122,12 @@ def _element_numbers(p: Prescription) -> list[int]:
     return out
 
 
-def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
+def _first_crossing(p: Prescription, clippable: list[bool], gap: float, thin: bool = False):
     """(i, needed, meet, height) of the first pair of faces i, i + 1 that meet inside the beam's
     semi-diameters (in glass the larger, across air the smaller, as design.lens._check_crossings),
-    one of them clippable, and the height where the gap between them is still `gap`; None."""
+    or with `thin` an element's faces that come closer than `gap` there, one of them clippable, and
+    the height where the gap between them is still `gap`; None. `meet`: where the faces meet (at
+    most where both end)."""
     for i in range(len(p.surfaces) - 1):
         if not (clippable[i] or clippable[i + 1]):
             continue
@@ -128,23 +136,31 @@ def _first_crossing(p: Prescription, clippable: list[bool], gap: float):
         reach = min(Profile.of(p.surfaces[j]).max_radius() for j in (i, i + 1))
         r = np.linspace(0.0, min(h, reach), _SAMPLES)
         along = face_gap(p, i, r)
-        if along.min() >= -1e-9 or along[0] < gap:   # no crossing, or too thin on the axis: nothing to edge
+        least = gap if thin and not p.surfaces[i].is_air_after else 0.0
+        if along.min() >= least - 1e-9 or along[0] < gap:   # apart enough, or too thin on the axis: nothing to edge
             continue
-        k, m = int(np.argmax(along < gap)), int(np.argmax(along < -1e-9))
+        k = int(np.argmax(along < gap))
         height = height_at_gap(p, i, r[k - 1], r[k], gap)
         if not p.surfaces[i].is_air_after and any(not clippable[j] and needed[j - i] > height for j in (i, i + 1)):
             continue   # the element's edge is a size the file gives (or the stop's): design.lens refuses it
-        return i, needed, height_at_gap(p, i, r[m - 1], r[m], 0.0), height
+        out = np.linspace(0.0, reach, 4 * _SAMPLES) if along.min() >= -1e-9 else r   # they meet beyond the beam
+        crossed = face_gap(p, i, out) < -1e-9
+        m = int(np.argmax(crossed))
+        return i, needed, height_at_gap(p, i, out[m - 1], out[m], 0.0) if crossed.any() else reach, height
     return None
 
 
-def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
-                           gap: float | None = None) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str, gap: float | None = None,
+                           max_vignetting: float | None = MAX_CLIP_VIGNETTING, thin: bool = False
+                           ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """`raw` with its automatic semi-diameters from real rays (apertures.with_clear_semi_diameters),
     where faces meet inside them (an element's own, or two neighbours' across air) those faces
     edged at the height where the gap between them is `gap`, and the clips made. Each clip is
     an aperture of the lens, so the automatic semi-diameters behind it follow the beam it leaves.
-    Raises InputError (one paragraph) when a clip would change the design's aperture."""
+    Raises InputError (one paragraph) when a clip would change the design's aperture
+    (`changes_aperture` with `max_vignetting`); None: the glass decides, whatever the clips cost
+    (the mount's `lens_edge.allow_vignetting`). `thin`: an element whose faces come closer than `gap`
+    inside the beam without crossing is edged there too (its glass ends where the mount's edge can)."""
     gap = clip_gap() if gap is None else gap
     stop = raw.stop_index
     clippable = [j != stop and s.clear_semi_diameter is None and s.mechanical_semi_diameter is None
@@ -152,7 +168,7 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
     lens, found = raw, []
     complete = with_clear_semi_diameters(lens, margin_mm)
     for _ in range(len(raw.surfaces)):
-        crossing = _first_crossing(complete, clippable, gap)
+        crossing = _first_crossing(complete, clippable, gap, thin)
         if crossing is None:
             break
         i, needed, meet, height = crossing
@@ -176,7 +192,7 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
         clips.append(EdgeClip(elements, (i, i + 1), meet, needed, height, gap,
                               tuple(float(f) for f in fields), tuple(float(v) for v in lost), unit))
     total = lost_together(clips)
-    if total[0] > 0.0 or max(total) > MAX_CLIP_VIGNETTING:
+    if max_vignetting is not None and changes_aperture(clips, max_vignetting):
         clip = next((c for c in clips if c.lost[0] > 0.0), max(clips, key=lambda c: max(c.lost)))
         i = clip.surfaces[0]
         raise InputError(
@@ -189,6 +205,30 @@ def clip_crossing_elements(raw: Prescription, margin_mm: float, file: str,
             valid=f"a thickness of at least {raw.surfaces[i].thickness - _least_gap(complete, i, clip.beam()):.4g} "
                   "mm, flatter curvatures, or clear semi-diameters the faces reach")
     return complete, tuple(clips)
+
+
+def changes_aperture(clips, max_vignetting: float = MAX_CLIP_VIGNETTING) -> bool:
+    """The clips together stop an on-axis ray, or more than `max_vignetting` of a field's pupil."""
+    if not clips:
+        return False
+    total = lost_together(clips)
+    return total[0] > 0.0 or max(total) > max_vignetting
+
+
+def what_the_glass_allows(clips) -> str:
+    """One sentence per clip for a refusal: which element, to which radius its glass allows it, and
+    the vignetting per field that costs (all clips together at the end)."""
+    said = []
+    for c in clips:
+        what = f"element {c.elements[0]}" if len(c.elements) == 1 else \
+            f"the air gap between elements {c.elements[0]} and {c.elements[1]}"
+        edge = "edge" if len(c.elements) == 1 else "gap"
+        said.append(f"{what} can be {c.height:.4g} mm in semi-diameter at most (surfaces {c.surfaces[0] + 1} and "
+                    f"{c.surfaces[1] + 1} {c.faces_meet()}; at {c.height:.4g} mm its {edge} is {c.gap:.3g} mm, the "
+                    f"least the mount takes), which vignettes the designed pupil by {c.vignetting()}")
+    if len(clips) > 1:
+        said.append(f"all {len(clips)} together: {clips[0].vignetting(lost_together(clips))}")
+    return "; ".join(said)
 
 
 def lost_together(clips) -> tuple[float, ...]:
@@ -214,5 +254,6 @@ def _least_gap(p: Prescription, i: int, h: float) -> float:
 
 
 
-__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "clip_gap", "clip_warnings", "lost_together",
+__all__ = ["EdgeClip", "MAX_CLIP_VIGNETTING", "clip_crossing_elements", "changes_aperture", "what_the_glass_allows",
+           "clip_gap", "clip_warnings", "lost_together",
            "face_gap", "height_at_gap"]

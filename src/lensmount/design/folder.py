@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import lensmount
-from lensmount.design.edges import clip_warnings
+from lensmount.design.edges import EdgeClip, clip_gap, clip_warnings
 from lensmount.design.finishes import FINISHES_NAME, Finishes, load_finishes
 from lensmount.design.lens import LENS_NAMES, find_lens, load_lens_and_clips
 from lensmount.design.mount import MountSpec, load_mount
@@ -49,6 +49,7 @@ class Design:
         step_paths: part name → STEP file of a `[parts.NAME]` entry.
         input_hash: content hash of the CAD inputs (hex).
         finishes: the surface treatment (finishes.toml; the built-in one without the file).
+        lens_clips: those elements edged inside the beam (design.edges.EdgeClip: size, vignetting per field).
         lens_warnings: what the import changed that a result depends on (design.edges: elements
             edged inside the beam, and what that vignettes); regenerate and simulate report them.
     """
@@ -64,6 +65,7 @@ class Design:
     lens_warnings: tuple[str, ...] = ()
     step_paths: dict[str, Path] = field(default_factory=dict)  # [parts.NAME] → its STEP file
     finishes: Finishes = Finishes()
+    lens_clips: tuple[EdgeClip, ...] = ()   # the elements edged inside the beam (lens_warnings says them)
 
     @property
     def finishes_path(self) -> Path | None:
@@ -128,14 +130,17 @@ def load_design(directory: str | Path) -> Design:
                              line=line_of_key(mount.source_text, field_),
                              valid="a .step/.stp file path relative to the design folder")
         steps[name] = path
-    prescription, clips = load_lens_and_clips(lens_path)
+    # the mount may let the glass size an element whose faces cross inside the beam (its own least edge)
+    edged = {"clip_edge_mm": clip_gap(mount), "max_clip_vignetting": None, "clip_thin": True} \
+        if mount.lens_edge.allow_vignetting else {}
+    prescription, clips = load_lens_and_clips(lens_path, **edged)
     _check_element_numbers(mount, prescription)
     scenes_dir = root / "scenes"
     scenes = {p.stem: p for p in sorted(scenes_dir.glob("*.toml"))} if scenes_dir.is_dir() else {}
     return Design(root, lens_path, prescription, mount_path, mount, scenes, templates,
                   content_hash(lens_path, mount_path, templates, steps, prescription.glass_catalogs),
                   tuple(clip_warnings(clips)), steps,
-                  load_finishes(root))
+                  load_finishes(root), clips)
 
 
 __all__ = ["Design", "load_design", "content_hash", "find_lens", "LENS_NAMES"]

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lensmount.design.edges import EdgeClip, clip_crossing_elements, face_gap, height_at_gap
+from lensmount.design.edges import MAX_CLIP_VIGNETTING, EdgeClip, clip_crossing_elements, face_gap, height_at_gap
 from lensmount.errors import InputError
 from lensmount.optics.glass import MODEL_GLASS, refractive_index, resolve_glass
 from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_lens_toml
@@ -57,7 +57,9 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
 
 
 def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
-                        glass_catalogs=(), afocal_ok: bool = False) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+                        glass_catalogs=(), afocal_ok: bool = False, clip_edge_mm: float | None = None,
+                        max_clip_vignetting: float | None = MAX_CLIP_VIGNETTING, clip_thin: bool = False
+                        ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
@@ -72,6 +74,11 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
             before the built-in ones (after a lens.toml's own `glass_catalogs`; the command's
             `--glass-catalog` ones after these).
         afocal_ok: accept an afocal system (for `inspect`); otherwise it is an InputError.
+        clip_edge_mm: the gap kept between crossing faces where an element is edged inside the beam
+            (design.edges.clip_gap: the default mount's least edge when None).
+        max_clip_vignetting: the largest share of a field's pupil such clips may stop before the lens
+            is refused (any on-axis ray refused too); None: the glass decides, whatever they cost.
+        clip_thin: also edge there an element whose faces come closer than that gap inside the beam.
     """
     path = _resolve(Path(path))
     file = str(path)
@@ -83,7 +90,8 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
     margin = file_margin if margin_mm is None else margin_mm
     try:
         validate(prescription, file, afocal_ok)
-        complete, clips = clip_crossing_elements(prescription, margin, file)
+        complete, clips = clip_crossing_elements(prescription, margin, file, clip_edge_mm, max_clip_vignetting,
+                                                 clip_thin)
         _check_radii(complete, file, given_only=False)
         _check_crossings(complete, file, given=[s.clear_semi_diameter is not None for s in prescription.surfaces])
         _check_image(complete, file, afocal_ok)

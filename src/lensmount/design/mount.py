@@ -54,6 +54,12 @@ class LensEdge(_Strict):
                                        "cemented group that is too thin at the group's rim and is edged "
                                        "to its clear aperture plus a bevel instead (a stepped group, seated "
                                        "on its partner): it carries no seat, the cement holds it")
+    allow_vignetting: bool = Field(False, description="an element whose faces cross (or come closer than "
+                                   "its least edge) inside the beam of the full field is edged where its glass "
+                                   "allows (its edge the [checks] minimum after two chamfers) whatever that "
+                                   "vignettes, on-axis rays included; the vignetting per field is in regenerate's "
+                                   "notes and check's report. False: the lens is refused when such an edge stops "
+                                   "an on-axis ray or more than 10 % of a field's pupil")
     finish: str = "ground-glass"
 
 
