@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
+from lensmount.analysis.part_match import match_parts
 from lensmount.analysis.passes import MIN_PASSES, Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs
@@ -130,6 +131,7 @@ class CompareResult:
     design_changes: list[str] = field(default_factory=list)  # what changed in the design, in the engineer's words
     parts_added: dict[str, float] = field(default_factory=dict)  # part → its value, parts in the new run only
     parts_removed: dict[str, float] = field(default_factory=dict)  # part → its old value
+    renamed: dict[str, str] = field(default_factory=dict)  # new name → the old revision's name of the same part
 
     @property
     def exit_code(self) -> int:
@@ -143,7 +145,7 @@ class CompareResult:
         return {"metric": self.metric, "old_run": str(self.old.folder.resolve()), "new_run": str(self.new.folder.resolve()),
                 **clean(self.verdict), "per_part": {k: clean(v) for k, v in self.per_part.items()},
                 "design_changes": self.design_changes, "parts_added": self.parts_added,
-                "parts_removed": self.parts_removed, "notes": self.notes, "exit_code": self.exit_code}
+                "parts_removed": self.parts_removed, "renamed": self.renamed, "notes": self.notes, "exit_code": self.exit_code}
 
 
 def _scene_file(design: Path, scene: str) -> Path:
@@ -320,13 +322,15 @@ def compare(options: CompareOptions, observer: Observer | None = None,
         old.summary.get("provenance", {}).get("design", {}), new.summary.get("provenance", {}).get("design", {})))
     if o.metric == "stray_fraction":
         old_parts, new_parts = old.summary.get("per_part", {}), new.summary.get("per_part", {})
-        for name in dict.fromkeys([*old_parts, *new_parts]):
-            if name not in new_parts:  # a part of one design only: named so, never judged (-100 % is no finding)
-                result.parts_removed[name] = old.part(name).value
-            elif name not in old_parts:
-                result.parts_added[name] = new.part(name).value
-            else:
-                result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
+        match = match_parts(old.summary.get("parts"), new.summary.get("parts"), list(old_parts), list(new_parts))
+        for was, name in match.pairs:  # the same piece of metal, whatever its number in each revision
+            if was in old_parts or name in new_parts:  # else it absorbs in both: zero by construction
+                result.per_part[name] = judge(old.part(was), new.part(name), o.tolerance, o.confidence)
+                if was != name:
+                    result.renamed[name] = was
+        # a part of one design only: named so, never judged (-100 % is no finding)
+        result.parts_removed.update({name: old.part(name).value for name in match.removed})
+        result.parts_added.update({name: new.part(name).value for name in match.added})
     if write:
         result.paths = write_comparison(comparison_folder(o, new), old, new, result)
     return result
@@ -483,8 +487,8 @@ def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> di
     v = result.verdict
     kind = {"regression": "regression", "undecided": "undecided"}.get(v.verdict, "ok")
     headers = ["", "old", "new", "change", "interval of the change", "verdict"]
-    rows = [["total", *verdict_row(v)]] + [[k, *verdict_row(pv)] for k, pv in result.per_part.items()
-                                           if pv.old or pv.new] + part_rows(result)
+    rows = [["total", *verdict_row(v)]] + [[part_label(result, k), *verdict_row(pv)]
+                                           for k, pv in result.per_part.items() if pv.old or pv.new] + part_rows(result)
     detail = " ".join(filter(None, [v.note, "Design changes: " + "; ".join(result.design_changes) + "."
                                     if result.design_changes else "Design: unchanged."]))
     write_report(paths["html"], comparison_report(
@@ -506,6 +510,12 @@ def part_rows(result: CompareResult) -> list[list[str]]:
            [[k, "—", f"{x:.4g}", "—", "—", "added"] for k, x in result.parts_added.items()]
 
 
+def part_label(result: CompareResult, name: str) -> str:
+    """A judged part's name, with the old revision's name for it when that differed ('vane-3 (was vane-5)')."""
+    was = result.renamed.get(name)
+    return f"{name} (was {was})" if was else name
+
+
 def verdict_sentence(v: Verdict) -> str:
     rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
     return f"{v.verdict}: change {v.change:+.3g}{rel}, interval [{v.low:+.3g}, {v.high:+.3g}] at " \
@@ -514,4 +524,4 @@ def verdict_sentence(v: Verdict) -> str:
 
 __all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "compare_until_decided", "resume", "obtain",
            "plan", "plan_current", "stored_run", "check_comparable", "comparison_folder", "write_comparison",
-           "part_rows", "verdict_row", "verdict_sentence", "METRICS"]
+           "part_label", "part_rows", "verdict_row", "verdict_sentence", "METRICS"]

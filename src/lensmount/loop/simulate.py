@@ -432,6 +432,7 @@ def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, pr
                                    "faces": face_report(acc.paths, tags, areas, aperture),
                                    **({"units": OBJECT_SOURCE_UNITS} if not sc.source.at_infinity else {}),
                                    "geometry": str(built.folder.resolve()),
+                                   "parts": sc.mesh.part_extents(),  # what `compare` matches parts by
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
     det = sc.detector
