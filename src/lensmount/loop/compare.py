@@ -25,7 +25,7 @@ from lensmount.analysis.passes import MIN_PASSES, Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs
 from lensmount.loop.progress import expected_s
-from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes, resolve_revision
+from lensmount.loop.provenance import INPUTS_OF, condition_changes, condition_sha256, design_changes, resolve_revision
 from lensmount.loop.simulate import (CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate, stopping,
                                     stored_like)
 from lensmount.run.report import comparison_report, write_report
@@ -132,6 +132,7 @@ class CompareResult:
     parts_added: dict[str, float] = field(default_factory=dict)  # part → its value, parts in the new run only
     parts_removed: dict[str, float] = field(default_factory=dict)  # part → its old value
     renamed: dict[str, str] = field(default_factory=dict)  # new name → the old revision's name of the same part
+    stopped: str = ""  # why --until-decided stopped with the verdict undecided, and what would decide it
 
     @property
     def exit_code(self) -> int:
@@ -355,29 +356,33 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     o = replace(options, until_decided=False)
     if not o.budget_s >= 0:
         raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
-    look, spent, steps = 1, 0.0, []
+    look, spent, steps, stopped = 1, 0.0, [], ""
     result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer, write=False)
     out = comparison_folder(o, result.new)  # where look 1 would have written: the new run's live folder
     while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
         runs = (result.old, result.new)
         m = [r.measurement(o.metric) for r in runs]
-        grows = tuple(resumable(r) for r in runs)
+        held = [not_resumable(r, o) for r in runs]
+        grows = tuple(h is None for h in held)
         if any(x.std_error is None for x in m):  # fewer than 3 passes: first an error bar
             more = tuple(max(3 - x.passes, 0) for x in m)
             more = None if any(a and not g for a, g in zip(more, grows)) else more
         else:
             more = to_decide(*m, result.verdict.threshold, look_confidence(o.confidence, look + 1), grows)
         if more is None:
-            held = " and ".join(f"the {n} run's inputs changed since it ran (it cannot be resumed)"
-                                for n, g in zip(("old", "new"), grows) if not g)
-            steps.append("no number of passes decides it" + (f": {held}" if held else " (see the verdict's note)"))
+            why = "; ".join(f"the {n} run cannot take more passes: {h}" for n, h in zip(("old", "new"), held) if h)
+            stopped = "no number of passes decides it" + (f": {why}" if why else " (see the verdict's note)")
             break
         per_pass = [x.time_s / max(x.passes, 1) for x in m]
         cost = sum(a * t for a, t in zip(more, per_pass))
-        if spent + cost > o.budget_s:
-            steps.append(f"stopped: the next step ({', '.join(f'{a} passes' for a in more)}, ~{cost:.0f} s) would "
-                         f"overrun the budget ({o.budget_s:.0f} s, {spent:.0f} s spent); raise --budget")
-            break
+        if spent + cost > o.budget_s:  # the share of the step the budget still pays for, then a look
+            share = tuple(int(a * (o.budget_s - spent) / cost) for a in more)
+            if not any(share):
+                stopped = (f"the budget is spent ({spent:.0f} of {o.budget_s:.0f} s): {_passes_of(more)} "
+                           f"(~{cost:.0f} s at the runs' speed) would decide it, if the change is as measured; "
+                           f"--budget {math.ceil(spent + cost)} or more would run them")
+                break
+            more = share
         resumed = [resume(r, a, o, observer) if a else r for r, a in zip(runs, more)]
         spent += sum(r.summary.get("time_s", 0.0) - x.time_s for r, x in zip(resumed, m))
         look += 1
@@ -385,12 +390,20 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
         # a look that is not the last writes no images (4 previews and an EXR a look, seconds each)
         result = compare(replace(o, a=resumed[0].folder, b=resumed[1].folder, against=None, scene=None,
                                  confidence=look_confidence(o.confidence, look), out=out), observer, write=False)
-    result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
+    if result.verdict.verdict == UNDECIDED and not stopped:
+        stopped = f"stopped after {look} looks, the most --until-decided takes"
+    result.stopped = stopped
+    result.notes += steps + ([stopped] if stopped else []) + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
     if write:
         result.paths = write_comparison(out, result.old, result.new, result)  # compare.json with the looks' notes
     return result
+
+
+def _passes_of(more: tuple[int, int]) -> str:
+    return " and ".join(f"{a} more pass{'es' if a != 1 else ''} of the {name} run"
+                        for a, name in zip(more, ("old", "new")) if a)
 
 
 def live_folder(run: Run) -> Path:
@@ -407,37 +420,74 @@ def live_folder(run: Run) -> Path:
     return live if same else run.folder
 
 
-def resumable(run: Run) -> bool:
-    """The run has a checkpoint and its design and scene still hold the inputs it ran on."""
-    sim = _resumed_options(run, 0, CompareOptions(run.folder))
-    if not (sim and (sim.out / CHECKPOINT).is_file()) or not sim.design.is_dir() or not sim.scene.is_file():
-        return False
-    return planned_input_hash(sim, *read_inputs(sim.design, sim.scene)) == run.summary.get("input_hash")
+def not_resumable(run: Run, o: CompareOptions) -> str | None:
+    """Why the run cannot take more passes (None: it can): no checkpoint, or neither its design folder
+    nor the store's copy of its inputs holds what it ran on."""
+    if not (live_folder(run) / CHECKPOINT).is_file():
+        return f"the {_role(run)} has no checkpoint to continue from ({live_folder(run)})"
+    inputs = _inputs_of(run, o)
+    return inputs if isinstance(inputs, str) else None
 
 
-def _resumed_options(run: Run, more: int, o: CompareOptions) -> SimulateOptions | None:
-    """The options that continue `run` by `more` passes on the design and scene its provenance names."""
+def _role(run: Run) -> str:
+    return f"run {run.folder}"
+
+
+def _inputs_of(run: Run, o: CompareOptions) -> tuple[Path, Path] | str:
+    """(design folder, scene file) holding the inputs the run ran on: its own folder while unchanged, else
+    the store's copy of them (`run.store.Store.restore_inputs`); or why there are none."""
     s, prov = run.summary, run.summary.get("provenance", {})
     if not prov.get("design_path") or not prov.get("scene_path"):
-        return None
+        return f"the {_role(run)} does not say which design and scene made it"
+    design, scene = Path(prov["design_path"]), Path(prov["scene_path"])
+    if _holds(run, design, scene):
+        return design, scene
+    with Store(_store_of(run, o)) as store:
+        copy = store.restore_inputs(prov.get("inputs", {}), s.get("input_hash", ""),
+                                    (INPUTS_OF, json.dumps(prov, indent=1)))
+    if copy is not None and _holds(run, copy, copy / prov["scene_input"]):
+        return copy, copy / prov["scene_input"]
+    return (f"the inputs of the {_role(run)} changed since it ran ({design}, {scene.name}) and the store keeps no "
+            "copy of them (a run of an older lensmount, or one run with --no-record)")
+
+
+def _holds(run: Run, design: Path, scene: Path) -> bool:
+    """The design folder and scene still hash to the run's inputs."""
+    if not design.is_dir() or not scene.is_file():
+        return False
+    sim = _resumed_options(run, 0, CompareOptions(run.folder), design, scene)
+    try:
+        return planned_input_hash(sim, *read_inputs(design, scene)) == run.summary.get("input_hash")
+    except InputError:  # the folder no longer reads: not the run's inputs
+        return False
+
+
+def _store_of(run: Run, o: CompareOptions) -> Path:
+    """The store the run belongs to: --store, else its design folder's."""
+    return default_path(run.summary.get("provenance", {}).get("design_path", run.folder), o.store)
+
+
+def _resumed_options(run: Run, more: int, o: CompareOptions, design: Path, scene: Path) -> SimulateOptions:
+    """The options that continue `run` by `more` passes on `design` and `scene` (its inputs)."""
+    s = run.summary
     settings = s.get("estimator_settings", {})
-    return SimulateOptions(Path(prov["design_path"]), Path(prov["scene_path"]), method=s.get("method", o.method),
+    return SimulateOptions(design, scene, method=s.get("method", o.method),
                            seed=s.get("seed"), out=live_folder(run), passes=int(s.get("passes", 0)) + more,
                            photons_per_pass=s.get("photons_per_pass"),
                            samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
                            view_map_pitch=int(settings.get("view_map_pitch", 1)),
                            alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,
-                           store=o.store)
+                           store=_store_of(run, o))
 
 
 def resume(run: Run, more: int, o: CompareOptions, observer: Observer | None = None) -> Run:
-    """The run continued from its checkpoint by `more` passes, on the design and scene its provenance
-    names (InputError when they changed since: the checkpoint then belongs to other inputs)."""
-    sim = _resumed_options(run, more, o)
-    if sim is None:
-        raise InputError("the run does not say which design and scene made it", file=str(run.folder / "summary.json"),
-                         field="provenance", valid="a run written by `lensmount simulate` of this version")
-    result = simulate(sim, observer)
+    """The run continued from its checkpoint by `more` passes, on the inputs it ran on: its design folder
+    while unchanged, else the store's copy of them (InputError when neither holds them)."""
+    inputs = _inputs_of(run, o)
+    if isinstance(inputs, str):
+        raise InputError(inputs, file=str(run.folder / "summary.json"), field="provenance",
+                         valid="a run of this lensmount version recorded in the store, or its unchanged design")
+    result = simulate(_resumed_options(run, more, o, *inputs), observer)
     return Run(result.out, result.summary)
 
 

@@ -26,7 +26,7 @@ from lensmount.integrators.settings import EstimatorSettings
 from lensmount.run.executor import WORKER_WAIT_S, executor_for, local_cluster_size
 from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
 from lensmount.loop.prepare import build, read_inputs
-from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
+from lensmount.loop.provenance import collect, condition_sha256, file_sha256, input_files, user_files
 from lensmount.run.results import write_run
 from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
 from lensmount.run.store import Store, default_path
@@ -326,9 +326,10 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
         acc, meta = Accumulator.load(checkpoint)  # a damaged one, or another version's: an InputError naming it
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest,
                                     "photons_per_pass": per_pass}, checkpoint)
-    if o.record:  # a locked or damaged store is said now, not after the run
-        Store(default_path(design.root, o.store)).close()
     provenance = collect(design, spec, scene_path, o.argv)
+    if o.record:  # the run's own copy of its inputs: it can be continued after the folder moved on
+        with Store(default_path(design.root, o.store)) as store:
+            store.keep_inputs(input_files(design, scene_path, spec)[0], provenance.inputs)
 
     wall["reading the inputs"] = time.perf_counter() - clock
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
