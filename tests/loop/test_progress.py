@@ -6,7 +6,7 @@ import pytest
 
 from lensmount.cli.simulate import describe
 from lensmount.loop.simulate import PassStatus
-from lensmount.loop.progress import error_slope, next_halving_s, time_to_error
+from lensmount.loop.progress import error_slope, next_halving_s, status_of, time_to_error
 
 
 def test_eta_follows_inverse_square_of_the_error():
@@ -34,3 +34,20 @@ def test_one_plain_line_per_pass_says_value_error_trend_and_eta():
     for needle in ("pass 12", "1,200,000 photons", "0.001234 ± 0.00012", "9.72 %", "t^-0.49", "target 5 %",
                    "in ~3 min"):
         assert needle in line, (needle, line)
+
+
+def test_a_run_whose_relative_error_is_unknown_says_why_and_promises_no_time():
+    """A zero-signal run (a ± of 0, no relative error) must not read "target 10 % in ~0 s"."""
+    from lensmount.analysis.passes import Accumulator
+
+    import numpy as np
+
+    from lensmount.integrators.estimate import PassEstimate
+
+    acc = Accumulator.empty((2, 2), ["barrel"], 1.0)
+    for _ in range(4):
+        acc.add(PassEstimate(np.zeros((2, 2)), np.zeros((1, 2, 2)), ["barrel"], 1.0, 1000))
+    s = status_of(acc, 40.0, 10.0, 0.1, None, [])
+    line = describe(s)
+    assert s.eta_s is None and "in ~0 s" not in line and "rel. error unknown (no signal yet)" in line, line
+    assert "target 10 % in a time not known yet" in line

@@ -82,3 +82,16 @@ def test_an_undecided_verdict_says_what_would_decide_it_and_that_the_budget_is_t
     said = result.stopped
     assert said.startswith("the budget is spent (0 of 0 s): ") and "would decide it" in said, (said, result.verdict)
     assert "more passes of the old run" in said and "--budget " in said and said in result.notes
+
+
+def test_a_checkpoint_of_other_inputs_says_which_file_and_key_changed(tmp_path, monkeypatch):
+    from lensmount.errors import InputError
+
+    monkeypatch.delenv("LENSMOUNT_STORE", raising=False)
+    design = _design(tmp_path / "design")
+    scene = design / "scenes" / "small.toml"
+    simulate(SimulateOptions(design, scene, out=tmp_path / "run", workers=1, record=False))
+    _edit_hood(design, "30.0")
+    with pytest.raises(InputError) as refused:
+        simulate(SimulateOptions(design, scene, out=tmp_path / "run", workers=1, record=False, resume=True))
+    assert "mount hood.length_mm: 20 -> 30" in str(refused.value.paragraph()), refused.value.paragraph()

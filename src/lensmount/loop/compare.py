@@ -23,7 +23,7 @@ from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, l
 from lensmount.analysis.part_match import match_parts
 from lensmount.analysis.passes import MIN_PASSES, Accumulator
 from lensmount.errors import InputError
-from lensmount.loop.prepare import read_inputs
+from lensmount.loop.prepare import read_inputs, scene_file
 from lensmount.loop.progress import expected_s
 from lensmount.loop.provenance import INPUTS_OF, condition_changes, condition_sha256, design_changes, resolve_revision
 from lensmount.loop.simulate import (CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate, stopping,
@@ -149,18 +149,6 @@ class CompareResult:
                 "parts_removed": self.parts_removed, "renamed": self.renamed, "notes": self.notes, "exit_code": self.exit_code}
 
 
-def _scene_file(design: Path, scene: str) -> Path:
-    p = Path(scene)
-    if p.suffix == ".toml" and p.is_file():
-        return p
-    candidate = design / "scenes" / f"{p.stem}.toml"
-    if candidate.is_file():
-        return candidate
-    names = sorted(q.stem for q in (design / "scenes").glob("*.toml")) if (design / "scenes").is_dir() else []
-    raise InputError(f"scene {scene!r} not found", file=str(design), field="--scene",
-                     valid="a scene file, or one of: " + (", ".join(names) or "(no scenes/ in the design)"))
-
-
 @dataclass(frozen=True)
 class RunSource:
     """Where one side of a comparison comes from, known before anything runs: a result folder, a
@@ -190,7 +178,7 @@ def _usable(runs: list[RunRecord]) -> list[RunRecord]:
 def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new") -> RunSource:
     """The design folder's current state on `scene`: a stored run of the same design and test
     condition (any length, the longest), else the run to simulate and its estimated time."""
-    scene_path = _scene_file(design, scene)
+    scene_path = scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s, quick=o.quick)
     loaded, spec = read_inputs(design, scene_path)
@@ -364,9 +352,17 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
         m = [r.measurement(o.metric) for r in runs]
         held = [not_resumable(r, o) for r in runs]
         grows = tuple(h is None for h in held)
+        unknown = [x.std_error is not None and (bool(x.bias_unbounded) or not math.isfinite(x.std_error)) for x in m]
+        would = "would decide it, if the change is as measured"
         if any(x.std_error is None for x in m):  # fewer than 3 passes: first an error bar
             more = tuple(max(3 - x.passes, 0) for x in m)
             more = None if any(a and not g for a, g in zip(more, grows)) else more
+        elif any(u and g for u, g in zip(unknown, grows)):
+            # an error not known at these passes (a kernel bias the ladder of radii cannot bound, terms too
+            # heavy-tailed for an error bar): the ladder's shape test and the tail's end sharpen with passes,
+            # so twice the passes may give it one; no promise, the budget and the looks bound the attempt
+            more = tuple(x.passes if u and g else 0 for x, u, g in zip(m, unknown, grows))
+            would = "may give the run(s) an error bar (their error is unknown at these passes: see the verdict's note)"
         else:
             more = to_decide(*m, result.verdict.threshold, look_confidence(o.confidence, look + 1), grows)
         if more is None:
@@ -379,8 +375,8 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
             share = tuple(int(a * (o.budget_s - spent) / cost) for a in more)
             if not any(share):
                 stopped = (f"the budget is spent ({spent:.0f} of {o.budget_s:.0f} s): {_passes_of(more)} "
-                           f"(~{cost:.0f} s at the runs' speed) would decide it, if the change is as measured; "
-                           f"--budget {math.ceil(spent + cost)} or more would run them")
+                           f"(~{cost:.0f} s at the runs' speed) {would}; --budget {math.ceil(spent + cost)} or more "
+                           "would run them")
                 break
             more = share
         resumed = [resume(r, a, o, observer) if a else r for r, a in zip(runs, more)]

@@ -18,7 +18,6 @@ is the size of all the pass sums and only the live run resumes from it.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import shutil
@@ -264,19 +263,13 @@ class Store:
         partial.rename(folder)
         return folder
 
-    def keep_inputs(self, files: dict[str, Path], sha256: dict[str, str]) -> None:
-        """Keep a copy of a run's input files (name → path; `sha256`: name → the content the run read) in
-        inputs/, each once by its content: `restore_inputs` puts them back together after the design
-        folder has moved on, so an earlier revision's run can still be continued. A file that no longer
-        holds what the run read (saved again meanwhile) is not kept; that run then cannot be restored."""
+    def keep_inputs(self, contents: dict[str, bytes]) -> None:
+        """Keep a run's input files (SHA-256 → bytes) in inputs/, each once by its content: `restore_inputs`
+        puts them back together after the design folder has moved on, so a run of an earlier revision can
+        still be continued."""
         folder = self.path.resolve().parent / INPUTS
-        folder.mkdir(parents=True, exist_ok=True)
-        for name, path in files.items():
-            digest = sha256.get(name)
-            if digest is None or (folder / digest).is_file():
-                continue
-            data = Path(path).read_bytes()
-            if hashlib.sha256(data).hexdigest() == digest:
+        for digest, data in contents.items():
+            if not (folder / digest).is_file():
                 with atomic_path(folder / digest) as tmp:
                     tmp.write_bytes(data)
 
