@@ -81,13 +81,17 @@ def test_the_terminal_says_why_a_revision_is_undecided_and_what_would_decide_it(
     result = CompareResult(Run(tmp_path / "a", {}), Run(tmp_path / "b", {}), verdict, {}, "stray_fraction",
                            stopped="the budget is spent (118 of 120 s): ... --budget 9000 or more would run them")
 
+    unbudgeted = CompareResult(Run(tmp_path / "a", {}), Run(tmp_path / "b", {}), verdict, {}, "stray_fraction")
+
     def revisions(options, observer):
         yield Revision(0, (), None, None, 1.0)
         yield Revision(1, ("mount.toml",), result, None, 2.0)
+        yield Revision(2, ("finishes.toml",), unbudgeted, None, 2.0)
 
     monkeypatch.setattr(cli_watch, "watch_design", revisions)
     out = CliRunner().invoke(app, ["watch", str(tmp_path), "--scene", "s"])
     assert out.exit_code == 0, out.output
     assert "revision 1 (mount.toml" in out.output and "undecided" in out.output
-    assert "4400 more passes of the new run would decide it" in out.output
-    assert "--budget 9000 or more" in out.output
+    said = out.output.split("revision 2")
+    assert "--budget 9000 or more" in said[0] and "4400 more passes" not in said[0]  # said once, by the budget's line
+    assert "4400 more passes of the new run would decide it" in said[1]

@@ -63,8 +63,8 @@ def watch(
                 r = revision.result
                 typer.echo(f"revision {revision.number} ({', '.join(revision.changed)}, "
                            f"{duration(revision.seconds)}): {verdict_sentence(r.verdict)}")
-                for why in filter(None, [r.verdict.note if r.verdict.verdict == UNDECIDED else "", r.stopped]):
-                    typer.echo(f"  {why}")
+                if r.verdict.verdict == UNDECIDED:  # why, and what would decide it
+                    typer.echo(f"  {r.stopped or r.verdict.note}")
     except InputError as error:
         observer.close()
         fail(error)

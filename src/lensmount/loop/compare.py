@@ -362,12 +362,12 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
             # heavy-tailed for an error bar): the ladder's shape test and the tail's end sharpen with passes,
             # so twice the passes may give it one; no promise, the budget and the looks bound the attempt
             more = tuple(x.passes if u and g else 0 for x, u, g in zip(m, unknown, grows))
-            would = "may give the run(s) an error bar (their error is unknown at these passes: see the verdict's note)"
+            would = f"may give the run(s) an error bar ({result.verdict.note})"
         else:
             more = to_decide(*m, result.verdict.threshold, look_confidence(o.confidence, look + 1), grows)
         if more is None:
             why = "; ".join(f"the {n} run cannot take more passes: {h}" for n, h in zip(("old", "new"), held) if h)
-            stopped = "no number of passes decides it" + (f": {why}" if why else " (see the verdict's note)")
+            stopped = "no number of passes decides it: " + (why or result.verdict.note)
             break
         per_pass = [x.time_s / max(x.passes, 1) for x in m]
         cost = sum(a * t for a, t in zip(more, per_pass))
