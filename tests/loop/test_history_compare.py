@@ -232,7 +232,7 @@ def test_until_decided_gives_a_run_whose_error_is_unknown_more_passes_instead_of
         return Run(longer, s)
 
     monkeypatch.setattr(loop_compare, "resume", resume)
-    monkeypatch.setattr(loop_compare, "not_resumable", lambda run, o: None)
+    monkeypatch.setattr(loop_compare, "not_resumable", lambda folder, summary, store: None)
     result = compare_until_decided(CompareOptions(tmp_path / "old", tmp_path / "new", budget_s=1e6), write=False)
     assert asked == [("old", 8)], asked
     assert result.verdict.verdict == "regression" and result.stopped == "", (result.verdict, result.notes)

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from lensmount.loop.compare import CompareOptions, Run, compare, not_resumable, resume
+from lensmount.loop.compare import CompareOptions, Run, compare, resume
+from lensmount.loop.resume import not_resumable
 from lensmount.loop.simulate import SimulateOptions, simulate
 from lensmount.run.store import Store, default_path
 
@@ -41,7 +42,7 @@ def test_a_run_of_an_earlier_revision_continues_on_its_own_copy_of_its_inputs(tm
     mount_before = first.summary["provenance"]["mount_sha256"]
     _edit_hood(design, "30.0")
     run = Run(first.out, first.summary)
-    assert not_resumable(run, CompareOptions(design)) is None
+    assert not_resumable(run.folder, run.summary) is None
     longer = resume(run, 2, CompareOptions(design, workers=1))
     assert longer.summary["passes"] == 5 and longer.summary["input_hash"] == first.summary["input_hash"]
     prov = longer.summary["provenance"]
@@ -62,7 +63,7 @@ def test_a_run_without_a_stored_copy_says_why_it_cannot_continue(tmp_path, monke
     first = simulate(SimulateOptions(design, design / "scenes" / "small.toml", out=tmp_path / "run", workers=1,
                                      record=False))
     _edit_hood(design, "30.0")
-    why = not_resumable(Run(first.out, first.summary), CompareOptions(design))
+    why = not_resumable(first.out, first.summary)
     assert "changed since it ran" in why and "keeps no copy" in why
 
 
@@ -78,7 +79,7 @@ def test_an_undecided_verdict_says_what_would_decide_it_and_that_the_budget_is_t
     result = compare(CompareOptions(design, scene="small", against="last", method="forward", workers=1,
                                     until_decided=True, budget_s=0.0))
     assert result.verdict.verdict == "undecided", result.verdict
-    assert not_resumable(result.old, CompareOptions(design)) is None
+    assert not_resumable(result.old.folder, result.old.summary) is None
     said = result.stopped
     assert said.startswith("the budget is spent (0 of 0 s): ") and "would decide it" in said, (said, result.verdict)
     assert "more passes of the old run" in said and "--budget " in said and said in result.notes

@@ -11,7 +11,6 @@ design, and parts in one run only are named added or removed, never judged.
 
 from __future__ import annotations
 
-import json
 import math
 import zipfile
 from dataclasses import asdict, dataclass, field, replace
@@ -25,13 +24,14 @@ from lensmount.analysis.passes import MIN_PASSES, Accumulator
 from lensmount.errors import InputError
 from lensmount.loop.prepare import read_inputs, scene_file
 from lensmount.loop.progress import expected_s
-from lensmount.loop.provenance import INPUTS_OF, condition_changes, condition_sha256, design_changes, resolve_revision
+from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes, resolve_revision
+from lensmount.loop.resume import continue_run, live_folder, not_resumable
 from lensmount.loop.simulate import (CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate, stopping,
                                     stored_like)
 from lensmount.run.report import comparison_report, write_report
 from lensmount.run.results import (
     read_exr, read_summary, shared_scale, write_difference, write_exr, write_preview, write_summary)
-from lensmount.run.store import ORIGIN, RunRecord, Store, default_path
+from lensmount.run.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
@@ -326,7 +326,7 @@ def compare(options: CompareOptions, observer: Observer | None = None,
 
 
 def comparison_folder(o: CompareOptions, new: Run) -> Path:
-    return Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
+    return Path(o.out) if o.out is not None else live_folder(new.folder, new.summary) / "compare"  # never into a store row's copy
 
 
 MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
@@ -350,7 +350,7 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
         runs = (result.old, result.new)
         m = [r.measurement(o.metric) for r in runs]
-        held = [not_resumable(r, o) for r in runs]
+        held = [not_resumable(r.folder, r.summary, o.store) for r in runs]
         grows = tuple(h is None for h in held)
         unknown = [x.std_error is not None and (bool(x.bias_unbounded) or not math.isfinite(x.std_error)) for x in m]
         would = "would decide it, if the change is as measured"
@@ -402,88 +402,9 @@ def _passes_of(more: tuple[int, int]) -> str:
                         for a, name in zip(more, ("old", "new")) if a)
 
 
-def live_folder(run: Run) -> Path:
-    """Where the run goes on: its own output folder. A store row's copy (rows/ID) names it in
-    `store.ORIGIN` and counts only while that folder still holds this very run (same checksum)."""
-    origin = run.folder / ORIGIN
-    if not origin.is_file():
-        return run.folder
-    live = Path(origin.read_text().strip())
-    try:
-        same = read_summary(live / "summary.json").get("sha256") == run.summary.get("sha256")
-    except InputError:  # gone or damaged since: the copy stays what there is
-        same = False
-    return live if same else run.folder
-
-
-def not_resumable(run: Run, o: CompareOptions) -> str | None:
-    """Why the run cannot take more passes (None: it can): no checkpoint, or neither its design folder
-    nor the store's copy of its inputs holds what it ran on."""
-    if not (live_folder(run) / CHECKPOINT).is_file():
-        return f"the {_role(run)} has no checkpoint to continue from ({live_folder(run)})"
-    inputs = _inputs_of(run, o)
-    return inputs if isinstance(inputs, str) else None
-
-
-def _role(run: Run) -> str:
-    return f"run {run.folder}"
-
-
-def _inputs_of(run: Run, o: CompareOptions) -> tuple[Path, Path] | str:
-    """(design folder, scene file) holding the inputs the run ran on: its own folder while unchanged, else
-    the store's copy of them (`run.store.Store.restore_inputs`); or why there are none."""
-    s, prov = run.summary, run.summary.get("provenance", {})
-    if not prov.get("design_path") or not prov.get("scene_path"):
-        return f"the {_role(run)} does not say which design and scene made it"
-    design, scene = Path(prov["design_path"]), Path(prov["scene_path"])
-    if _holds(run, design, scene):
-        return design, scene
-    with Store(_store_of(run, o)) as store:
-        copy = store.restore_inputs(prov.get("inputs", {}), s.get("input_hash", ""),
-                                    (INPUTS_OF, json.dumps(prov, indent=1)))
-    if copy is not None and _holds(run, copy, copy / prov["scene_input"]):
-        return copy, copy / prov["scene_input"]
-    return (f"the inputs of the {_role(run)} changed since it ran ({design}, {scene.name}) and the store keeps no "
-            "copy of them (a run of an older lensmount, or one run with --no-record)")
-
-
-def _holds(run: Run, design: Path, scene: Path) -> bool:
-    """The design folder and scene still hash to the run's inputs."""
-    if not design.is_dir() or not scene.is_file():
-        return False
-    sim = _resumed_options(run, 0, CompareOptions(run.folder), design, scene)
-    try:
-        return planned_input_hash(sim, *read_inputs(design, scene)) == run.summary.get("input_hash")
-    except InputError:  # the folder no longer reads: not the run's inputs
-        return False
-
-
-def _store_of(run: Run, o: CompareOptions) -> Path:
-    """The store the run belongs to: --store, else its design folder's."""
-    return default_path(run.summary.get("provenance", {}).get("design_path", run.folder), o.store)
-
-
-def _resumed_options(run: Run, more: int, o: CompareOptions, design: Path, scene: Path) -> SimulateOptions:
-    """The options that continue `run` by `more` passes on `design` and `scene` (its inputs)."""
-    s = run.summary
-    settings = s.get("estimator_settings", {})
-    return SimulateOptions(design, scene, method=s.get("method", o.method),
-                           seed=s.get("seed"), out=live_folder(run), passes=int(s.get("passes", 0)) + more,
-                           photons_per_pass=s.get("photons_per_pass"),
-                           samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
-                           view_map_pitch=int(settings.get("view_map_pitch", 1)),
-                           alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,
-                           store=_store_of(run, o))
-
-
 def resume(run: Run, more: int, o: CompareOptions, observer: Observer | None = None) -> Run:
-    """The run continued from its checkpoint by `more` passes, on the inputs it ran on: its design folder
-    while unchanged, else the store's copy of them (InputError when neither holds them)."""
-    inputs = _inputs_of(run, o)
-    if isinstance(inputs, str):
-        raise InputError(inputs, file=str(run.folder / "summary.json"), field="provenance",
-                         valid="a run of this lensmount version recorded in the store, or its unchanged design")
-    result = simulate(_resumed_options(run, more, o, *inputs), observer)
+    """The run continued by `more` passes on the inputs it ran on (`loop.resume.continue_run`)."""
+    result = continue_run(run.folder, run.summary, more, o.workers, o.store, observer)
     return Run(result.out, result.summary)
 
 
