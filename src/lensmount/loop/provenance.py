@@ -120,8 +120,8 @@ def input_files(design, scene_path: str | Path, spec) -> tuple[dict[str, Path], 
     scene_dir = Path(str(scene_path.relative_to(root).parent)) if scene_path.is_relative_to(root) else Path("scene")
     files[str(scene_dir / scene_path.name)] = scene_path
     for obj in spec.objects:
-        mesh = (scene_path.parent / obj.path) if obj.path else None
-        if mesh is not None and mesh.is_file():
+        mesh = (scene_path.parent / obj.path) if obj.path and not Path(obj.path).is_absolute() else None
+        if mesh is not None and mesh.is_file():  # (a mesh named by its absolute path is found as it is)
             files[str(scene_dir / obj.path)] = mesh
     return files, str(scene_dir / scene_path.name)
 

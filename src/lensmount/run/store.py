@@ -283,6 +283,8 @@ class Store:
             return copy
         if not inputs or not all((kept / digest).is_file() for digest in inputs.values()):
             return None
+        if any(Path(name).is_absolute() or os.path.normpath(name).split(os.sep)[0] == ".." for name in inputs):
+            return None  # every name stays inside the copy (a damaged record is no way out of it)
         partial = copy.with_name(f".{key}.partial.{os.getpid()}")
         shutil.rmtree(partial, ignore_errors=True)
         for name, digest in inputs.items():
