@@ -77,6 +77,26 @@ class TaggedMesh:
         names = {p: i for i, p in enumerate(self.parts)}
         return np.array([names[t.part] for t in self.tag_table], dtype=np.int32)
 
+    def part_extents(self) -> dict[str, dict]:
+        """What each part is and where: its kind, its axial extent `z_mm` [min, max] and radial extent `r_mm`
+        [min, max] (mm, over its triangles' vertices); what `compare` matches parts across revisions by."""
+        kinds = {t.part: t.kind for t in self.tag_table}
+        names = self.parts
+        if not len(self.triangles) or not names:
+            return {}
+        part = np.repeat(self.part_of_tag()[self.tags], 3)  # one entry per triangle corner
+        corner = self.vertices[self.triangles.reshape(-1)]
+        r = np.hypot(corner[:, 0], corner[:, 1])
+        extent = {}
+        for label, values in (("z_mm", corner[:, 2]), ("r_mm", r)):
+            low, high = np.full(len(names), np.inf), np.full(len(names), -np.inf)
+            np.minimum.at(low, part, values)
+            np.maximum.at(high, part, values)
+            extent[label] = (low, high)
+        return {name: {"kind": kinds[name],
+                       **{label: [round(float(lo[i]), 4), round(float(hi[i]), 4)] for label, (lo, hi) in extent.items()}}
+                for i, name in enumerate(names) if np.isfinite(extent["z_mm"][0][i])}
+
     def select(self, mask: np.ndarray) -> "TaggedMesh":
         """The triangles where mask is true (vertices kept; fine for tracing)."""
         return TaggedMesh(self.vertices, self.triangles[mask], self.tags[mask], list(self.tag_table))

@@ -82,6 +82,16 @@ def test_the_estimate_scales_a_stored_run_at_one_over_root_photons():
     assert "first passes will tell" in forecast(capped, 100_000, [])
 
 
+def test_the_estimate_says_the_passes_once_and_on_resume_what_is_left():
+    stored = [_record(8, 800_000, 80.0, 1.0, 0.03, 0.01)]  # 10 s a pass of 10⁵ photons
+    by_passes = forecast(Stopping(max_passes=24), 100_000, stored)
+    assert by_passes.startswith("estimate: 24 passes in about 240 s (") and by_passes.count("24 passes") == 1
+    resumed = forecast(Stopping(max_passes=24), 100_000, stored, done_passes=20)
+    assert resumed.startswith("estimate: 4 more passes (24 in all, 20 done) in about 40 s ("), resumed
+    target = forecast(Stopping(target_rel_error=0.02, max_passes=100), 100_000, stored, done_passes=30)
+    assert "in about 20 s more, 2 more passes (32 in all, 30 done)" in target, target
+
+
 def test_simulate_says_how_long_before_it_starts_and_a_quick_run_is_the_same_test(cooke, tmp_path):
     design, out = cooke
     edit(design / "scenes" / "test.toml", "passes = 1", "passes = 3\ntarget_rel_error = 0.5\ntime_s = 60")

@@ -117,6 +117,33 @@ def test_a_part_of_one_run_only_reads_added_or_removed_never_a_change(design, tm
     assert set(report["per_part"]) == {"barrel"}
 
 
+def _vanes(*z_and_bore):
+    """A run's part extents: vanes 1 mm thick at z, bore radius r, numbered along the axis as the layout does."""
+    return {f"vane-{k + 1}": {"kind": "vane", "z_mm": [z, z + 1.0], "r_mm": [r, 58.0]}
+            for k, (z, r) in enumerate(z_and_bore)}
+
+
+def test_parts_are_matched_by_what_they_are_not_by_the_number_in_their_name(design, tmp_path):
+    """Vanes 5 -> 3 (the hood's three become one): the new vane-2 and vane-3 are the old vane-4 and vane-5,
+    judged against them; exactly the two vanes that went read removed; no vane reads zero on one side."""
+    old_parts = _vanes((-98.1, 53.1), (-49.6, 48.9), (-1.1, 44.6), (123.0, 21.6), (174.5, 19.4))
+    new_parts = _vanes((-98.1, 53.1), (123.0, 21.6), (174.5, 19.4))
+    values = {"vane-1": 1e-4, "vane-2": 2e-4, "vane-3": 3e-4, "vane-4": 4e-4, "vane-5": 5e-4}
+    old = _run(design, tmp_path / "old", 1.0e-3, parts={k: (v, 0.02 * v) for k, v in values.items()})
+    new = _run(design, tmp_path / "new", 1.0e-3,
+               parts={"vane-1": (1e-4, 2e-6), "vane-2": (4e-4, 8e-6), "vane-3": (5e-4, 1e-5)})
+    for folder, summary, parts in ((tmp_path / "old", old, old_parts), (tmp_path / "new", new, new_parts)):
+        (folder / "summary.json").write_text(json.dumps(summary | {"parts": parts}))
+    result = _compare(tmp_path / "old", tmp_path / "new")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "new" / "compare" / "compare.json").read_text())
+    assert report["parts_removed"] == {"vane-2": 2e-4, "vane-3": 3e-4} and report["parts_added"] == {}
+    assert report["renamed"] == {"vane-2": "vane-4", "vane-3": "vane-5"}
+    assert {k: (v["old"], v["new"]) for k, v in report["per_part"].items()} == {
+        "vane-1": (1e-4, 1e-4), "vane-2": (4e-4, 4e-4), "vane-3": (5e-4, 5e-4)}
+    assert "vane-3 (was vane-5)" in (tmp_path / "new" / "compare" / "report.html").read_text()
+
+
 def _hash(design, **options):
     scene = _scene(design)
     return planned_input_hash(SimulateOptions(design, scene, **options), *read_inputs(design, scene))

@@ -207,3 +207,32 @@ def test_bias_bounds_from_the_summaries_widen_the_interval(tmp_path):
     assert report["verdict"] == "undecided" and report["more_photons"] is None
     assert report["high"] - report["low"] > 4e-4
     assert report["per_part"]["barrel"]["verdict"] == "undecided"
+
+
+def test_until_decided_gives_a_run_whose_error_is_unknown_more_passes_instead_of_giving_up(tmp_path, monkeypatch):
+    """A run whose kernel bias the ladder cannot bound at 8 passes has an unknown error: nothing is decided on
+    it, but twice its passes may bound it; --until-decided asks for them (within the budget) and looks again."""
+    import lensmount.loop.compare as loop_compare
+    from lensmount.loop.compare import CompareOptions, Run, compare_until_decided
+    from lensmount.run.results import write_summary
+    from tests.loop.runs import write_run
+
+    old = write_run(tmp_path / "old", 1.0e-3, 1e-5, passes=8)
+    write_summary(tmp_path / "old" / "summary.json", old | {"stray_fraction_bias_unbounded": "the ladder's shape"})
+    write_run(tmp_path / "new", 1.5e-3, 1e-5, passes=8)
+    asked = []
+
+    def resume(run, more, o, observer=None):  # the longer run: its bias bounded now
+        asked.append((run.folder.name, more))
+        longer = tmp_path / f"{run.folder.name}-longer"
+        shutil.copytree(run.folder, longer)
+        s = dict(run.summary, passes=run.summary["passes"] + more, stray_fraction_bias_unbounded=None)
+        s.pop("sha256", None)
+        write_summary(longer / "summary.json", s)
+        return Run(longer, s)
+
+    monkeypatch.setattr(loop_compare, "resume", resume)
+    monkeypatch.setattr(loop_compare, "not_resumable", lambda folder, summary, store: None)
+    result = compare_until_decided(CompareOptions(tmp_path / "old", tmp_path / "new", budget_s=1e6), write=False)
+    assert asked == [("old", 8)], asked
+    assert result.verdict.verdict == "regression" and result.stopped == "", (result.verdict, result.notes)

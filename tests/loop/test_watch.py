@@ -65,3 +65,33 @@ def test_a_saved_edit_is_judged_and_a_broken_one_is_explained(tmp_path):
     assert broken.result is None and "length_mm" in broken.error
     page = (tmp_path / "watch" / "watch.html").read_text()
     assert 'http-equiv="refresh"' in page and "did not build" in page and "revision-001" in page
+
+
+def test_the_terminal_says_why_a_revision_is_undecided_and_what_would_decide_it(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    import lensmount.cli.watch as cli_watch
+    from lensmount.analysis.compare import Verdict
+    from lensmount.cli import app
+    from lensmount.loop.compare import CompareResult, Run
+    from lensmount.loop.watch import Revision
+
+    verdict = Verdict("undecided", 1e-4, 1.1e-4, 1e-5, 0.1, -1e-5, 3e-5, 5e-6, 0.99,
+                      note="about 3500 more passes of the old run and 4400 more passes of the new run would decide it")
+    result = CompareResult(Run(tmp_path / "a", {}), Run(tmp_path / "b", {}), verdict, {}, "stray_fraction",
+                           stopped="the budget is spent (118 of 120 s): ... --budget 9000 or more would run them")
+
+    unbudgeted = CompareResult(Run(tmp_path / "a", {}), Run(tmp_path / "b", {}), verdict, {}, "stray_fraction")
+
+    def revisions(options, observer):
+        yield Revision(0, (), None, None, 1.0)
+        yield Revision(1, ("mount.toml",), result, None, 2.0)
+        yield Revision(2, ("finishes.toml",), unbudgeted, None, 2.0)
+
+    monkeypatch.setattr(cli_watch, "watch_design", revisions)
+    out = CliRunner().invoke(app, ["watch", str(tmp_path), "--scene", "s"])
+    assert out.exit_code == 0, out.output
+    assert "revision 1 (mount.toml" in out.output and "undecided" in out.output
+    said = out.output.split("revision 2")
+    assert "--budget 9000 or more" in said[0] and "4400 more passes" not in said[0]  # said once, by the budget's line
+    assert "4400 more passes of the new run would decide it" in said[1]

@@ -127,3 +127,27 @@ def test_the_overflow_check_sees_a_page_wider_than_the_window(tmp_path, open_off
     wide.write_text("<html><body><table><tr><td>" + "x" * 400 + "</td></tr></table></body></html>")
     page, _ = open_offline(wide)
     assert horizontal_overflow(page) > 0
+
+
+def test_watch_page_headers_break_only_between_words(tmp_path, open_offline):
+    """Long verdicts and file lists squeeze the other columns; a header may wrap between its words, never
+    inside one ("seco / nds")."""
+    from lensmount.loop.watch import Revision, write_watch_page
+
+    history = [Revision(0, (), None, None, 90.0)] + [
+        Revision(k, ("mount.toml", "finishes.toml", "templates/a-very-long-user-template-name.py"), None,
+                 "the hood's length_mm = -4.0 is out of range " * 6, 12.5) for k in range(1, 4)]
+    page, _ = open_offline(write_watch_page(tmp_path, tmp_path / "design", None, history))
+    cut = page.evaluate("""() => Array.from(document.querySelectorAll('th')).filter(th => {
+        const probe = document.createElement('span');
+        probe.style.font = getComputedStyle(th).font;
+        probe.style.whiteSpace = 'nowrap';
+        document.body.appendChild(probe);
+        const widest = Math.max(...th.innerText.split(/\\s+/).map(w => { probe.textContent = w;
+                                                                         return probe.getBoundingClientRect().width; }));
+        probe.remove();
+        const style = getComputedStyle(th);
+        const room = th.clientWidth - parseFloat(style.paddingLeft) - parseFloat(style.paddingRight);
+        return room + 0.5 < widest;
+    }).map(th => th.innerText)""")
+    assert cut == [], cut

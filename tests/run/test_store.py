@@ -121,3 +121,24 @@ def test_a_store_made_before_the_test_condition_column_opens_and_records(tmp_pat
         assert (old.condition_sha256, new.condition_sha256) == (None, "c" * 64)
         assert [r.id for r in store.runs(condition_sha256="c" * 64)] == [old.id, new.id]  # an old row may match
         assert store.runs(condition_sha256="d" * 64) == [old]
+
+
+def test_the_store_keeps_input_files_by_content_and_puts_them_back_together(tmp_path):
+    import hashlib
+
+    from lensmount.run.store import Store
+
+    mount, scene = b"[hood]\nlength_mm = 100.0\n", b"[source]\n"
+    sha = {name: hashlib.sha256(data).hexdigest() for name, data in (("mount", mount), ("scene", scene))}
+    with Store(tmp_path / "runs.sqlite") as store:
+        store.keep_inputs({sha["mount"]: mount, sha["scene"]: scene})
+        store.keep_inputs({sha["mount"]: mount})  # kept once: the same content is the same file
+        inputs = {"mount.toml": sha["mount"], "scenes/case2.toml": sha["scene"]}
+        copy = store.restore_inputs(inputs, "k", ("marker.json", "{}"))
+        assert (copy / "mount.toml").read_bytes() == mount and (copy / "scenes" / "case2.toml").read_bytes() == scene
+        assert (copy / "marker.json").read_text() == "{}"
+        assert store.restore_inputs(inputs, "k", ("marker.json", "{}")) == copy
+        assert store.restore_inputs({"lens.toml": "0" * 64}, "missing", ("m", "")) is None  # not kept: no copy
+        assert store.restore_inputs({"../../outside": sha["mount"]}, "out", ("m", "")) is None
+    assert len(list((tmp_path / "inputs").glob("*"))) == 3  # two files and designs/
+    assert not (tmp_path / "outside").exists()

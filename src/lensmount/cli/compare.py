@@ -19,7 +19,8 @@ from lensmount.cli import app, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import QUICK_HELP, duration, observed
 from lensmount.errors import InputError
-from lensmount.loop.compare import CompareOptions, RunSource, compare as run_compare, part_rows, plan, verdict_row
+from lensmount.loop.compare import (CompareOptions, RunSource, compare as run_compare, part_label, part_rows, plan,
+                                   verdict_row)
 
 
 def _fraction(text: str, field: str) -> float:
@@ -112,7 +113,7 @@ def compare(
     table.add_row("total", *verdict_row(v), style="bold")
     for name, pv in sorted(result.per_part.items(), key=lambda kv: -max(kv[1].old, kv[1].new)):
         if pv.old or pv.new:
-            table.add_row(name, *verdict_row(pv))
+            table.add_row(part_label(result, name), *verdict_row(pv))
     for row in part_rows(result):
         table.add_row(*row)
     console.print(table)

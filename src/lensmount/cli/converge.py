@@ -17,7 +17,7 @@ from lensmount.loop.converge import ConvergeOptions, converge as run, read_refer
 @app.command()
 def converge(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
-    scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),
+    scene: Path = typer.Option(..., "--scene", help="Scene: a name from DESIGN/scenes/ or a scene file."),
     methods: str = typer.Option("bidirectional,forward", "--methods", help="Comma-separated: bidirectional,forward."),
     budget: float = typer.Option(600.0, "--budget", help="Seconds of tracing in total, shared by the methods."),
     levels: int = typer.Option(5, "--levels", help="Doubling time levels per method (the last = its budget)."),

@@ -72,7 +72,8 @@ def duration(seconds: float | None, unknown: str = "—") -> str:
 def describe(s: PassStatus) -> str:
     """One line: passes, photons, value ± error, relative error, its trend, ETA."""
     value = f"{s.value:.4g}" + (f" ± {s.std_error:.2g}" if s.std_error is not None else "")
-    rel = f"{100 * s.rel_error:.2f} %" if s.rel_error < float("inf") else "—"
+    rel = f"{100 * s.rel_error:.2f} %" if s.rel_error < float("inf") else \
+        "unknown" + (f" ({s.rel_error_unknown})" if s.rel_error_unknown else "")
     text = f"pass {s.passes} · {s.photons:,} photons · {s.elapsed_s:.0f} s · stray fraction {value} · rel. error {rel}"
     if s.error_slope is not None:
         text += f" (∝ t^{s.error_slope:+.2f}" + (f" ± {s.error_slope_se:.2f})" if s.error_slope_se else ")")
@@ -81,7 +82,8 @@ def describe(s: PassStatus) -> str:
     if s.heavy_tail:
         text += " (one pass dominates: heavy tail, not converged)"
     if s.target_rel_error is not None:
-        text += f" · target {100 * s.target_rel_error:g} % in ~{duration(s.eta_s)}"
+        text += f" · target {100 * s.target_rel_error:g} % " + (f"in ~{duration(s.eta_s)}" if s.eta_s is not None
+                                                                else "in a time not known yet")
     return text
 
 
@@ -180,7 +182,7 @@ def observed(call, *args):
 @app.command()
 def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
-    scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),
+    scene: Path = typer.Option(..., "--scene", help="Scene: a name from DESIGN/scenes/ or a scene file."),
     method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
     seed: Optional[int] = typer.Option(None, "--seed", help="Run seed, >= 0 (default: the scene's run.seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/<scene name>)."),
@@ -266,10 +268,12 @@ def print_summary(summary: dict, paths: dict) -> None:
         table.add_row("kernel bias (bound)", f"± {bias:.2g}")
     if summary.get("stray_fraction_bias_unbounded"):
         table.add_row("kernel bias", f"cannot be bounded: {summary['stray_fraction_bias_unbounded']}")
-    allowance = summary.get("stray_fraction_tail_allowance")
-    if allowance:
-        table.add_row("of the ±, tail allowance", f"{allowance:.2g} (heavy-tailed terms, see the warning)")
-    if (summary.get("tail") or {}).get("terms_unbounded"):
+    allowance, tail = summary.get("stray_fraction_tail_allowance"), summary.get("tail") or {}
+    if allowance:  # the warning is printed above only when the allowance is a notable share of the ±
+        index = f", x^-{tail['terms_tail_index']:.2f}" if tail.get("terms_tail_index") is not None else ""
+        table.add_row("of the ±, tail allowance", f"{allowance:.2g} (the largest terms' tail{index}"
+                      + ("; see the warning)" if tail.get("note") else ")"))
+    if tail.get("terms_unbounded"):
         table.add_row("error bar", "none: the terms' tail has no bound (see the warning)")
     rel = summary.get("stray_fraction_rel_error")
     table.add_row("relative error (std + bias)", f"{100 * rel:.2f} %" if rel is not None else "—")
@@ -277,7 +281,6 @@ def print_summary(summary: dict, paths: dict) -> None:
     if drift is not None:
         p = summary.get("stray_fraction_drift_p")
         table.add_row("radius drift (2nd half vs 1st)", f"{100 * drift:+.1f} %" + (f" (p = {p:.2f})" if p is not None else ""))
-    tail = summary.get("tail") or {}
     if tail.get("largest_over_median") is not None:
         table.add_row("largest pass / median", f"{tail['largest_over_median']:.2f}"
                       + (" (one pass dominates: not converged)" if tail.get("heavy") else ""))

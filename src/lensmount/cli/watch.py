@@ -12,6 +12,7 @@ from lensmount.cli import app, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.compare import _fraction
 from lensmount.cli.simulate import TerminalObserver, duration
+from lensmount.analysis.compare import UNDECIDED
 from lensmount.errors import InputError
 from lensmount.loop.compare import verdict_sentence
 from lensmount.loop.watch import WatchOptions, watch as watch_design
@@ -59,8 +60,11 @@ def watch(
                 typer.echo(f"revision {revision.number} ({', '.join(revision.changed)}) does not build: "
                            f"{revision.error}", err=True)
             else:
+                r = revision.result
                 typer.echo(f"revision {revision.number} ({', '.join(revision.changed)}, "
-                           f"{duration(revision.seconds)}): {verdict_sentence(revision.result.verdict)}")
+                           f"{duration(revision.seconds)}): {verdict_sentence(r.verdict)}")
+                if r.verdict.verdict == UNDECIDED:  # why, and what would decide it
+                    typer.echo(f"  {r.stopped or r.verdict.note}")
     except InputError as error:
         observer.close()
         fail(error)

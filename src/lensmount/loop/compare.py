@@ -11,7 +11,6 @@ design, and parts in one run only are named added or removed, never judged.
 
 from __future__ import annotations
 
-import json
 import math
 import zipfile
 from dataclasses import asdict, dataclass, field, replace
@@ -21,17 +20,19 @@ import numpy as np
 
 from lensmount.analysis.compare import UNDECIDED, Measurement, Verdict, judge, look_confidence, to_decide
 from lensmount.analysis.error_bar import MIN_PASSES
+from lensmount.analysis.part_match import match_parts
 from lensmount.analysis.passes import Accumulator
 from lensmount.errors import InputError
-from lensmount.loop.prepare import read_inputs
+from lensmount.loop.prepare import read_inputs, scene_file
 from lensmount.loop.progress import expected_s
 from lensmount.loop.provenance import condition_changes, condition_sha256, design_changes, resolve_revision
+from lensmount.loop.resume import continue_run, live_folder, not_resumable
 from lensmount.loop.simulate import (CHECKPOINT, Observer, SimulateOptions, planned_input_hash, simulate, stopping,
                                     stored_like)
 from lensmount.run.report import comparison_report, write_report
 from lensmount.run.results import (
     read_exr, read_summary, shared_scale, write_difference, write_exr, write_preview, write_summary)
-from lensmount.run.store import ORIGIN, RunRecord, Store, default_path
+from lensmount.run.store import RunRecord, Store, default_path
 
 METRICS = {  # metric -> (value key, std error key, bias bound key) in summary.json
     "stray_fraction": ("stray_fraction", "stray_fraction_std_error", "stray_fraction_bias_bound"),
@@ -131,6 +132,8 @@ class CompareResult:
     design_changes: list[str] = field(default_factory=list)  # what changed in the design, in the engineer's words
     parts_added: dict[str, float] = field(default_factory=dict)  # part → its value, parts in the new run only
     parts_removed: dict[str, float] = field(default_factory=dict)  # part → its old value
+    renamed: dict[str, str] = field(default_factory=dict)  # new name → the old revision's name of the same part
+    stopped: str = ""  # why --until-decided stopped with the verdict undecided, and what would decide it
 
     @property
     def exit_code(self) -> int:
@@ -144,19 +147,7 @@ class CompareResult:
         return {"metric": self.metric, "old_run": str(self.old.folder.resolve()), "new_run": str(self.new.folder.resolve()),
                 **clean(self.verdict), "per_part": {k: clean(v) for k, v in self.per_part.items()},
                 "design_changes": self.design_changes, "parts_added": self.parts_added,
-                "parts_removed": self.parts_removed, "notes": self.notes, "exit_code": self.exit_code}
-
-
-def _scene_file(design: Path, scene: str) -> Path:
-    p = Path(scene)
-    if p.suffix == ".toml" and p.is_file():
-        return p
-    candidate = design / "scenes" / f"{p.stem}.toml"
-    if candidate.is_file():
-        return candidate
-    names = sorted(q.stem for q in (design / "scenes").glob("*.toml")) if (design / "scenes").is_dir() else []
-    raise InputError(f"scene {scene!r} not found", file=str(design), field="--scene",
-                     valid="a scene file, or one of: " + (", ".join(names) or "(no scenes/ in the design)"))
+                "parts_removed": self.parts_removed, "renamed": self.renamed, "notes": self.notes, "exit_code": self.exit_code}
 
 
 @dataclass(frozen=True)
@@ -188,7 +179,7 @@ def _usable(runs: list[RunRecord]) -> list[RunRecord]:
 def plan_current(design: Path, scene: str, o: CompareOptions, role: str = "new") -> RunSource:
     """The design folder's current state on `scene`: a stored run of the same design and test
     condition (any length, the longest), else the run to simulate and its estimated time."""
-    scene_path = _scene_file(design, scene)
+    scene_path = scene_file(design, scene)
     sim = SimulateOptions(design, scene_path, method=o.method, workers=o.workers, store=o.store, passes=o.passes,
                           photons_per_pass=o.photons_per_pass, time_s=o.time_s, quick=o.quick)
     loaded, spec = read_inputs(design, scene_path)
@@ -321,20 +312,22 @@ def compare(options: CompareOptions, observer: Observer | None = None,
         old.summary.get("provenance", {}).get("design", {}), new.summary.get("provenance", {}).get("design", {})))
     if o.metric == "stray_fraction":
         old_parts, new_parts = old.summary.get("per_part", {}), new.summary.get("per_part", {})
-        for name in dict.fromkeys([*old_parts, *new_parts]):
-            if name not in new_parts:  # a part of one design only: named so, never judged (-100 % is no finding)
-                result.parts_removed[name] = old.part(name).value
-            elif name not in old_parts:
-                result.parts_added[name] = new.part(name).value
-            else:
-                result.per_part[name] = judge(old.part(name), new.part(name), o.tolerance, o.confidence)
+        match = match_parts(old.summary.get("parts"), new.summary.get("parts"), list(old_parts), list(new_parts))
+        for was, name in match.pairs:  # the same piece of metal, whatever its number in each revision
+            if was in old_parts or name in new_parts:  # else it absorbs in both: zero by construction
+                result.per_part[name] = judge(old.part(was), new.part(name), o.tolerance, o.confidence)
+                if was != name:
+                    result.renamed[name] = was
+        # a part of one design only: named so, never judged (-100 % is no finding)
+        result.parts_removed.update({name: old.part(name).value for name in match.removed})
+        result.parts_added.update({name: new.part(name).value for name in match.added})
     if write:
         result.paths = write_comparison(comparison_folder(o, new), old, new, result)
     return result
 
 
 def comparison_folder(o: CompareOptions, new: Run) -> Path:
-    return Path(o.out) if o.out is not None else live_folder(new) / "compare"  # never into a store row's copy
+    return Path(o.out) if o.out is not None else live_folder(new.folder, new.summary) / "compare"  # never into a store row's copy
 
 
 MAX_LOOKS = 12  # looks of --until-decided: α · 6/(π² j²) leaves look 12 a 1/240 share of α
@@ -352,29 +345,41 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     o = replace(options, until_decided=False)
     if not o.budget_s >= 0:
         raise InputError(f"budget {o.budget_s:g} s is negative", field="--budget", valid="seconds ≥ 0, e.g. 3600")
-    look, spent, steps = 1, 0.0, []
+    look, spent, steps, stopped = 1, 0.0, [], ""
     result = compare(replace(o, confidence=look_confidence(o.confidence, look)), observer, write=False)
     out = comparison_folder(o, result.new)  # where look 1 would have written: the new run's live folder
     while result.verdict.verdict == UNDECIDED and look < MAX_LOOKS:
         runs = (result.old, result.new)
         m = [r.measurement(o.metric) for r in runs]
-        grows = tuple(resumable(r) for r in runs)
+        held = [not_resumable(r.folder, r.summary, o.store) for r in runs]
+        grows = tuple(h is None for h in held)
+        unknown = [x.std_error is not None and (bool(x.bias_unbounded) or not math.isfinite(x.std_error)) for x in m]
+        would = "would decide it, if the change is as measured"
         if any(x.std_error is None for x in m):  # fewer than 3 passes: first an error bar
             more = tuple(max(3 - x.passes, 0) for x in m)
             more = None if any(a and not g for a, g in zip(more, grows)) else more
+        elif any(u and g for u, g in zip(unknown, grows)):
+            # an error not known at these passes (a kernel bias the ladder of radii cannot bound, terms too
+            # heavy-tailed for an error bar): the ladder's shape test and the tail's end sharpen with passes,
+            # so twice the passes may give it one; no promise, the budget and the looks bound the attempt
+            more = tuple(x.passes if u and g else 0 for x, u, g in zip(m, unknown, grows))
+            would = f"may give the run(s) an error bar ({result.verdict.note})"
         else:
             more = to_decide(*m, result.verdict.threshold, look_confidence(o.confidence, look + 1), grows)
         if more is None:
-            held = " and ".join(f"the {n} run's inputs changed since it ran (it cannot be resumed)"
-                                for n, g in zip(("old", "new"), grows) if not g)
-            steps.append("no number of passes decides it" + (f": {held}" if held else " (see the verdict's note)"))
+            why = "; ".join(f"the {n} run cannot take more passes: {h}" for n, h in zip(("old", "new"), held) if h)
+            stopped = "no number of passes decides it: " + (why or result.verdict.note)
             break
         per_pass = [x.time_s / max(x.passes, 1) for x in m]
         cost = sum(a * t for a, t in zip(more, per_pass))
-        if spent + cost > o.budget_s:
-            steps.append(f"stopped: the next step ({', '.join(f'{a} passes' for a in more)}, ~{cost:.0f} s) would "
-                         f"overrun the budget ({o.budget_s:.0f} s, {spent:.0f} s spent); raise --budget")
-            break
+        if spent + cost > o.budget_s:  # the share of the step the budget still pays for, then a look
+            share = tuple(int(a * (o.budget_s - spent) / cost) for a in more)
+            if not any(share):
+                stopped = (f"the budget is spent ({spent:.0f} of {o.budget_s:.0f} s): {_passes_of(more)} "
+                           f"(~{cost:.0f} s at the runs' speed) {would}; --budget {math.ceil(spent + cost)} or more "
+                           "would run them")
+                break
+            more = share
         resumed = [resume(r, a, o, observer) if a else r for r, a in zip(runs, more)]
         spent += sum(r.summary.get("time_s", 0.0) - x.time_s for r, x in zip(resumed, m))
         look += 1
@@ -382,7 +387,10 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
         # a look that is not the last writes no images (4 previews and an EXR a look, seconds each)
         result = compare(replace(o, a=resumed[0].folder, b=resumed[1].folder, against=None, scene=None,
                                  confidence=look_confidence(o.confidence, look), out=out), observer, write=False)
-    result.notes += steps + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
+    if result.verdict.verdict == UNDECIDED and not stopped:
+        stopped = f"stopped after {look} looks, the most --until-decided takes"
+    result.stopped = stopped
+    result.notes += steps + ([stopped] if stopped else []) + [f"until decided: {look} look(s), {spent:.0f} s of further tracing; look {look}'s "
                              f"interval at {100 * look_confidence(o.confidence, look):.4g} % so that all looks "
                              f"together keep {100 * o.confidence:g} %"]
     if write:
@@ -390,51 +398,14 @@ def compare_until_decided(options: CompareOptions, observer: Observer | None = N
     return result
 
 
-def live_folder(run: Run) -> Path:
-    """Where the run goes on: its own output folder. A store row's copy (rows/ID) names it in
-    `store.ORIGIN` and counts only while that folder still holds this very run (same checksum)."""
-    origin = run.folder / ORIGIN
-    if not origin.is_file():
-        return run.folder
-    live = Path(origin.read_text().strip())
-    try:
-        same = read_summary(live / "summary.json").get("sha256") == run.summary.get("sha256")
-    except InputError:  # gone or damaged since: the copy stays what there is
-        same = False
-    return live if same else run.folder
-
-
-def resumable(run: Run) -> bool:
-    """The run has a checkpoint and its design and scene still hold the inputs it ran on."""
-    sim = _resumed_options(run, 0, CompareOptions(run.folder))
-    if not (sim and (sim.out / CHECKPOINT).is_file()) or not sim.design.is_dir() or not sim.scene.is_file():
-        return False
-    return planned_input_hash(sim, *read_inputs(sim.design, sim.scene)) == run.summary.get("input_hash")
-
-
-def _resumed_options(run: Run, more: int, o: CompareOptions) -> SimulateOptions | None:
-    """The options that continue `run` by `more` passes on the design and scene its provenance names."""
-    s, prov = run.summary, run.summary.get("provenance", {})
-    if not prov.get("design_path") or not prov.get("scene_path"):
-        return None
-    settings = s.get("estimator_settings", {})
-    return SimulateOptions(Path(prov["design_path"]), Path(prov["scene_path"]), method=s.get("method", o.method),
-                           seed=s.get("seed"), out=live_folder(run), passes=int(s.get("passes", 0)) + more,
-                           photons_per_pass=s.get("photons_per_pass"),
-                           samples_per_pixel=int(settings.get("samples_per_pixel", 1)),
-                           view_map_pitch=int(settings.get("view_map_pitch", 1)),
-                           alpha=float(s.get("alpha", settings.get("alpha", 0.7))), workers=o.workers, resume=True,
-                           store=o.store)
+def _passes_of(more: tuple[int, int]) -> str:
+    return " and ".join(f"{a} more pass{'es' if a != 1 else ''} of the {name} run"
+                        for a, name in zip(more, ("old", "new")) if a)
 
 
 def resume(run: Run, more: int, o: CompareOptions, observer: Observer | None = None) -> Run:
-    """The run continued from its checkpoint by `more` passes, on the design and scene its provenance
-    names (InputError when they changed since: the checkpoint then belongs to other inputs)."""
-    sim = _resumed_options(run, more, o)
-    if sim is None:
-        raise InputError("the run does not say which design and scene made it", file=str(run.folder / "summary.json"),
-                         field="provenance", valid="a run written by `lensmount simulate` of this version")
-    result = simulate(sim, observer)
+    """The run continued by `more` passes on the inputs it ran on (`loop.resume.continue_run`)."""
+    result = continue_run(run.folder, run.summary, more, o.workers, o.store, observer)
     return Run(result.out, result.summary)
 
 
@@ -484,8 +455,8 @@ def write_comparison(out: Path, old: Run, new: Run, result: CompareResult) -> di
     v = result.verdict
     kind = {"regression": "regression", "undecided": "undecided"}.get(v.verdict, "ok")
     headers = ["", "old", "new", "change", "interval of the change", "verdict"]
-    rows = [["total", *verdict_row(v)]] + [[k, *verdict_row(pv)] for k, pv in result.per_part.items()
-                                           if pv.old or pv.new] + part_rows(result)
+    rows = [["total", *verdict_row(v)]] + [[part_label(result, k), *verdict_row(pv)]
+                                           for k, pv in result.per_part.items() if pv.old or pv.new] + part_rows(result)
     detail = " ".join(filter(None, [v.note, "Design changes: " + "; ".join(result.design_changes) + "."
                                     if result.design_changes else "Design: unchanged."]))
     write_report(paths["html"], comparison_report(
@@ -507,6 +478,12 @@ def part_rows(result: CompareResult) -> list[list[str]]:
            [[k, "—", f"{x:.4g}", "—", "—", "added"] for k, x in result.parts_added.items()]
 
 
+def part_label(result: CompareResult, name: str) -> str:
+    """A judged part's name, with the old revision's name for it when that differed ('vane-3 (was vane-5)')."""
+    was = result.renamed.get(name)
+    return f"{name} (was {was})" if was else name
+
+
 def verdict_sentence(v: Verdict) -> str:
     rel = f" ({100 * v.relative_change:+.1f} %)" if v.relative_change is not None else ""
     return f"{v.verdict}: change {v.change:+.3g}{rel}, interval [{v.low:+.3g}, {v.high:+.3g}] at " \
@@ -515,4 +492,4 @@ def verdict_sentence(v: Verdict) -> str:
 
 __all__ = ["CompareOptions", "CompareResult", "Run", "RunSource", "compare", "compare_until_decided", "resume", "obtain",
            "plan", "plan_current", "stored_run", "check_comparable", "comparison_folder", "write_comparison",
-           "part_rows", "verdict_row", "verdict_sentence", "METRICS"]
+           "part_label", "part_rows", "verdict_row", "verdict_sentence", "METRICS"]

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Callable
 
 from lensmount.design.finishes import check_mount_finishes
+from lensmount.errors import InputError
 from lensmount.design.folder import Design, load_design
 from lensmount.design.mount import check_finish_parts
 from lensmount.design.scene import SceneSpec, fit_detector_to_housing, load_scene
@@ -26,6 +27,22 @@ class Prepared:
     spec: SceneSpec
     built: RegenerateResult
     scene: Scene
+
+
+def scene_file(design_dir: Path, scene: str | Path) -> Path:
+    """The scene `scene` names: a file, or the name of one in DESIGN/scenes/ ("case2-lambertian");
+    InputError listing the design's scenes when it is neither."""
+    given = Path(scene)
+    if given.is_file():
+        return given
+    candidate = Path(design_dir) / "scenes" / f"{given.name.removesuffix('.toml')}.toml"
+    if candidate.is_file():
+        return candidate
+    folder = Path(design_dir) / "scenes"
+    names = sorted(q.stem for q in folder.glob("*.toml")) if folder.is_dir() else []
+    raise InputError(f"scene {str(scene)!r} not found: neither a file nor a scene of the design", file=str(scene),
+                     field="--scene", valid="a scene file, or the name of one in " + str(folder) + ": "
+                     + (", ".join(names) or "(it holds none)"))
 
 
 def read_inputs(design_dir: Path, scene_path: Path, stage: Callable[[str], None] | None = None):
@@ -59,8 +76,8 @@ def prepare(design_dir: Path, scene_path: Path, geometry: Path | None = None,
             stage: Callable[[str], None] | None = None,
             build_step: Callable[[str, int, int], None] | None = None) -> Prepared:
     """Load, regenerate (cached) and build; stage(text) tells what it is doing."""
-    design, spec = read_inputs(design_dir, scene_path, stage)
+    design, spec = read_inputs(design_dir, scene_file(design_dir, scene_path), stage)
     return build(design, spec, geometry, stage, build_step)
 
 
-__all__ = ["Prepared", "prepare", "read_inputs", "build"]
+__all__ = ["Prepared", "prepare", "read_inputs", "build", "scene_file"]

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.analysis.error_bar import MIN_PASSES
 from lensmount.analysis.metrics import stray_fraction
 from lensmount.run.runner import Stopping
 
@@ -25,7 +26,8 @@ class PassStatus:
     error_slope : d log(rel error) / d log(time) over the last half of the run (≈ −0.5 when it converges
         as 1/√t); None until enough passes make it more than noise (loop.progress.error_trend)
     error_slope_se : its standard error
-    eta_s : seconds to the target relative error at the rate so far (None without a target)
+    eta_s : seconds to the target relative error at the rate so far (None without a target, or while the
+        relative error is unknown past the first passes: no signal yet, an unbounded bias)
     largest_over_median : the largest pass / the median pass (None before any pass or with a median of 0)
     heavy_tail : one pass dominates the others (`Accumulator.tail`): the error is not the spread's, and
         the target is not met however small the relative error reads
@@ -44,6 +46,7 @@ class PassStatus:
     largest_over_median: float | None = None
     heavy_tail: bool = False
     error_slope_se: float | None = None
+    rel_error_unknown: str = ""  # why rel_error is not known ("" when it is): few passes, no signal, the bias
 
 
 def time_to_error(elapsed_s: float, rel_error: float, target: float) -> float | None:
@@ -120,10 +123,14 @@ def forecast(rule: Stopping, photons_per_pass: int, stored: list, done_passes: i
     rel = ((r.stray_fraction_std_error + (r.stray_fraction_bias_bound or 0.0)) / r.stray_fraction)
     basis = f"from stored run {r.id}: {r.passes} passes × {r.photons // r.passes:,} photons, {100 * rel:.1f} % " \
             f"in {r.time_s:.0f} s"
+    left = max(passes - done_passes, 0)  # a resumed run: what is left, not the whole run
+    count = f"{left} more passes ({passes} in all, {done_passes} done)" if done_passes else f"{passes} passes"
     if rule.time_s is not None and seconds >= rule.time_s:
-        return f"estimate: {goal} would take about {passes} passes, more than the time cap: it stops at " \
+        return f"estimate: {goal} would take about {count}, more than the time cap: it stops at " \
                f"{rule.time_s:.0f} s first ({basis})"
-    return f"estimate: {goal} in about {seconds:.0f} s, {passes} passes{cap} ({basis})"
+    if rule.target_rel_error is None:  # the goal is the passes: say them once
+        return f"estimate: {count} in about {seconds:.0f} s{cap} ({basis})"
+    return f"estimate: {goal} in about {seconds:.0f} s{' more' if done_passes else ''}, {count}{cap} ({basis})"
 
 
 def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | None, max_passes: int | None,
@@ -132,6 +139,13 @@ def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | Non
     is known (fewer than 3 passes) the ETA is the minimum passes' at the speed so far: the least it takes."""
     rel = acc.rel_error()
     least = max(min_passes - acc.n, 0) * elapsed / max(acc.n, 1)
+    unknown = "" if math.isfinite(rel) else (
+        f"fewer than {MIN_PASSES} passes" if acc.n < MIN_PASSES else "no signal yet" if acc.flux == 0
+        else "the kernel bias is not bounded yet")
+    # before the error bar exists the least time is the minimum passes'; once the passes say nothing of
+    # the error (no signal, an unbounded bias), no time to the target can be told
+    eta = time_to_error(elapsed, rel, target) if target else None
+    eta = max(eta, least) if eta is not None else least if target and acc.n < MIN_PASSES else None
     history.append((elapsed, rel))
     trend = error_trend(history)
     se = acc.flux_std_error
@@ -140,8 +154,8 @@ def status_of(acc, elapsed: float, aperture_flux_mm2: float, target: float | Non
         passes=acc.n, photons=acc.photons, elapsed_s=elapsed, value=stray_fraction(acc.flux, aperture_flux_mm2),
         std_error=stray_fraction(se, aperture_flux_mm2) if math.isfinite(se) else None, rel_error=rel,
         error_slope=trend and trend[0], error_slope_se=trend and trend[1], target_rel_error=target,
-        eta_s=max(time_to_error(elapsed, rel, target) or 0.0, least) if target else None, max_passes=max_passes,
-        largest_over_median=tail.over_median, heavy_tail=tail.heavy)
+        eta_s=eta, max_passes=max_passes, largest_over_median=tail.over_median, heavy_tail=tail.heavy,
+        rel_error_unknown=unknown)
 
 
 __all__ = ["PassStatus", "expected_s", "forecast", "status_of", "time_to_error", "next_halving_s", "error_slope", "error_trend"]

@@ -94,9 +94,36 @@ class Provenance:
     finishes_sha256: str | None = None
     condition: dict = field(default_factory=dict)
     design: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)  # the run's input files: name in a copy of them → SHA-256
+    scene_input: str = ""  # the scene's name among `inputs`
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+# In a folder restored from a run's stored inputs (`run.store.Store.restore_inputs`): that run's provenance.
+# A run made there is the stored run continued, so it records the design and scene it was made from.
+INPUTS_OF = ".lensmount-inputs-of.json"
+
+
+def input_files(design, scene_path: str | Path, spec) -> tuple[dict[str, Path], str]:
+    """Every file a run of `scene_path` on `design` reads, by the name it takes in a copy of them (relative
+    to the design folder; a scene kept elsewhere goes to scene/ with the object files beside it), and the
+    scene's name: lens, mount, finishes, user files and the glass catalogues in the folder, the scene and
+    its objects' mesh files. A copy of these files is the design as it was when the run was made."""
+    root = design.root.resolve()
+    scene_path = Path(scene_path).resolve()
+    catalogues = [Path(c) for c in design.prescription.glass_catalogs]
+    found = [design.lens_path, design.mount_path, *([design.finishes_path] if design.finishes_path else []),
+             *user_files(design), *catalogues]
+    files = {str(p.resolve().relative_to(root)): p for p in found if p.is_file() and p.resolve().is_relative_to(root)}
+    scene_dir = Path(str(scene_path.relative_to(root).parent)) if scene_path.is_relative_to(root) else Path("scene")
+    files[str(scene_dir / scene_path.name)] = scene_path
+    for obj in spec.objects:
+        mesh = (scene_path.parent / obj.path) if obj.path and not Path(obj.path).is_absolute() else None
+        if mesh is not None and mesh.is_file():  # (a mesh named by its absolute path is found as it is)
+            files[str(scene_dir / obj.path)] = mesh
+    return files, str(scene_dir / scene_path.name)
 
 
 def condition_record(spec) -> dict:
@@ -229,10 +256,15 @@ def collect(design, spec, scene_path: str | Path, argv: list[str] | None = None)
     (a loaded `lensmount.design.folder.Design`)."""
     root = design.root.resolve()
     scene_path = Path(scene_path).resolve()
+    argv = sys.argv if argv is None else argv
+    if (root / INPUTS_OF).is_file():  # the stored inputs of a run: that run, continued
+        recorded = json.loads((root / INPUTS_OF).read_text(encoding="utf-8"))
+        known = {k: v for k, v in recorded.items() if k in Provenance.__dataclass_fields__}
+        return Provenance(**known | {"command_line": shlex.join(argv)})
     finishes = design.finishes_path
+    files, scene_input = input_files(design, scene_path, spec)
     git = git_state(root, [design.lens_path, design.mount_path, scene_path, *([finishes] if finishes else []),
                            *user_files(design)])
-    argv = sys.argv if argv is None else argv
     condition = condition_record(spec)
     return Provenance(
         design_path=str(root), design_name=root.name, scene_path=str(scene_path), scene_name=scene_path.stem,
@@ -242,7 +274,8 @@ def collect(design, spec, scene_path: str | Path, argv: list[str] | None = None)
         git_commit_time=git.commit_time if git else None, lensmount_version=lensmount.__version__,
         command_line=shlex.join(argv), condition_sha256=digest(condition),
         finishes_sha256=file_sha256(finishes) if finishes else None, condition=condition,
-        design=design_record(design))
+        design=design_record(design), inputs={name: file_sha256(p) for name, p in files.items()},
+        scene_input=scene_input)
 
 
-__all__ = ["Provenance", "GitState", "collect", "condition_record", "condition_sha256", "condition_changes", "design_changes", "design_record", "digest", "flatten", "user_files", "git_state", "commit_order", "resolve_revision", "file_sha256"]
+__all__ = ["Provenance", "INPUTS_OF", "input_files", "GitState", "collect", "condition_record", "condition_sha256", "condition_changes", "design_changes", "design_record", "digest", "flatten", "user_files", "git_state", "commit_order", "resolve_revision", "file_sha256"]

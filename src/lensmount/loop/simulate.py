@@ -25,11 +25,12 @@ from lensmount.integrators.registry import check_method
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.run.executor import WORKER_WAIT_S, executor_for, local_cluster_size
 from lensmount.run.signals import Terminated, deferred, signal_name, stop_on_signals
-from lensmount.loop.prepare import build, read_inputs
+from lensmount.loop.prepare import build, read_inputs, scene_file
 from lensmount.loop.progress import PassStatus, forecast, status_of
-from lensmount.loop.provenance import collect, condition_sha256, file_sha256, user_files
+from lensmount.loop.provenance import (collect, condition_changes, condition_sha256, design_changes, file_sha256,
+                                      input_files, user_files)
 from lensmount.optics.realrays import image_height
-from lensmount.run.results import write_run
+from lensmount.run.results import read_summary, write_run
 from lensmount.run.runner import PassJob, Runner, Stopping, default_workers
 from lensmount.run.store import Store, default_path
 from lensmount.scene.scene import EFFECT_NAMES
@@ -248,16 +249,37 @@ def estimator_settings(o: SimulateOptions, run):
 RESUME_KEYS = ("seed", "method", "input_hash", "photons_per_pass")  # what a resumed run must share
 
 
-def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path) -> None:
+def _checkpoint_mismatch(meta: dict, asked: dict, checkpoint: Path, provenance, settings: dict) -> None:
+    """InputError when the checkpoint is another run's: what differs, in the engineer's words where the run
+    it belongs to left its summary.json beside it (which file and key of the inputs changed), else its keys."""
     differ = [k for k in RESUME_KEYS if str(meta.get(k)) != str(asked[k])]
     if not differ:
         return
-    held = ", ".join(f"{k} {meta.get(k)}" for k in RESUME_KEYS)
-    wanted = ", ".join(f"{k} {asked[k]}" for k in RESUME_KEYS)
-    raise InputError(f"the checkpoint belongs to another run ({', '.join(differ)} differ): it holds {held}; "
-                     f"this run asks for {wanted}", file=str(checkpoint), field=differ[0],
+    said = [f"{k} {meta.get(k)} -> {asked[k]}" for k in differ if k != "input_hash"]
+    if "input_hash" in differ:
+        said += _inputs_changed(checkpoint.parent / "summary.json", meta, provenance, settings)
+    raise InputError(f"the checkpoint belongs to another run, of other inputs: {'; '.join(said)}",
+                     file=str(checkpoint), field=differ[0],
                      valid="resume with the checkpoint's --seed, --method and --photons-per-pass on unchanged "
-                           "inputs, or run without --resume into another --out")
+                           "inputs (undo the changes above), or run without --resume into another --out")
+
+
+def _inputs_changed(summary_path: Path, meta: dict, provenance, settings: dict) -> list[str]:
+    """What changed in the inputs since the run whose summary.json lies beside its checkpoint: design (file and
+    key), test condition, estimator settings; its input hash when the summary cannot tell."""
+    try:
+        old = read_summary(summary_path)
+    except InputError:  # no summary (the run never finished a pass's write) or a damaged one
+        old = {}
+    if old.get("input_hash") != meta.get("input_hash"):
+        return [f"its input hash {meta.get('input_hash')} (no summary.json of that run beside it to say more)"]
+    prov = old.get("provenance", {})
+    lines = design_changes(prov.get("design", {}), provenance.design)
+    lines += [f"scene {line}" for line in condition_changes(prov.get("condition", {}), provenance.condition)]
+    was = old.get("estimator_settings", {})
+    lines += [f"estimator {k}: {was.get(k)} -> {v}" for k, v in settings.items() if was.get(k) != v]
+    return lines or ["the inputs hash differently, though no recorded file or key differs (another lensmount "
+                     f"version: {prov.get('lensmount_version')} then)"]
 
 
 def simulate(options: SimulateOptions, observer: Observer | None = None) -> SimulateResult:
@@ -282,8 +304,8 @@ def simulate(options: SimulateOptions, observer: Observer | None = None) -> Simu
 def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     check_options(o)
     clock, wall = time.perf_counter(), {}  # the driver's phases in wall-clock seconds (the plan's are summed)
-    design, spec = read_inputs(o.design, o.scene, obs.stage)
-    scene_path = Path(o.scene)
+    scene_path = scene_file(o.design, o.scene)
+    design, spec = read_inputs(o.design, scene_path, obs.stage)
     out = Path(o.out) if o.out is not None else Path("out") / scene_path.stem
     check_writable(out)
     seed = spec.run.seed if o.seed is None else o.seed
@@ -294,21 +316,34 @@ def _simulate(o: SimulateOptions, obs: Observer) -> SimulateResult:
     acc = None
     if o.resume and not checkpoint.exists():  # a run stopped before its first pass kept nothing: a retry starts it
         obs.stage(f"no checkpoint in {out}: nothing to resume, the run starts at its first pass")
-    elif o.resume:
+    provenance = collect(design, spec, scene_path, o.argv)
+    if o.resume and checkpoint.exists():
         acc, meta = Accumulator.load(checkpoint)  # a damaged one, or another version's: an InputError naming it
         _checkpoint_mismatch(meta, {"seed": seed, "method": o.method, "input_hash": digest,
-                                    "photons_per_pass": per_pass}, checkpoint)
+                                    "photons_per_pass": per_pass}, checkpoint, provenance, settings.as_dict())
     if o.record:  # a locked or damaged store is said now, not after the run
         Store(default_path(design.root, o.store)).close()
-    provenance = collect(design, spec, scene_path, o.argv)
+    # the run's own copy of its inputs, as read now (the folder may change while it runs): kept in the store
+    # with its row, so the run can be continued after the folder moved on
+    inputs = read_inputs_kept(input_files(design, scene_path, spec)[0], provenance.inputs) if o.record else {}
 
     wall["reading the inputs"] = time.perf_counter() - clock
     prepared = build(design, spec, o.geometry, obs.stage, obs.build_step)
     wall["geometry and scene"] = time.perf_counter() - clock - sum(wall.values())
-    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall)
+    return _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall, inputs)
 
 
-def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall):
+def read_inputs_kept(files: dict[str, Path], sha256: dict[str, str]) -> dict[str, bytes]:
+    """The input files' bytes by SHA-256, those that still hold what the provenance recorded."""
+    contents = {}
+    for name, path in files.items():
+        data = path.read_bytes()
+        if hashlib.sha256(data).hexdigest() == sha256.get(name):
+            contents[sha256[name]] = data
+    return contents
+
+
+def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenance, wall, inputs):
     design, spec, sc = prepared.design, prepared.spec, prepared.scene
     # legal but suspicious inputs (scene.build), and what the lens import changed (design.edges)
     warnings: list[str] = list(sc.warnings) + [f"lens: {w}" for w in design.lens_warnings]
@@ -355,7 +390,7 @@ def _run(o, obs, prepared, out, seed, per_pass, settings, digest, acc, provenanc
         raise (Terminated if runner.terminated else KeyboardInterrupt)()
     try:
         with deferred():  # a signal now waits until the results are whole
-            result = _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance,
+            result = _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, inputs,
                             seed=seed, photons_per_pass=per_pass, input_hash=digest, settings=settings,
                             no_light_enters=no_light, effects=effects, wall=wall)
     except KeyboardInterrupt as stop:  # it came while they were written: `result` is bound, the files whole
@@ -383,8 +418,8 @@ def stored_like(o: SimulateOptions, design, spec, digest: str) -> list:
                                   condition_sha256=condition_sha256(spec))
 
 
-def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, *, seed, photons_per_pass,
-           input_hash, settings, no_light_enters, effects, wall) -> SimulateResult:
+def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, provenance, inputs, *, seed,
+           photons_per_pass, input_hash, settings, no_light_enters, effects, wall) -> SimulateResult:
     """summary.json, the images, paths.npz and the store's row of a run that has passes."""
     design, built, sc = prepared.design, prepared.built, prepared.scene
     tags, areas = scene_tags(sc), face_areas(sc.mesh)
@@ -402,6 +437,7 @@ def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, pr
                                    "faces": face_report(acc.paths, tags, areas, aperture),
                                    **({"units": OBJECT_SOURCE_UNITS} if not sc.source.at_infinity else {}),
                                    "geometry": str(built.folder.resolve()),
+                                   "parts": sc.mesh.part_extents(),  # what `compare` matches parts by
                                    "detector": {"width_mm": sc.detector.width, "height_mm": sc.detector.height,
                                                 "nx": sc.detector.nx, "ny": sc.detector.ny}})
     det = sc.detector
@@ -413,6 +449,7 @@ def _write(o, prepared, out, acc, runner, executor, work, aperture, warnings, pr
     if o.record and not runner.interrupted:
         result.store_path = default_path(design.root, o.store)
         with Store(result.store_path) as store:
+            store.keep_inputs(inputs)
             result.run_id = store.record(summary, paths)
     return result
 

@@ -24,6 +24,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Callable, Iterator
 
+from lensmount.analysis.compare import UNDECIDED
 from lensmount.errors import InputError
 from lensmount.loop.compare import (CompareOptions, CompareResult, Run, compare, obtain, plan_current, verdict_sentence,
                                    write_comparison)
@@ -175,8 +176,9 @@ def write_watch_page(out: Path, design: Path, baseline: Run | None, history: lis
             what = "baseline: the design when watching began"
         elif r.error is not None:
             what = f"did not build: {r.error}"
-        else:
-            what = verdict_sentence(r.result.verdict)
+        else:  # an undecided verdict with why, and what would decide it
+            v = r.result.verdict
+            what = verdict_sentence(v) + (f" — {r.result.stopped or v.note}" if v.verdict == UNDECIDED else "")
         html = r.result.paths.get("html") if r.result is not None else None
         report = str(Path(html).relative_to(out)) if html and Path(html).is_relative_to(out) else str(html or "")
         rows.append([r.number, ", ".join(r.changed) or "—", what, f"{r.seconds:.1f}", report])

@@ -31,7 +31,7 @@ body{font-family:system-ui,sans-serif;margin:2em auto;max-width:60em;color:#222;
 h1{font-size:1.4em}h2{font-size:1.1em;margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:.9em}td,th{padding:.2em .8em;border-bottom:1px solid #eee;text-align:right}
 td:first-child,th:first-child{text-align:left}figure{display:inline-block;margin:.5em}
-td,th{overflow-wrap:anywhere}tr.differs td{background:#fff3cd}tr.differs td:first-child{font-weight:bold}
+td{overflow-wrap:anywhere}th{overflow-wrap:normal;hyphens:none}tr.differs td{background:#fff3cd}tr.differs td:first-child{font-weight:bold}
 figcaption{font-size:.85em;color:#555}img{max-width:100%}
 .verdict{font-size:1.2em;font-weight:bold;padding:.5em;border:2px solid #888;display:inline-block}
 .regression{border-color:#c00;color:#c00}.ok{border-color:#080;color:#080}.undecided{border-color:#b80;color:#b80}

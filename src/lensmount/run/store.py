@@ -27,12 +27,15 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from lensmount.atomic import atomic_path
 from lensmount.errors import InputError
 
 ENV = "LENSMOUNT_STORE"
 DEFAULT_NAME = Path(".lensmount") / "runs.sqlite"
 BUSY_TIMEOUT_MS = 60_000
 ROWS = "rows"  # beside the store file: rows/ID/ holds the artefacts a row points at
+INPUTS = "inputs"  # beside the store file: inputs/SHA256 holds each input file a run read, by its content
+COPIES = "designs"  # in INPUTS: designs/KEY/ is a run's input files put back together (`restore_inputs`)
 ORIGIN = "origin.txt"  # in a row's folder: the run's own output folder, where its checkpoint stays
 
 _SCHEMA = """
@@ -259,6 +262,40 @@ class Store:
         shutil.rmtree(folder, ignore_errors=True)  # a folder of a rolled-back id that is being reused
         partial.rename(folder)
         return folder
+
+    def keep_inputs(self, contents: dict[str, bytes]) -> None:
+        """Keep a run's input files (SHA-256 → bytes) in inputs/, each once by its content: `restore_inputs`
+        puts them back together after the design folder has moved on, so a run of an earlier revision can
+        still be continued."""
+        folder = self.path.resolve().parent / INPUTS
+        for digest, data in contents.items():
+            if not (folder / digest).is_file():
+                with atomic_path(folder / digest) as tmp:
+                    tmp.write_bytes(data)
+
+    def restore_inputs(self, inputs: dict[str, str], key: str, marker: tuple[str, str]) -> Path | None:
+        """The files `inputs` names (name → SHA-256) put back together in inputs/designs/KEY/, with the
+        file `marker` (name, text) beside them; None when the store does not hold them all. Made whole
+        under a temporary name, then renamed; made once, then reused."""
+        kept = self.path.resolve().parent / INPUTS
+        copy = kept / COPIES / key
+        if copy.is_dir():
+            return copy
+        if not inputs or not all((kept / digest).is_file() for digest in inputs.values()):
+            return None
+        if any(Path(name).is_absolute() or os.path.normpath(name).split(os.sep)[0] == ".." for name in inputs):
+            return None  # every name stays inside the copy (a damaged record is no way out of it)
+        partial = copy.with_name(f".{key}.partial.{os.getpid()}")
+        shutil.rmtree(partial, ignore_errors=True)
+        for name, digest in inputs.items():
+            (partial / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(kept / digest, partial / name)
+        (partial / marker[0]).write_text(marker[1], encoding="utf-8")
+        try:
+            partial.rename(copy)
+        except OSError:  # another process made it a moment ago
+            shutil.rmtree(partial, ignore_errors=True)
+        return copy
 
     def runs(self, design_path: str | Path | None = None, scene_name: str | None = None,
              input_hash: str | None = None, condition_sha256: str | None = None) -> list[RunRecord]:
