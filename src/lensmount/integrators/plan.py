@@ -53,7 +53,7 @@ import numpy as np
 from lensmount.integrators.estimate import (
     AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, PILOT_MISSED, PILOT_MISSED_AFTER, PILOT_RINGS_ADDED, TIME_PREFIX,
     UNAIMED_PASSES)
-from lensmount.integrators.photon_target import CHECK_MISSED, COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
+from lensmount.integrators.photon_mapping.photon_target import CHECK_MISSED, COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
