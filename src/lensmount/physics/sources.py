@@ -27,11 +27,12 @@ from dataclasses import dataclass
 from typing import Callable, ClassVar, Literal, Protocol
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from lensmount.errors import InputError
 from lensmount.physics.rays import RayBatch
-from lensmount.validation import did_you_mean, input_error
+from lensmount.registry import Registry
+from lensmount.validation import did_you_mean
 
 LIMB_DARKENING_U = 0.6
 SUN_ANGULAR_DIAMETER_DEG = 0.53
@@ -418,42 +419,27 @@ class DiscParams(PointParams):
     radius_mm: float = Field(gt=0.0)
 
 
-@dataclass(frozen=True)
-class SourceKind:
-    """A kind of source: its scene-file keys and how it is built at a placement."""
-
-    params: type[SourceParams]
-    build: Callable[[SourceParams, Placement], Source]
-
-
-SOURCE_KINDS: dict[str, SourceKind] = {}
-
-
-def register_source(name: str, params: type[SourceParams], build: Callable[[SourceParams, Placement], Source]) -> None:
-    """Make `type = name` a source kind of scene files (docs/architecture.md, "Where to add a source")."""
-    SOURCE_KINDS[name] = SourceKind(params, build)
+# Every kind: its `SourceParams` and a factory `(params, at: Placement) -> Source`, registered
+# `@SOURCES.register(name, Params)` (docs/architecture.md, "Where to add a source").
+SOURCES: Registry[Source] = Registry("source type", where="the scene's [source] table")
 
 
 def source_params(table: dict) -> SourceParams:
     """The validated [source] table; an InputError (field `source.KEY`) names what is wrong."""
     name = table.get("type", "sun")
-    if name not in SOURCE_KINDS:
-        raise InputError(f"unknown source type '{name}'", field="source.type", valid=" | ".join(SOURCE_KINDS))
-    model = SOURCE_KINDS[name].params
+    model = SOURCES.entry(name, field="source.type").params
     for key in table:  # a key of another kind would otherwise read as a plain typo
         if key not in model.model_fields:
-            others = [f"'{n}'" for n, k in SOURCE_KINDS.items() if key in k.params.model_fields]
+            others = [f"'{n}'" for n in SOURCES.names() if key in SOURCES.entry(n).params.model_fields]
             guess = did_you_mean(key, model.model_fields)
             said = (f"{key} applies to type = {' or '.join(others)} only" if others else
                     f"unknown key '{key}'" + (f" (did you mean '{guess}'?)" if guess else ""))
             raise InputError(f"{said}, not to a {name} source", field=f"source.{key}",
                              valid=f"the keys of a {name} source: " + ", ".join(model.model_fields))
-    try:
-        return model.model_validate(table)
-    except ValidationError as exc:
-        raise input_error(exc, model, prefix=("source",)) from None
+    return SOURCES.parse(name, table, field="source")
 
 
+@SOURCES.register("sun", SunParams)
 def _sun(p: SunParams, at: Placement) -> SunSource:
     half = 0.5 * math.radians(p.angular_diameter_deg)
     disc = emission_disc(source_direction(p.off_axis_deg, p.azimuth_deg), at.opening_z, at.opening_radius,
@@ -462,6 +448,7 @@ def _sun(p: SunParams, at: Placement) -> SunSource:
                      at.wavelength_weights)
 
 
+@SOURCES.register("collimated", CollimatedParams)
 def _collimated(p: CollimatedParams, at: Placement) -> CollimatedSource:
     disc = emission_disc(source_direction(p.off_axis_deg, p.azimuth_deg), at.opening_z, at.opening_radius,
                          at.clear_distance)
@@ -485,12 +472,17 @@ def _object(p: PointParams, at: Placement, radius: float) -> ObjectSource:
                         float(pupil_z), float(pupil_radius), at.wavelength_weights)
 
 
-register_source("sun", SunParams, _sun)
-register_source("collimated", CollimatedParams, _collimated)
-register_source("point", PointParams, lambda p, at: _object(p, at, 0.0))
-register_source("disc", DiscParams, lambda p, at: _object(p, at, float(p.radius_mm)))
+@SOURCES.register("point", PointParams)
+def _point(p: PointParams, at: Placement) -> ObjectSource:
+    return _object(p, at, 0.0)
+
+
+@SOURCES.register("disc", DiscParams)
+def _disc(p: DiscParams, at: Placement) -> ObjectSource:
+    return _object(p, at, float(p.radius_mm))
 
 
 __all__ = ["Source", "Placement", "SourceParams", "SunParams", "CollimatedParams", "PointParams",
-           "DiscParams", "SourceKind", "SOURCE_KINDS", "register_source", "source_params", "SunSource", "CollimatedSource", "ObjectSource", "EmissionDisc", "emission_disc", "source_direction",
+           "DiscParams", "SOURCES", "source_params", "SunSource", "CollimatedSource", "ObjectSource",
+           "EmissionDisc", "emission_disc", "source_direction",
            "orthonormal_basis", "entering_fraction", "no_light_enters_reason", "disc_radius_fraction"]
