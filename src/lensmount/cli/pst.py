@@ -7,13 +7,13 @@ from typing import Optional
 
 import typer
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
 
-@app.command()
+@COMMANDS.register("pst", CommandLine)
 def pst(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file; its source is swept in angle, the rest kept."),

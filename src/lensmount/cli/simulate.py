@@ -18,7 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.simulate import QUICK, Observer, PassStatus, SimulateOptions, simulate as run_simulation
@@ -176,7 +176,7 @@ def observed(call, *args):
         observer.close()
 
 
-@app.command()
+@COMMANDS.register("simulate", CommandLine)
 def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),

@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import observed
 from lensmount.errors import InputError
@@ -18,7 +18,7 @@ from lensmount.loop.simulate import SimulateOptions
 from lensmount.loop.sweep import Param, SweepOptions, sweep as run_sweep
 
 
-@app.command()
+@COMMANDS.register("sweep", CommandLine)
 def sweep(
     design: Path = typer.Argument(..., help="Base design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file every variant is simulated with."),
