@@ -21,7 +21,7 @@ def pst(
                                help="Off-axis angles in degrees: start:stop:step (stop included) or a list 0,7,20."),
     azimuth: Optional[float] = typer.Option(None, "--azimuth",
                                             help="Direction of the tilt in degrees (default: the scene's)."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     passes: Optional[int] = typer.Option(None, "--passes", help="At most this many passes per angle (default: the "
                                                                 "scene's run table; alone: exactly this many)."),
     target_rel_error: Optional[float] = typer.Option(None, "--target-rel-error",

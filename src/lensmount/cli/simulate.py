@@ -180,7 +180,7 @@ def observed(call, *args):
 def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file (scenes/*.toml)."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Run seed, >= 0 (default: the scene's run.seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/<scene name>)."),
     photons: Optional[int] = typer.Option(None, "--photons", help="Stop after this many photons in total."),

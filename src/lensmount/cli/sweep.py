@@ -28,7 +28,7 @@ def sweep(
                                          "out the same parts is refused (vanes.count counts only under "
                                          "placement = \"even\")."),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="Folder for the variants, sweep.csv and sweep.png."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed for every variant (default: the scene's)."),
     passes: Optional[int] = typer.Option(None, "--passes", help="Passes per variant."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass", help="Photons per pass."),
