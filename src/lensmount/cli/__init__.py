@@ -3,9 +3,8 @@
 Each verb lives in its own module and registers itself in `commands.COMMANDS` (a user's plug-in
 the same way); each parses its options, calls lensmount.loop (or the layer it fronts) and prints.
 This module puts every registered verb on `app`, and only turns user errors into one paragraph
-on stderr with exit code 2, and
-SIGINT / SIGTERM at any moment of any command into one line and exit 130 / 143
-(lensmount.run.signals): never click's bare "Aborted!".
+on stderr with exit code 2, and SIGINT / SIGTERM at any moment of any command into one line and
+exit 130 / 143 (lensmount.run.signals): never click's bare "Aborted!".
 """
 
 from __future__ import annotations
@@ -15,7 +14,7 @@ import sys
 import typer
 from typer.core import TyperGroup
 
-from lensmount.cli.commands import COMMANDS, fail
+from lensmount.cli.commands import COMMANDS
 from lensmount.errors import InputError, WorkersGone
 from lensmount.run.signals import exit_code, signal_name, stop_on_signals
 
