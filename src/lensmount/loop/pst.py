@@ -140,7 +140,8 @@ _SCENES: dict = {}  # this worker's scene per angle for the run's scene (see `_w
 def sweep_pass(scene, tracer, job: SourcesJob) -> dict:
     """In a worker: pass `job.index`'s view map once, then each angle's photons gathered at it; of each
     angle's pass, its totals ({place in the sweep: PassEstimate}). `tracer` is the base scene's: a
-    tracer reads the mesh, the optics and the detector, never the source."""
+    tracer reads the mesh, the optics and the detector, never the source. An integrator without a
+    source-independent view (`SourceIndependentView`) runs each angle's whole pass."""
     method = integrator(job.method, job.settings)
     if not isinstance(method, SourceIndependentView):
         return {k: method.run_pass(_with_source(scene, k, source), tracer, job.index, job.photons, job.seed).totals()
