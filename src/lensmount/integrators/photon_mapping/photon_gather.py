@@ -34,8 +34,8 @@ from numba import njit
 from scipy.spatial import cKDTree
 
 from lensmount.integrators.estimate import Largest
+from lensmount.integrators.lobe_core import outside_core
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.physics.bsdf.base import outside_core
 
 # The radii, relative to a pass's r, at which the gather also estimates each hit point's radiance from
 # the same photons (`Gatherer.radiance_ladder`): the curve Ê(ρ) near ρ = r that the bias estimate reads

@@ -45,16 +45,6 @@ def mirror(w: np.ndarray, n: np.ndarray) -> np.ndarray:
     return 2.0 * dot(n, w)[:, None] * n - w
 
 
-def outside_core(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, core) -> np.ndarray:
-    """(N,) bool: wo lies at least `core` from the mirror direction of wi, in direction cosines.
-
-    The tangential part of the mirror direction is −t(wi), so the distance is |t(wo) + t(wi)|
-    (t: the part in the surface plane); symmetric in wi and wo, like the BSDF."""
-    t = wi + wo
-    t = t - np.einsum("ij,ij->i", t, n)[:, None] * n
-    return np.einsum("ij,ij->i", t, t) >= core * core
-
-
 def tangent_frame(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (N, 3) completing the unit vectors `v` (N, 3) to a right-handed frame.
 
