@@ -37,7 +37,7 @@ $(VENV)/.installed-test: $(VENV)/.installed
 # numba compiles the tracer's kernels once, here, not in the first run (again when their source changes).
 # Their old cache goes first: numba checks only a kernel's own file, and the walk inlines kernels.py's step.
 $(VENV)/.warm: $(VENV)/.installed src/lensmount/trace/kernels.py src/lensmount/trace/lens_kernel.py \
-		src/lensmount/integrators/radius.py
+		src/lensmount/integrators/photon_mapping/radius.py
 	rm -f src/lensmount/trace/__pycache__/*.nbi src/lensmount/trace/__pycache__/*.nbc
 	$(PY) -m lensmount.trace.warm
 	$(PY) -m lensmount.integrators.warm

@@ -115,7 +115,7 @@ def bench_case1(budget_s: float) -> None:
 
 
 def bench_gather() -> None:
-    from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
+    from lensmount.integrators.photon_mapping.photon_gather import Gatherer, HitPoints, PhotonHits
 
     class Lambert:
         def eval(self, wi, wo, n):

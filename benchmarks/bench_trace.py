@@ -153,7 +153,7 @@ def _view_map_line(scene, tracer, forward_cpu_per_segment: float) -> None:
     from lensmount.integrators.bidirectional import _scene_tables, gather_cores
     from lensmount.integrators.estimate import scattering_tags
     from lensmount.integrators.settings import EstimatorSettings
-    from lensmount.integrators.view_map import build_view_map, view_map_streams
+    from lensmount.integrators.photon_mapping.view_map import build_view_map, view_map_streams
     from lensmount.scene.scene import optical_faces
 
     cfg = EstimatorSettings()

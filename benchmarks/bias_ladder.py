@@ -42,7 +42,7 @@ def run(design, scene_file, photons, passes, first_seed, seeds, out) -> None:
 def table(files: str, passes: int = 8) -> None:
     from lensmount.analysis.bias import ladder_bias
     from lensmount.analysis.error_bar import t_factor
-    from lensmount.integrators.photon_gather import BIAS_LADDER
+    from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
 
     half = BIAS_LADDER.index(0.5)
     data = [np.load(f) for f in files.split(",")]

@@ -19,7 +19,7 @@ import numpy as np
 
 from lensmount.analysis.passes import Accumulator
 from lensmount.analysis.metrics import stray_fraction
-from lensmount.integrators import photon_target
+from lensmount.integrators.photon_mapping import photon_target
 from lensmount.integrators.bidirectional import Bidirectional
 from lensmount.integrators.plan import edge_flux_components, plan
 from lensmount.integrators.estimate import AIMED_PASSES

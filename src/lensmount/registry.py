@@ -15,14 +15,24 @@ file of its own with a pydantic parameter model (unknown keys forbidden) and reg
 
     sun = SOURCES.create("sun", {"angular_radius_deg": 0.3}, placement=...)
 
-A user's plug-in registers the same way, from a module the user imports (or names in a design file): the registry
-never lists its implementations, so adding one touches only its file and the line that registers it.
+The registry never lists its implementations, so adding one touches only its file and the line that registers it.
+Before its first lookup a registry imports every module of its `implementations` package (the built-ins: a new
+file there is found) and every plug-in installed under the entry-point group `lensmount.plugins`: a user's package
+declares
+
+    [project.entry-points."lensmount.plugins"]
+    velvet = "my_lab.velvet"        # a module that registers on import, like a built-in
+
+so the plug-in is there for every command and in every worker process, without lensmount naming it.
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ValidationError
@@ -31,6 +41,24 @@ from lensmount.errors import InputError
 from lensmount.validation import did_you_mean, input_error
 
 T = TypeVar("T")
+
+PLUGIN_GROUP = "lensmount.plugins"
+_plugins_loaded = False
+
+
+def load_plugins() -> None:
+    """Import every module installed under the entry-point group `lensmount.plugins` (once per process)."""
+    global _plugins_loaded
+    if _plugins_loaded:
+        return
+    _plugins_loaded = True
+    for point in entry_points(group=PLUGIN_GROUP):
+        try:
+            point.load()
+        except Exception as exc:  # the user's code: report it as their input
+            raise InputError(f"the plug-in {point.name!r} ({point.value}) failed to load: {exc!r}",
+                             field=f'[project.entry-points."{PLUGIN_GROUP}"] {point.name}',
+                             valid="a module that imports and registers its implementation") from None
 
 
 @dataclass(frozen=True)
@@ -49,12 +77,28 @@ class Registry(Generic[T]):
     Args:
         kind: what the implementations are, in the user's words ("BSDF model", "source", "integrator").
         where: where a user names one (for error messages), e.g. "the scene's [source] type".
+        implementations: the package whose modules hold the built-in implementations (each registers itself
+            when imported); every one of its modules is imported before the first lookup.
     """
 
-    def __init__(self, kind: str, where: str) -> None:
+    def __init__(self, kind: str, where: str, implementations: str | None = None) -> None:
         self.kind = kind
         self.where = where
+        self.implementations = implementations
         self._entries: dict[str, Entry[T]] = {}
+        self._complete = False
+
+    def _all(self) -> dict[str, Entry[T]]:
+        """The entries, after the built-ins and the installed plug-ins have registered."""
+        if not self._complete:
+            self._complete = True
+            if self.implementations:
+                package = importlib.import_module(self.implementations)
+                for module in pkgutil.iter_modules(package.__path__):
+                    if not module.ispkg and not module.name.startswith("_"):
+                        importlib.import_module(f"{self.implementations}.{module.name}")
+            load_plugins()
+        return self._entries
 
     def register(self, name: str, params: type[BaseModel]) -> Callable[[Callable[..., T]], Callable[..., T]]:
         """Decorator: `factory(params_instance, **context) -> T` becomes the implementation called `name`.
@@ -71,14 +115,14 @@ class Registry(Generic[T]):
         return add
 
     def names(self) -> tuple[str, ...]:
-        return tuple(self._entries)
+        return tuple(self._all())
 
     def __contains__(self, name: object) -> bool:
-        return name in self._entries
+        return name in self._all()
 
     def entry(self, name: str, *, file: str | None = None, field: str | None = None) -> Entry[T]:
         """The implementation called `name`; InputError listing the valid names (and a did-you-mean) when none is."""
-        if name not in self._entries:
+        if name not in self._all():
             hint = did_you_mean(str(name), self._entries)
             raise InputError(f"unknown {self.kind} {name!r}" + (f" (did you mean {hint!r}?)" if hint else ""),
                              file=file, field=field, valid=f"one of {', '.join(sorted(self._entries))} in {self.where}")
@@ -93,7 +137,9 @@ class Registry(Generic[T]):
         try:
             return model.model_validate(dict(params))
         except ValidationError as exc:
-            raise input_error(exc, model, file=file, prefix=tuple(field.split(".")) if field else ()) from None
+            keys = ", ".join(model.model_fields) or "none"
+            raise input_error(exc, model, file=file, prefix=tuple(field.split(".")) if field else (),
+                              valid=f"the parameters of the {self.kind} {name!r}: {keys}") from None
 
     def create(self, name: str, params: Mapping[str, Any] | BaseModel, *, file: str | None = None,
                field: str | None = None, **context: Any) -> T:

@@ -86,11 +86,26 @@ def input_error(exc: ValidationError, model: type[BaseModel], *, file: str | Non
         valid = "a value for every required key; keys here: " + ", ".join(allowed)
     else:
         ctx = err.get("ctx") or {}
-        bound = next((f"a number {op} {ctx[k]}" for k, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
-                      if k in ctx), None)
+        bound = next((f"a number {op} {ctx[k]}" for k, op in _BOUNDS if k in ctx), None)
         message = f"{err['msg']} (got {err.get('input')!r})"
-        valid = bound or valid
+        valid = bound or _declared_bounds(model, loc) or valid
     return InputError(message, file=file, field=field, line=line_of_key(text, field), valid=valid)
+
+
+_BOUNDS = (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
+
+
+def _declared_bounds(model: type[BaseModel], loc: tuple) -> str | None:
+    """"a number >= 0 and <= 1" from the field's own constraints (a wrong type carries no bound of its own)."""
+    current: type[BaseModel] | None = model
+    for part in loc[:-1]:
+        field = _field(current, part) if current is not None else None
+        current = _model_in(field.annotation) if field is not None else current
+    field = _field(current, loc[-1]) if current is not None and loc else None
+    if field is None:
+        return None
+    said = [f"{op} {getattr(m, k)}" for m in field.metadata for k, op in _BOUNDS if getattr(m, k, None) is not None]
+    return "a number " + " and ".join(said) if said else None
 
 
 def located(exc: InputError, file: str | None, text: str | None) -> InputError:

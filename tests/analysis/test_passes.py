@@ -97,7 +97,7 @@ def test_no_signal_bound_of_aimed_photons_takes_the_heaviest_weight():
     Checked against Poisson directly: photons of weight 5w hitting with probability p give the mean
     flux 5w·p·N per pass, and the bound must lie above it whenever all-zero runs are common (p·N·n = 3)."""
     from lensmount.integrators.estimate import AIMED_PASSES
-    from lensmount.integrators.photon_target import UNIFORM_SHARE
+    from lensmount.integrators.photon_mapping.photon_target import UNIFORM_SHARE
 
     acc = Accumulator.empty((1, 1), ["p"], 1.0)
     z = np.zeros((1, 1))

@@ -115,7 +115,7 @@ def test_an_all_zero_aimed_run_bounds_by_its_heaviest_photon():
     """Aimed photons weigh up to A_S / (UNIFORM_SHARE N) (the uniform share, off the
     bands), five times the mean Φ: the no-signal bound takes that, not the mean."""
     from lensmount.integrators.estimate import AIMED_PASSES
-    from lensmount.integrators.photon_target import UNIFORM_SHARE
+    from lensmount.integrators.photon_mapping.photon_target import UNIFORM_SHARE
 
     runs = []
     for aimed in (0.0, 1.0):

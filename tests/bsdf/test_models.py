@@ -177,8 +177,8 @@ def test_tis_just_below_one_is_accepted():
 def test_model_names_are_case_insensitive_and_public_alias_exports_them():
     import lensmount.physics.bsdf as public
     assert isinstance(public.make_bsdf("Lambertian", reflectance=0.1), public.Lambertian)
-    assert set(public.MODELS) == {"absorber", "lambertian", "gaussian", "abg", "harvey", "mirror", "tabulated"}
-    assert public.MODELS["tabulated"] is public.Tabulated
+    assert set(public.BSDFS.names()) == {"absorber", "lambertian", "gaussian", "abg", "harvey", "mirror", "tabulated"}
+    assert public.BSDFS.entry("tabulated").factory is public.Tabulated
 
 
 # -- no NaN or Inf, whatever the geometry ---------------------------------------------------

@@ -73,8 +73,8 @@ def test_resume_mismatch_names_what_the_checkpoint_holds(tmp_path):
                                       "--out", str(out), "--resume", "--seed", "5"])
     assert result.exit_code == 2, result.output
     text = " ".join(result.output.split())
-    assert "seed 3" in text and "method forward" in text and "input_hash 0123abcd" in text  # what it holds
-    assert "seed 5" in text and "method bidirectional" in text  # what was asked
+    # what it holds -> what was asked, and the input hash when no summary.json beside it says more
+    assert "seed 3 -> 5" in text and "method forward -> bidirectional" in text and "input hash 0123abcd" in text
     assert "field 'seed'" in text
     assert sorted(p.name for p in out.iterdir()) == ["checkpoint.npz"]
     assert (out / "checkpoint.npz").read_bytes() == before

@@ -106,12 +106,16 @@ def unresolved(name: str) -> str | None:
     return None
 
 
+# Dotted names that are no module or attribute, each with what it is.
+NOT_PYTHON_NAMES = {"lensmount.plugins": "the entry-point group a user's plug-in package declares"}
+
+
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_lensmount_name_in_the_doc_resolves(doc):
     failures = [
         f"{doc.relative_to(ROOT)}:{number}: `{name}` does not resolve ({why})"
         for number, name in mentions(doc.read_text(encoding="utf-8"))
-        if (why := unresolved(name))
+        if name not in NOT_PYTHON_NAMES and (why := unresolved(name))
     ]
     assert not failures, "\n".join(failures)
 

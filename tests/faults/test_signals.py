@@ -36,7 +36,7 @@ def _phases():
     from lensmount.analysis.passes import Accumulator
     from lensmount.cad import pipeline
     from lensmount.integrators import bidirectional
-    from lensmount.integrators.photon_gather import Gatherer
+    from lensmount.integrators.photon_mapping.photon_gather import Gatherer
     from lensmount.loop import prepare, simulate
     from lensmount.run.executor import InProcess
     from lensmount.run.store import Store

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.integrators.photon_gather import BIAS_LADDER
-from lensmount.integrators.radius import radius_scale
+from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
+from lensmount.integrators.photon_mapping.radius import radius_scale
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Light on faces the detector sees straight (`integrators.connect`): which hit points give way to the
+"""Light on faces the detector sees straight (`integrators.photon_mapping.connect`): which hit points give way to the
 photons' connections, and that both ways of counting that light read the same."""
 
 import math

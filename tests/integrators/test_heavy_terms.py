@@ -37,7 +37,7 @@ RHO, SPOT = 0.5, 0.01  # the plate's reflectance, the lit spot's radius (mm)
 
 def spot_under_the_detector(D: float) -> PlanarScene:
     """A Lambertian plate lit in a spot of radius 0.01 mm (normal incidence), a 2 × 2 mm detector (one pixel)
-    D above it: every photon on the plate is connected to the detector (`integrators.connect`)."""
+    D above it: every photon on the plate is connected to the detector (`integrators.photon_mapping.connect`)."""
     return PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (20.0, 20.0), "plate")],
                        [make_bsdf("lambertian", reflectance=RHO)], Detector(2.0, 2.0, 1, 1, D),
                        Collimated((0, 0, -1.0), (0, 0, 2.0), SPOT))

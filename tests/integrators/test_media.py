@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from lensmount.mesh import FaceTag, TaggedMesh
-from lensmount.integrators.media import detector_radiance_factor
+from lensmount.integrators.photon_mapping.media import detector_radiance_factor
 from lensmount.optics.glass import refractive_index
 from lensmount.physics.detector import Detector
 from lensmount.optics.prescription import Aperture, Prescription, Surface

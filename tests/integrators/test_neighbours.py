@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from lensmount.integrators.neighbours import FEW_POINTS, _k_nearest, _k_nearest_grouped, k_nearest, kth_distance
+from lensmount.integrators.photon_mapping.neighbours import FEW_POINTS, _k_nearest, _k_nearest_grouped, k_nearest, kth_distance
 
 # Both searches, whichever k_nearest would pick for the cloud's size.
 SEARCHES = {"grid": lambda p, q, k: _k_nearest(p, q, k, 2.0), "grouped": lambda p, q, k: _k_nearest_grouped(p, q, k, 32.0)}

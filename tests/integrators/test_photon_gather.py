@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
+from lensmount.integrators.photon_mapping.photon_gather import Gatherer, HitPoints, PhotonHits
 
 
 class Lambert:
@@ -103,7 +103,7 @@ def test_glossy_rule_routes_by_the_share_of_the_lobe_a_gather_can_catch():
     import math
 
     from lensmount.integrators.bidirectional import gather_cores
-    from lensmount.integrators.photon_gather import gatherable_share
+    from lensmount.integrators.photon_mapping.photon_gather import gatherable_share
     from lensmount.physics.bsdf import make_bsdf
 
     abg = make_bsdf("abg", A=2e-3, B=1e-3, g=2)
@@ -133,7 +133,7 @@ def test_each_hit_point_gathers_the_photons_of_its_wavelength_within_each_rung_o
     """Radii spread over two octaves and two wavelengths, against every (hit point, photon) pair summed
     directly: a photon of the other wavelength, or beyond r · BIAS_LADDER[l], adds nothing to rung l
     (the pair test that runs before the normals, `_pairs_in_reach`)."""
-    from lensmount.integrators.photon_gather import BIAS_LADDER
+    from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
 
     rng = np.random.default_rng(3)
     h, m = 300, 4000
@@ -161,7 +161,7 @@ def test_the_compiled_ladder_sums_are_the_five_bincounts_to_the_bit():
     """`_add_ladder` replaced one bincount per rung added into its column: every rung of every hit point must
     be that float, over two chunks of pairs (a hit point met many times in each, in no order), and a
     non-finite product (a zero area) must be reported, not summed away."""
-    from lensmount.integrators.photon_gather import BIAS_LADDER, _add_ladder
+    from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER, _add_ladder
 
     rng = np.random.default_rng(11)
     h_n, rungs = 50, np.asarray(BIAS_LADDER)

@@ -17,7 +17,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
-from lensmount.integrators import photon_target as PT  # noqa: E402
+from lensmount.integrators.photon_mapping import photon_target as PT  # noqa: E402
 from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.physics.sources import SunSource, emission_disc, orthonormal_basis, source_direction  # noqa: E402
 from lensmount.trace.tracer import FACE, Tracer  # noqa: E402

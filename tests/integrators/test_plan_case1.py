@@ -16,8 +16,8 @@ from bench_planner import case1_scenes, measure  # noqa: E402
 from lensmount.analysis.error_bar import t_factor  # noqa: E402
 from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.integrators.plan import plan  # noqa: E402
-from lensmount.integrators.view_map import build_view_map, view_map_streams  # noqa: E402
-from lensmount.integrators.radius import radius_caps  # noqa: E402
+from lensmount.integrators.photon_mapping.view_map import build_view_map, view_map_streams  # noqa: E402
+from lensmount.integrators.photon_mapping.radius import radius_caps  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
 

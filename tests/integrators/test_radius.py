@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.radius import (
+from lensmount.integrators.photon_mapping.radius import (
     FaceBoundaries, boundary_segments, face_half_widths, initial_radii, radius_caps, radius_scale)
 
 

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import bare_edge  # noqa: E402
 
 from lensmount.analysis.passes import Accumulator  # noqa: E402
-from lensmount.integrators import photon_target as PT  # noqa: E402
+from lensmount.integrators.photon_mapping import photon_target as PT  # noqa: E402
 from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
 from lensmount.integrators.estimate import AIMED_PASSES, PassEstimate  # noqa: E402
 from lensmount.integrators.plan import edge_flux_components  # noqa: E402

@@ -16,11 +16,11 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from lens_scenes import double_gauss_case  # noqa: E402
 
-from lensmount.integrators import photon_target as PT  # noqa: E402
-from lensmount.integrators import targets as T  # noqa: E402
+from lensmount.integrators.photon_mapping import photon_target as PT  # noqa: E402
+from lensmount.integrators.photon_mapping import targets as T  # noqa: E402
 from lensmount.integrators.bidirectional import _scene_tables, bidirectional_pass, gather_cores  # noqa: E402
 from lensmount.integrators.exit_sampler import ExitDisc, mixture_pdf, sample_toward_exit  # noqa: E402
-from lensmount.integrators.view_map import build_view_map, stop_rim_target  # noqa: E402
+from lensmount.integrators.photon_mapping.view_map import build_view_map, stop_rim_target  # noqa: E402
 from lensmount.physics.sampler import stream  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
@@ -144,7 +144,8 @@ def test_same_seed_same_pass_whatever_the_order(case1):
     emptied: the learned rim's, the aimed photons' edge band's, the scene tables'): the same images.
     Fails when a pilot depends on what the process ran before (a call counter in the edge band's
     pilot seed: checked by breaking it locally)."""
-    from lensmount.integrators import bidirectional, photon_target
+    from lensmount.integrators import bidirectional
+    from lensmount.integrators.photon_mapping import photon_target
 
     def fresh_worker():
         for cache in (T._CACHE, photon_target._CACHE, bidirectional._CACHE):
@@ -178,7 +179,7 @@ def test_no_edge_no_learned_target(case1):
 def test_view_map_in_chunks_is_the_one_batch_view_map(case1, monkeypatch):
     """Chunking the backward samples (memory bound at any detector size) changes no hit point;
     a case-1 film has the one scattering part as its only channel (the absorbing parts: none)."""
-    from lensmount.integrators import view_map as V
+    from lensmount.integrators.photon_mapping import view_map as V
     from lensmount.integrators.estimate import Film
 
     scene, tracer = case1

@@ -20,7 +20,7 @@ from lensmount.integrators.estimate import ledger_residual  # noqa: E402
 from lensmount.integrators.forward import Forward  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.integrators.walk import NonFiniteError  # noqa: E402
-from lensmount.run.runner import INTEGRATORS  # noqa: E402
+from lensmount.integrators.registry import integrator  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 from lensmount.trace.tracer import Tracer  # noqa: E402
 
@@ -68,7 +68,7 @@ def _scenes():
 @pytest.mark.parametrize("name", list(_scenes()))
 def test_energy_ledger_balances(method, name):
     scene = _scenes()[name]()
-    est = INTEGRATORS[method](EstimatorSettings(samples_per_pixel=1)).run_pass(scene, Tracer(scene), 0, 4000, 1)
+    est = integrator(method, EstimatorSettings(samples_per_pixel=1)).run_pass(scene, Tracer(scene), 0, 4000, 1)
     ledger = est.ledger
     assert ledger["source"] > 0 and abs(ledger_residual(ledger)) < 1e-9, ledger
     assert all(math.isfinite(v) for v in ledger.values())
@@ -110,7 +110,7 @@ class _NaNFinish(Lambert):
 def test_a_non_finite_bsdf_weight_is_an_error_naming_the_face(method):
     scene = _plate(_NaNFinish(0.5))
     with pytest.raises(NonFiniteError, match="part 'plate'"):
-        INTEGRATORS[method](EstimatorSettings(samples_per_pixel=4)).run_pass(scene, PlanarTracer(scene), 0, 2000, 1)
+        integrator(method, EstimatorSettings(samples_per_pixel=4)).run_pass(scene, PlanarTracer(scene), 0, 2000, 1)
 
 
 def test_settings_out_of_range_are_input_errors():
@@ -144,8 +144,8 @@ def test_a_lens_without_an_entrance_pupil_is_an_input_error_not_a_zero_stray_fra
 def test_backward_samples_are_keyed_by_pixel_and_sample():
     """Sample j of pixel p draws the same numbers whatever the samples per pixel: with 4 samples the
     hit points of samples 0 and 1 are those of a 2-sample view map (at half the weight)."""
-    from lensmount.integrators.radius import radius_caps
-    from lensmount.integrators.view_map import build_view_map, view_map_streams
+    from lensmount.integrators.photon_mapping.radius import radius_caps
+    from lensmount.integrators.photon_mapping.view_map import build_view_map, view_map_streams
 
     scene = PlanarScene([Face((0, 0, 0), (0, 0, 1), (1, 0, 0), (1e4, 0), "plate", disc=True)], [Lambert(0.5)],
                         Detector(2.0, 2.0, 4, 4, 20.0), Collimated((0, 0, 1), (0, 0, -300), 25.0))
@@ -180,4 +180,4 @@ def test_a_non_finite_gather_value_is_an_error_naming_the_face(connect, what):
     scene = _plate(_NaNEval(0.5))
     settings = EstimatorSettings(samples_per_pixel=4, connect_direct_view=connect)
     with pytest.raises(FloatingPointError, match=f"non-finite {what} value on face tag 0"):
-        INTEGRATORS["bidirectional"](settings).run_pass(scene, PlanarTracer(scene), 0, 2000, 1)
+        integrator("bidirectional", settings).run_pass(scene, PlanarTracer(scene), 0, 2000, 1)

@@ -24,7 +24,7 @@ from planar import Collimated, Detector, Face, PlanarScene, PlanarTracer  # noqa
 from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
-from lensmount.integrators.radius import radius_scale  # noqa: E402
+from lensmount.integrators.photon_mapping.radius import radius_scale  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 
 
@@ -41,7 +41,7 @@ def _run(scene, tracer, seed: int, passes: int, photons: int = 2000) -> Accumula
     acc = None
     for i in range(passes):
         # The gather's kernel bias is what is tested: the planar world has no glass, so with connections on
-        # (`integrators.connect`) every face the detector sees would be counted by its photons, no kernel left.
+        # (`integrators.photon_mapping.connect`) every face the detector sees would be counted by its photons, no kernel left.
         e = bidirectional_pass(scene, tracer, photons, seed, i, radius_scale(i), samples_per_pixel=256,
                                connect_direct_view=False)
         if acc is None:

@@ -21,7 +21,7 @@ from lensmount.analysis.passes import Accumulator  # noqa: E402
 from lensmount.analysis.summary import build_summary  # noqa: E402
 from lensmount.integrators.bidirectional import bidirectional_pass  # noqa: E402
 from lensmount.integrators.forward import forward_pass  # noqa: E402
-from lensmount.integrators.radius import radius_scale  # noqa: E402
+from lensmount.integrators.photon_mapping.radius import radius_scale  # noqa: E402
 from lensmount.integrators.settings import EstimatorSettings  # noqa: E402
 from lensmount.run.results import write_run  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402

@@ -28,7 +28,7 @@ from lensmount.design.folder import load_design
 from lensmount.design.scene import scene_from_dict
 from lensmount.integrators.bidirectional import bidirectional_pass
 from lensmount.integrators.forward import forward_pass
-from lensmount.integrators.radius import radius_scale
+from lensmount.integrators.photon_mapping.radius import radius_scale
 from lensmount.scene.build import build_scene
 from lensmount.trace.tracer import Tracer
 

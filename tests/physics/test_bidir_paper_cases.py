@@ -20,7 +20,7 @@ from lensmount.design.folder import load_design
 from lensmount.design.scene import scene_from_dict
 from lensmount.integrators.bidirectional import bidirectional_pass
 from lensmount.integrators.forward import forward_pass
-from lensmount.integrators.radius import radius_scale
+from lensmount.integrators.photon_mapping.radius import radius_scale
 from lensmount.scene.build import build_scene
 from lensmount.trace.tracer import Tracer
 
@@ -99,7 +99,7 @@ def test_case3_gaussian_is_brighter_than_case2_lambertian(bidirectional_case):
 
 
 def test_case1_light_comes_only_from_the_diaphragm_edge(reference):
-    # 20 000 photons a pass, as the scene asks: most are aimed at the edge (integrators.photon_target)
+    # 20 000 photons a pass, as the scene asks: most are aimed at the edge (integrators.photon_mapping.photon_target)
     m, s, parts, _ = _run(_scene(reference, "case1-diaphragm-edge"), "bidirectional", 6, 20_000, samples_per_pixel=16)
     # ~1.5 % with the photons aimed; uniform emission puts ~1 photon a pass on the edge here (~100 %)
     assert m > 0 and s < 0.05 * m, (m, s)

@@ -119,7 +119,7 @@ def test_a_detector_immersed_in_water_agrees_with_forward():
     """The image formed in water (n 1.333): the photons deposit flux, the same in any medium, while the
     backward samples estimate E = ∫ L cos θ dω over the hemisphere in the water, where the barrel's
     radiance seen through the lens is n² L (L / n² is what crosses an interface). Without the detector's
-    n² (integrators/media.py) bidirectional reads 1/1.78 of forward."""
+    n² (integrators/photon_mapping/media.py) bidirectional reads 1/1.78 of forward."""
     from lens_scenes import immersed_singlet  # noqa: E402
 
     scene = immersed_singlet(make_bsdf("lambertian", reflectance=0.1))

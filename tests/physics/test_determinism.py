@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrators"))
 from lens_scenes import singlet_barrel  # noqa: E402
 
 from lensmount.integrators import bidirectional  # noqa: E402
-from lensmount.integrators.radius import radius_caps  # noqa: E402
+from lensmount.integrators.photon_mapping.radius import radius_caps  # noqa: E402
 from lensmount.physics.bsdf import make_bsdf  # noqa: E402
 
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.radius import FaceBoundaries
+from lensmount.integrators.photon_mapping.radius import FaceBoundaries
 
 
 def _band_in_disc(y_lo, y_hi, r):

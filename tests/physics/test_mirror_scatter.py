@@ -362,7 +362,7 @@ def test_the_corpus_cassegrain_simulates_its_mirrors_scatter(tmp_path):
 
 
 def test_the_view_map_of_a_cassegrain_aims_at_the_secondary_it_sees_through_the_primarys_hole():
-    from lensmount.integrators.view_map import exit_disc
+    from lensmount.integrators.photon_mapping.view_map import exit_disc
 
     scene = _cassegrain(None)
     disc = exit_disc(scene, scene.detector)

@@ -17,8 +17,8 @@ import math
 import numpy as np
 import pytest
 
-from lensmount.integrators.photon_gather import BIAS_LADDER, Gatherer, HitPoints, PhotonHits
-from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
+from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER, Gatherer, HitPoints, PhotonHits
+from lensmount.integrators.photon_mapping.radius import FaceBoundaries, radius_caps, radius_scale
 from lensmount.physics.bsdf import make_bsdf
 
 WIDTH = 0.05

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.integrators.photon_gather import BIAS_LADDER
+from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
 
 SHAPE_P = 0.1  # a ladder whose shape the model c·ρ^k, k ≥ 1, explains with p below this: no bound
 SQRT2 = math.sqrt(2.0)  # the ratio of successive √2 steps at k = 1; steeper curves have more

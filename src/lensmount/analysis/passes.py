@@ -57,8 +57,8 @@ from lensmount.atomic import NPZ_DAMAGE, write_npz
 from lensmount.errors import InputError
 from lensmount.integrators.estimate import AIMED_PASSES, LARGEST, PassEstimate
 from lensmount.integrators.paths import EMPTY
-from lensmount.integrators.photon_gather import BIAS_LADDER
-from lensmount.integrators.photon_target import UNIFORM_SHARE
+from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
+from lensmount.integrators.photon_mapping.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
 _STATE_VERSION = 9  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius

@@ -1,20 +1,20 @@
-"""The `lensmount` command: init · inspect · regenerate · check · simulate · compare · history.
+"""The `lensmount` command: init · inspect · regenerate · check · simulate · compare · history · ...
 
-Each command group lives in its own module and registers itself on `app`; each
-parses its options, calls lensmount.loop (or the layer it fronts) and prints. This
-module only turns user errors into one paragraph on stderr with exit code 2, and
-SIGINT / SIGTERM at any moment of any command into one line and exit 130 / 143
-(lensmount.run.signals): never click's bare "Aborted!".
+Each verb lives in its own module and registers itself in `commands.COMMANDS` (a user's plug-in
+the same way); each parses its options, calls lensmount.loop (or the layer it fronts) and prints.
+This module puts every registered verb on `app`, and only turns user errors into one paragraph
+on stderr with exit code 2, and SIGINT / SIGTERM at any moment of any command into one line and
+exit 130 / 143 (lensmount.run.signals): never click's bare "Aborted!".
 """
 
 from __future__ import annotations
 
-import importlib
 import sys
 
 import typer
 from typer.core import TyperGroup
 
+from lensmount.cli.commands import COMMANDS
 from lensmount.errors import InputError, WorkersGone
 from lensmount.run.signals import exit_code, signal_name, stop_on_signals
 
@@ -51,18 +51,8 @@ def _root() -> None:
     """regenerate → simulate → compare: the stray-light loop for lens mounts."""
 
 
-def fail(error: InputError) -> None:
-    """Print a user error as one paragraph and exit 2."""
-    typer.echo(f"error: {error.paragraph()}", err=True)
-    raise typer.Exit(code=2)
-
-
-# Modules that define commands; each does `@app.command()` at import.
-COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "watch", "history", "pst", "converge", "sweep",
-                   "ghosts", "fit_abg", "paths")
-
-for _name in COMMAND_MODULES:
-    importlib.import_module(f"lensmount.cli.{_name}")
+for _name in sorted(COMMANDS.names()):
+    app.command(_name)(COMMANDS.entry(_name).factory)
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ from typing import Optional
 import typer
 
 from lensmount.atomic import write_text
-from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.design.folder import load_design
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
@@ -86,7 +86,7 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     return report.passed
 
 
-@app.command()
+@COMMANDS.register("check", CommandLine)
 def check(
     design: Path = typer.Argument(..., help="design folder: lens.toml (or lens.zmx), mount.toml"),
     exclusion_deg: Optional[float] = typer.Option(

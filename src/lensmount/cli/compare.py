@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.table import Table
 
 from lensmount.analysis.compare import UNDECIDED, parse_fraction
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import QUICK_HELP, duration, observed
 from lensmount.errors import InputError
@@ -47,7 +47,7 @@ def announce(source: RunSource) -> str:
             f"into {source.folder} (--quick, --passes, --photons-per-pass or --time shorten it)")
 
 
-@app.command()
+@COMMANDS.register("compare", CommandLine)
 def compare(
     a: Path = typer.Argument(..., help="Old run: a results folder, or a design folder (with --scene)."),
     b: Optional[Path] = typer.Argument(None, help="New run: a results folder or a design folder; "

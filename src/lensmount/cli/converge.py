@@ -7,14 +7,14 @@ from typing import Optional
 
 import typer
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import duration
 from lensmount.errors import InputError
 from lensmount.loop.converge import ConvergeOptions, converge as run, read_reference, write_converge
 
 
-@app.command()
+@COMMANDS.register("converge", CommandLine)
 def converge(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene: a name from DESIGN/scenes/ or a scene file."),

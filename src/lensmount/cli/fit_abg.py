@@ -8,7 +8,7 @@ from typing import Optional
 import numpy as np
 import typer
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.design.brdf_data import read_brdf
 from lensmount.errors import InputError
 from lensmount.run.results import save_figure
@@ -17,7 +17,7 @@ from lensmount.run.results import save_figure
 POOR_FIT_DECADES = 0.2  # rms error of log10 BRDF above which the fit is called poor (a factor 1.6)
 
 
-@app.command("fit-abg")
+@COMMANDS.register("fit-abg", CommandLine)
 def fit_abg_command(
     data: Path = typer.Argument(..., help="Measured BRDF: a Zemax tabular .bsdf file, or a .csv with columns "
                                           "incidence_deg,scatter_deg,brdf (in-plane, scatter angle from the normal)."),

@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from lensmount.atomic import write_text
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.ghosts import ghost_report
@@ -21,7 +21,7 @@ from lensmount.run.results import write_exr, write_preview
 from lensmount.trace.tracer import Tracer
 
 
-@app.command()
+@COMMANDS.register("ghosts", CommandLine)
 def ghosts(
     design: Path = typer.Argument(..., help="Design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file: its source, detector, wavelengths and coatings."),

@@ -10,12 +10,12 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.errors import InputError
 from lensmount.loop.history import HistoryOptions, history as load_history, label, write_history_plot
 
 
-@app.command()
+@COMMANDS.register("history", CommandLine)
 def history(
     design: Path = typer.Argument(..., help="Design folder."),
     scene: Optional[str] = typer.Option(None, "--scene", help="Only runs of this scene (name or file)."),

@@ -16,7 +16,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.design.edges import clip_warnings
 from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
@@ -176,7 +176,7 @@ def _print_tables(doc: dict) -> None:
     console.print(p)
 
 
-@app.command("inspect")
+@COMMANDS.register("inspect", CommandLine)
 def inspect_command(
     lens: Path = typer.Argument(..., help="lens.toml or Zemax .zmx (or a design folder holding one)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON document instead of tables."),

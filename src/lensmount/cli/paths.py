@@ -11,14 +11,14 @@ from rich.console import Console
 from rich.table import Table
 
 from lensmount.analysis.paths import face_measures, face_report, read_paths, signature_from_hex, top_paths
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.atomic import NPZ_DAMAGE
 from lensmount.errors import InputError
 from lensmount.loop.simulate import PATHS
 from lensmount.run.results import write_exr, write_preview
 
 
-@app.command()
+@COMMANDS.register("paths", CommandLine)
 def paths(
     result: Path = typer.Argument(..., help="Output folder of `lensmount simulate` (holds summary.json and paths.npz)."),
     top: int = typer.Option(10, "--top", min=1, help="Paths (and faces) to print and to draw."),

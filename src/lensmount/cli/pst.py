@@ -7,13 +7,13 @@ from typing import Optional
 
 import typer
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.pst import PstOptions, parse_angles, pst as sweep, write_pst
 
 
-@app.command()
+@COMMANDS.register("pst", CommandLine)
 def pst(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene file; its source is swept in angle, the rest kept."),
@@ -21,7 +21,7 @@ def pst(
                                help="Off-axis angles in degrees: start:stop:step (stop included) or a list 0,7,20."),
     azimuth: Optional[float] = typer.Option(None, "--azimuth",
                                             help="Direction of the tilt in degrees (default: the scene's)."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     passes: Optional[int] = typer.Option(None, "--passes", help="At most this many passes per angle (default: the "
                                                                 "scene's run table; alone: exactly this many)."),
     target_rel_error: Optional[float] = typer.Option(None, "--target-rel-error",

@@ -15,7 +15,7 @@ import tomli_w
 import typer
 
 from lensmount.atomic import atomic_path, write_text
-from lensmount.cli import app, fail  # defined before lensmount.cli imports this module
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.check import run_check
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import TerminalObserver
@@ -33,7 +33,7 @@ def examples_root() -> Path:
     return Path(__file__).resolve().parent.parent / "examples"
 
 
-@app.command()
+@COMMANDS.register("regenerate", CommandLine)
 def regenerate(
     design: Path = typer.Argument(..., help="design folder: lens.toml (or lens.zmx), mount.toml, scenes/"),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder (default DESIGN/build)"),
@@ -79,7 +79,7 @@ def regenerate(
             raise typer.Exit(code=1)
 
 
-@app.command()
+@COMMANDS.register("init", CommandLine)
 def init(
     directory: Path = typer.Argument(..., help="new design folder"),
     example: str = typer.Option("double-gauss-360", "--example", "-e", help="example to copy"),

@@ -18,7 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.errors import InputError
 from lensmount.loop.progress import PassStatus
@@ -179,11 +179,11 @@ def observed(call, *args):
         observer.close()
 
 
-@app.command()
+@COMMANDS.register("simulate", CommandLine)
 def simulate(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
     scene: Path = typer.Option(..., "--scene", help="Scene: a name from DESIGN/scenes/ or a scene file."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Run seed, >= 0 (default: the scene's run.seed)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default out/<scene name>)."),
     photons: Optional[int] = typer.Option(None, "--photons", help="Stop after this many photons in total."),

@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import observed
 from lensmount.errors import InputError
@@ -18,7 +18,7 @@ from lensmount.loop.simulate import SimulateOptions
 from lensmount.loop.sweep import Param, SweepOptions, sweep as run_sweep
 
 
-@app.command()
+@COMMANDS.register("sweep", CommandLine)
 def sweep(
     design: Path = typer.Argument(..., help="Base design folder."),
     scene: Path = typer.Option(..., "--scene", help="Scene file every variant is simulated with."),
@@ -28,7 +28,7 @@ def sweep(
                                          "out the same parts is refused (vanes.count counts only under "
                                          "placement = \"even\")."),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="Folder for the variants, sweep.csv and sweep.png."),
-    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward"),
+    method: str = typer.Option("bidirectional", "--method", help="bidirectional | forward | a plug-in integrator."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed for every variant (default: the scene's)."),
     passes: Optional[int] = typer.Option(None, "--passes", help="Passes per variant."),
     photons_per_pass: Optional[int] = typer.Option(None, "--photons-per-pass", help="Photons per pass."),

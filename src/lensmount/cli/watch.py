@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from lensmount.cli import app, fail
+from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.compare import _fraction
 from lensmount.cli.simulate import TerminalObserver, duration
@@ -18,7 +18,7 @@ from lensmount.loop.compare import verdict_sentence
 from lensmount.loop.watch import WatchOptions, watch as watch_design
 
 
-@app.command()
+@COMMANDS.register("watch", CommandLine)
 def watch(
     design: Path = typer.Argument(..., help="Design folder to watch."),
     scene: str = typer.Option(..., "--scene", help="Scene name or file: the test condition of every revision."),

@@ -142,14 +142,14 @@ def check_coatings(coatings: dict[str, str]) -> dict[str, str]:
 def check_finishes(finishes: dict[str, dict], assign: dict[str, str], base_dir: str | Path) -> dict[str, dict]:
     """InputError for a finish whose model or parameters are not valid, or a rule naming an undefined
     finish; the finishes with every measured one's file read into its table (relative to base_dir)."""
-    from lensmount.physics.bsdf import make_bsdf  # lazy: keeps lensmount --help from loading the BSDF models (~0.2 s)
+    from lensmount.physics.bsdf import BSDFS, make_bsdf  # lazy: keeps lensmount --help from loading the BSDF models
 
     resolved = {}
     for name, params in finishes.items():
         params = dict(params)
         if "model" not in params:
             raise InputError(f"finish '{name}' has no model", field=f"finishes.{name}.model",
-                             valid="absorber, lambertian, gaussian, abg, harvey, mirror, tabulated")
+                             valid=", ".join(BSDFS.names()))
         if params["model"] == "tabulated" and "file" in params:
             params = _measured_table(name, params, base_dir)
         resolved[name] = dict(params)  # the Scene gets the table, not the file name

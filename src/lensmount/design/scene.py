@@ -206,7 +206,7 @@ class SceneSpec(ReadFromFile, _Strict):
     `load_scene`; `scene_from_dict` takes them in the table, as scripts and tests build scenes)."""
 
     description: str = ""
-    # One of physics.sources.SOURCE_KINDS' parameter models, by `type`; dumped with its own keys.
+    # One of physics.sources.SOURCES' parameter models, by `type`; dumped with its own keys.
     source: SerializeAsAny[SourceParams]
     detector: DetectorSpec
     effects: EffectsSpec = EffectsSpec()

@@ -62,19 +62,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.integrators.connect import connect_to_detector
 from lensmount.integrators.estimate import (
     AIMED_PASSES, UNAIMED_PASSES, EnergyLedger, Film, PassEstimate, face_tally,
     film_channels, phase_clock, phase_times, scattering_tags)
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits, gatherable_share, search_groups
 from lensmount.integrators.paths import FaceTally
-from lensmount.integrators.photon_target import (
+from lensmount.integrators.photon_mapping.connect import connect_to_detector
+from lensmount.integrators.photon_mapping.photon_gather import (
+    Gatherer, HitPoints, PhotonHits, gatherable_share, search_groups)
+from lensmount.integrators.photon_mapping.photon_target import (
     aims_at_edge, edge_band, emission_component, guided_photons, pilot_check, pilot_check_diagnostics, tally_edge_flux)
-from lensmount.integrators.radius import FaceBoundaries, radius_caps, radius_scale
+from lensmount.integrators.photon_mapping.radius import FaceBoundaries, radius_caps, radius_scale
+from lensmount.integrators.photon_mapping.view_map import build_view_map, view_map_streams
+from lensmount.integrators.registry import INTEGRATORS, NoParams
 from lensmount.integrators.scatter_aim import aperture_targets
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.integrators.view_map import build_view_map, view_map_streams
 from lensmount.integrators.walk import photon_walk
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.tracer import FACE
@@ -280,6 +282,12 @@ def radius_scale_of(pass_index: int, settings: EstimatorSettings) -> float:
     return radius_scale(pass_index, settings.alpha)
 
 
+@INTEGRATORS.register("bidirectional", NoParams)
+def make_bidirectional(params: NoParams, settings: EstimatorSettings) -> Bidirectional:
+    """Bidirectional stochastic ray tracing: photons gathered at the view map's hit points."""
+    return Bidirectional(settings)
+
+
 def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, radius_scale: float,
                        **settings) -> PassEstimate:
     """`Bidirectional(EstimatorSettings(**settings)).run_pass(...)` at a given radius scale (scripts, tests)."""
@@ -287,4 +295,4 @@ def bidirectional_pass(scene, tracer, n_photons: int, seed: int, pass_index: int
                                                                  radius_scale=radius_scale)
 
 
-__all__ = ["Bidirectional", "ViewMap", "bidirectional_pass", "gather_cores", "radius_scale_of"]
+__all__ = ["Bidirectional", "make_bidirectional", "ViewMap", "bidirectional_pass", "gather_cores", "radius_scale_of"]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_clock, phase_times
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
+from lensmount.integrators.registry import INTEGRATORS, NoParams
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.integrators.walk import emit_photons, photon_walk
 
@@ -21,8 +22,8 @@ BATCH = 200_000  # photons per batch: bounds memory, not the result (numbers are
 
 
 class Forward:
-    """Forward light tracing (see the module docstring); the `Integrator` contract: `channels(scene)`,
-    `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`, `view_pass` (none) and `photon_pass`."""
+    """Forward light tracing (see the module docstring); the `Integrator` contract: `channels(scene)` and
+    `run_pass(scene, tracer, pass_index, photons, seed, radius_scale=None)`."""
 
     name = "forward"
     purpose = "forward"
@@ -37,14 +38,6 @@ class Forward:
     def run_pass(self, scene, tracer, pass_index: int, photons: int, seed: int,
                  radius_scale: float | None = None) -> PassEstimate:
         """One independent pass of N = `photons` photons (radius_scale: unused, nothing is gathered)."""
-        return self.photon_pass(scene, tracer, None, pass_index, photons, seed)
-
-    def view_pass(self, scene, tracer, pass_index: int, seed: int, radius_scale: float | None = None) -> None:
-        """Nothing: a forward pass has no view map (the `Integrator` contract)."""
-        return None
-
-    def photon_pass(self, scene, tracer, view: None, pass_index: int, photons: int, seed: int) -> PassEstimate:
-        """The whole pass (`run_pass`); view: `view_pass`'s None."""
         by_routes = route_reflections(scene, self.settings)
         film, ledger = Film(scene, by_routes), EnergyLedger()
         first = int(pass_index) * int(photons)
@@ -62,10 +55,16 @@ class Forward:
         return film.estimate(photons, ledger, phase_times(**times))
 
 
+@INTEGRATORS.register("forward", NoParams)
+def make_forward(params: NoParams, settings: EstimatorSettings) -> Forward:
+    """Forward light tracing: every photon that reaches the detector is counted where it lands."""
+    return Forward(settings)
+
+
 def forward_pass(scene, tracer, n_photons: int, seed: int, pass_index: int, *, batch: int = BATCH,
                  **settings) -> PassEstimate:
     """`Forward(EstimatorSettings(**settings)).run_pass(...)` (scripts and tests)."""
     return Forward(EstimatorSettings(**settings), batch=batch).run_pass(scene, tracer, pass_index, n_photons, seed)
 
 
-__all__ = ["Forward", "forward_pass", "BATCH"]
+__all__ = ["Forward", "make_forward", "forward_pass", "BATCH"]

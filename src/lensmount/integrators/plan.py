@@ -53,11 +53,12 @@ import numpy as np
 from lensmount.integrators.estimate import (
     AIMED_PASSES, EDGE_FLUX, EDGE_FLUX_SQ, PILOT_MISSED, PILOT_MISSED_AFTER, PILOT_RINGS_ADDED, TIME_PREFIX,
     UNAIMED_PASSES)
-from lensmount.integrators.photon_target import CHECK_MISSED, COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS
+from lensmount.integrators.photon_mapping.photon_target import (
+    CHECK_MISSED, COMPONENTS, MIN_HITS, PILOT_PHOTONS, PILOT_ROUNDS)
 from lensmount.integrators.walk import scattering_tags
 from lensmount.integrators.ghost_routes import MAX_FOUR_REFLECTION_ROUTES, route_reflections
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.scene.scene import optical_faces
+from lensmount.scene.scene import Scene, optical_faces
 from lensmount.trace.ghosts import reflecting, route_count
 from lensmount.trace.tracer import MIRROR_SCATTER_MIN_SHARE
 
@@ -86,7 +87,7 @@ class Plan:
     decisions : the lines of the plan, in the order they are printed
     """
 
-    scene: object
+    scene: Scene
     scatters: np.ndarray
     reflect_at_glass: bool
     direct: bool
@@ -298,7 +299,7 @@ def dispersion_free(scene) -> bool:
             and (not absorbs or flat(scene.solid_absorption_of_tag)))
 
 
-def _wavelengths(scene) -> tuple[object, Decision]:
+def _wavelengths(scene: Scene) -> tuple[Scene, Decision]:
     wl = np.asarray(scene.wavelengths_um, np.float64)
     what = "one wavelength for all"
     if len(wl) == 1:

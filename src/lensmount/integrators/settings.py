@@ -37,10 +37,10 @@ class EstimatorSettings:
         ghost_rays_across: lattice points per pass across the first surface for those routes.
         edge_photons: bidirectional with a broad `diaphragm-edge` face and the sun (or a collimated
             source): most photons start where a pilot found they meet the edge
-            (`integrators.photon_target`), weighted by the mixture density (unbiased either way).
+            (`integrators.photon_mapping.photon_target`), weighted by the mixture density (unbiased either way).
         connect_direct_view: bidirectional: light whose last segment runs straight from a broad face to
             the detector is counted by connecting each photon there to a point of the detector
-            (`integrators.connect`), not by the gather (unbiased either way; no kernel bias there).
+            (`integrators.photon_mapping.connect`), not by the gather (unbiased either way; no kernel bias there).
     """
 
     max_bounces: int = 64

@@ -34,8 +34,8 @@ from typing import Iterator
 import numpy as np
 
 from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
+from lensmount.integrators.lobe_core import outside_core
 from lensmount.integrators.paths import EMPTY, ghost_code
-from lensmount.integrators.photon_gather import outside_core
 from lensmount.integrators.scatter_aim import ApertureTargets, disc_directions, drawn_toward, mixture_weight
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.physics.rays import RayBatch
@@ -82,7 +82,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
     """Walk photons `rays` (ids = global photon index) until they die; see the module docstring.
 
     gathered : (n_tags,) per tag the core of the lobe (direction cosines around the mirror
-        direction, `photon_gather.outside_core`) outside which the caller counts the light by
+        direction, `lobe_core.outside_core`) outside which the caller counts the light by
         gathering: a photon whose last scatter there left outside the core is not put on the
         film. 0: all of it is gathered; inf: none. None: every photon is put on the film.
     """

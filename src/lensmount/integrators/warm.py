@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from lensmount.integrators.photon_gather import Gatherer, HitPoints, PhotonHits
-from lensmount.integrators.radius import FaceBoundaries, initial_radii
+from lensmount.integrators.photon_mapping.photon_gather import Gatherer, HitPoints, PhotonHits
+from lensmount.integrators.photon_mapping.radius import FaceBoundaries, initial_radii
 
 
 def main() -> None:

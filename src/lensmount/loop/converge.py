@@ -44,7 +44,7 @@ class ConvergeOptions:
     design: Path
     scene: Path
     out: Path
-    methods: tuple[str, ...] = tuple(INTEGRATORS)
+    methods: tuple[str, ...] = field(default_factory=INTEGRATORS.names)
     budget_s: float = 600.0
     levels: int = 5
     reference: float | None = None  # stray fraction to measure the error against
@@ -130,7 +130,7 @@ def check(o: ConvergeOptions) -> None:
     bad = [m for m in o.methods if m not in INTEGRATORS]
     if bad or not o.methods:
         raise InputError(f"unknown method(s) {', '.join(bad) or '(none)'}", field="--methods",
-                         valid="a comma-separated list of " + ", ".join(INTEGRATORS))
+                         valid="a comma-separated list of " + ", ".join(INTEGRATORS.names()))
     if not (o.budget_s > 0 and math.isfinite(o.budget_s)):
         raise InputError(f"--budget must be a positive number of seconds, got {o.budget_s:g}", field="--budget",
                          valid="seconds > 0, e.g. 600")

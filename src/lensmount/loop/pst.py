@@ -40,7 +40,7 @@ import numpy as np
 from lensmount.analysis.passes import Accumulator
 from lensmount.atomic import write_text
 from lensmount.errors import InputError
-from lensmount.integrators.registry import INTEGRATORS
+from lensmount.integrators.registry import SourceIndependentView, integrator
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.loop.prepare import build, read_inputs
 from lensmount.loop.provenance import collect
@@ -140,11 +140,15 @@ _SCENES: dict = {}  # this worker's scene per angle for the run's scene (see `_w
 def sweep_pass(scene, tracer, job: SourcesJob) -> dict:
     """In a worker: pass `job.index`'s view map once, then each angle's photons gathered at it; of each
     angle's pass, its totals ({place in the sweep: PassEstimate}). `tracer` is the base scene's: a
-    tracer reads the mesh, the optics and the detector, never the source."""
-    integrator = INTEGRATORS[job.method](job.settings)
-    view = integrator.view_pass(scene, tracer, job.index, job.seed)
-    return {k: integrator.photon_pass(_with_source(scene, k, source), tracer, view, job.index, job.photons,
-                                      job.seed).totals()
+    tracer reads the mesh, the optics and the detector, never the source. An integrator without a
+    source-independent view (`SourceIndependentView`) runs each angle's whole pass."""
+    method = integrator(job.method, job.settings)
+    if not isinstance(method, SourceIndependentView):
+        return {k: method.run_pass(_with_source(scene, k, source), tracer, job.index, job.photons, job.seed).totals()
+                for k, source in job.sources.items()}
+    view = method.view_pass(scene, tracer, job.index, job.seed)
+    return {k: method.photon_pass(_with_source(scene, k, source), tracer, view, job.index, job.photons,
+                                  job.seed).totals()
             for k, source in job.sources.items()}
 
 
@@ -229,7 +233,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     sources = [make_source(spec.source.model_copy(update={"off_axis_deg": float(a), "azimuth_deg": azimuth}),
                            base.front_opening, base.mesh, det, design.prescription) for a in o.angles_deg]
     # Only each pass's totals travel and are kept (`PassEstimate.totals`): PST needs no image.
-    names = INTEGRATORS[o.method](settings).channels(base)
+    names = integrator(o.method, settings).channels(base)
     tally = AngleTally([Accumulator.empty((1, 1), names, det.pixel_area) for _ in sources],
                        Stopping(target_rel_error=target, max_passes=passes))
     stopped: dict[int, PstPoint] = {}  # place in the sweep → its point, as the angles stop

@@ -3,7 +3,7 @@
     physics.sources     SunSource, CollimatedSource, ObjectSource, emission_disc, source_direction
     physics.detector    Detector: pixels and deposits
     physics.interfaces  Snell, total internal reflection, Fresnel, coatings (Coating, parse_coating)
-    physics.bsdf        one BSDF per module behind `make_bsdf` / `MODELS` (docs/bsdf.md)
+    physics.bsdf        one BSDF per module, registered in `BSDFS`, made by `make_bsdf` (docs/bsdf.md)
     physics.rays        RayBatch: structure-of-arrays rays with masks
     physics.sampler     Streams, stream: the only source of randomness
 

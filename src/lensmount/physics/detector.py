@@ -14,7 +14,7 @@ The medium in front of it: `medium_index` (W,) is the index of the medium the de
 optical contact with (an immersion objective's water or oil, `Prescription.image_medium`); () is air.
 Flux per area (what photons deposit) is the same in any medium; radiance is not: L / n² is what
 passes an interface unchanged, so a backward estimate of E = ∫ L cos θ dω sampled in the medium
-takes n² times the radiance seen in air (integrators/media.py).
+takes n² times the radiance seen in air (integrators/photon_mapping/media.py).
 """
 
 from __future__ import annotations

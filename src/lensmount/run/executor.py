@@ -41,8 +41,9 @@ WORKER_WAIT_S = 300.0  # how long a Dask run with no worker left waits for one b
 WORKER_DEATHS = 3  # a pass that kills this many local workers is a fault of the pass, not of a worker
 _PR_SET_PDEATHSIG = 1
 # The modules whose compiled kernels a pass calls: loaded from numba's cache before local workers are forked
-KERNEL_MODULES = ("lensmount.trace.kernels", "lensmount.trace.lens_kernel", "lensmount.integrators.neighbours",
-                  "lensmount.integrators.radius", "lensmount.integrators.photon_gather")
+KERNEL_MODULES = ("lensmount.trace.kernels", "lensmount.trace.lens_kernel",
+                  "lensmount.integrators.photon_mapping.neighbours", "lensmount.integrators.photon_mapping.radius",
+                  "lensmount.integrators.photon_mapping.photon_gather")
 
 
 def resolve(path: str):

@@ -31,7 +31,7 @@ from lensmount.errors import WorkersGone
 from lensmount.run.executor import Executor, executor_for
 from lensmount.run.signals import Terminated, deferred, stop_on_signals
 from lensmount.integrators.estimate import PassEstimate
-from lensmount.integrators.registry import INTEGRATORS
+from lensmount.integrators.registry import integrator
 from lensmount.integrators.settings import EstimatorSettings
 
 TRACER = "lensmount.trace.tracer:Tracer"
@@ -77,7 +77,7 @@ class PassJob:
 
 def run_pass(scene, tracer, job: PassJob) -> PassEstimate:
     """One pass of the chosen method, in this process."""
-    return INTEGRATORS[job.method](job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
+    return integrator(job.method, job.settings).run_pass(scene, tracer, job.index, job.photons, job.seed)
 
 
 # --- driver side -------------------------------------------------------------------------

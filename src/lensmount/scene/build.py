@@ -30,7 +30,7 @@ from lensmount.physics.bsdf import make_bsdf
 from lensmount.physics.bsdf.mirror_finish import MirrorFinish
 from lensmount.physics.detector import Detector
 from lensmount.physics.interfaces import parse_coating
-from lensmount.physics.sources import SOURCE_KINDS, Placement, Source, SourceParams
+from lensmount.physics.sources import SOURCES, Placement, Source, SourceParams
 
 
 def optical_surfaces(prescription: Prescription, wavelengths_um: np.ndarray, coating_of=None) -> list[OpticalSurface]:
@@ -412,7 +412,7 @@ def make_source(src: SourceParams, opening: FrontOpening, mesh: TaggedMesh, dete
 
     at = Placement(float(opening.z), float(opening.radius), clear_distance(mesh, detector, opening), object_z, pupil,
                    tuple(prescription.wavelength_weights))
-    return SOURCE_KINDS[src.type].build(src, at)
+    return SOURCES.create(src.type, src, at=at)
 
 __all__ = ["build_scene", "check_rules_match", "check_scatterers", "effects_of", "check_object_names",
            "detector_warnings", "detector_medium_index", "housing_bore_at", "entrance_pupil_area", "imaged_field_deg", "solid_index_of_tag",

@@ -14,19 +14,20 @@
 | `mirror`     | reflectance (default 1)            | mirror.py     |
 | `tabulated`  | rho, brdf (a measured table)       | tabulated.py  |
 
-`make_bsdf` raises `lensmount.errors.InputError` (field = the parameter) for an
-unknown model, an unknown parameter or a value out of range, including an ABg or
-Harvey set whose TIS exceeds 1. The scene loader adds the file with `.located()`.
+Each model is a file of this folder: its `BSDFParams` (the keys a finish gives, with their ranges) and its
+class, registered by name in `BSDFS` (base.py); `make_bsdf` is `BSDFS.create`. It raises
+`lensmount.errors.InputError` (field = the parameter) for an unknown model, an unknown parameter or a
+value out of range, including an ABg or Harvey set whose TIS exceeds 1. The scene loader adds the file
+with `.located()`.
 `MirrorFinish` (mirror_finish.py) is no model: `scene.build` wraps the finish a mirror's coated
 face is given in it (the lobe of the light that scattered there).
 """
 
 from __future__ import annotations
 
-from lensmount.errors import InputError
 from lensmount.physics.bsdf.absorber import Absorber
 from lensmount.physics.bsdf.abg import ABg
-from lensmount.physics.bsdf.base import BSDF, reject_unknown
+from lensmount.physics.bsdf.base import BSDF, BSDFS, BSDFParams
 from lensmount.physics.bsdf.gaussian import Gaussian
 from lensmount.physics.bsdf.harvey import Harvey
 from lensmount.physics.bsdf.lambertian import Lambertian
@@ -34,25 +35,14 @@ from lensmount.physics.bsdf.mirror import Mirror
 from lensmount.physics.bsdf.mirror_finish import MirrorFinish
 from lensmount.physics.bsdf.tabulated import Tabulated
 
-MODELS: dict[str, type[BSDF]] = {
-    "absorber": Absorber,
-    "lambertian": Lambertian,
-    "gaussian": Gaussian,
-    "abg": ABg,
-    "harvey": Harvey,
-    "mirror": Mirror,
-    "tabulated": Tabulated,
-}
-
 
 def make_bsdf(model: str, **params) -> BSDF:
     """The BSDF named `model` (case-insensitive) made from `params`; InputError if either is wrong."""
-    key = str(model).strip().lower()
-    if key not in MODELS:
-        raise InputError(f"unknown BSDF model '{model}'", field="model", valid=", ".join(MODELS))
-    return MODELS[key](**params)
+    name = str(model).strip().lower()
+    BSDFS.entry(name, field="model")  # an unknown model is the `model` key's error, not its parameters'
+    return BSDFS.create(name, params)
 
 
-__all__ = ["BSDF", "MODELS", "make_bsdf", "reject_unknown",
+__all__ = ["BSDF", "BSDFS", "BSDFParams", "make_bsdf",
            "Absorber", "Lambertian", "Gaussian", "ABg", "Harvey", "Mirror",
            "Tabulated", "MirrorFinish"]

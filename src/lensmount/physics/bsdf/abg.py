@@ -21,21 +21,26 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydantic import Field
 
-from lensmount.physics.bsdf.base import number, reject_unknown
+from lensmount.physics.bsdf.base import BSDFS, BSDFParams
 from lensmount.physics.bsdf.radial import DirectionCosineLobe
 
 
+class ABgParams(BSDFParams):
+    A: float = Field(ge=0.0)
+    B: float = Field(gt=0.0)
+    g: float = Field(ge=0.0, le=10.0)
+
+
+@BSDFS.register("abg", ABgParams)
 class ABg(DirectionCosineLobe):
     """f = A / (B + |β − β0|^g); reciprocal; TIS ≤ 1 enforced."""
 
     name = "abg"
 
-    def __init__(self, **params):
-        reject_unknown("abg", params, ("A", "B", "g"))
-        self.A = number(params, "A", model="abg", low=0.0)
-        self.B = number(params, "B", model="abg", low=0.0, low_open=True)
-        self.g = number(params, "g", model="abg", low=0.0, high=10.0)
+    def __init__(self, params: ABgParams):
+        self.A, self.B, self.g = params.A, params.B, params.g
         shoulder = self.B ** (1.0 / self.g) if self.g > 0.0 else math.inf
         self.lobe_half_width_deg = math.degrees(math.asin(shoulder)) if shoulder < 1.0 else math.inf
         self._build(min(shoulder, 1.0), field="A",

@@ -11,9 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from lensmount.physics.bsdf.base import BSDF, as_rows, reject_unknown
+from lensmount.physics.bsdf.base import BSDF, BSDFS, BSDFParams, as_rows
 
 
+class AbsorberParams(BSDFParams):
+    """No parameters."""
+
+
+@BSDFS.register("absorber", AbsorberParams)
 class Absorber(BSDF):
     """f = 0 everywhere; `sample` returns dead lanes (weight 0, pdf 0, wo = n)."""
 
@@ -21,8 +26,8 @@ class Absorber(BSDF):
     tis = 0.0
     is_black = True
 
-    def __init__(self, **params):
-        reject_unknown("absorber", params, ())
+    def __init__(self, params: AbsorberParams | None = None):
+        pass
 
     def eval(self, wi, wo, n):
         return np.zeros(len(as_rows(wi)))

@@ -23,11 +23,11 @@ division is guarded.
 from __future__ import annotations
 
 import math
-from numbers import Real
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict
 
-from lensmount.errors import InputError
+from lensmount.registry import Registry
 
 # Cosines at or below this count as "at the horizon": such directions carry no
 # projected solid angle, and treating them as dead avoids 0/0 downstream.
@@ -78,36 +78,6 @@ def as_rows(a, name: str = "vector") -> np.ndarray:
     return arr
 
 
-def number(params: dict, name: str, *, model: str, low: float | None = None, high: float | None = None,
-           low_open: bool = False, high_open: bool = False, valid: str | None = None) -> float:
-    """Read parameter `name` as a finite float in the given range, or raise InputError naming it."""
-    rng = valid or _range_text(low, high, low_open, high_open)
-    if name not in params:
-        raise InputError(f"BSDF model '{model}' needs parameter '{name}'", field=name, valid=rng)
-    value = params[name]
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise InputError(f"BSDF '{model}' parameter '{name}' must be a number, got {value!r}", field=name, valid=rng)
-    value = float(value)
-    ok = math.isfinite(value)
-    if ok and low is not None:
-        ok = value > low if low_open else value >= low
-    if ok and high is not None:
-        ok = value < high if high_open else value <= high
-    if not ok:
-        raise InputError(f"BSDF '{model}' parameter '{name}' = {value:g} is out of range", field=name, valid=rng)
-    return value
-
-
-def _range_text(low, high, low_open, high_open) -> str:
-    if low is not None and high is not None:
-        return f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-    if low is not None:
-        return f"a number {'>' if low_open else '≥'} {low:g}"
-    if high is not None:
-        return f"a number {'<' if high_open else '≤'} {high:g}"
-    return "a finite number"
-
-
 class BSDF:
     """Base of every model. Subclasses set the class attributes and implement the four calls.
 
@@ -156,12 +126,16 @@ class BSDF:
         raise NotImplementedError
 
 
-def reject_unknown(model: str, params: dict, known: tuple[str, ...]) -> None:
-    """Unknown parameter names are errors (a typo must not silently fall back to a default)."""
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise InputError(f"BSDF model '{model}' has no parameter '{unknown[0]}'", field=unknown[0],
-                         valid=", ".join(known) if known else f"no parameters for '{model}'")
+class BSDFParams(BaseModel):
+    """Base of every model's parameters (a finish's table less its `model`): unknown keys are errors, numbers are
+    finite numbers (a string or a boolean is not one), ranges are the fields' own."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+
+
+# Every model: a file of this folder with its `BSDFParams` that registers `@BSDFS.register(name, Params)`;
+# `BSDFS.create(name, params)` checks the parameters and makes it (docs/architecture.md, "Where to add a BSDF").
+BSDFS: Registry[BSDF] = Registry("BSDF model", where="a finish's model", implementations="lensmount.physics.bsdf")
 
 
 class TabulatedAlbedo:

@@ -42,9 +42,11 @@ import math
 
 import numpy as np
 
+from pydantic import Field
+
 from lensmount.errors import InputError
 from lensmount.physics.bsdf.base import (
-    BSDF, COS_EPS, TabulatedAlbedo, as_rows, dot, mirror, normalize, number, reject_unknown, tangent_frame)
+    BSDF, BSDFS, COS_EPS, BSDFParams, TabulatedAlbedo, as_rows, dot, mirror, normalize, tangent_frame)
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(128)
 _S = 0.5 * (_NODES + 1.0)  # Gauss–Legendre on [0, 1], then t = (1 − cos πs)/2 to cluster at both ends
@@ -53,16 +55,19 @@ _TW = 0.5 * _WEIGHTS * 0.5 * math.pi * np.sin(math.pi * _S)
 _CHUNK = 4096
 
 
+class GaussianParams(BSDFParams):
+    reflectance: float = Field(ge=0.0, le=1.0)
+    half_width_deg: float = Field(gt=0.0, le=90.0)
+
+
+@BSDFS.register("gaussian", GaussianParams)
 class Gaussian(TabulatedAlbedo, BSDF):
     """Reciprocal Gaussian (von Mises–Fisher) lobe around the mirror direction; see the module docstring."""
 
     name = "gaussian"
 
-    def __init__(self, **params):
-        reject_unknown("gaussian", params, ("reflectance", "half_width_deg"))
-        self.reflectance = number(params, "reflectance", model="gaussian", low=0.0, high=1.0)
-        self.half_width_deg = number(params, "half_width_deg", model="gaussian", low=0.0, high=90.0,
-                                     low_open=True)
+    def __init__(self, params: GaussianParams):
+        self.reflectance, self.half_width_deg = params.reflectance, params.half_width_deg
         self.lobe_half_width_deg = self.half_width_deg
         half = math.radians(self.half_width_deg)
         self.kappa = math.log(2.0) / (2.0 * math.sin(0.5 * half) ** 2)

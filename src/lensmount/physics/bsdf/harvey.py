@@ -20,21 +20,26 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydantic import Field
 
-from lensmount.physics.bsdf.base import number, reject_unknown
+from lensmount.physics.bsdf.base import BSDFS, BSDFParams
 from lensmount.physics.bsdf.radial import DirectionCosineLobe
 
 
+class HarveyParams(BSDFParams):
+    b0: float = Field(ge=0.0)
+    L: float = Field(gt=0.0)
+    S: float = Field(ge=-10.0, le=0.0)
+
+
+@BSDFS.register("harvey", HarveyParams)
 class Harvey(DirectionCosineLobe):
     """f = b0 (1 + (|β − β0|/L)²)^(S/2); reciprocal; TIS ≤ 1 enforced."""
 
     name = "harvey"
 
-    def __init__(self, **params):
-        reject_unknown("harvey", params, ("b0", "L", "S"))
-        self.b0 = number(params, "b0", model="harvey", low=0.0)
-        self.L = number(params, "L", model="harvey", low=0.0, low_open=True)
-        self.S = number(params, "S", model="harvey", low=-10.0, high=0.0)
+    def __init__(self, params: HarveyParams):
+        self.b0, self.L, self.S = params.b0, params.L, params.S
         exponent = -2.0 * math.log(2.0) / self.S if self.S < 0.0 else math.inf  # (1 + (ρ/L)²) = 2^(−2/S)
         half = self.L * math.sqrt(math.expm1(exponent)) if exponent < 700.0 else math.inf
         self.lobe_half_width_deg = math.degrees(math.asin(half)) if half < 1.0 else math.inf

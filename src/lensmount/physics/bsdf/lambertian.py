@@ -14,19 +14,24 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydantic import Field
 
-from lensmount.physics.bsdf.base import BSDF, COS_EPS, as_rows, dot, number, reject_unknown, tangent_frame
+from lensmount.physics.bsdf.base import BSDF, BSDFS, COS_EPS, BSDFParams, as_rows, dot, tangent_frame
 
 
+class LambertianParams(BSDFParams):
+    reflectance: float = Field(ge=0.0, le=1.0)
+
+
+@BSDFS.register("lambertian", LambertianParams)
 class Lambertian(BSDF):
     """f(wi, wo) = ρ/π for wi, wo above the surface; albedo = tis = ρ."""
 
     name = "lambertian"
     lobe_half_width_deg = math.inf
 
-    def __init__(self, **params):
-        reject_unknown("lambertian", params, ("reflectance",))
-        self.reflectance = number(params, "reflectance", model="lambertian", low=0.0, high=1.0)
+    def __init__(self, params: LambertianParams):
+        self.reflectance = params.reflectance
         self.tis = self.reflectance
 
     @property

@@ -13,10 +13,16 @@ hemispherical reflectance, which for a mirror is all specular).
 from __future__ import annotations
 
 import numpy as np
+from pydantic import Field
 
-from lensmount.physics.bsdf.base import BSDF, COS_EPS, as_rows, dot, mirror, normalize, number, reject_unknown
+from lensmount.physics.bsdf.base import BSDF, BSDFS, COS_EPS, BSDFParams, as_rows, dot, mirror, normalize
 
 
+class MirrorParams(BSDFParams):
+    reflectance: float = Field(1.0, ge=0.0, le=1.0)
+
+
+@BSDFS.register("mirror", MirrorParams)
 class Mirror(BSDF):
     """Perfect specular reflector of reflectance R."""
 
@@ -24,10 +30,8 @@ class Mirror(BSDF):
     is_delta = True
     lobe_half_width_deg = 0.0
 
-    def __init__(self, **params):
-        reject_unknown("mirror", params, ("reflectance",))
-        params = {"reflectance": 1.0, **params}
-        self.reflectance = number(params, "reflectance", model="mirror", low=0.0, high=1.0)
+    def __init__(self, params: MirrorParams):
+        self.reflectance = params.reflectance
         self.tis = self.reflectance
 
     @property

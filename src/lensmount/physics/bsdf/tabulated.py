@@ -26,26 +26,37 @@ import math
 
 import numpy as np
 
+from pydantic import field_validator
+
 from lensmount.errors import InputError
-from lensmount.physics.bsdf.base import reject_unknown
+from lensmount.physics.bsdf.base import BSDFS, BSDFParams
 from lensmount.physics.bsdf.radial import DirectionCosineLobe
 
 _FLOOR = 1e-30  # log of a zero BRDF value
 
 
+class TabulatedParams(BSDFParams):
+    """A measured table (rho, brdf); a scene's [finishes] may give the measurement's `file` instead."""
+
+    rho: list[float]
+    brdf: list[float]
+
+    @field_validator("rho", "brdf", mode="before")
+    @classmethod
+    def _listed(cls, value):
+        """A table made in Python (`measured_profile`) comes as arrays."""
+        return value.tolist() if isinstance(value, np.ndarray) else value
+
+
+@BSDFS.register("tabulated", TabulatedParams)
 class Tabulated(DirectionCosineLobe):
     """f(|β − β0|) from a table; reciprocal; TIS ≤ 1 enforced."""
 
     name = "tabulated"
 
-    def __init__(self, **params):
-        reject_unknown("tabulated", params, ("rho", "brdf"))
-        for key in ("rho", "brdf"):
-            if key not in params:
-                raise InputError(f"BSDF model 'tabulated' needs parameter '{key}'", field=key,
-                                 valid="a measured table (rho, brdf), or `file` in a scene's [finishes]")
-        rho = np.asarray(params["rho"], np.float64).ravel()
-        f = np.asarray(params["brdf"], np.float64).ravel()
+    def __init__(self, params: TabulatedParams):
+        rho = np.asarray(params.rho, np.float64).ravel()
+        f = np.asarray(params.brdf, np.float64).ravel()
         if len(rho) < 2 or len(rho) != len(f) or not (np.all(np.isfinite(rho)) and np.all(np.isfinite(f))):
             raise InputError("a tabulated BSDF needs at least two finite (rho, brdf) pairs of equal length",
                              field="rho", valid="rho and brdf arrays of the same length ≥ 2")

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lensmount.integrators.photon_gather import outside_core
+from lensmount.integrators.lobe_core import outside_core
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
 

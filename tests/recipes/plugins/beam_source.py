@@ -1,5 +1,5 @@
-"""A source kind added the way docs/architecture.md says ("Where to add a source"): this file
-and its `register_source` call, nothing else of lensmount touched.
+"""A source kind added the way docs/architecture.md says ("Where to add a source"): this file, which
+registers itself in `SOURCES`, and its line in the plug-in package's entry points; nothing of lensmount touched.
 
 A laser beam: a collimated beam of radius `beam_radius_mm` whose axis passes through the centre
 of the front opening, at (off_axis_deg, azimuth_deg). Irradiance 1 inside the beam, so a photon
@@ -16,8 +16,8 @@ import numpy as np
 from pydantic import Field
 
 from lensmount.physics.rays import RayBatch
-from lensmount.physics.sources import (EmissionDisc, Placement, SourceParams, emission_disc, orthonormal_basis,
-                                       register_source, source_direction)
+from lensmount.physics.sources import (SOURCES, EmissionDisc, Placement, SourceParams, emission_disc,
+                                       orthonormal_basis, source_direction)
 
 
 class BeamParams(SourceParams):
@@ -65,14 +65,11 @@ class BeamSource:
         return RayBatch.make(origin, direction, weight=np.full(n, flux), wavelength=np.zeros(n, np.int32)), flux
 
 
+@SOURCES.register("beam", BeamParams)
 def build_beam(p: BeamParams, at: Placement) -> BeamSource:
+    """A collimated beam of radius `beam_radius_mm` through the centre of the front opening."""
     d = source_direction(p.off_axis_deg, p.azimuth_deg)
     around_opening = emission_disc(d, at.opening_z, at.opening_radius, at.clear_distance)
     return BeamSource(p.off_axis_deg, p.azimuth_deg, EmissionDisc(around_opening.centre, p.beam_radius_mm),
                       at.wavelength_weights)
 
-
-def register() -> None:
-    """The registration: a plugin module would run this line at import; the test runs it in a
-    fixture so that the other tests of its process see the built-in kinds only."""
-    register_source("beam", BeamParams, build_beam)

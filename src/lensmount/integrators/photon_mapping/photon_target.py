@@ -47,8 +47,8 @@ import numpy as np
 
 from lensmount.integrators.estimate import (
     EDGE_FLUX, EDGE_FLUX_SQ, PILOT_MISSED, PILOT_MISSED_AFTER, PILOT_RINGS_ADDED, scattering_tags)
-from lensmount.integrators.targets import N_DPHI as N_PHI
-from lensmount.integrators.targets import (
+from lensmount.integrators.photon_mapping.targets import N_DPHI as N_PHI
+from lensmount.integrators.photon_mapping.targets import (
     azimuth_bin, azimuth_pmf, cached_pilot, edge_rim, edge_tags, paraxial_trace, robust_fit)
 from lensmount.integrators.walk import emit_photons
 from lensmount.physics.rays import RayBatch

@@ -34,6 +34,7 @@ from numba import njit
 from scipy.spatial import cKDTree
 
 from lensmount.integrators.estimate import Largest
+from lensmount.integrators.lobe_core import outside_core
 from lensmount.integrators.settings import EstimatorSettings
 
 # The radii, relative to a pass's r, at which the gather also estimates each hit point's radiance from
@@ -131,16 +132,6 @@ def turned(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     c = np.einsum("ij,ij->i", a, b)
     return (v * c[:, None] + np.cross(k, v)
             + k * (np.einsum("ij,ij->i", k, v) / np.maximum(1.0 + c, 1e-12))[:, None])
-
-
-def outside_core(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, core) -> np.ndarray:
-    """(N,) bool: wo lies at least `core` from the mirror direction of wi, in direction cosines.
-
-    The tangential part of the mirror direction is −t(wi), so the distance is |t(wo) + t(wi)|
-    (t: the part in the surface plane); symmetric in wi and wo, like the BSDF."""
-    t = wi + wo
-    t = t - np.einsum("ij,ij->i", t, n)[:, None] * n
-    return np.einsum("ij,ij->i", t, t) >= core * core
 
 
 INCIDENCES_DEG = (0.0, 20.0, 40.0, 60.0, 75.0)  # incidences on mount faces (the sun through a lens: any)
@@ -370,4 +361,4 @@ def _add_ladder(hit, contrib, distance, cos_n, rungs, cos_rungs, area_ladder, ra
     return finite
 
 
-__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "outside_core", "turned", "gatherable_share", "INCIDENCES_DEG"]
+__all__ = ["BIAS_LADDER", "REACH", "HitPoints", "PhotonHits", "Gatherer", "search_groups", "turned", "gatherable_share", "INCIDENCES_DEG"]

@@ -30,13 +30,13 @@ import math
 
 import numpy as np
 
-from lensmount.integrators.connect import direct_view
+from lensmount.integrators.photon_mapping.connect import direct_view
 from lensmount.integrators.exit_sampler import ExitDisc, sample_toward_exit
-from lensmount.integrators.neighbours import kth_distance
-from lensmount.integrators.photon_gather import BIAS_LADDER, HitPoints
-from lensmount.integrators.radius import initial_radii
-from lensmount.integrators.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
-from lensmount.integrators.media import detector_radiance_factor
+from lensmount.integrators.photon_mapping.neighbours import kth_distance
+from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER, HitPoints
+from lensmount.integrators.photon_mapping.radius import initial_radii
+from lensmount.integrators.photon_mapping.targets import edge_rim, edge_tags, learned_rim, paraxial_trace
+from lensmount.integrators.photon_mapping.media import detector_radiance_factor
 from lensmount.physics.detector import Detector
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams, ray_streams

@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit
 
-from lensmount.integrators.neighbours import kth_distance, nearest_indices
+from lensmount.integrators.photon_mapping.neighbours import kth_distance, nearest_indices
 from lensmount.integrators.settings import EstimatorSettings
 
 DEFAULT_ALPHA = 0.7
