@@ -74,3 +74,29 @@ def test_the_two_views_write_separate_files(reference):
     assert json.loads((out / "check" / "check-aperture.json").read_text())["seen_from"] == "aperture"
     assert (out / "check" / "check-aperture.png").stat().st_size > 10_000
     assert (out / "check" / "check.json").read_text() == before  # the detector's view is untouched
+
+
+def test_a_pupil_no_axial_ray_passes_is_explained_not_divided_by(reference, tmp_path):
+    """A glass face tagged as metal (a `mount` face across the beam) stops every on-axis ray: the
+    realised pupil is 0, and check says so and names the part, with no f-number of 1/0 (no traceback,
+    nothing infinite or NaN in check.json)."""
+    import math
+    import shutil
+
+    from lensmount.cli.check import run_check
+    from lensmount.mesh import FaceTag, TaggedMesh
+
+    design, out, _ = reference
+    folder = tmp_path / "build"
+    shutil.copytree(out, folder, ignore=shutil.ignore_patterns(".cache"))
+    mesh = TaggedMesh.load(folder / "mesh.npz")
+    table = [FaceTag(t.part, t.kind, "mount", t.finish, -1, t.face, t.label)
+             if (t.part, t.role, t.surface) == ("lens-1", "optical", 0) else t for t in mesh.tag_table]
+    TaggedMesh(mesh.vertices, mesh.triangles, mesh.tags, table).save(folder / "mesh.npz")
+    said: list[str] = []
+    run_check(design, folder, 30.0, echo=said.append)
+    line = next(s for s in said if s.startswith("entrance pupil"))
+    assert "none realised" in line and "lens-1" in line and "f/inf" not in line, line
+    pupil = json.loads((folder / "check" / "check.json").read_text())["entrance_pupil"]
+    assert pupil["realised_mm"] == 0.0 and pupil["realised_f_number"] is None and pupil["limited_by"] == ["lens-1"]
+    assert all(math.isfinite(v) for v in (pupil["design_mm"], pupil["design_f_number"]))

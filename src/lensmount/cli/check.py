@@ -34,6 +34,32 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
     return spec.exclusion_deg(prescription.max_field_deg)
 
 
+def pupil_report(p, pupil) -> tuple[str, dict]:
+    """The realised entrance pupil against the design's: one line and check.json's entry. At infinity
+    as diameter and f-number; from a finite object as the object-space NA (the pupil's diameter too
+    where it lies within reach). A pupil no axial ray passes names the part in the beam on the axis."""
+    efl = paraxial(p).efl
+    limited = sorted(set(pupil.limited_by))
+    doc = {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
+           "realised_f_number": abs(efl) / pupil.diameter if pupil.diameter > 0.0 else None,
+           "design_f_number": abs(efl) / pupil.design_diameter, "limited_by": limited}
+    if p.finite_object:
+        doc |= {"realised_object_na": pupil.object_na, "design_object_na": pupil.design_object_na}
+        within_reach = pupil.design_diameter < 1e6   # a telecentric object space has its pupil at infinity
+        design = f"NA {pupil.design_object_na:.4f}" + (f" ({pupil.design_diameter:.3f} mm)" if within_reach else "")
+        realised = f"NA {pupil.object_na:.4f}" + (f" ({pupil.diameter:.3f} mm)" if within_reach else "")
+        rays = "from the axial object point"
+    else:
+        design = f"{pupil.design_diameter:.3f} mm (f/{abs(efl) / pupil.design_diameter:.2f})"
+        realised = f"{pupil.diameter:.3f} mm (f/{abs(efl) / pupil.diameter:.2f})" if pupil.diameter > 0.0 else ""
+        rays = "entering parallel to the axis"
+    if pupil.diameter <= 0.0:
+        return (f"entrance pupil: none realised: no ray {rays} reaches the image, each is stopped on the axis "
+                f"by {', '.join(limited)} (a face of it stands in the beam); designed {design}"), doc
+    return (f"entrance pupil: realised {realised}, designed {design}, {100 * pupil.relative_error:+.2f} %; "
+            f"limited by {', '.join(limited)}"), doc
+
+
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
     """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
     (lensmount.loop.sightlines.VIEWS); True when it passes."""
@@ -47,11 +73,8 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     size = (spec.housing.detector_width_mm, spec.housing.detector_height_mm)
     report = lit_walls_seen(p, mesh, size, angle, view)
     pupil = realised_entrance_pupil(p, mesh)
-    efl = paraxial(p).efl
-    limited = sorted(set(pupil.limited_by))
-    echo(f"entrance pupil: realised {pupil.diameter:.3f} mm (f/{efl / pupil.diameter:.2f}), designed "
-         f"{pupil.design_diameter:.3f} mm (f/{efl / pupil.design_diameter:.2f}), "
-         f"{100 * pupil.relative_error:+.2f} %; limited by {', '.join(limited)}")
+    said, pupil_doc = pupil_report(p, pupil)
+    echo(said)
     who = "the entrance aperture" if view == "aperture" else "the detector"
     if report.passed:
         echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing {who} sees "
@@ -73,9 +96,7 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     doc = {"exclusion_deg": angle, "seen_from": view, "passed": report.passed, "rays": report.rays,
            "lit_walls_seen": [w.__dict__ for w in report.walls],
            "lit_vane_edges_seen": [w.__dict__ for w in report.edges],
-           "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
-                              "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
-                              "limited_by": limited}}
+           "entrance_pupil": pupil_doc}
     write_text(json_path, json.dumps(doc, indent=2) + "\n")
     echo(f"picture: {png}; details: {json_path}")
     return report.passed
