@@ -194,7 +194,7 @@ def test_a_finite_conjugate_corpus_lens_goes_from_init_to_light_on_its_detector(
     assert [s.stem for s in scenes] == ["case2-lambertian", "object-lambertian"]
     for scene in scenes:
         direct = tomllib.loads(scene.read_text())["effects"]["direct"]
-        summary = _simulate(design, scene, tmp_path / scene.stem, 20_000 if direct else 50_000)
+        summary = _simulate(design, scene, tmp_path / scene.stem, 20_000 if direct else 100_000)
         if direct:
             image = summary["per_part"]["direct"]
             assert image["fraction"] > 0.0 and 0.0 < image["std_error"] < 0.2 * image["fraction"], image

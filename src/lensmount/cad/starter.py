@@ -54,7 +54,7 @@ from lensmount.cad.layout import Envelope, group_rim
 from lensmount.cad.lens_groups import lens_group, seat_of_group, thin_plate
 from lensmount.cad.mount_search import find_mount
 from lensmount.design.mount import LensEdge, MountSpec
-from lensmount.optics.paraxial import paraxial
+from lensmount.optics.paraxial import object_height_at, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import chief_ray
@@ -64,7 +64,6 @@ from lensmount.templates.lens_element import LensElement, OpticalFace
 SUN_MARGIN_DEG = 5.0         # the sun this far outside the field (as [hood] exclusion_deg's default)
 MIN_EDGE_FRACTION = 0.25     # edge thickness at least this fraction of the centre thickness
 MAX_HOOD_DIAMETERS = 2.0     # hood length at most this many entrance diameters
-FAR_PUPIL_DISTANCES = 1e3    # an entrance pupil this many object distances away is at infinity (telecentric)
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:
@@ -423,13 +422,13 @@ def starter_finishes(p: Prescription) -> dict:
 def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
     """The seed paper's case 2 for this lens (the test condition): a bright source at the hood's exclusion
     angle. At infinity the sun; for a finite object a point on the object plane, as far off the axis as
-    that angle reaches (`out_of_field_height`): the light a finite-conjugate lens meets from outside its field."""
+    that angle reaches (`optics.paraxial.object_height_at`): the light a finite-conjugate lens meets from outside its field."""
     angle = mount["hood"]["exclusion_deg"]
     width, height = mount["housing"]["detector_width_mm"], mount["housing"]["detector_height_mm"]
     nx = 360
     ny = max(1, int(round(nx * height / width)))
     if p.finite_object:
-        h = out_of_field_height(p, angle)
+        h = object_height_at(p, angle)
         source = {"type": "point", "height_mm": _round(h, 3), "azimuth_deg": 90.0}
         said = f"a point on the object plane {h:.4g} mm off the axis, {SUN_MARGIN_DEG:g}° outside the field"
     else:
@@ -443,19 +442,6 @@ def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
         "effects": {"scatter": True, "ghosts": False, "direct": False, "absorption": True},
         "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05, "time_s": 120},
     }
-
-
-def out_of_field_height(p: Prescription, angle_deg: float) -> float:
-    """Height on a finite object's plane seen at `angle_deg` off the axis from the paraxial entrance pupil's
-    centre, as the file's field angles are (OpticStudio's convention). An entrance pupil at infinity or
-    behind the object (telecentric object space) sees every height at 0°: the angle is then added to the
-    field's edge seen from surface 1's vertex."""
-    d = p.object_distance + paraxial(p).entrance_pupil_z
-    if 0.0 < d < FAR_PUPIL_DISTANCES * p.object_distance:
-        return d * math.tan(math.radians(angle_deg))
-    edge = max((abs(h) for h in p.object_heights_mm), default=0.0)
-    seen = math.atan2(edge, p.object_distance) + math.radians(angle_deg - p.max_field_deg)
-    return p.object_distance * math.tan(min(seen, math.radians(80.0)))
 
 
 # A polished mirror's micro-roughness: ABg g = 2 with its knee at 0.57° (B = 1e-4) and TIS = πA ln(1 + 1/B)
@@ -482,4 +468,4 @@ def object_scene(p: Prescription, case2: dict, name: str) -> dict | None:
 
 
 __all__ = ["starter_mount", "starter_finishes", "case2_scene", "POLISHED_MIRROR", "object_scene", "detector_size",
-           "image_height", "out_of_field_height"]
+           "image_height"]

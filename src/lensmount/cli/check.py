@@ -77,10 +77,10 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     echo(said)
     who = "the entrance aperture" if view == "aperture" else "the detector"
     if report.passed:
-        echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing {who} sees "
+        echo(f"no lit wall is seen: {report.lit_by} at {angle:g}° or beyond lights nothing {who} sees "
              f"({report.rays['backward']} backward, {report.rays['forward']} forward rays)")
     else:
-        echo(f"{len(report.walls)} lit face(s) {who} sees with the sun at {angle:g}° or beyond:")
+        echo(f"{len(report.walls)} lit face(s) {who} sees with {report.lit_by} at {angle:g}° or beyond:")
         for w in report.walls:
             name = f"{w.part} face {w.face}" + (f" '{w.label}'" if w.label else "")  # a STEP face's name
             echo(f"  {name} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
@@ -114,7 +114,8 @@ def check(
     glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Geometric stray-light check, no Monte Carlo: is any mount face both lit by the sun (at the
-    exclusion angle or beyond, straight in or through the lens) and seen by the detector (over its
+    exclusion angle or beyond, straight in or through the lens; a lens with its object at a finite
+    distance: by its object plane, seen at those angles from the entrance pupil) and seen by the detector (over its
     area, through the exit pupil)? Lists each such face with its part, area and where it lies,
     draws check.png, and reports the entrance pupil the mount realises (real rays through the
     mesh) against the design's. With --from aperture, the walls seen from the entrance aperture
