@@ -14,6 +14,7 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import OpenEXR
 import pytest
 import tomli_w
 from typer.testing import CliRunner
@@ -199,6 +200,8 @@ def test_a_finite_conjugate_corpus_lens_goes_from_init_to_light_on_its_detector(
         if direct:
             image = summary["per_part"]["direct"]
             assert image["fraction"] > 0.0 and 0.0 < image["std_error"] < 0.2 * image["fraction"], image
+            with OpenEXR.File(str(tmp_path / scene.stem / "irradiance.exr")) as exr:   # the images say their unit
+                assert exr.header()["lensmount_units"] == "E/E_ref"
         else:
             fraction, error = summary["stray_fraction"], summary["stray_fraction_std_error"]
             print(f"{lens.stem} {scene.stem}: stray fraction {fraction:.3g} +- {error}")
