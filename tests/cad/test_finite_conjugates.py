@@ -216,3 +216,45 @@ def test_a_finite_conjugate_corpus_lens_goes_from_init_to_light_on_its_detector(
         print(f"{lens.stem} axial point, {method}: {image['fraction']:.4f} +- {image['std_error']:.4f}, "
               f"étendue {expected:.4f}")
         assert image["fraction"] == pytest.approx(expected, abs=max(4 * image["std_error"], 0.01))
+
+
+TELECENTRIC_SINGLET = """VERS 120928 10 30221
+MODE SEQ
+NAME a singlet with its stop at its rear focus: telecentric object space
+UNIT MM X W X CM MR CPMM
+OBNA 5.0E-2 0
+FTYP 1 1 2 1 0 0 0
+YFLN 0 4.0 0 0 0 0 0 0 0 0 0 0
+WAVM 1 5.875618E-1 1
+PWAV 1
+SURF 0
+  CURV 0.0 0 0 0 0 ""
+  DISZ 200
+SURF 1
+  CURV 0.0 0 0 0 0 ""
+  DISZ 6
+  GLAS ___BLANK 1 0 1.5 0 0 0 0 0 0 0
+SURF 2
+  CURV -0.02 0 0 0 0 ""
+  DISZ 100
+SURF 3
+  STOP
+  CURV 0.0 0 0 0 0 ""
+  DISZ 96.15384615384615
+SURF 4
+  CURV 0.0 0 0 0 0 ""
+  DISZ 0
+"""
+
+
+def test_an_entrance_pupil_at_infinity_puts_case_2_beyond_the_field_seen_from_the_lens(tmp_path):
+    """Telecentric object space (the stop at the rear focus: the entrance pupil ~1e18 mm away) sees every
+    object height at 0°: case 2's point then stands 5° beyond the field's edge seen from surface 1's vertex."""
+    from lensmount.optics.paraxial import object_height_at
+
+    lens = tmp_path / "telecentric.zmx"
+    lens.write_text(TELECENTRIC_SINGLET)
+    p = load_lens(lens)
+    assert abs(paraxial(p).entrance_pupil_z) > 1e12 and p.object_heights_mm == (0.0, 4.0)
+    h = object_height_at(p, p.max_field_deg + 5.0)
+    assert math.degrees(math.atan(h / 200.0) - math.atan(4.0 / 200.0)) == pytest.approx(5.0)
