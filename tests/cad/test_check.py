@@ -74,3 +74,57 @@ def test_the_two_views_write_separate_files(reference):
     assert json.loads((out / "check" / "check-aperture.json").read_text())["seen_from"] == "aperture"
     assert (out / "check" / "check-aperture.png").stat().st_size > 10_000
     assert (out / "check" / "check.json").read_text() == before  # the detector's view is untouched
+
+
+def test_a_pupil_no_axial_ray_passes_is_explained_not_divided_by(reference, tmp_path):
+    """A glass face tagged as metal (a `mount` face across the beam) stops every on-axis ray: the
+    realised pupil is 0, and check says so and names the part, with no f-number of 1/0 (no traceback,
+    nothing infinite or NaN in check.json)."""
+    import math
+    import shutil
+
+    from lensmount.cli.check import run_check
+    from lensmount.mesh import FaceTag, TaggedMesh
+
+    design, out, _ = reference
+    folder = tmp_path / "build"
+    shutil.copytree(out, folder, ignore=shutil.ignore_patterns(".cache"))
+    mesh = TaggedMesh.load(folder / "mesh.npz")
+    table = [FaceTag(t.part, t.kind, "mount", t.finish, -1, t.face, t.label)
+             if (t.part, t.role, t.surface) == ("lens-1", "optical", 0) else t for t in mesh.tag_table]
+    TaggedMesh(mesh.vertices, mesh.triangles, mesh.tags, table).save(folder / "mesh.npz")
+    said: list[str] = []
+    run_check(design, folder, 30.0, echo=said.append)
+    line = next(s for s in said if s.startswith("entrance pupil"))
+    assert "none realised" in line and "lens-1" in line and "f/inf" not in line, line
+    pupil = json.loads((folder / "check" / "check.json").read_text())["entrance_pupil"]
+    assert pupil["realised_mm"] == 0.0 and pupil["realised_f_number"] is None and pupil["limited_by"] == ["lens-1"]
+    assert all(math.isfinite(v) for v in (pupil["design_mm"], pupil["design_f_number"]))
+
+
+def test_a_finite_object_lights_the_mount_from_its_object_plane():
+    """For a lens whose object is at a finite distance the check's light leaves the object plane: from the
+    point seen at the angle from the paraxial entrance pupil (as the file's field angles are) toward the
+    whole front opening; at infinity it is parallel, at that angle."""
+    import math
+    from dataclasses import replace
+
+    import numpy as np
+
+    from lensmount.design.lens import load_lens
+    from lensmount.loop.sightlines import _lit_rays
+    from lensmount.optics.paraxial import paraxial
+    from lensmount.scene.scene import FrontOpening
+    from tests.cad.test_finite_conjugates import SMALL_FINITE
+
+    p = load_lens(SMALL_FINITE)
+    opening = FrontOpening(-12.0, 9.0)
+    u = np.linspace(-0.7, 0.7, 5)
+    su, sv = (g.ravel() for g in np.meshgrid(u, u))
+    o, d = _lit_rays(p, opening, 100.0, 20.0, 90.0, su, sv)
+    assert np.allclose(o[:, 2], -p.object_distance) and np.allclose(o[:, 0], 0.0) and np.all(o[:, 1] > 0)
+    assert math.degrees(math.atan(o[0, 1] / (p.object_distance + paraxial(p).entrance_pupil_z))) == pytest.approx(20.0)
+    at = o + d * ((opening.z - o[:, 2]) / d[:, 2])[:, None]     # where each ray crosses the opening's plane
+    assert np.allclose(at[:, :2], np.column_stack([su, sv]) * (opening.radius * 1.02 + 1e-3))
+    o, d = _lit_rays(replace(p, object_distance=math.inf), opening, 100.0, 20.0, 90.0, su, sv)
+    assert np.allclose(d, [0.0, -math.sin(math.radians(20.0)), math.cos(math.radians(20.0))])

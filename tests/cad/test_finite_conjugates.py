@@ -14,16 +14,24 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import OpenEXR
 import pytest
+import tomli_w
 from typer.testing import CliRunner
 
 from lensmount.cli import app
 from lensmount.design.lens import load_lens
+from lensmount.optics.io.zemax import read_zmx
+from lensmount.optics.paraxial import paraxial
 from tests.cad.test_init_lens import check_corpus_design
 
 ROOT = Path(__file__).resolve().parents[2]
 COOKE = ROOT / "examples" / "cooke-triplet" / "cooke-triplet.zmx"
-US05831776 = ROOT / "tests" / "optics" / "corpus" / "US05831776-1.zmx"
+CORPUS = ROOT / "tests" / "optics" / "corpus"
+US05831776 = CORPUS / "US05831776-1.zmx"
+# every finite-conjugate lens of the corpus (its object at a finite distance), found by reading the files
+FINITE_CORPUS = [p for p in sorted(CORPUS.glob("*.zmx")) if read_zmx(p).finite_object]
+SMALL_FINITE = CORPUS / "thorlabs-MAP105050-A.zmx"   # a matched achromat pair: 12 parts
 D, HEIGHTS = 500.0, (0.0, 120.0, 170.0)
 
 
@@ -121,3 +129,132 @@ def test_us05831776_inspects_regenerates_and_simulates(tmp_path):
     # The corpus's checks of every refractive lens (tests/cad/test_init_lens.py leaves this one to this test:
     # its init and 45-part regenerate once, not twice)
     check_corpus_design(tmp_path / "design", tmp_path / "case2")
+
+
+def test_the_corpus_holds_finite_conjugate_lenses_of_both_object_spaces():
+    """What the tests below run on: a finite object seen through an entrance pupil (the achromat pair) and
+    in telecentric object space (US05831776)."""
+    assert {p.name for p in FINITE_CORPUS} >= {SMALL_FINITE.name, US05831776.name}
+
+
+def test_init_gives_a_finite_object_object_sources_not_the_sun(tmp_path):
+    """For a finite object init's scenes light the object plane: case 2 is a point on it at the exclusion
+    angle seen from the paraxial entrance pupil (as the file's field angles are), outside the object field;
+    the object scene is the field itself, a Lambertian disc, its direct image on."""
+    made = CliRunner().invoke(app, ["init", str(tmp_path / "d"), "--lens", str(SMALL_FINITE)])
+    assert made.exit_code == 0, made.output
+    assert "case2-lambertian.toml and scenes/object-lambertian.toml" in made.output
+    p = load_lens(SMALL_FINITE)
+    mount = tomllib.loads((tmp_path / "d" / "mount.toml").read_text())
+    case2 = tomllib.loads((tmp_path / "d" / "scenes" / "case2-lambertian.toml").read_text())
+    obj = tomllib.loads((tmp_path / "d" / "scenes" / "object-lambertian.toml").read_text())
+    assert case2["source"]["type"] == "point" and not case2["effects"]["direct"]
+    to_pupil = p.object_distance + paraxial(p).entrance_pupil_z
+    seen = math.degrees(math.atan(case2["source"]["height_mm"] / to_pupil))
+    assert seen == pytest.approx(mount["hood"]["exclusion_deg"], abs=0.01)
+    assert case2["source"]["height_mm"] > max(p.object_heights_mm)
+    assert obj["source"] == {"type": "disc", "radius_mm": pytest.approx(max(p.object_heights_mm), abs=1e-3)}
+    assert obj["effects"]["direct"] and obj["detector"] == case2["detector"]
+
+
+def _simulate(design: Path, scene: Path, out: Path, photons: int, method: str = "bidirectional") -> dict:
+    doc = tomllib.loads(scene.read_text())
+    doc["detector"]["pixels"] = [max(1, n // 10) for n in doc["detector"]["pixels"]]
+    scene.write_text(tomli_w.dumps(doc))
+    run = CliRunner().invoke(app, ["simulate", str(design), "--scene", str(scene), "--photons-per-pass", str(photons),
+                                   "--passes", "8", "--workers", "1", "--method", method, "--out", str(out)])
+    assert run.exit_code == 0 and run.exception is None, run.output
+    return json.loads((out / "summary.json").read_text())
+
+
+def _cone(na: float) -> float:
+    """Solid angle of the cone of numerical aperture na in air, sr."""
+    return 2.0 * math.pi * (1.0 - math.sqrt(1.0 - na * na))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lens", [pytest.param(p, id=p.stem) for p in FINITE_CORPUS])
+def test_a_finite_conjugate_corpus_lens_goes_from_init_to_light_on_its_detector(lens, tmp_path):
+    """init → regenerate → check (exit 0 or 1, never a traceback; the pupil as the object-space NA) →
+    each scene init wrote brings light to the detector: case 2's stray fraction > 0 with its error bar,
+    the object's direct image > 0. And the flux of an axial object point through the lens is the étendue
+    the mount passes: I·Ω of the cone `check` measured (sequential real rays against the mesh), over
+    I·Ω of the designed cone, the normalisation of the source (lossless glass, perfect AR), by both
+    estimators."""
+    runner, design = CliRunner(), tmp_path / "design"
+    made = runner.invoke(app, ["init", str(design), "--lens", str(lens)])
+    assert made.exit_code == 0, made.output
+    reg = runner.invoke(app, ["regenerate", str(design), "--quiet"])
+    assert reg.exit_code == 0, reg.output
+    checked = runner.invoke(app, ["check", str(design)])
+    assert checked.exit_code in (0, 1) and isinstance(checked.exception, (SystemExit, type(None))), checked.output
+    assert "entrance pupil: realised NA" in checked.output, checked.output
+    pupil = json.loads((design / "build" / "check" / "check.json").read_text())["entrance_pupil"]
+    assert 0.0 < pupil["realised_object_na"] < 1.0 and 0.0 < pupil["design_object_na"] < 1.0
+
+    scenes = sorted((design / "scenes").glob("*.toml"))
+    assert [s.stem for s in scenes] == ["case2-lambertian", "object-lambertian"]
+    for scene in scenes:
+        direct = tomllib.loads(scene.read_text())["effects"]["direct"]
+        summary = _simulate(design, scene, tmp_path / scene.stem, 20_000 if direct else 100_000)
+        if direct:
+            image = summary["per_part"]["direct"]
+            assert image["fraction"] > 0.0 and 0.0 < image["std_error"] < 0.2 * image["fraction"], image
+            with OpenEXR.File(str(tmp_path / scene.stem / "irradiance.exr")) as exr:   # the images say their unit
+                assert exr.header()["lensmount_units"] == "E/E_ref"
+        else:
+            fraction, error = summary["stray_fraction"], summary["stray_fraction_std_error"]
+            print(f"{lens.stem} {scene.stem}: stray fraction {fraction:.3g} +- {error}")
+            assert fraction > 0.0 and error is not None and 0.0 < error < fraction, summary["tail"]
+
+    axial = design / "scenes" / "axial-point.toml"
+    axial.write_text('[source]\ntype = "point"\n[detector]\nwidth_mm = 10.0\nheight_mm = 10.0\npixels = [100, 100]\n'
+                     "[effects]\ndirect = true\nscatter = false\nabsorption = false\n")
+    expected = _cone(pupil["realised_object_na"]) / _cone(pupil["design_object_na"])
+    for method in ("bidirectional", "forward"):   # the view map's estimate and the photons' own walk
+        image = _simulate(design, axial, tmp_path / f"axial-{method}", 50_000, method)["per_part"]["direct"]
+        print(f"{lens.stem} axial point, {method}: {image['fraction']:.4f} +- {image['std_error']:.4f}, "
+              f"étendue {expected:.4f}")
+        assert image["fraction"] == pytest.approx(expected, abs=max(4 * image["std_error"], 0.01))
+
+
+TELECENTRIC_SINGLET = """VERS 120928 10 30221
+MODE SEQ
+NAME a singlet with its stop at its rear focus: telecentric object space
+UNIT MM X W X CM MR CPMM
+OBNA 5.0E-2 0
+FTYP 1 1 2 1 0 0 0
+YFLN 0 4.0 0 0 0 0 0 0 0 0 0 0
+WAVM 1 5.875618E-1 1
+PWAV 1
+SURF 0
+  CURV 0.0 0 0 0 0 ""
+  DISZ 200
+SURF 1
+  CURV 0.0 0 0 0 0 ""
+  DISZ 6
+  GLAS ___BLANK 1 0 1.5 0 0 0 0 0 0 0
+SURF 2
+  CURV -0.02 0 0 0 0 ""
+  DISZ 100
+SURF 3
+  STOP
+  CURV 0.0 0 0 0 0 ""
+  DISZ 96.15384615384615
+SURF 4
+  CURV 0.0 0 0 0 0 ""
+  DISZ 0
+"""
+
+
+def test_an_entrance_pupil_at_infinity_puts_case_2_beyond_the_field_seen_from_the_lens(tmp_path):
+    """Telecentric object space (the stop at the rear focus: the entrance pupil ~1e18 mm away) sees every
+    object height at 0°: case 2's point then stands 5° beyond the field's edge seen from surface 1's vertex."""
+    from lensmount.optics.paraxial import object_height_at
+
+    lens = tmp_path / "telecentric.zmx"
+    lens.write_text(TELECENTRIC_SINGLET)
+    p = load_lens(lens)
+    assert abs(paraxial(p).entrance_pupil_z) > 1e12 and p.object_heights_mm == (0.0, 4.0)
+    h = object_height_at(p, p.max_field_deg + 5.0)
+    assert math.degrees(math.atan(h / 200.0) - math.atan(4.0 / 200.0)) == pytest.approx(5.0)

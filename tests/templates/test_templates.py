@@ -1,6 +1,7 @@
 """Templates against closed-form volumes, tags against the analytic surfaces."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -78,6 +79,18 @@ def test_lens_tags_lie_on_the_analytic_surfaces():
             assert r.min() >= a - 0.4 - 1e-7
 
 
+def test_a_deep_face_and_its_flat_bevel_are_tagged_optical_and_bevel():
+    """A deep concave face (R -85 mm out to 64 mm: 49° of arc, 29 mm of sag) with a flat bevel out to a
+    90 mm rim: every profile segment is one CAD face, and each face is tagged with its segment's role,
+    not `mount` (a face tagged `mount` absorbs the light as metal would)."""
+    front, back = OpticalFace(10, 193.87, -1 / 85.2817), OpticalFace(11, 205.831, 1 / 584.8597)
+    el = LensElement(front, back, 90.4, 0.1, 0.1, front_flat_from=64.229)
+    solid = el.build()
+    roles = face_roles(solid, el.segments())
+    assert sorted(roles) == sorted((s.role, s.surface) for s in el.segments() if not s.on_axis())
+    assert ("optical", 10) in roles and ("mount", -1) not in roles
+
+
 def test_diaphragm_edge_land_width():
     d = Diaphragm(150.0, 16.3, 31.0, 1.0, 0.05, 45.0, "rear")
     solid = d.build()
@@ -146,3 +159,32 @@ def test_a_steep_aspheres_face_is_tagged_optical():
     el = LensElement(front, back, 13.462, 0.5, 0.5)
     roles = face_roles(el.build(), el.segments())
     assert ("optical", 0) in roles and ("optical", 1) in roles
+
+
+@pytest.fixture(scope="module")
+def reference_layout():
+    """Layout of the reference lens with the reference mount (no CAD kernel)."""
+    from lensmount.cad.layout import plan
+    from lensmount.design.lens import load_lens
+    from lensmount.design.mount import load_mount
+
+    example = Path(__file__).resolve().parents[2] / "examples" / "double-gauss-360"
+    spec = load_mount(example / "mount.toml")
+    return plan(load_lens(example / "lens.toml"), spec), spec
+
+
+def test_a_built_in_part_whose_faces_are_not_all_recognised_is_refused(reference_layout, monkeypatch):
+    """Were the face matching to miss a face of a built-in part (here: every face looked up far off), the
+    part is refused with its name, not built with a glass face tagged `mount` (absorbing as metal)."""
+    from dataclasses import replace
+
+    from lensmount.cad.assembly import build_parts
+    from lensmount.errors import GeometryError
+    from lensmount.templates import profile
+
+    layout, spec = reference_layout
+    one = replace(layout, parts=[layout.part("lens-1")])
+    assert [bp.plan.name for bp in build_parts(one, spec)] == ["lens-1"]
+    monkeypatch.setattr(profile, "_profile_point", lambda face: np.array([1e4, 1e4]))
+    with pytest.raises(GeometryError, match="lens-1: .* not found on the solid"):
+        build_parts(one, spec)

@@ -28,7 +28,7 @@ from lensmount.cad.step_parts import (StepSource, check_used, datum_z, face_fini
                                       placement, raise_sliver, read_entry, sliver_to_glass, step_part_kind)
 from lensmount.errors import GeometryError, InputError
 from lensmount.optics.prescription import Prescription
-from lensmount.templates.profile import face_roles
+from lensmount.templates.profile import face_roles, unmatched_segments
 from lensmount.templates.user import declared_roles, load_template, to_solid
 
 if TYPE_CHECKING:  # build123d/OCP take seconds to load; planning and checking a layout do without them
@@ -102,6 +102,11 @@ def build_parts(layout: Layout, spec: MountSpec, template_paths: dict[str, Path]
             raise GeometryError(f"{pp.name}: the CAD kernel built an invalid solid", field=pp.kind,
                                 valid="parameters giving a simple closed profile")
         roles = face_roles(solid, segs)
+        lost = [] if path is not None else unmatched_segments(roles, segs)
+        if lost:   # a face left `mount` would absorb the light as metal does: refuse rather than mis-tag
+            raise GeometryError(f"{pp.name}: {len(lost)} face(s) of the revolved profile were not found on the "
+                                f"solid ({', '.join(f'{s.role} from r = {s.start[0]:.3f} to {s.end[0]:.3f} mm' for s in lost)})",
+                                field=pp.kind, valid="a profile whose faces the CAD kernel keeps apart")
         if face_role is not None:
             roles = declared_roles(solid, face_role, pp.name, pp.template.params(), roles, path, pp.kind)
         out.append(BuiltPart(pp, solid, roles, path, part_hash(pp, raw), f"templates.{pp.kind}" if path else ""))

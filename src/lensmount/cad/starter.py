@@ -41,7 +41,8 @@ dimension follows from the lens itself, in the mount layer's own keys
 The finishes (the design's, `starter_finishes`) are the seed paper's case 2: every mount face
 and lens edge Lambertian 5 %, the diaphragm edge absorbing, and a mirror's coated face a
 polished mirror's scatter; the case-2 scene (the test condition) is the sun 5° outside the
-field on that detector.
+field on that detector, or for a finite object a bright point on its plane 5° outside the field; a
+finite object also gets the object-lambertian scene (the object field itself, its direct image on).
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from lensmount.cad.lens_groups import group_rim, lens_group, seat_of_group, thin
 from lensmount.cad.mount_search import find_mount
 from lensmount.cad.plan import Envelope
 from lensmount.design.mount import LensEdge, MountSpec
-from lensmount.optics.paraxial import paraxial
+from lensmount.optics.paraxial import object_height_at, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.optics.realrays import image_height
@@ -469,16 +470,24 @@ def starter_finishes(p: Prescription) -> dict:
 
 
 def case2_scene(p: Prescription, mount: dict, name: str) -> dict:
-    """The seed paper's case 2 for this lens (the test condition): the sun at the hood's exclusion angle."""
-    sun = mount["hood"]["exclusion_deg"]
+    """The seed paper's case 2 for this lens (the test condition): a bright source at the hood's exclusion
+    angle. At infinity the sun; for a finite object a point on the object plane, as far off the axis as
+    that angle reaches (`optics.paraxial.object_height_at`): the light a finite-conjugate lens meets from outside its field."""
+    angle = mount["hood"]["exclusion_deg"]
     width, height = mount["housing"]["detector_width_mm"], mount["housing"]["detector_height_mm"]
     nx = 360
     ny = max(1, int(round(nx * height / width)))
+    if p.finite_object:
+        h = object_height_at(p, angle)
+        source = {"type": "point", "height_mm": _round(h, 3), "azimuth_deg": 90.0}
+        said = f"a point on the object plane {h:.4g} mm off the axis, {SUN_MARGIN_DEG:g}° outside the field"
+    else:
+        source = {"type": "sun", "off_axis_deg": angle, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
+                  "limb_darkening": False}
+        said = f"the sun at {angle:g}° ({SUN_MARGIN_DEG:g}° outside the field)"
     return {
-        "description": f"The seed paper's case 2 on {name}: the sun at {sun:g}° ({SUN_MARGIN_DEG:g}° outside the "
-                       "field), with the design's finishes (finishes.toml)",
-        "source": {"type": "sun", "off_axis_deg": sun, "azimuth_deg": 90.0, "angular_diameter_deg": 0.53,
-                   "limb_darkening": False},
+        "description": f"The seed paper's case 2 on {name}: {said}, with the design's finishes (finishes.toml)",
+        "source": source,
         "detector": {"width_mm": width, "height_mm": height, "pixels": [nx, ny]},
         "effects": {"scatter": True, "ghosts": False, "direct": False, "absorption": True},
         "run": {"photons": 200_000, "passes": 32, "seed": 1, "target_rel_error": 0.05, "time_s": 120},

@@ -34,6 +34,32 @@ def exclusion_of(spec, prescription, override: float | None) -> float:
     return spec.exclusion_deg(prescription.max_field_deg)
 
 
+def pupil_report(p, pupil) -> tuple[str, dict]:
+    """The realised entrance pupil against the design's: one line and check.json's entry. At infinity
+    as diameter and f-number; from a finite object as the object-space NA (the pupil's diameter too
+    where it lies within reach). A pupil no axial ray passes names the part in the beam on the axis."""
+    efl = paraxial(p).efl
+    limited = sorted(set(pupil.limited_by))
+    doc = {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
+           "realised_f_number": abs(efl) / pupil.diameter if pupil.diameter > 0.0 else None,
+           "design_f_number": abs(efl) / pupil.design_diameter, "limited_by": limited}
+    if p.finite_object:
+        doc |= {"realised_object_na": pupil.object_na, "design_object_na": pupil.design_object_na}
+        within_reach = pupil.design_diameter < 1e6   # a telecentric object space has its pupil at infinity
+        design = f"NA {pupil.design_object_na:.4f}" + (f" ({pupil.design_diameter:.3f} mm)" if within_reach else "")
+        realised = f"NA {pupil.object_na:.4f}" + (f" ({pupil.diameter:.3f} mm)" if within_reach else "")
+        rays = "from the axial object point"
+    else:
+        design = f"{pupil.design_diameter:.3f} mm (f/{abs(efl) / pupil.design_diameter:.2f})"
+        realised = f"{pupil.diameter:.3f} mm (f/{abs(efl) / pupil.diameter:.2f})" if pupil.diameter > 0.0 else ""
+        rays = "entering parallel to the axis"
+    if pupil.diameter <= 0.0:
+        return (f"entrance pupil: none realised: no ray {rays} reaches the image, each is stopped on the axis "
+                f"by {', '.join(limited)} (a face of it stands in the beam); designed {design}"), doc
+    return (f"entrance pupil: realised {realised}, designed {design}, {100 * pupil.relative_error:+.2f} %; "
+            f"limited by {', '.join(limited)}"), doc
+
+
 def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.echo, view: str = "detector") -> bool:
     """Check the geometry in `folder` (already regenerated from `design`) seen from `view`
     (lensmount.loop.sightlines.VIEWS); True when it passes."""
@@ -47,19 +73,16 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     size = (spec.housing.detector_width_mm, spec.housing.detector_height_mm)
     report = lit_walls_seen(p, mesh, size, angle, view)
     pupil = realised_entrance_pupil(p, mesh)
-    efl = paraxial(p).efl
-    limited = sorted(set(pupil.limited_by))
-    echo(f"entrance pupil: realised {pupil.diameter:.3f} mm (f/{efl / pupil.diameter:.2f}), designed "
-         f"{pupil.design_diameter:.3f} mm (f/{efl / pupil.design_diameter:.2f}), "
-         f"{100 * pupil.relative_error:+.2f} %; limited by {', '.join(limited)}")
+    said, pupil_doc = pupil_report(p, pupil)
+    echo(said)
     for said in d.lens_warnings:   # an element edged inside the beam: the vignetting per field it costs
         echo(f"lens: {said}")
     who = "the entrance aperture" if view == "aperture" else "the detector"
     if report.passed:
-        echo(f"no lit wall is seen: the sun at {angle:g}° or beyond lights nothing {who} sees "
+        echo(f"no lit wall is seen: {report.lit_by} at {angle:g}° or beyond lights nothing {who} sees "
              f"({report.rays['backward']} backward, {report.rays['forward']} forward rays)")
     else:
-        echo(f"{len(report.walls)} lit face(s) {who} sees with the sun at {angle:g}° or beyond:")
+        echo(f"{len(report.walls)} lit face(s) {who} sees with {report.lit_by} at {angle:g}° or beyond:")
         for w in report.walls:
             name = f"{w.part} face {w.face}" + (f" '{w.label}'" if w.label else "")  # a STEP face's name
             echo(f"  {name} ({w.kind}, {w.role}): {w.area_mm2:.1f} mm² at z {w.z_range[0]:.1f}"
@@ -75,9 +98,7 @@ def run_check(design: Path, folder: Path, exclusion: float | None, echo=typer.ec
     doc = {"exclusion_deg": angle, "seen_from": view, "passed": report.passed, "rays": report.rays,
            "lit_walls_seen": [w.__dict__ for w in report.walls],
            "lit_vane_edges_seen": [w.__dict__ for w in report.edges],
-           "entrance_pupil": {"realised_mm": pupil.diameter, "design_mm": pupil.design_diameter,
-                              "realised_f_number": efl / pupil.diameter, "design_f_number": efl / pupil.design_diameter,
-                              "limited_by": limited},
+           "entrance_pupil": pupil_doc,
            "lens_vignetting": [{"surfaces": [c.surfaces[0] + 1, c.surfaces[1] + 1], "semi_diameter_mm": c.height,
                                 "fields": list(c.fields), "field_unit": c.field_unit, "lost": list(c.lost)}
                                for c in d.lens_clips]}
@@ -98,7 +119,8 @@ def check(
     glass_catalog: GlassCatalogs = [],
 ) -> None:
     """Geometric stray-light check, no Monte Carlo: is any mount face both lit by the sun (at the
-    exclusion angle or beyond, straight in or through the lens) and seen by the detector (over its
+    exclusion angle or beyond, straight in or through the lens; a lens with its object at a finite
+    distance: by its object plane, seen at those angles from the entrance pupil) and seen by the detector (over its
     area, through the exit pupil)? Lists each such face with its part, area and where it lies,
     draws check.png, and reports the entrance pupil the mount realises (real rays through the
     mesh) against the design's. With --from aperture, the walls seen from the entrance aperture

@@ -104,11 +104,11 @@ def init(
             raise InputError("the folder exists and is not empty", file=str(directory),
                              valid="a new or empty folder, or --force")
         if lens is not None:
-            _init_from_lens(directory, Path(lens), allow_vignetting)
+            scenes = _init_from_lens(directory, Path(lens), allow_vignetting)
             again = "".join(f" --glass-catalog {c}" for c in glass_catalog)   # the lens file cannot name them
-            typer.echo(f"{directory}: design folder from {lens} (mount.toml, finishes.toml and "
-                       f"scenes/case2-lambertian.toml derived from the lens); next: lensmount regenerate "
-                       f"{directory}{again}")
+            made = ["mount.toml", "finishes.toml"] + [f"scenes/{s}.toml" for s in scenes]
+            typer.echo(f"{directory}: design folder from {lens} ({', '.join(made[:-1])} and {made[-1]} derived from "
+                       f"the lens); next: lensmount regenerate {directory}{again}")
             return
         root = examples_root()
         names = sorted(p.name for p in root.iterdir() if (p / "mount.toml").is_file())
@@ -160,11 +160,12 @@ def _starter_for_lens(lens: Path):
     return prescription, mount, problem, clips
 
 
-def _init_from_lens(directory: Path, lens: Path, allow_vignetting: bool = False) -> None:
+def _init_from_lens(directory: Path, lens: Path, allow_vignetting: bool = False) -> list[str]:
     """Copy the lens, write the derived mount.toml, finishes.toml (mirrors: their scatter included) and
-    case-2 scene, and for a finite object the object-lambertian scene (everything checked before
-    writing). InputError, with nothing written, when no mount that builds was found, or when one builds
-    only with an element sized by its glass and `allow_vignetting` is not given."""
+    case-2 scene (the sun, or for a finite object a point outside its field), and for a finite object the
+    object-lambertian scene (everything checked before writing); the names of the scenes written.
+    InputError, with nothing written, when no mount that builds was found, or when one builds only with an
+    element sized by its glass and `allow_vignetting` is not given."""
     # lazy: keeps lensmount --help from loading cad and matplotlib
     from lensmount.cad.starter import case2_scene, object_scene, starter_finishes
 
@@ -208,3 +209,4 @@ def _init_from_lens(directory: Path, lens: Path, allow_vignetting: bool = False)
     write_text(directory / "mount.toml", header + tomli_w.dumps(mount))
     with atomic_path(directory / target) as tmp:  # byte for byte: a .zmx keeps its encoding
         tmp.write_bytes(lens.read_bytes())
+    return ["case2-lambertian"] + (["object-lambertian"] if obj is not None else [])

@@ -17,7 +17,9 @@ Both sets come from deterministic ray grids through the real tracer (`trace.trac
   line-of-sight vane construction hides;
 * lit: forward rays on a square grid covering the front opening, from the sun at the
   exclusion angle and at a ladder of larger angles up to 89°; the first mechanical face
-  each ray meets is lit.
+  each ray meets is lit. For a lens whose object is at a finite distance the light comes from
+  its object plane instead: from the point seen at each of those angles from the entrance pupil
+  (`optics.paraxial.object_height_at`, as the file's fields are) toward the same grid.
 
 The mount is a solid of revolution, so the sun's azimuth only rotates the lit pattern; the
 sets are compared in the (r, z) half plane, per face, in cells of CELL_MM: a cell hit by a
@@ -35,7 +37,7 @@ import numpy as np
 from lensmount.design.scene import scene_from_dict
 from lensmount.mesh import TaggedMesh
 from lensmount.optics.apertures import with_clear_semi_diameters
-from lensmount.optics.paraxial import paraxial
+from lensmount.optics.paraxial import object_height_at, paraxial
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.profiles import Profile
 from lensmount.physics.rays import RayBatch
@@ -87,6 +89,7 @@ class SightlineReport:
     both_points: np.ndarray     # (k, 2) cell centres both lit and seen
     rays: dict = field(default_factory=dict)
     edges: list[LitWall] = field(default_factory=list)  # lit vane edges seen from the aperture (not failures)
+    lit_by: str = "the sun"  # or "the object plane": a finite object's own plane lights the mount
 
     @property
     def passed(self) -> bool:
@@ -137,7 +140,7 @@ def _aperture_rays(prescription: Prescription):
 
 def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tuple[float, float],
                    exclusion_deg: float, view: str = "detector") -> SightlineReport:
-    """Every mount face both lit by the sun at >= exclusion_deg and seen from `view`: the
+    """Every mount face both lit by the sun (a finite object: its object plane) at >= exclusion_deg and seen from `view`: the
     detector (through the lens) or the entrance aperture (VIEWS; module docstring). Seen from
     the aperture, lit vane edges are unavoidable (every edge is both): they are listed in
     `report.edges`, not as failures."""
@@ -151,7 +154,7 @@ def lit_walls_seen(prescription: Prescription, mesh: TaggedMesh, detector_mm: tu
     tracer = Tracer(scene)
     o, d = _aperture_rays(p) if view == "aperture" else _detector_rays(scene, paraxial(p), w, h)
     v_tags, v_pts = _first_faces(tracer, o, d)
-    report = _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, len(o))
+    report = _compare(p, mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, len(o))
     if view == "aperture":
         report.edges = [wl for wl in report.walls if wl.role == "vane-edge"]
         report.walls = [wl for wl in report.walls if wl.role != "vane-edge"]
@@ -175,9 +178,25 @@ def _detector_rays(scene, par, w: float, h: float):
     return o, d
 
 
-def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_rays) -> SightlineReport:
-    """Trace the sun at and beyond the exclusion angle; the faces both lit and seen, per (r, z) cell."""
-    # ---- lit: the sun at and beyond the exclusion angle --------------------------------
+def _lit_rays(p: Prescription, opening, reach: float, th: float, az: float, su, sv):
+    """(origins, directions) of the light at angle th (deg), azimuth az (deg) over the front opening's
+    grid (su, sv in the unit disc): parallel from the sun, or from the point of a finite object's plane."""
+    radius = opening.radius * 1.02 + 1e-3
+    if p.finite_object:   # the point toward azimuth az, as a scene's point source sits
+        h, a = object_height_at(p, th), math.radians(az)
+        point = np.array([h * math.cos(a), h * math.sin(a), -p.object_distance])
+        d = np.column_stack([radius * su, radius * sv, np.full(len(su), opening.z)]) - point
+        return np.tile(point, (len(su), 1)), d / np.linalg.norm(d, axis=1, keepdims=True)
+    ds = source_direction(th, az)
+    e1, e2 = orthonormal_basis(ds)
+    # a disc normal to the light, set back beyond the assembly, covering the front opening
+    centre = np.array([0.0, 0.0, opening.z]) - reach * ds
+    return centre + radius * (su[:, None] * e1 + sv[:, None] * e2), np.tile(ds, (len(su), 1))
+
+
+def _compare(p, mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_rays) -> SightlineReport:
+    """Trace the light at and beyond the exclusion angle; the faces both lit and seen, per (r, z) cell."""
+    # ---- lit: the sun (or the object plane) at and beyond the exclusion angle ----------
     opening = scene.front_opening
     reach = float(np.linalg.norm(mesh.vertices - [0.0, 0.0, opening.z], axis=1).max()) + 1.0
     u = (np.arange(SUN_GRID) + 0.5) / SUN_GRID * 2 - 1
@@ -188,13 +207,8 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
                     | {a for a in STEEP_SUN_DEG if a > exclusion_deg})
     for th in angles:
         for az in SUN_AZIMUTHS_DEG:
-            ds = source_direction(th, az)
-            e1, e2 = orthonormal_basis(ds)
-            # a disc normal to the light, set back beyond the assembly, covering the front opening
-            radius = opening.radius * 1.02 + 1e-3
-            centre = np.array([0.0, 0.0, opening.z]) - reach * ds
-            starts = centre + radius * (su[inside][:, None] * e1 + sv[inside][:, None] * e2)
-            t, q = _first_faces(tracer, starts, np.tile(ds, (len(starts), 1)))
+            starts, dirs = _lit_rays(p, opening, reach, th, az, su[inside], sv[inside])
+            t, q = _first_faces(tracer, starts, dirs)
             l_tags.append(t)
             l_pts.append(q)
             l_angle.append(np.full(len(t), th))
@@ -223,7 +237,8 @@ def _compare(mesh, tracer, scene, exclusion_deg, view, v_tags, v_pts, n_seen_ray
     both_pts = np.array([((ir + 0.5) * CELL_MM, (iz + 0.5) * CELL_MM) for (_, ir, iz) in both]).reshape(-1, 2)
     return SightlineReport(exclusion_deg, view, walls, np.column_stack([np.hypot(v_pts[:, 0], v_pts[:, 1]), v_pts[:, 2]]),
                            np.column_stack([np.hypot(l_pts[:, 0], l_pts[:, 1]), l_pts[:, 2]]), both_pts,
-                           {"backward": int(n_seen_rays), "forward": int(len(angles) * len(SUN_AZIMUTHS_DEG) * inside.sum())})
+                           {"backward": int(n_seen_rays), "forward": int(len(angles) * len(SUN_AZIMUTHS_DEG) * inside.sum())},
+                           lit_by="the object plane" if p.finite_object else "the sun")
 
 
 def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
@@ -241,7 +256,7 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
                 label=f"seen from the {'entrance aperture' if report.view == 'aperture' else 'detector'}")
     if len(report.lit_points):
         ax.plot(report.lit_points[:, 1], report.lit_points[:, 0], ".", ms=1, color="tab:orange", alpha=0.4,
-                label=f"lit by the sun at ≥ {report.exclusion_deg:g}°")
+                label=f"lit by {report.lit_by} at ≥ {report.exclusion_deg:g}°")
     if len(report.both_points):
         ax.plot(report.both_points[:, 1], report.both_points[:, 0], "s", ms=4, color="red",
                 label="lit and seen")
@@ -249,7 +264,7 @@ def plot_report(report: SightlineReport, mesh: TaggedMesh, path) -> None:
     ax.set_ylabel("r (mm)")
     verdict = "PASS: no lit wall is seen" if report.passed else \
         f"FAIL: {len(report.walls)} lit face(s) seen, first {report.walls[0].part} face {report.walls[0].face}"
-    ax.set_title(f"lensmount check — sun at ≥ {report.exclusion_deg:g}° — {verdict}")
+    ax.set_title(f"lensmount check — {report.lit_by} at ≥ {report.exclusion_deg:g}° — {verdict}")
     ax.legend(loc="upper right", markerscale=3, fontsize=8)
     fig.tight_layout()
     save_figure(fig, path)

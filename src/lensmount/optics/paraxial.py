@@ -38,6 +38,8 @@ from lensmount.optics.glass import refractive_index
 from lensmount.optics.prescription import Prescription
 
 _TINY = 1e-300
+FAR_PUPIL_DISTANCES = 1e3    # an entrance pupil this many object distances away is at infinity (telecentric)
+MAX_OBJECT_ANGLE_DEG = 80.0  # object_height_at's angle from surface 1, at most
 AFOCAL_POWER_RATIO = 1e-4
 
 
@@ -199,6 +201,20 @@ def marginal_start(prescription: Prescription, epd: float, entrance_pupil_z: flo
     return u * prescription.object_distance, u
 
 
+def object_height_at(prescription: Prescription, angle_deg: float) -> float:
+    """Height (mm) on a finite object's plane seen `angle_deg` off the axis from the paraxial entrance
+    pupil's centre, as a file's field angles are (OpticStudio's convention). An entrance pupil at infinity
+    or behind the object (telecentric object space) sees every height at 0°: the angle beyond the largest
+    field is then added to the field's edge seen from surface 1's vertex."""
+    p = prescription
+    d = p.object_distance + paraxial(p).entrance_pupil_z
+    if 0.0 < d < FAR_PUPIL_DISTANCES * p.object_distance:
+        return d * math.tan(math.radians(angle_deg))
+    edge = max((abs(h) for h in p.object_heights_mm), default=0.0)
+    seen = math.atan2(edge, p.object_distance) + math.radians(angle_deg - p.max_field_deg)
+    return p.object_distance * math.tan(min(seen, math.radians(MAX_OBJECT_ANGLE_DEG)))
+
+
 def _nonzero(x: float) -> float:
     """Keep an afocal system's zero power from turning into a division error: tiny, same sign."""
     return x if abs(x) > _TINY else math.copysign(_TINY, x if x != 0 else 1.0)
@@ -208,4 +224,5 @@ def _finite(x: float) -> float:
     return float(x) if math.isfinite(x) else 1e300
 
 
-__all__ = ["Paraxial", "paraxial", "marginal_heights", "marginal_start", "indices", "surface_matrices"]
+__all__ = ["Paraxial", "paraxial", "marginal_heights", "marginal_start", "indices", "surface_matrices",
+           "object_height_at"]

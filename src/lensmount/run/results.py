@@ -1,9 +1,10 @@
 """Writing a run's results: irradiance.exr, preview.png, summary.json — each atomically.
 
 - `irradiance.exr`: float32 scanline image, channel `Y` = total normalised irradiance
-  E/E_sun, plus one channel per contributing part (named after the part). Row 0 is the
+  E/E_sun (E/E_ref for a source at a finite distance; header `lensmount_units`), plus one channel
+  per contributing part (named after the part). Row 0 is the
   detector's −y edge (the array as the integrators produce it; header `lensmount_row0`).
-- `preview.png`: false-colour log10(E/E_sun) with a colour bar, detector axes in mm and
+- `preview.png`: false-colour log10(E/E_sun or E/E_ref) with a colour bar, detector axes in mm and
   the field of view outlined.
 - `summary.json`: the numbers, never a NaN or Inf (`allow_nan=False`); unknowns are null.
 - `report.html`: one self-contained page (images inline) for handing the run round.
@@ -41,9 +42,9 @@ def channel_name(part: str) -> str:
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, per_part: np.ndarray, part_names: list[str],
-              only_contributing: bool = True) -> list[str]:
+              only_contributing: bool = True, unit: str = "E/E_sun") -> list[str]:
     """Write Y + one channel per part (parts with zero everywhere are left out when
-    `only_contributing`). Returns the part channels written."""
+    `only_contributing`), in `unit` (E/E_ref for a source at a finite distance). Returns the part channels written."""
     import OpenEXR  # lazy: keeps lensmount --help from loading OpenEXR
 
     path = Path(path)
@@ -58,7 +59,7 @@ def write_exr(path: str | os.PathLike, image: np.ndarray, per_part: np.ndarray, 
         channels[key] = np.ascontiguousarray(np.nan_to_num(layer, nan=0.0, posinf=0.0, neginf=0.0), np.float32)
         written.append(name)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
-              "lensmount_row0": "-y", "lensmount_units": "E/E_sun"}
+              "lensmount_row0": "-y", "lensmount_units": unit}
 
     def write(tmp):
         OpenEXR.File(header, channels).write(tmp)
@@ -169,10 +170,11 @@ def save_figure(fig, path) -> None:
 
 def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[float, float, float, float],
                   field_radius_mm: float | None = None, field_half_size_mm: tuple[float, float] | None = None,
-                  title: str = "", scale: PreviewScale | None = None) -> None:
+                  title: str = "", scale: PreviewScale | None = None, unit: str = "E/E_sun") -> None:
     """False-colour log10 preview with colour bar and the field of view outlined.
 
-    image : full-resolution E/E_sun; shown as `scale.block`-pixel block means
+    image : full-resolution irradiance in `unit` (E/E_sun; E/E_ref for a source at a finite distance);
+        shown as `scale.block`-pixel block means
     extent_mm : (x_min, x_max, y_min, y_max) of the detector
     field_radius_mm : image height of the full field (circle), if known
     field_half_size_mm : half width/height of a rectangular field, if known
@@ -192,10 +194,10 @@ def write_preview(path: str | os.PathLike, image: np.ndarray, extent_mm: tuple[f
         shown = np.log10(np.clip(img, scale.vmin, None))
         im = ax.imshow(shown, origin="lower", extent=extent_mm, cmap="inferno", vmin=math.log10(scale.vmin),
                        vmax=math.log10(scale.vmax), interpolation="nearest")
-        fig.colorbar(im, ax=ax, label="log10 E/E_sun")
+        fig.colorbar(im, ax=ax, label=f"log10 {unit}")
     else:
         im = ax.imshow(np.zeros_like(img), origin="lower", extent=extent_mm, cmap="inferno", vmin=0, vmax=1)
-        fig.colorbar(im, ax=ax, label="E/E_sun (no stray light reached the detector)")
+        fig.colorbar(im, ax=ax, label=f"{unit} (no stray light reached the detector)")
     _figure_extent(ax, extent_mm, field_radius_mm, field_half_size_mm)
     if scale.block > 1:
         title = (title + " · " if title else "") + f"{scale.block}×{scale.block}-pixel means"
@@ -302,14 +304,16 @@ def write_run(out_dir: str | os.PathLike, accumulator: Accumulator, summary: dic
         extent_mm = (-nx / 2, nx / 2, -ny / 2, ny / 2)
     paths = {"exr": out / "irradiance.exr", "png": out / "preview.png", "json": out / "summary.json",
              "html": out / "report.html"}
-    write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names)
+    # the source's units: E/E_sun, or E/E_ref for an object at a finite distance (summary's units)
+    unit = summary.get("units", {}).get("irradiance", "E/E_sun").split(" ")[0]
+    write_exr(paths["exr"], accumulator.mean_image, accumulator.mean_parts, accumulator.part_names, unit=unit)
     summary["files"] = {paths["exr"].name: hashlib.sha256(paths["exr"].read_bytes()).hexdigest()}  # read_exr checks
     title = f"{summary.get('method', '')} · {summary.get('passes', accumulator.n)} passes"
     scale = shared_scale([(accumulator.mean_image, accumulator.std_error_image)])
     if scale.block > 1:
         title += f" · EXR: full {nx}×{ny}"
     write_preview(paths["png"], accumulator.mean_image, extent_mm, field_radius_mm, field_half_size_mm, title,
-                  scale=scale)
+                  scale=scale, unit=unit)
     write_summary(paths["json"], summary)
     write_report(paths["html"], run_report(summary, {"stray irradiance on the detector": paths["png"]}))
     return paths
