@@ -27,7 +27,7 @@ class Lambertian(BSDF):
     def __init__(self, **params):
         reject_unknown("lambertian", params, ("reflectance",))
         self.reflectance = number(params, "reflectance", model="lambertian", low=0.0, high=1.0)
-        self.tis = self.reflectance
+        self.tis = self.weight_bound = self.reflectance  # cosine-weighted: every sample carries ρ
 
     @property
     def params(self):

@@ -28,7 +28,7 @@ class Mirror(BSDF):
         reject_unknown("mirror", params, ("reflectance",))
         params = {"reflectance": 1.0, **params}
         self.reflectance = number(params, "reflectance", model="mirror", low=0.0, high=1.0)
-        self.tis = self.reflectance
+        self.tis = self.weight_bound = self.reflectance
 
     @property
     def params(self):
