@@ -5,6 +5,7 @@ import math
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -230,3 +231,45 @@ def test_an_angle_where_nothing_reaches_the_detector_reads_zero_below_its_upper_
     header, row = rows[0].split(","), next(iter(__import__("csv").reader(rows[1:])))
     assert row[header.index("std_error")] == "" and row[header.index("reason")].startswith("no light reached")
     assert float(row[header.index("upper_bound_95")]) == pytest.approx(p.upper_bound, rel=1e-5)
+
+
+@pytest.mark.slow
+def test_forward_seeds_on_the_cooke_triplet_quote_errors_that_match_their_spread(tmp_path):
+    """The Cooke triplet's case-2 scene (every face Lambertian 5 %) at 35°, forward: a photon's flux is bounded by
+    its emitted flux × 0.05 (one bounce), so every seed gets the batch-means error bar, no pass is called dominant
+    for the Poisson skew of a few one-bounce photons, the seeds spread as much as they quote (within the noise of
+    six spreads of 8 passes), and each seed's 2σ interval holds the other seeds' mean in at least 5 of 6."""
+    cooke = DESIGN.parent / "cooke-triplet"
+    runs = [pst(PstOptions(cooke, cooke / "scenes" / "case2-lambertian.toml", (35.0,), method="forward", passes=8,
+                           photons_per_pass=100_000, seed=seed, workers=1, geometry=tmp_path / "geometry")).points[0]
+            for seed in range(1, 7)]
+    assert all(p.std_error is not None and not p.heavy and p.reason == "" for p in runs), [p.reason for p in runs]
+    values, quoted = np.array([p.pst for p in runs]), np.array([p.std_error for p in runs])
+    assert 0.5 < np.std(values, ddof=1) / quoted.mean() < 1.7, (values, quoted)
+    held = [abs(values[k] - np.delete(values, k).mean()) <= 2 * math.hypot(quoted[k], np.delete(quoted, k).mean()
+                                                                          / math.sqrt(5)) for k in range(6)]
+    assert sum(held) >= 5
+
+
+def _curve(tmp_path, name: str, values: dict) -> Path:
+    """A pst folder whose points are {angle: (pst, std_error or None, upper bound or None)}, 16 passes each."""
+    from lensmount.loop.pst import PstPoint, PstResult
+
+    points = [PstPoint(a, v, se, a < 8, 16, 160_000, 1.0, upper_bound=ub) for a, (v, se, ub) in values.items()]
+    write_pst(tmp_path / name, PstResult(points, 8.0, 90.0, "bidirectional", ["scatter"], {}))
+    return tmp_path / name
+
+
+def test_compare_of_two_pst_curves_names_the_angles_that_regressed(tmp_path):
+    """A revision that doubles the PST at 20° (errors 2 %) and leaves 10° as it was (0.5 %): compare says regression at
+    20° alone and exits 1; against itself, exit 0. A zero reading (below its bound) that becomes a clear value
+    far above the bound is a regression too; one that stays below it decides nothing."""
+    old = _curve(tmp_path, "old", {10.0: (1e-3, 5e-6, None), 20.0: (1e-5, 2e-7, None), 60.0: (0.0, None, 1e-9)})
+    new = _curve(tmp_path, "new", {10.0: (1e-3, 5e-6, None), 20.0: (2e-5, 4e-7, None), 60.0: (1e-6, 2e-8, None)})
+    result = CliRunner().invoke(app, ["compare", str(old), str(new)])
+    assert result.exit_code == 1, result.output
+    assert "regression at 20°, 60°" in result.output
+    lines = {line.split("°")[0].strip(): line for line in result.output.splitlines() if "PST" in line}
+    assert "no regression" in lines["10"] and "regression" in lines["20"]
+    same = CliRunner().invoke(app, ["compare", str(old), str(old)])
+    assert same.exit_code == 0 and "no angle regressed" in same.output

@@ -10,6 +10,10 @@ angles) against the point's interval at 99 % one-sided confidence, PST ± (Z99 s
 - `not judged` outside the requirement's angles.
 
 Angles are judged one by one; 99 % each, not jointly over the curve.
+
+Two curves (two pst.csv: a mount revision's against the last) are compared angle by angle with the verdict of
+`analysis.compare.judge` (the change's interval at the confidence asked, against the tolerance; a zero reading
+as [0, its bound]): `compare_curves`, what `lensmount compare OLD NEW` does when both are PST folders.
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lensmount.analysis.compare import Measurement, Verdict as ChangeVerdict, judge as judge_change
 from lensmount.atomic import write_text
+from lensmount.errors import InputError
 from lensmount.loop.pst import PstPoint, PstResult
 from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
 from lensmount.run.results import save_figure
@@ -95,6 +101,38 @@ def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
     return paths
 
 
+def compare_curves(old: Path, new: Path, tolerance: float = 0.05, confidence: float = 0.99
+                   ) -> tuple[list[tuple[float, ChangeVerdict]], list[str]]:
+    """The angles both folders' pst.csv hold, each with the verdict on new − old (`analysis.compare.judge`), in the
+    new curve's order; and a note per angle only one of them holds."""
+    a, b = read_curve(old), read_curve(new)
+    notes = [f"{angle:g}° only in the {name} curve" for name, mine, other in (("old", a, b), ("new", b, a))
+             for angle in mine if angle not in other]
+    return [(angle, judge_change(a[angle], m, tolerance, confidence)) for angle, m in b.items() if angle in a], notes
+
+
+def read_curve(folder: Path) -> dict[float, Measurement]:
+    """A pst.csv (of `write_pst`) as {angle: Measurement}: a zero reading with its upper bound as no signal, a
+    blank std_error as unknown (inf: the run gave no error bar), a blank bias bound as not bounded."""
+    path = Path(folder) / "pst.csv"
+    if not path.is_file():
+        raise InputError(f"no pst.csv in {folder}", file=str(path), valid="a folder `lensmount pst` wrote")
+    curve = {}
+    try:
+        for row in csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))):
+            upper, se, bias = (row.get(k) or "" for k in ("upper_bound_95", "std_error", "bias_bound"))
+            curve[float(row["angle_deg"])] = Measurement(
+                float(row["pst"]), 0.0 if upper else float(se) if se else math.inf, float(bias) if bias else 0.0,
+                passes=int(row["passes"]), photons=int(row["photons"]), time_s=float(row["time_s"]),
+                no_signal_bound=float(upper) if upper else None,
+                bias_unbounded=row.get("reason") or "not bounded" if "bias_bound" in row and not bias and not upper
+                else None)
+    except (KeyError, ValueError) as e:
+        raise InputError(f"pst.csv cannot be read ({type(e).__name__}: {e})", file=str(path),
+                         valid="a pst.csv as `lensmount pst` writes it") from None
+    return curve
+
+
 def _num(value: float | None) -> str:
     return "" if value is None else f"{value:.6g}"
 
@@ -148,4 +186,4 @@ def plot_pst(path: Path, result: PstResult, verdicts: list[Verdict] | None = Non
     save_figure(fig, path)
 
 
-__all__ = ["Verdict", "judge", "write_pst", "plot_pst", "Z99", "EXCEEDS", "INSIDE", "UNDECIDED", "NOT_JUDGED", "BARS"]
+__all__ = ["Verdict", "judge", "compare_curves", "read_curve", "write_pst", "plot_pst", "Z99", "EXCEEDS", "INSIDE", "UNDECIDED", "NOT_JUDGED", "BARS"]
