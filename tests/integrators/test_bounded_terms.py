@@ -130,3 +130,15 @@ def test_a_lambertian_scene_states_its_albedo_as_the_bound_and_aiming_doubles_it
     assert gain_bound(scene(0.05, response=(0.5, 0.8)), s) == pytest.approx(0.04)
     assert gain_bound(scene(0.6), s, aimed=True) == math.inf
     assert make_bsdf("gaussian", reflectance=0.1, half_width_deg=5.0).weight_bound < 0.21
+
+
+def test_one_pass_at_35_medians_still_dominates_where_terms_have_no_bound():
+    """The reference design's bidirectional run at 45°: one pass in 32 at 35× the median (a connection from a
+    vane's edge to the housing). Its terms state no bound: Grubbs's test calls the run heavy-tailed, as before."""
+    rng = np.random.default_rng(9)
+    acc = Accumulator.empty((1, 1), ["p"], 1.0)
+    for i in range(32):
+        terms = rng.exponential(1.0, 500) * (35.0 if i == 17 else 1.0)
+        acc.add(_pass(terms, math.inf), i)
+    t = acc.tail()
+    assert t.heavy and t.largest_pass == 17 and t.over_median > 30
