@@ -153,12 +153,14 @@ def test_a_requirement_is_log_linear_between_its_angles_and_refuses_unknown_keys
 
 
 def _requirement_run(tmp_path, limits: tuple[float, float], angles: str = "0,7", extra: str = ""):
-    """`lensmount pst` with the forward method on the small scene (direct on) and [requirement] at 0° and 7°."""
+    """`lensmount pst` with the forward method on the small scene (direct on, lossless glass) and [requirement] at
+    0° and 7°."""
     design = tmp_path / "design"
     if not design.exists():
         shutil.copytree(DESIGN, design, ignore=shutil.ignore_patterns("build", ".lensmount"))
     scene = _small_scene(design)
-    scene.write_text(scene.read_text() + f"\n[requirement]\nangles_deg = [0.0, 7.0]\npst_max = [{limits[0]!r}, "
+    # lossless glass: on axis the PST is then the pupil's area over the detector's (`_on_axis_pst`)
+    scene.write_text(scene.read_text().replace("[effects]", "[effects]\nabsorption = false") + f"\n[requirement]\nangles_deg = [0.0, 7.0]\npst_max = [{limits[0]!r}, "
                                           f"{limits[1]!r}]\n{extra}")
     out = tmp_path / f"out-{limits[0]:.4g}"
     result = CliRunner().invoke(app, ["pst", str(design), "--scene", str(scene), "--angles", angles, "--method",
