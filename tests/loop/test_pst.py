@@ -1,6 +1,7 @@
 """PST: angles parse, bad input is one paragraph; the reference design's PST falls by orders
 of magnitude past the field edge, meets the analytic in-field value and agrees with `simulate` (slow)."""
 
+import csv
 import math
 import shutil
 from pathlib import Path
@@ -204,8 +205,6 @@ def test_an_unknown_requirement_key_is_refused_with_exit_2(tmp_path):
 def test_an_angle_where_nothing_reaches_the_detector_reads_zero_below_its_upper_bound_and_says_why(tmp_path):
     """Scatter off, direct off: nothing can reach the detector past the field. The point reads 0 with the rule of
     three's bound (3 photons' flux over the passes, in PST), std_error blank with the reason in pst.csv."""
-    from lensmount.loop.pst_report import write_pst as write
-
     design = tmp_path / "design"
     shutil.copytree(DESIGN, design, ignore=shutil.ignore_patterns("build", ".lensmount"))
     scene = _small_scene(design, direct=False)
@@ -220,7 +219,6 @@ def test_an_angle_where_nothing_reaches_the_detector_reads_zero_below_its_upper_
     from lensmount.loop.prepare import build, read_inputs
     from lensmount.scene.build import make_source
     from lensmount.physics.sampler import Streams
-    import numpy as np
 
     d, spec = read_inputs(design, scene)
     base = build(d, spec, tmp_path / "geometry").scene
@@ -229,8 +227,8 @@ def test_an_angle_where_nothing_reaches_the_detector_reads_zero_below_its_upper_
     rays, _ = source.emit(2000, Streams(1, "check", np.arange(2000)))
     photon = float(rays.weight[rays.alive].max())  # A_S / N: every photon of a sun carries the same flux
     assert p.upper_bound == pytest.approx(3 * photon / 3 / (44.5 * 44.5 * source.entering_fraction), rel=1e-6)
-    rows = write(tmp_path / "pst", result)["csv"].read_text().splitlines()
-    header, row = rows[0].split(","), next(iter(__import__("csv").reader(rows[1:])))
+    rows = write_pst(tmp_path / "pst", result)["csv"].read_text().splitlines()
+    header, row = rows[0].split(","), next(csv.reader(rows[1:]))
     assert row[header.index("std_error")] == "" and row[header.index("reason")].startswith("no light reached")
     assert float(row[header.index("upper_bound_95")]) == pytest.approx(p.upper_bound, rel=1e-5)
 
