@@ -161,8 +161,8 @@ def _requirement_run(tmp_path, limits: tuple[float, float], angles: str = "0,7",
         shutil.copytree(DESIGN, design, ignore=shutil.ignore_patterns("build", ".lensmount"))
     scene = _small_scene(design)
     # lossless glass: on axis the PST is then the pupil's area over the detector's (`_on_axis_pst`)
-    scene.write_text(scene.read_text().replace("[effects]", "[effects]\nabsorption = false") + f"\n[requirement]\nangles_deg = [0.0, 7.0]\npst_max = [{limits[0]!r}, "
-                                          f"{limits[1]!r}]\n{extra}")
+    requirement = f"\n[requirement]\nangles_deg = [0.0, 7.0]\npst_max = [{limits[0]!r}, {limits[1]!r}]\n{extra}"
+    scene.write_text(scene.read_text().replace("[effects]", "[effects]\nabsorption = false") + requirement)
     out = tmp_path / f"out-{limits[0]:.4g}"
     result = CliRunner().invoke(app, ["pst", str(design), "--scene", str(scene), "--angles", angles, "--method",
                                       "forward", "--passes", "4", "--photons-per-pass", "5000", "--seed", "3",

@@ -588,5 +588,6 @@ def _std_error(series: np.ndarray) -> float:
     return float(np.std(series, ddof=1) / math.sqrt(n) * t_factor(n))
 
 
-__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "CLASS_GAP", "CLASS_WIDTH", "bounded_outlier_p", "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
+__all__ = ["Accumulator", "Drift", "Tail", "MIN_PASSES", "TAIL_P", "CLASS_GAP", "CLASS_WIDTH", "bounded_outlier_p",
+           "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
            "LIGHT_TAIL", "grubbs_p", "t_factor", "tail_index", "tail_allowance"]

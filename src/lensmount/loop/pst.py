@@ -235,9 +235,10 @@ def point_of(acc: Accumulator, angle_deg: float, in_field: bool, detector_area_m
         se, reasons = None, ["the source lies at or beyond the entrance plane: no light enters, PST is not defined"]
     elif acc.upper_bound() is not None:
         lit = any(k.startswith("absorbed/") and v > 0 for k, v in acc.ledger.items())
+        why = "lit faces sent none of it there" if lit else "no mechanical face is lit"
         upper, se = acc.no_signal_bound() * scale, None
-        reasons.append(f"no light reached the detector ({'lit faces sent none of it there' if lit else 'no mechanical face is lit'}"
-                       f"): 0 below the 95 % upper bound from {acc.photons:,} photons (3 photons' flux, the rule of three)")
+        reasons.append(f"no light reached the detector ({why}): 0 below the 95 % upper bound from {acc.photons:,} "
+                       "photons (3 photons' flux, the rule of three)")
     elif acc.n < MIN_PASSES:
         reasons.append(f"{acc.n} pass(es): an error bar needs {MIN_PASSES}")
     elif se is None:

@@ -186,4 +186,5 @@ def plot_pst(path: Path, result: PstResult, verdicts: list[Verdict] | None = Non
     save_figure(fig, path)
 
 
-__all__ = ["Verdict", "judge", "compare_curves", "read_curve", "write_pst", "plot_pst", "Z99", "EXCEEDS", "INSIDE", "UNDECIDED", "NOT_JUDGED", "BARS"]
+__all__ = ["Verdict", "judge", "compare_curves", "read_curve", "write_pst", "plot_pst", "Z99", "EXCEEDS", "INSIDE",
+           "UNDECIDED", "NOT_JUDGED", "BARS"]
