@@ -144,7 +144,8 @@ def test_the_largest_terms_survive_a_checkpoint(tmp_path):
 
 def test_a_pass_keeps_its_largest_real_terms():
     """The forward pass's photons reach the detector each with ρ Φ (Lambertian sampling): its largest terms are
-    all that, no tail (index inf). The connected pass's terms are f Φ cos cos / d² · A (A the detector's
+    all that, which is also the bound it states on a term (so no index is fitted, and no allowance: the class at the
+    bound was met); the bidirectional pass states none. The connected pass's terms are f Φ cos cos / d² · A (A the detector's
     area): none above the cap ρ/π Φ A / D² (d ≥ D, cosines ≤ 1), the largest far above the mean term, and their
     sum within the pass's flux. Gathered instead (no connections), the terms are the photon–hit-point pairs'."""
     D, photons = 0.02, 2000
@@ -155,9 +156,11 @@ def test_a_pass_keeps_its_largest_real_terms():
     for i in range(2):
         forward = forward_pass(scene, tracer, photons, 1, i)
         assert forward.largest.shape == (LARGEST,) and np.allclose(forward.largest, RHO * phi)
+        assert forward.term_bound == pytest.approx(RHO * phi, rel=1e-12)
         acc.add(forward.totals(), i)
-    assert acc.tail().index == np.inf and acc.tail().allowance == 0.0
+    assert acc.tail().index is None and acc.tail().allowance == 0.0  # the class at the bound was met
     e = bidirectional_pass(scene, tracer, photons, 1, 0, 1.0, samples_per_pixel=1, connect_direct_view=True)
+    assert e.term_bound == math.inf
     cap = RHO / math.pi * phi * scene.detector.width * scene.detector.height / D ** 2
     assert e.largest[0] <= cap * (1 + 1e-9) and e.largest[0] > 50 * truth(D) / photons
     assert np.all(np.diff(e.largest) <= 0) and e.largest.sum() <= e.flux * (1 + 1e-9)

@@ -38,7 +38,15 @@ What the error bar includes (docs/bidirectional.md, "What the error bar includes
   enough to stand out, and in the runs that would stop early reading low. α < LIGHT_TAIL: the error bar
   widens by the tail allowance (`Tail.allowance`), what a run that has not met its tail yet typically
   misses (in `flux_std_error`, so in every interval quoted from it); α ≤ UNBOUNDED_TAIL: that is
-  unbounded, the run has no error bar (relative error unknown: no stop on a target).
+  unbounded, the run has no error bar (relative error unknown: no stop on a target);
+- unless the estimator states what bounds a term (`PassEstimate.term_bound`: a forward photon's flux is at most
+  its emitted flux times its finishes' weights). A pass is then a sum of independent terms in [0, B]: its
+  variance is finite (at most B times its mean), so the spread of the passes is the central limit's error bar
+  and no power law is fitted to the terms (whose few sizes, one bounce and two, are weight classes, not a
+  tail); the allowance is one term at the bound the run may not have met, B/n (0 once a term within CLASS_GAP of
+  B has been met: the heaviest class is then in the spread). The largest pass is tested
+  against what sums of such terms can do (`bounded_outlier_p`: Bennett's inequality, the Poisson skew of a few
+  heavy terms a pass, Šidák over the n passes), not against normal passes.
 """
 
 from __future__ import annotations
@@ -61,9 +69,10 @@ from lensmount.integrators.photon_mapping.photon_gather import BIAS_LADDER
 from lensmount.integrators.photon_mapping.photon_target import UNIFORM_SHARE
 from lensmount.integrators.plan import edge_flux_components
 
-_STATE_VERSION = 9  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
+_STATE_VERSION = 10  # 2: elapsed time; 3: energy ledger; 4: diagnostics; 5: each pass's half-radius flux and radius
 # scale; 6: path signatures and per-face light (`analysis.paths.PathSums`); 7: each pass's path of largest excess;
-# 8: each pass's flux on the ladder of radii instead of at half the radius; 9: each pass's largest terms
+# 8: each pass's flux on the ladder of radii instead of at half the radius; 9: each pass's largest terms;
+# 10: each pass's bound on a term
 ZERO_SIGNAL_COUNT = 3.0  # 95 % Poisson bound on the expected count when none was seen (−ln 0.05)
 TAIL_P = 0.01  # the largest pass is an outlier below this p-value: 1 % of runs with normal passes are flagged
 # ... and dominates only at this many medians: on case 1 the last pass (smallest radius, the noisiest) at 1.10×
@@ -80,6 +89,12 @@ TAIL_RATIO = 1.5
 # (docs/accuracy.md).
 TAIL_K = 64
 TAIL_MIN = 16
+# Weight classes: terms in a few sizes (a forward photon after one bounce, after two: Φρ, Φρ²) are no power law,
+# and Hill's estimate across them reads the ratio of the classes (Cooke triplet at 35°: α = 0.33 from
+# 8.9e-5 and 4.5e-6). The largest terms are classes when, split wherever one is CLASS_GAP times the next, every
+# group spans at most CLASS_WIDTH: continuous terms with α < 10 span more than that over the TAIL_K largest.
+CLASS_GAP = 2.0
+CLASS_WIDTH = 1.5
 UNBOUNDED_TAIL = 1.0
 LIGHT_TAIL = 4.0
 
@@ -101,7 +116,10 @@ class Tail:
     allowance : what the error bar adds for that tail (mm²): 0 from LIGHT_TAIL on, inf at or below
         UNBOUNDED_TAIL (no error bar); between, x_max α / ((α − 1) n): with N terms in the run and a
         tail x^−α, about one term of the next N exceeds the largest seen, x_max, and carries x_max α/(α − 1)
-        on average, 1/n of it in the run's mean: what a run that has not met its tail yet misses
+        on average, 1/n of it in the run's mean: what a run that has not met its tail yet misses. With a
+        bound B on a term no index is fitted, and the allowance is B / n (one term at the bound) while no term
+        within CLASS_GAP of B has been met, else 0
+    bound : the largest a term of any pass could be (`PassEstimate.term_bound`, mm²); inf when not stated
     """
 
     largest_pass: int
@@ -112,6 +130,7 @@ class Tail:
     path: int = EMPTY
     index: float | None = None
     allowance: float = 0.0
+    bound: float = math.inf
 
 
 @dataclass
@@ -152,6 +171,7 @@ class Accumulator:
     pass_excess_path : per pass, the signature of the path whose flux most exceeded its mean over the
         passes before it (EMPTY without paths): where a dominant pass's light came from (`tail`)
     pass_largest : per pass, its LARGEST largest terms (mm², `PassEstimate.largest`; zeros when it kept none)
+    pass_term_bound : per pass, the largest a term of it could be (mm², `PassEstimate.term_bound`; inf: not stated)
     """
 
     part_names: list[str]
@@ -173,6 +193,7 @@ class Accumulator:
     paths: PathSums = field(default_factory=PathSums)
     pass_excess_path: list[int] = field(default_factory=list)
     pass_largest: list[np.ndarray] = field(default_factory=list)
+    pass_term_bound: list[float] = field(default_factory=list)
 
     @classmethod
     def empty(cls, shape: tuple[int, int], part_names: list[str], pixel_area_mm2: float) -> "Accumulator":
@@ -218,6 +239,10 @@ class Accumulator:
         if largest.shape != (LARGEST,) or not np.isfinite(largest).all():
             raise ValueError("pass's largest terms have the wrong shape or are not finite")
         self.pass_largest.append(largest)
+        bound = float(estimate.term_bound)
+        if not bound >= 0:
+            raise ValueError("pass's bound on a term is negative or NaN")
+        self.pass_term_bound.append(bound)
         if estimate.paths is not None:
             self.paths.add(estimate.paths, estimate.faces)
         self.last_pass = self.last_pass + 1 if pass_index is None else int(pass_index)
@@ -317,20 +342,28 @@ class Accumulator:
         return (self.flux_std_error + bias.bound) / mean
 
     def tail(self) -> Tail:
-        """The largest pass against the others (`Tail`, Grubbs's test on the passes' totals)."""
+        """The largest pass against the others and the tail of the terms (`Tail`). Terms with a stated bound
+        (`pass_term_bound`): the largest pass by `bounded_outlier_p`, no index, the allowance one term at the
+        bound; otherwise Grubbs's test on the passes' totals and the index of the terms (`tail_index`)."""
         f = np.asarray(self.pass_flux, np.float64)
         if not len(f):
             return Tail(-1, None, 0.0, 1.0, False)
         k = int(np.argmax(f))
         median, total = float(np.median(f)), float(f.sum())
-        p = grubbs_p(f)
-        ratio = f[k] / median if median > 0 else None
+        bound = max(self.pass_term_bound)
         terms = np.concatenate(self.pass_largest)
-        index = float(tail_index(terms))
+        if math.isfinite(bound):
+            # one term at the bound the run may not have met, unless it met that class (within CLASS_GAP)
+            unmet = float(terms.max()) * CLASS_GAP < bound
+            p, index, allowance = bounded_outlier_p(f, bound), math.nan, bound / self.n if unmet else 0.0
+        else:
+            p, index = grubbs_p(f), float(tail_index(terms))
+            allowance = float(tail_allowance(index, float(terms.max()), self.n))
+        ratio = f[k] / median if median > 0 else None
         return Tail(self.last_pass - self.n + 1 + k, ratio, f[k] / total if total > 0 else 0.0, p,
                     p < TAIL_P and (ratio is None or ratio >= TAIL_RATIO),
                     int(self.pass_excess_path[k]) if k < len(self.pass_excess_path) else EMPTY,
-                    None if math.isnan(index) else index, float(tail_allowance(index, float(terms.max()), self.n)))
+                    None if math.isnan(index) else index, allowance, bound)
 
     def converged(self, target_rel_error: float) -> bool:
         """The relative error is at most the target and no single pass dominates (`tail`): a run that
@@ -389,6 +422,7 @@ class Accumulator:
             pass_radius_scale=np.asarray(self.pass_radius_scale, dtype=np.float64),
             pass_excess_path=np.asarray(self.pass_excess_path, dtype=np.int64),
             pass_largest=np.asarray(self.pass_largest, dtype=np.float64).reshape(-1, LARGEST),
+            pass_term_bound=np.asarray(self.pass_term_bound, dtype=np.float64),
             **self.paths.arrays(),
         )
         for key, value in meta.items():
@@ -408,7 +442,8 @@ class Accumulator:
             raise InputError(f"the checkpoint is damaged and cannot be resumed ({type(e).__name__}: {e})",
                              file=str(path), valid="a checkpoint as lensmount wrote it: restore a copy, or delete "
                                                    "it and run again without --resume (its passes are lost)") from None
-        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_ladder, acc.pass_radius_scale, acc.pass_largest)
+        series = (acc.pass_flux, acc.pass_part_flux, acc.pass_part_flux_ladder, acc.pass_radius_scale, acc.pass_largest,
+                  acc.pass_term_bound)
         shapes = {acc.sum_image.shape, acc.sumsq_image.shape, acc.sum_parts.shape[1:]}
         if any(len(x) != acc.n for x in series) or len(shapes) != 1 or acc.n < 0 or not all(
                 np.isfinite(a).all() for a in (acc.sum_image, acc.sumsq_image, acc.sum_parts)):
@@ -437,7 +472,8 @@ class Accumulator:
                       pass_radius_scale=[float(v) for v in z["pass_radius_scale"]],
                       paths=PathSums.from_arrays(z),
                       pass_excess_path=[int(v) for v in z["pass_excess_path"]],
-                      pass_largest=[row.copy() for row in z["pass_largest"]])
+                      pass_largest=[row.copy() for row in z["pass_largest"]],
+                      pass_term_bound=[float(v) for v in z["pass_term_bound"]])
             meta = {k[5:]: z[k].item() for k in z.files if k.startswith("meta_")}
         return acc, meta
 
@@ -445,7 +481,8 @@ class Accumulator:
 def tail_index(terms: np.ndarray) -> np.ndarray:
     """Hill's estimate of the tail index α (P(term > x) ∝ x^−α) from the TAIL_K + 1 largest positive terms of
     each row of `terms` (..., m), any order: α̂ = k / Σ_{i<k} ln(x_(i) / x_(k)), k = min(TAIL_K, positive − 1).
-    nan with fewer than TAIL_MIN + 1 positive terms; inf when the k largest are equal (no tail: equal photons).
+    nan with fewer than TAIL_MIN + 1 positive terms; inf when the k + 1 largest come in weight classes (`CLASS_GAP`,
+    `CLASS_WIDTH`; all equal: equal photons), which have no power-law tail to fit.
     Vectorised over rows (benchmarks/stopping_coverage.py runs a thousand runs at once)."""
     x = -np.sort(-np.asarray(terms, np.float64), axis=-1)[..., :TAIL_K + 1]
     positive = (x > 0).sum(axis=-1)
@@ -455,7 +492,35 @@ def tail_index(terms: np.ndarray) -> np.ndarray:
     logs = np.where(used, np.log(np.where(used, x, 1.0) / np.where(ref > 0, ref, 1.0)), 0.0).sum(axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         alpha = np.where(logs > 0, k / np.where(logs > 0, logs, 1.0), np.inf)
-    return np.where(k >= TAIL_MIN, alpha, np.nan)
+    return np.where(k >= TAIL_MIN, np.where(_weight_classes(x, k), np.inf, alpha), np.nan)
+
+
+def _weight_classes(x: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """(...,) True where the k + 1 largest terms of each row of x (..., m), descending, come in classes: split
+    wherever one exceeds the next CLASS_GAP times, no group spans more than CLASS_WIDTH."""
+    pair = np.arange(x.shape[-1] - 1) < k[..., None]  # ratio of term i to term i + 1, both among the k + 1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = np.where(pair, np.log(np.where(pair, x[..., :-1], 1.0) / np.where(pair, x[..., 1:], 1.0)), 0.0)
+    split = pair & (step > math.log(CLASS_GAP))
+    span = np.cumsum(np.where(split, 0.0, step), axis=-1)
+    span = span - np.maximum.accumulate(np.where(split, span, 0.0), axis=-1)  # since the group began
+    return span.max(axis=-1, initial=0.0) <= math.log(CLASS_WIDTH)
+
+
+def bounded_outlier_p(series: np.ndarray, bound: float) -> float:
+    """p-value that the largest of n passes belongs with the others when each pass sums independent terms in
+    [0, bound]. Such a pass F has variance at most bound · E[F], so by Bennett's inequality
+    P(F − μ ≥ t) ≤ exp(−(μ/B) h(t/μ)), h(u) = (1 + u) ln(1 + u) − u (a Poisson count of μ/B terms at the bound:
+    the skew of a few heavy terms a pass, which a normal test takes for an outlier); the largest of n passes
+    gets Šidák's 1 − (1 − p₁)ⁿ. μ is the mean of all n passes (with the largest: a pass holding the run's
+    only heavy term is no outlier). 1 below MIN_PASSES or without signal."""
+    n = len(series)
+    mean, top = float(np.mean(series)) if n else 0.0, float(np.max(series)) if n else 0.0
+    if n < MIN_PASSES or not bound > 0 or not mean > 0 or not top > mean:
+        return 1.0
+    u = (top - mean) / mean
+    p1 = math.exp(-(mean / bound) * ((1.0 + u) * math.log1p(u) - u))
+    return 1.0 if p1 >= 1.0 else float(-math.expm1(n * math.log1p(-p1)))
 
 
 def tail_allowance(index, largest, n):
@@ -511,5 +576,6 @@ def _std_error(series: np.ndarray) -> float:
     return float(np.std(series, ddof=1) / math.sqrt(n) * t_factor(n))
 
 
-__all__ = ["Accumulator", "Drift", "Tail", "TAIL_P", "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
+__all__ = ["Accumulator", "Drift", "Tail", "TAIL_P", "CLASS_GAP", "CLASS_WIDTH", "bounded_outlier_p",
+           "TAIL_RATIO", "TAIL_K", "TAIL_MIN", "UNBOUNDED_TAIL",
            "LIGHT_TAIL", "grubbs_p", "tail_index", "tail_allowance"]

@@ -6,6 +6,8 @@ writer refuses NaN/Inf, so this module guards each division itself.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from lensmount.analysis.bias import BiasBound
@@ -107,7 +109,8 @@ def tail_block(acc: Accumulator, tag_table=None) -> dict:
              "largest_over_median": finite_or_none(t.over_median) if t.over_median is not None else None,
              "largest_share": finite_or_none(t.share), "outlier_p": finite_or_none(t.p), "heavy": bool(t.heavy),
              "terms_tail_index": None if t.index is None else finite_or_none(t.index),
-             "terms_unbounded": t.index is not None and t.index <= UNBOUNDED_TAIL}
+             "terms_unbounded": bool(math.isinf(t.allowance)),
+             "terms_bound_mm2": finite_or_none(t.bound) if math.isfinite(t.bound) else None}
     notes = []
     path = acc.paths.events.get(t.path, ()) if t.path != EMPTY else ()
     if tag_table is not None and path:
@@ -119,12 +122,12 @@ def tail_block(acc: Accumulator, tag_table=None) -> dict:
                      f"{acc.n} passes, p = {t.p:.2g} < {TAIL_P:g} that it belongs with them{via}. The "
                      "passes are heavy-tailed: the standard error from their spread is not to be trusted "
                      "and the run does not count as converged; run more passes.")
-    if t.index is not None and t.index <= UNBOUNDED_TAIL:
+    if math.isinf(t.allowance):
         notes.append(f"the largest terms the passes sum fall off as x^-{t.index:.2f} (tail index at most "
                      f"{UNBOUNDED_TAIL:g}): what the run has not met yet has no bound, so it cannot bound its error "
                      "and does not count as converged; more passes help only once they reach the tail's end, "
                      "a sampling that avoids the heavy terms does (the path of the largest pass in `path`).")
-    elif t.allowance > 0 and t.allowance >= NOTABLE_ALLOWANCE * acc.flux_std_error:
+    elif t.index is not None and t.allowance > 0 and t.allowance >= NOTABLE_ALLOWANCE * acc.flux_std_error:
         notes.append(f"the largest terms the passes sum fall off as x^-{t.index:.2f} (below {LIGHT_TAIL:g}): "
                      f"a heavy tail; the error bar adds the tail allowance "
                      f"({100 * t.allowance / abs(acc.flux) if acc.flux else 0:.2g} % of the value), what a run "

@@ -14,11 +14,12 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from lensmount.analysis.compare import UNDECIDED, parse_fraction
+from lensmount.analysis.compare import REGRESSION, UNDECIDED, parse_fraction
 from lensmount.cli.commands import COMMANDS, CommandLine, fail
 from lensmount.cli.options import GlassCatalogs
 from lensmount.cli.simulate import QUICK_HELP, duration, observed
 from lensmount.errors import InputError
+from lensmount.loop.pst_report import compare_curves
 from lensmount.loop.compare import (CompareOptions, RunSource, compare as run_compare, part_label, part_rows, plan,
                                    verdict_row)
 
@@ -45,6 +46,22 @@ def announce(source: RunSource) -> str:
         "photons, an unknown time (no stored run of this scene to go by)")
     return (f"{source.role}: no stored run of this design and test condition: simulating {length} "
             f"into {source.folder} (--quick, --passes, --photons-per-pass or --time shorten it)")
+
+
+def compare_pst(a: Path, b: Path, tolerance: str, confidence: str) -> None:
+    """Two PST curves (folders `lensmount pst` wrote), angle by angle; exit 1 naming the angles that regressed."""
+    try:
+        tol, conf = _fraction(tolerance, "--tolerance"), _fraction(confidence, "--confidence")
+        rows, notes = compare_curves(a, b, tol, conf)
+    except InputError as error:
+        fail(error)
+    for note in notes:
+        typer.echo(f"note: {note}", err=True)
+    for angle, v in rows:
+        typer.echo(f"{angle:6g}°  PST {v.old:.4g} → {v.new:.4g}  {v.verdict}" + (f" — {v.note}" if v.note else ""))
+    worse = [f"{angle:g}°" for angle, v in rows if v.verdict == REGRESSION]
+    typer.echo(f"regression at {', '.join(worse)}" if worse else "no angle regressed beyond the tolerance")
+    raise typer.Exit(code=1 if worse else 0)
 
 
 @COMMANDS.register("compare", CommandLine)
@@ -88,6 +105,8 @@ def compare(
     removed. Before anything runs it says which stored run each side takes, or what it must
     simulate and about how long (stored runs match by design and test condition, whatever their length).
     """
+    if b is not None and (a / "pst.csv").is_file() and (b / "pst.csv").is_file():
+        compare_pst(a, b, tolerance, confidence)  # two PST curves: angle by angle
     try:
         options = CompareOptions(a, b, scene, against, metric, _fraction(tolerance, "--tolerance"),
                                  _fraction(confidence, "--confidence"), out, store, method, workers, passes,

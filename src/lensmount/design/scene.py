@@ -47,6 +47,10 @@ target_rel_error = 0.05      # stop at this relative error (std + bias bound; af
 time_s = 600                 # or after this many seconds of tracing, whichever comes first (the default)
 view_map_pitch = 1           # bidirectional: the view map samples blocks of 1 × 1 pixels a pass (4: 16× fewer
                              # backward rays; the total's error barely moves, the image fills in over passes)
+
+[requirement]                # what `lensmount pst` judges the curve by (other commands ignore it)
+angles_deg = [0, 10, 30, 85] # increasing, in [0, 90]
+pst_max = [1e-2, 1e-4, 1e-6, 1e-7]  # PST limit at each; log-linear between them; angles outside: not judged
 ```
 """
 
@@ -55,6 +59,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, SerializeAsAny, ValidationError, field_validator, model_validator
 
 from lensmount.validation import ReadFromFile, input_error, keys_at, line_of_key, located, parse_toml, read_text
@@ -174,6 +179,34 @@ class RunSpec(_Strict):
     view_map_pitch: int = Field(default=1, ge=1)
 
 
+class RequirementSpec(_Strict):
+    """A point source transmittance requirement: PST at most `pst_max[i]` at `angles_deg[i]`, interpolated
+    log-linearly between the listed angles (a straight line on the PST plot's log axis, as PST falls by orders of
+    magnitude past the field); an angle outside the listed range has no requirement."""
+
+    angles_deg: tuple[float, ...] = Field(min_length=1)
+    pst_max: tuple[float, ...] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _limits(self):
+        if len(self.angles_deg) != len(self.pst_max):
+            raise ValueError(f"angles_deg has {len(self.angles_deg)} angles and pst_max {len(self.pst_max)} limits: "
+                             "one limit per angle")
+        if any(not 0.0 <= a <= 90.0 for a in self.angles_deg) or any(
+                b <= a for a, b in zip(self.angles_deg, self.angles_deg[1:])):
+            raise ValueError("angles_deg must increase, each in [0, 90] degrees")
+        if any(not 0.0 < v < float("inf") for v in self.pst_max):
+            raise ValueError("pst_max must be positive and finite (a PST limit)")
+        return self
+
+    def limit(self, angle_deg: float) -> float | None:
+        """The PST limit at `angle_deg`, log-linear between the listed angles; None outside them."""
+        a = self.angles_deg
+        if not a[0] <= angle_deg <= a[-1]:
+            return None
+        return float(10 ** np.interp(angle_deg, a, np.log10(self.pst_max)))
+
+
 class ObjectSpec(_Strict):
     type: Literal["disk", "rectangle", "mesh"]
     name: str
@@ -217,6 +250,7 @@ class SceneSpec(ReadFromFile, _Strict):
     assign: dict[str, str] = Field(default_factory=dict)
     objects: tuple[ObjectSpec, ...] = ()
     run: RunSpec = RunSpec()
+    requirement: RequirementSpec | None = None
     base_dir: str = Field(default=".", exclude=True)  # folder of the scene file (for object paths)
     _finishes_source: tuple[str | None, str | None] | None = PrivateAttr(None)
 
@@ -307,5 +341,5 @@ def _valid_keys(loc) -> str:
     return ", ".join(keys_at(SceneSpec, tuple(loc)))
 
 
-__all__ = ["SceneSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
+__all__ = ["SceneSpec", "RequirementSpec", "DetectorSpec", "EffectsSpec", "GhostsSpec", "RunSpec", "ObjectSpec", "load_scene",
            "scene_from_dict"]

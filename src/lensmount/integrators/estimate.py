@@ -13,6 +13,7 @@ run's answer is the mean of the passes and its error bar is their spread.
 
 from __future__ import annotations
 
+import math
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
@@ -48,6 +49,11 @@ class PassEstimate:
     largest : (LARGEST,) the largest single contributions (mm²) to the pass's flux, descending, zero-padded
         (`Largest`: photons landing or connected, photon × hit-point pairs gathered; None when not kept).
         Their fall-off is the tail of what a pass sums (`analysis.passes.tail_index`).
+    term_bound : the largest any single contribution of this pass could be (mm²), whether or not one was drawn:
+        a forward photon's flux is bounded by its emitted flux times its finishes' weights (`walk.gain_bound`);
+        inf where the estimator states none (a gathered or connected term grows without bound as its kernel
+        or its distance shrinks). A bounded pass is a sum of bounded independent terms: its spread is an error
+        bar by the central limit, not a power-law tail (`analysis.passes.Accumulator.tail`).
     """
 
     image: np.ndarray
@@ -62,6 +68,7 @@ class PassEstimate:
     paths: PassPaths | None = None
     faces: PassFaces | None = None
     largest: np.ndarray | None = None
+    term_bound: float = math.inf
 
     @property
     def flux(self) -> float:
@@ -244,7 +251,9 @@ class Film:
         """Irradiance images (channels, ny, nx) E/E_sun estimated otherwise (the gather)."""
         self._images += per_channel
 
-    def estimate(self, photons: int, ledger: "EnergyLedger", diagnostics: dict | None = None) -> PassEstimate:
+    def estimate(self, photons: int, ledger: "EnergyLedger", diagnostics: dict | None = None,
+                 term_bound: float = math.inf) -> PassEstimate:
+        """The pass's estimate; term_bound: what bounds a single contribution (`PassEstimate.term_bound`)."""
         det = self.detector
         per_part = self._images + self._flux.reshape(self._images.shape) / det.pixel_area
         bad = ~np.isfinite(per_part)
@@ -255,7 +264,7 @@ class Film:
         return PassEstimate(image=per_part.sum(axis=0), per_part=per_part, part_names=list(self.channels),
                             pixel_area_mm2=det.pixel_area, photons=int(photons), ledger=ledger.as_dict(),
                             diagnostics=dict(diagnostics or {}), paths=self.paths.finish(), faces=self.faces.finish(),
-                            largest=self.largest.values.copy())
+                            largest=self.largest.values.copy(), term_bound=float(term_bound))
 
 
 class EnergyLedger:

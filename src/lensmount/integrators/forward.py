@@ -12,11 +12,13 @@ of 2 passes of 200 000, and the internal batch size changes nothing.
 
 from __future__ import annotations
 
+import math
+
 from lensmount.integrators.estimate import EnergyLedger, Film, PassEstimate, film_channels, phase_clock, phase_times
 from lensmount.integrators.ghost_routes import ghost_routes_pass, route_reflections
 from lensmount.integrators.registry import INTEGRATORS, NoParams
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.integrators.walk import emit_photons, photon_walk
+from lensmount.integrators.walk import emit_photons, gain_bound, photon_walk
 
 BATCH = 200_000  # photons per batch: bounds memory, not the result (numbers are keyed per photon)
 
@@ -42,17 +44,21 @@ class Forward:
         film, ledger = Film(scene, by_routes), EnergyLedger()
         first = int(pass_index) * int(photons)
         clock = phase_clock()
+        heaviest = 0.0  # the largest emitted photon flux: a term is at most this × gain_bound
         for start in range(0, photons, self.batch):
             n = min(self.batch, photons - start)
             rays = emit_photons(scene, seed, self.purpose, first + start, n, photons)
+            heaviest = max(heaviest, float(rays.weight.max(initial=0.0)))
             for _ in photon_walk(scene, tracer, rays, seed, self.purpose, self.settings, film, ledger):
                 pass
         times = {"walk": phase_clock() - clock}
+        # the deterministic ghost routes' rays carry fluxes of their own, which no photon bounds
+        bound = heaviest * gain_bound(scene, self.settings) if not by_routes else math.inf
         if by_routes:
             clock = phase_clock()
             ghost_routes_pass(scene, tracer, film, pass_index, seed, self.settings.ghost_rays_across)
             times["ghost_routes"] = phase_clock() - clock
-        return film.estimate(photons, ledger, phase_times(**times))
+        return film.estimate(photons, ledger, phase_times(**times), term_bound=bound)
 
 
 @INTEGRATORS.register("forward", NoParams)

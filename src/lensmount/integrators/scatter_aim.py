@@ -42,6 +42,9 @@ from lensmount.integrators.exit_sampler import ExitDisc
 from lensmount.physics.sampler import Streams
 
 AIMED_SHARE = 0.5  # c: an aimed photon's share of directions drawn toward the disc (the rest: the BSDF)
+# f cos θ / ((1 − c) p_bsdf + c p_disc) ≤ (f cos θ / p_bsdf) / (1 − c): an aimed photon carries at most this many
+# times the weight the BSDF's own sampling would give it (`walk.gain_bound`)
+MIXTURE_GAIN = 1.0 / (1.0 - AIMED_SHARE)
 MARGIN = 0.05  # the disc's radius: clear semi-diameter × (1 + MARGIN) + 0.5 mm (the view map's exit disc)
 DIM_CHOICE, DIM_DISC = 3, 4  # a bounce's Streams dimensions (walk: 0, 1 the BSDF, 2 the roulette)
 
@@ -156,4 +159,4 @@ def disc_pdf(targets: ApertureTargets, disc: np.ndarray, position: np.ndarray, w
     return pdf
 
 
-__all__ = ["ApertureTargets", "aperture_targets", "disc_directions", "disc_pdf", "drawn_toward", "mixture_weight"]
+__all__ = ["MIXTURE_GAIN", "ApertureTargets", "aperture_targets", "disc_directions", "disc_pdf", "drawn_toward", "mixture_weight"]

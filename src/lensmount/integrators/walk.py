@@ -28,6 +28,7 @@ BSDF value is an error naming the finish and part, never a silent zero.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -36,7 +37,8 @@ import numpy as np
 from lensmount.integrators.estimate import BY_ROUTES, EnergyLedger, Film, scattering_tags
 from lensmount.integrators.lobe_core import outside_core
 from lensmount.integrators.paths import EMPTY, ghost_code
-from lensmount.integrators.scatter_aim import ApertureTargets, disc_directions, drawn_toward, mixture_weight
+from lensmount.integrators.scatter_aim import (MIXTURE_GAIN, ApertureTargets, disc_directions, drawn_toward,
+                                              mixture_weight)
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
@@ -154,6 +156,32 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         w0 = w0[keep]
 
 
+def gain_bound(scene, settings: EstimatorSettings, aimed: bool = False) -> float:
+    """The most flux one photon can bring to the detector per unit of its emitted flux, over every path the walk can
+    take (a term's bound: `PassEstimate.term_bound` = this × the heaviest emitted photon); inf when none holds.
+
+    Why it holds: the optics only take flux away (a Fresnel branch is chosen with its probability, bulk absorption
+    and discarded reflections lower the weight); a scatter multiplies it by at most its finish's `weight_bound`
+    (MIXTURE_GAIN times that where photons are aimed); roulette raises a survivor to at most roulette_level of its
+    emitted flux. With every factor at most 1 a path of k ≥ 1 scatters carries at most the largest of them (and an
+    unscattered one, counted when `direct` or `ghosts` is on, at most 1), times the detector's largest spectral
+    weight. A factor above 1 compounds over the bounces: no useful bound (inf), nor with a mirror in the optics
+    (its finish's scatter is the tracer's, `scattering_mirror_tags`)."""
+    if any(s.mirror for s in scene.optical):
+        return math.inf
+    scatters = scattering_tags(scene)
+    gains = [scene.bsdf_of_tag[int(t)].weight_bound for t in np.flatnonzero(scatters)]
+    g = max(gains, default=0.0) * (MIXTURE_GAIN if aimed else 1.0)
+    if g > 1.0:
+        return math.inf
+    if len(gains) and settings.roulette_after <= settings.max_bounces:
+        g = max(g, min(settings.roulette_level, 1.0))
+    if scene.effects.direct or scene.effects.ghosts:
+        g = 1.0
+    response = scene.detector.spectral_weight
+    return g * (max(response) if response is not None else 1.0)
+
+
 def _to_film(film: Film, ledger: EnergyLedger, ev: Events, part, gathered_last, reflections, signature) -> None:
     """Photons on the detector: onto the film by channel, or to the gather's account, or effect off."""
     hit = ev.kind == DETECTOR
@@ -221,4 +249,4 @@ def _require_finite(values: np.ndarray, what: str, where: str) -> None:
                              f"photon(s) at {where}")
 
 
-__all__ = ["photon_walk", "emit_photons", "Bounce", "NonFiniteError"]
+__all__ = ["photon_walk", "emit_photons", "gain_bound", "Bounce", "NonFiniteError"]

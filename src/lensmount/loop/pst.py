@@ -35,42 +35,52 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 
-from lensmount.analysis.passes import Accumulator
-from lensmount.atomic import write_text
+from lensmount.analysis.passes import MIN_PASSES, TAIL_P, Accumulator
+from lensmount.design.scene import RequirementSpec
 from lensmount.errors import InputError
 from lensmount.integrators.registry import SourceIndependentView, integrator
 from lensmount.integrators.settings import EstimatorSettings
 from lensmount.loop.prepare import build, read_inputs
 from lensmount.loop.provenance import collect
 from lensmount.loop.simulate import SimulateOptions, check_options
-from lensmount.run.report import image_block, page, provenance_rows, section, table_block, write_report
-from lensmount.run.results import save_figure
 from lensmount.run.runner import Runner, Stopping, default_workers
 from lensmount.run.signals import Terminated
 from lensmount.scene.scene import EFFECT_NAMES
 
 
 
+ANGLES_VALID = ("ranges start:stop:step (stop included) and angles, separated by commas, in degrees from 0 to 90: "
+                "e.g. 0:30:1,35:85:5 (fine near the field edge, coarse beyond) or 0,2,5,10")
+
+
 def parse_angles(text: str) -> list[float]:
-    """'0:30:1' (start:stop:step, stop included) or '0,5,7,20' → degrees, each in [0, 90)."""
-    field_name, valid = "--angles", "start:stop:step in degrees (e.g. 0:30:1) or a list (e.g. 0,7,20)"
+    """'0:30:1,35:85:5', '0,2,5,10' or any mix: ranges (start:stop:step, stop included) and single angles,
+    in the order given, each angle once (its first place), each in [0°, 90°]."""
+    field_name = "--angles"
+    angles: list[float] = []
     try:
-        if ":" in text:
-            start, stop, step = (float(v) for v in text.split(":"))
-            if not step > 0 or stop < start:
-                raise ValueError
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
-            angles = [round(start + i * step, 9) for i in range(n)]
-        else:
-            angles = [float(v) for v in text.split(",") if v.strip()]
+        for item in (s.strip() for s in text.split(",")):
+            if not item:
+                continue
+            if ":" in item:
+                start, stop, step = (float(v) for v in item.split(":"))
+                if not step > 0 or stop < start:
+                    raise ValueError
+                n = int(math.floor((stop - start) / step + 1e-9)) + 1
+                if n > 1000:
+                    raise InputError(f"the range '{item}' holds {n} angles, more than a sweep needs",
+                                     field=field_name, valid=ANGLES_VALID)
+                angles += [round(start + i * step, 9) for i in range(n)]
+            else:
+                angles.append(float(item))
     except ValueError:
-        raise InputError(f"cannot read the angles '{text}'", field=field_name, valid=valid) from None
-    if not angles or any(not (0.0 <= a < 90.0) for a in angles):
-        raise InputError(f"angles must lie in [0°, 90°), got '{text}'", field=field_name, valid=valid)
+        raise InputError(f"cannot read the angles '{text}'", field=field_name, valid=ANGLES_VALID) from None
+    if not angles or any(not (0.0 <= a <= 90.0) for a in angles):
+        raise InputError(f"angles must lie in [0°, 90°], got '{text}'", field=field_name, valid=ANGLES_VALID)
+    angles = list(dict.fromkeys(angles))
     if len(angles) > 1000:
-        raise InputError(f"{len(angles)} angles is more than a sweep needs", field=field_name, valid=valid)
+        raise InputError(f"{len(angles)} angles is more than a sweep needs", field=field_name, valid=ANGLES_VALID)
     return angles
 
 
@@ -99,15 +109,33 @@ class PstOptions:
 @dataclass(frozen=True)
 class PstPoint:
     """One angle's PST; time_s: seconds into the sweep when its last pass was merged (the angles run
-    together, pass by pass, so the time of one angle alone is not measured)."""
+    together, pass by pass, so the time of one angle alone is not measured).
+
+    std_error : 1σ, the passes' spread (batch means, × Student's t) plus the tail allowance of its terms
+        (`analysis.passes.Tail`); None when the run cannot give one (`reason` says why)
+    upper_bound : when nothing reached the detector in any pass, the 95 % upper bound on the PST (the rule of
+        three: 3 photons' flux over the run, `Accumulator.no_signal_bound`); the PST then reads 0
+    bias_bound : the kernel bias bound (bidirectional; 0 for forward), None when the ladder cannot bound it
+    heavy : one pass dominates the others (`Tail.heavy`): the spread is not to be trusted
+    reason : why std_error (or the bias bound) is missing or not to be trusted, in words; "" when all is there
+    """
 
     angle_deg: float
     pst: float
-    std_error: float | None  # None: unknown (one pass)
+    std_error: float | None
     in_field: bool
     passes: int
     photons: int
     time_s: float
+    upper_bound: float | None = None
+    bias_bound: float | None = 0.0
+    heavy: bool = False
+    reason: str = ""
+
+    @property
+    def error(self) -> float | None:
+        """std_error + bias bound: the 1σ-scale half width a verdict is judged with (None when either is unknown)."""
+        return None if self.std_error is None or self.bias_bound is None else self.std_error + self.bias_bound
 
 
 @dataclass
@@ -118,6 +146,7 @@ class PstResult:
     method: str
     effects: list[str]
     provenance: dict = field(default_factory=dict)
+    requirement: RequirementSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -199,6 +228,36 @@ def pst_of(mean_flux_mm2: float, flux_std_error_mm2: float, detector_area_mm2: f
     return mean_flux_mm2 * scale, se
 
 
+def point_of(acc: Accumulator, angle_deg: float, in_field: bool, detector_area_mm2: float, entering_fraction: float,
+             time_s: float) -> PstPoint:
+    """One angle's point from its run: PST, its error bar, or zero with its upper bound, and why not."""
+    value, se = pst_of(acc.flux, acc.flux_std_error, detector_area_mm2, entering_fraction)
+    scale = pst_of(1.0, 0.0, detector_area_mm2, entering_fraction)[0]
+    tail, bias = acc.tail(), acc.bias_bound()[0]
+    upper, reasons = None, []
+    if scale == 0:
+        se, reasons = None, ["the source lies at or beyond the entrance plane: no light enters, PST is not defined"]
+    elif acc.upper_bound() is not None:
+        lit = any(k.startswith("absorbed/") and v > 0 for k, v in acc.ledger.items())
+        why = "lit faces sent none of it there" if lit else "no mechanical face is lit"
+        upper, se = acc.no_signal_bound() * scale, None
+        reasons.append(f"no light reached the detector ({why}): 0 below the 95 % upper bound from {acc.photons:,} "
+                       "photons (3 photons' flux, the rule of three)")
+    elif acc.n < MIN_PASSES:
+        reasons.append(f"{acc.n} pass(es): an error bar needs {MIN_PASSES}")
+    elif se is None:
+        reasons.append(f"the terms the passes sum fall off as x^-{tail.index:.2f} with no bound: the run cannot bound "
+                       "its error")
+    if tail.heavy:
+        reasons.append(f"pass {tail.largest_pass} dominates ({tail.over_median or 0:.3g}× the median, p = {tail.p:.2g} "
+                       f"< {TAIL_P:g}): the spread is not to be trusted")
+    bias_bound = None if bias.bound is None or not math.isfinite(bias.bound) else bias.bound * scale
+    if bias.bound is None and upper is None:
+        reasons.append(f"kernel bias not bounded: {bias.reason}")
+    return PstPoint(float(angle_deg), value, se, in_field, acc.n, acc.photons, time_s, upper, bias_bound,
+                    bool(tail.heavy), "; ".join(reasons))
+
+
 def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> PstResult:
     """Run the sweep; progress(text) after each angle."""
     # lazy: keeps lensmount --help from loading scene.build and the BSDF models
@@ -245,74 +304,37 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
         for k in tally.stopped:
             if k in stopped:
                 continue
-            acc, angle = tally.accumulators[k], o.angles_deg[k]
-            value, se = pst_of(acc.flux, acc.flux_std_error, area, sources[k].entering_fraction)
-            stopped[k] = PstPoint(float(angle), value, se, angle <= field_edge, acc.n, acc.photons, elapsed)
-            err = f" ± {se:.2g}" if se is not None else ""
-            say(f"{angle:g}°: PST {value:.4g}{err} ({'in' if stopped[k].in_field else 'outside'} the field, "
-                f"{acc.n} passes, {elapsed:.1f} s into the sweep)")
+            angle = o.angles_deg[k]
+            stopped[k] = p = point_of(tally.accumulators[k], angle, angle <= field_edge, area,
+                                      sources[k].entering_fraction, elapsed)
+            err = (f" ± {p.std_error:.2g}" if p.std_error is not None else
+                   f" < {p.upper_bound:.2g} (95 %)" if p.upper_bound is not None else " (no error bar)")
+            say(f"{angle:g}°: PST {p.pst:.4g}{err} ({'in' if p.in_field else 'outside'} the field, "
+                f"{p.passes} passes, {elapsed:.1f} s into the sweep){'; ' + p.reason if p.reason else ''}")
+        say(sweep_eta(tally, elapsed))
 
     workers = o.workers or default_workers()
+    say(f"sweeping {len(sources)} angles: up to {passes} passes of {per_pass:,} photons each"
+        f"{f', each angle stopping at {100 * target:g} %' if target else ''}, on {workers} worker(s); "
+        "the first pass of every angle comes first (the estimate of the whole follows it)")
     runner = Runner(base, job, tally, workers=workers, progress=merged, run_pass_path=SWEEP_PASS, window=workers)
     runner.run(tally)
     if runner.interrupted:  # the sweep stops with the signal, as the passes did
         raise Terminated() if runner.terminated else KeyboardInterrupt()
     effects = [k for k in EFFECT_NAMES if getattr(base.effects, k)]
-    return PstResult([stopped[k] for k in range(len(sources))], field_edge, azimuth, o.method, effects, provenance)
+    return PstResult([stopped[k] for k in range(len(sources))], field_edge, azimuth, o.method, effects, provenance,
+                     spec.requirement)
 
 
-def write_pst(out: Path, result: PstResult) -> dict[str, Path]:
-    """pst.csv, pst.png (log scale, error bars, field edge) and report.html, atomically."""
-    out = Path(out)
-    paths = {"csv": out / "pst.csv", "png": out / "pst.png", "html": out / "report.html"}
-    lines = ["angle_deg,pst,std_error,in_field,passes,photons,time_s"]
-    for p in result.points:
-        lines.append(f"{p.angle_deg:g},{p.pst:.6g},{'' if p.std_error is None else f'{p.std_error:.6g}'},"
-                     f"{int(p.in_field)},{p.passes},{p.photons},{p.time_s:.3f}")
-    write_text(paths["csv"], "\n".join(lines) + "\n")
-    plot_pst(paths["png"], result)
-    rows = [[f"{p.angle_deg:g}", f"{p.pst:.4g}", "—" if p.std_error is None else f"{p.std_error:.2g}",
-             "in field" if p.in_field else "outside", p.passes, f"{p.photons:,}", f"{p.time_s:.1f}"]
-            for p in result.points]
-    blocks = [section("Point source transmittance", image_block("PST against off-axis angle", paths["png"])),
-              section("Values", table_block(["angle (°)", "PST", "std. error", "", "passes", "photons", "time (s)"],
-                                            rows)),
-              section("Inputs and provenance", table_block(["field", "value"], provenance_rows(
-                  {"method": result.method, "effects": result.effects, "azimuth_deg": result.azimuth_deg,
-                   "field_edge_deg": result.field_edge_deg, "provenance": result.provenance})))]
-    name = result.provenance.get("design_name", "")
-    write_report(paths["html"], page(f"lensmount PST · {name}", blocks))
-    return paths
+def sweep_eta(tally: AngleTally, elapsed: float) -> str:
+    """A progress line after a merged pass: angles done, and the sweep's estimated total from the work so far (angle ×
+    pass runs merged, at the same rate), at most every running angle to its last pass (angles that reach their
+    target stop sooner)."""
+    done = sum(acc.n for acc in tally.accumulators)
+    left = sum(max(tally.max_passes - tally.accumulators[k].n, 0) for k in tally.running)
+    total = elapsed * (done + left) / max(done, 1)
+    return (f"pass {tally.last_pass + 1}: {len(tally.stopped)} of {len(tally.accumulators)} angles done, "
+            f"{elapsed:.0f} s; the sweep ≤ {total:.0f} s in all (about {max(total - elapsed, 0):.0f} s left)")
 
 
-def plot_pst(path: Path, result: PstResult) -> None:
-    """Log-scale PST with 1σ error bars; zero values (nothing reached the detector) drawn at the axis floor."""
-    import matplotlib  # lazy: keeps lensmount --help from loading matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    a = np.array([p.angle_deg for p in result.points])
-    v = np.array([p.pst for p in result.points])
-    e = np.array([p.std_error or 0.0 for p in result.points])
-    lit = v > 0
-    floor = 0.3 * float(v[lit].min()) if lit.any() else 1e-12
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
-    lower = np.minimum(e, v - 0.5 * floor * (v > 0))  # keep the lower bar above zero on a log axis
-    ax.errorbar(a[lit], v[lit], yerr=[np.clip(lower[lit], 0, None), e[lit]], fmt="o-", ms=3, capsize=2,
-                label=f"PST ({result.method}; {', '.join(result.effects) or 'no effects'})")
-    if (~lit).any():
-        ax.plot(a[~lit], np.full((~lit).sum(), floor), "v", color="0.5", label="0 (nothing reached the detector)")
-    ax.axvline(result.field_edge_deg, color="tab:red", ls="--", lw=1,
-               label=f"field edge {result.field_edge_deg:g}°")
-    ax.set_yscale("log")
-    ax.set_xlabel("off-axis angle (°)")
-    ax.set_ylabel("PST = E_detector / E_entrance")
-    ax.set_title(f"point source transmittance · azimuth {result.azimuth_deg:g}°", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    save_figure(fig, path)
-
-
-__all__ = ["PstOptions", "PstPoint", "PstResult", "parse_angles", "pst", "pst_of", "write_pst", "plot_pst"]
+__all__ = ["PstOptions", "PstPoint", "PstResult", "parse_angles", "point_of", "pst", "pst_of", "sweep_eta"]

@@ -24,6 +24,7 @@ class Absorber(BSDF):
 
     name = "absorber"
     tis = 0.0
+    weight_bound = 0.0
     is_black = True
 
     def __init__(self, params: AbsorberParams | None = None):

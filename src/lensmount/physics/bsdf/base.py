@@ -88,6 +88,8 @@ class BSDF:
         is_black: True for the absorber (ends paths).
         lobe_half_width_deg: half width at half maximum of the lobe around the specular direction,
             degrees; inf for a lobe as wide as the hemisphere (Lambertian), 0 for the mirror.
+        weight_bound: the largest weight f·cosθo/pdf `sample` can return, for any wi (inf: the model
+            states none). What bounds a forward photon's flux (`integrators.walk.gain_bound`).
     """
 
     name: str = "bsdf"
@@ -95,6 +97,7 @@ class BSDF:
     is_delta: bool = False
     is_black: bool = False
     lobe_half_width_deg: float = math.inf
+    weight_bound: float = math.inf
 
     @property
     def params(self) -> dict:

@@ -76,6 +76,7 @@ class Gaussian(TabulatedAlbedo, BSDF):
         self._peak = self.kappa / (2.0 * math.pi * self._mass)
         self._scale = 1.0 / float(self._lobe_fraction(np.ones(1))[0])  # N
         self.tis = self.reflectance
+        self.weight_bound = 2.0 * self.reflectance * self._scale  # `sample`'s 2 cosθo / (cosθi + cosθo) < 2
         worst = self._worst_albedo_factor()
         if self.reflectance * worst > 1.0 + 1e-12:
             raise InputError(

@@ -32,7 +32,7 @@ class Lambertian(BSDF):
 
     def __init__(self, params: LambertianParams):
         self.reflectance = params.reflectance
-        self.tis = self.reflectance
+        self.tis = self.weight_bound = self.reflectance  # cosine-weighted: every sample carries ρ
 
     @property
     def params(self):

@@ -32,7 +32,7 @@ class Mirror(BSDF):
 
     def __init__(self, params: MirrorParams):
         self.reflectance = params.reflectance
-        self.tis = self.reflectance
+        self.tis = self.weight_bound = self.reflectance
 
     @property
     def params(self):
