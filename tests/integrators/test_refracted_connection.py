@@ -1,0 +1,104 @@
+"""The chain from a point in front of a lens to a point behind it, against a meridional hand trace."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lensmount.integrators.refracted_connection import Chain, solve_chain
+from lensmount.optics.profiles import Profile
+from lensmount.physics.interfaces import Coating
+from lensmount.scene.scene import OpticalSurface
+
+N_GLASS = 1.5
+R1, R2, THICK, SEMI = 50.0, -50.0, 5.0, 15.0
+
+
+def _surface(z, radius, n_before, n_after):
+    c = 0.0 if radius is None else 1.0 / radius
+    zero = np.zeros(1)
+    return OpticalSurface(0, z, Profile(curvature=c), SEMI, np.array([n_before]), np.array([n_after]),
+                          Coating("perfect-ar"), zero, zero, SEMI, False)
+
+
+def _hand_trace(theta, z1, z2, surfaces):
+    """Height at z2 of the meridional ray leaving (y=0, z1) at angle theta to the axis: circles and
+    Snell's law by angles, nothing shared with the code under test."""
+    y, z, ang = 0.0, z1, theta
+    for zv, radius, n1, n2 in surfaces:
+        dy, dz = math.sin(ang), math.cos(ang)
+        if radius is None:
+            t = (zv - z) / dz
+            y, z = y + t * dy, zv
+            normal_ang = 0.0
+        else:
+            cz = zv + radius
+            bz, by = z - cz, y
+            b = by * dy + bz * dz
+            disc = b * b - (by * by + bz * bz - radius * radius)
+            t = -b - math.sqrt(disc) if radius > 0 else -b + math.sqrt(disc)
+            y, z = y + t * dy, z + t * dz
+            normal_ang = math.atan2(-y, cz - z) if radius > 0 else math.atan2(y, z - cz)
+        incidence = ang - normal_ang
+        ang = normal_ang + math.asin(n1 / n2 * math.sin(incidence))
+    return y + (z2 - z) * math.tan(ang)
+
+
+def _bisect(fn, target, lo, hi):
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if (fn(mid) - target) * (fn(lo) - target) <= 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+@pytest.mark.parametrize("curved", [False, True], ids=["slab", "biconvex"])
+@pytest.mark.parametrize("height", [3.0, 8.0, 14.0])
+def test_chain_matches_a_meridional_hand_trace(curved, height):
+    """Direction at y1 and |dω1/dA2| = sin θ / (ρ dρ/dθ) (y1 on the axis) from an angle-by-angle trace."""
+    r1, r2 = (R1, R2) if curved else (None, None)
+    hand = [(0.0, r1, 1.0, N_GLASS), (THICK, r2, N_GLASS, 1.0)]
+    optical = [_surface(0.0, r1, 1.0, N_GLASS), _surface(THICK, r2, N_GLASS, 1.0)]
+    z1, z2 = -40.0, 80.0
+    rho = lambda th: _hand_trace(th, z1, z2, hand)  # noqa: E731
+    theta = _bisect(rho, height, 1e-6, 0.35)
+    h = 1e-6
+    drho = (rho(theta + h) - rho(theta - h)) / (2 * h)
+    expected = math.sin(theta) / (height * drho)
+
+    phi = 0.7  # any azimuth: the system is coaxial
+    y1 = np.array([[0.0, 0.0, z1]])
+    y2 = np.array([[height * math.cos(phi), height * math.sin(phi), z2]])
+    found = solve_chain(Chain.between(optical, z1, z2), y1, y2, np.array([[0.0, 0.0, -1.0]]), np.array([0]))
+    assert found.ok[0]
+    assert math.acos(found.direction[0, 2]) == pytest.approx(theta, abs=1e-8)
+    assert math.atan2(found.direction[0, 1], found.direction[0, 0]) == pytest.approx(phi, abs=1e-8)
+    assert found.d_omega_d_area[0] == pytest.approx(expected, rel=1e-5)
+
+
+def test_without_glass_the_term_is_the_ordinary_one():
+    """A plane of index 1 on both sides: cos θ2 / |y1 − y2|² on a tilted face, for off-axis points."""
+    optical = [_surface(0.0, None, 1.0, 1.0)]
+    rng = np.random.default_rng(3)
+    y1 = np.column_stack([rng.uniform(-5, 5, 20), rng.uniform(-5, 5, 20), np.full(20, -30.0)])
+    y2 = np.column_stack([rng.uniform(-10, 10, 20), rng.uniform(-10, 10, 20), rng.uniform(20, 60, 20)])
+    n2 = np.array([0.3, -0.2, -1.0]) / np.linalg.norm([0.3, -0.2, -1.0])
+    normal = np.tile(n2, (20, 1))
+    found = solve_chain(Chain.between(optical, -30.0, 100.0), y1, y2, normal, np.zeros(20, int))
+    d = y2 - y1
+    dist2 = np.einsum("ij,ij->i", d, d)
+    cos2 = np.abs(d @ n2) / np.sqrt(dist2)
+    assert found.ok.all()
+    np.testing.assert_allclose(found.direction, d / np.sqrt(dist2)[:, None], atol=1e-9)
+    np.testing.assert_allclose(found.d_omega_d_area, cos2 / dist2, rtol=1e-6)
+
+
+def test_a_point_outside_the_lens_reach_is_refused():
+    """y2 far beyond what the lens's aperture can send there from y1: no chain, nothing counted."""
+    optical = [_surface(0.0, R1, 1.0, N_GLASS), _surface(THICK, R2, N_GLASS, 1.0)]
+    found = solve_chain(Chain.between(optical, -40.0, 80.0), np.array([[0.0, 0.0, -40.0]]),
+                        np.array([[0.0, 400.0, 80.0]]), np.array([[0.0, 0.0, -1.0]]), np.array([0]))
+    assert not found.ok[0]
+    assert found.d_omega_d_area[0] == 0.0
