@@ -1,14 +1,26 @@
 """The chain from a point in front of a lens to a point behind it, against a meridional hand trace."""
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from lensmount.integrators.refracted_connection import Chain, solve_chain
-from lensmount.optics.profiles import Profile
-from lensmount.physics.interfaces import Coating
-from lensmount.scene.scene import OpticalSurface
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lens_scenes import singlet_barrel  # noqa: E402
+
+from lensmount.integrators.bidirectional import gather_cores  # noqa: E402
+from lensmount.integrators.estimate import scattering_tags  # noqa: E402
+from lensmount.integrators.refracted_connection import (  # noqa: E402
+    Chain, ThroughOptics, Vertices, connections_through_optics, solve_chain, walk_share)
+from lensmount.integrators.scatter_aim import aperture_targets  # noqa: E402
+from lensmount.physics.bsdf import make_bsdf  # noqa: E402
+from lensmount.physics.rays import RayBatch  # noqa: E402
+from lensmount.trace.tracer import Tracer  # noqa: E402
+from lensmount.optics.profiles import Profile  # noqa: E402
+from lensmount.physics.interfaces import Coating  # noqa: E402
+from lensmount.scene.scene import OpticalSurface  # noqa: E402
 
 N_GLASS = 1.5
 R1, R2, THICK, SEMI = 50.0, -50.0, 5.0, 15.0
@@ -102,3 +114,39 @@ def test_a_point_outside_the_lens_reach_is_refused():
                         np.array([[0.0, 400.0, 80.0]]), np.array([[0.0, 0.0, -1.0]]), np.array([0]))
     assert not found.ok[0]
     assert found.d_omega_d_area[0] == 0.0
+
+
+def _barrel_vertices(scene, tracer, n=400, seed=5):
+    """n scatters on the barrel's bore in front of the singlet, lit from the front at random."""
+    rng = np.random.default_rng(seed)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    z = rng.uniform(-25.0, -3.0, n)
+    out = np.column_stack([np.cos(phi), np.sin(phi), np.zeros(n)])
+    hit = tracer.intersect(RayBatch.make(np.column_stack([np.zeros((n, 2)), z]), out))
+    normal = -out  # the bore faces the axis
+    wi = np.column_stack([-out[:, :2] * 0.5, np.full(n, -1.0)])
+    wi /= np.linalg.norm(wi, axis=1)[:, None]
+    return Vertices(hit.point, wi, normal, hit.tag.astype(np.int64), np.ones(n), np.zeros(n, np.int64),
+                    np.arange(n, dtype=np.int64))
+
+
+def _through_optics(scene):
+    core = gather_cores(scene.bsdf_of_tag)
+    scatters = scattering_tags(scene)
+    aim = aperture_targets(scene).only((core == 0) & scatters)
+    return ThroughOptics.of_scene(scene, core, scatters, aim)
+
+
+def test_a_path_sampled_both_ways_has_weights_summing_to_one():
+    """Every connection that lands, seen as the walk's photon from y1 to y2 along the same chain: the two
+    balance-heuristic weights add to 1, and both techniques have a share of it."""
+    scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.5), off_axis_deg=25.0, pixels=(8, 8))
+    tracer = Tracer(scene)
+    optics = _through_optics(scene)
+    v = _barrel_vertices(scene, tracer)
+    assert optics.starts(v.tag, v.position).all()
+    a = connections_through_optics(scene, tracer, optics.cells, optics.aim, v, 1, 7, "test")
+    assert len(a.rows) > 20
+    walk = walk_share(scene, optics.cells, optics.aim, v.take(a.rows), a.position, a.direction, a.normal, a.prim)
+    np.testing.assert_allclose(a.share + walk, 1.0, atol=1e-9)
+    assert (a.share > 0).all() and (walk > 0).all()

@@ -30,7 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.integrators.scatter_aim import AIMED_SHARE, disc_pdf
 from lensmount.optics.snell import refract
+from lensmount.physics.rays import RayBatch
+from lensmount.physics.sampler import Streams
+from lensmount.trace.tracer import FACE
 
 NEWTON_STEPS = 25
 NEWTON_TOL = 1e-7  # mm on the landing plane
@@ -165,4 +169,227 @@ def _limited(step: np.ndarray, chain: Chain) -> np.ndarray:
     return step * np.minimum(1.0, cap / np.maximum(n, 1e-300))[:, None]
 
 
-__all__ = ["Chain", "ChainRays", "solve_chain", "trace_chain"]
+
+
+# ----------------------------------------------------------------------------- the connection
+
+ARRIVAL_TOL = 1e-3  # mm: the tracer's ray along the found chain lands this close to y2, on its face
+
+
+@dataclass(frozen=True)
+class ViewCells:
+    """Triangles of broad faces behind the optics that the detector sees straight, each picked with
+    probability ∝ its area × its view of the detector (`of_scene`), a point uniform in it.
+
+    prim (K,) triangle index; tag (K,); corner (K, 3, 3); normal (K, 3) toward the detector's side;
+    area (K,) mm²; cdf (K,); pdf_of_prim (T,) the area density (1/mm²) of a point in each triangle
+    of the mesh (0 outside the cells); z_behind: the plane behind every optical surface."""
+
+    prim: np.ndarray
+    tag: np.ndarray
+    corner: np.ndarray
+    normal: np.ndarray
+    area: np.ndarray
+    cdf: np.ndarray
+    pdf_of_prim: np.ndarray
+    z_behind: float
+
+    @classmethod
+    def of_scene(cls, scene, broad: np.ndarray) -> "ViewCells | None":
+        """None when no such face: no optics, a mirror, nothing broad behind the last surface."""
+        optical = list(scene.optical)
+        if not optical or any(s.mirror for s in optical):
+            return None
+        z_last = max(s.z_vertex + max(0.0, _rim_sag(s)) for s in optical)
+        mesh, det = scene.mesh, scene.detector
+        mechanical = np.all(np.asarray(scene.solid_index_of_tag) == 1.0, axis=1)
+        corner = mesh.vertices[mesh.triangles]
+        centre = corner.mean(axis=1)
+        cross = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+        area = 0.5 * np.linalg.norm(cross, axis=1)
+        normal = cross / np.maximum(2 * area, 1e-300)[:, None]
+        view, side = np.zeros(len(area)), np.zeros(len(area))
+        for px, py in ((0.0, 0.0), (-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)):
+            # the view of the detector's centre and corners, from either side of the face
+            to_d = np.array([px * det.width, py * det.height, det.z]) - centre
+            d2 = np.einsum("ij,ij->i", to_d, to_d)
+            cos_x = np.einsum("ij,ij->i", to_d, normal) / np.sqrt(d2)
+            cos_d = np.maximum(to_d[:, 2] / np.sqrt(d2), 0.0)
+            view += np.abs(cos_x) * cos_d / d2 * det.width * det.height / 5
+            side += cos_x * cos_d
+        tags = mesh.tags
+        keep = (broad[tags] & mechanical[tags] & (centre[:, 2] > z_last) & (centre[:, 2] < det.z)
+                & (view > 0) & (area > 0))
+        if not keep.any():
+            return None
+        k = np.flatnonzero(keep)
+        importance = area[k] * view[k]
+        importance = np.maximum(importance, 1e-3 * importance.max() * area[k] / area[k].max())  # every cell reachable
+        pick = importance / importance.sum()
+        pdf_of_prim = np.zeros(len(area))
+        pdf_of_prim[k] = pick / area[k]
+        oriented = normal[k] * np.where(side[k] >= 0, 1.0, -1.0)[:, None]
+        return cls(k, tags[k], corner[k], oriented, area[k], np.cumsum(pick), pdf_of_prim, float(z_last))
+
+    def sample(self, u: np.ndarray):
+        """Points (M, 3), their normals, tags, triangles and area densities from uniforms u (M, 3)."""
+        i = np.minimum(np.searchsorted(self.cdf, u[:, 0] * self.cdf[-1], side="right"), len(self.cdf) - 1)
+        s = np.sqrt(u[:, 1])
+        b = np.column_stack([1 - s, s * (1 - u[:, 2]), s * u[:, 2]])
+        y = np.einsum("nk,nkj->nj", b, self.corner[i])
+        return y, self.normal[i], self.tag[i], self.prim[i], self.pdf_of_prim[self.prim[i]]
+
+
+def _rim_sag(s) -> float:
+    h = s.mechanical_semi_diameter if np.isfinite(s.mechanical_semi_diameter) else s.clear_semi_diameter
+    sag = float(s.profile.sag(np.array([h * h]))[0]) if np.isfinite(h) else 0.0
+    return sag if np.isfinite(sag) else 0.0
+
+
+def photon_direction_pdf(scene, aim, tag, position, wi, normal, wo) -> np.ndarray:
+    """(M,) the solid-angle density with which the walk draws wo at a scatter (tag, position) arriving
+    from wi: the BSDF's, or where `aim` aims the mixture (`scatter_aim`)."""
+    p = np.zeros(len(tag))
+    for t in np.unique(tag):
+        sel = np.flatnonzero(tag == t)
+        p[sel] = np.asarray(scene.bsdf_of_tag[int(t)].pdf(wi[sel], wo[sel], normal[sel]), np.float64)
+    if aim is not None:
+        a = np.flatnonzero(aim.aimed(tag, position))
+        if len(a):
+            p[a] = (1 - AIMED_SHARE) * p[a] + AIMED_SHARE * disc_pdf(aim, aim.disc_of(position[a]), position[a], wo[a])
+    return p
+
+
+@dataclass
+class Vertices:
+    """M photon scatters y1: position, wi (toward the light), normal (photon's side), tag, flux Φ
+    arriving, wavelength index, photon id."""
+
+    position: np.ndarray
+    wi: np.ndarray
+    normal: np.ndarray
+    tag: np.ndarray
+    flux: np.ndarray
+    wavelength: np.ndarray
+    id: np.ndarray
+
+    def take(self, rows) -> "Vertices":
+        return Vertices(*(getattr(self, k)[rows] for k in ("position", "wi", "normal", "tag", "flux", "wavelength", "id")))
+
+
+@dataclass(frozen=True)
+class ThroughOptics:
+    """What the connection through the optics needs for one scene: the cells, the walk's aim, the faces
+    whose scatters start a connection (broad, the lobe the gather counts whole, mechanical) and the
+    last optical surface's vertex (a start lies in front of it)."""
+
+    cells: ViewCells
+    aim: object
+    whole: np.ndarray
+    last_vertex: float
+
+    @classmethod
+    def of_scene(cls, scene, core: np.ndarray, scatters: np.ndarray, aim) -> "ThroughOptics | None":
+        mechanical = np.all(np.asarray(scene.solid_index_of_tag) == 1.0, axis=1)
+        whole = (np.asarray(core) == 0) & np.asarray(scatters, bool) & mechanical
+        cells = ViewCells.of_scene(scene, np.isfinite(core) & np.asarray(scatters, bool))
+        if cells is None or not whole.any():
+            return None
+        return cls(cells, aim, whole, float(max(s.z_vertex for s in scene.optical)))
+
+    def starts(self, tag: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """(M,) scatters at (tag, position) that start a connection through the optics: an optical surface ahead."""
+        return self.whole[tag] & (position[:, 2] < self.last_vertex)
+
+
+def _chains(scene, z1: np.ndarray, z_to: float):
+    """Groups of rows by the chain ahead of each z1 (the surfaces between z1 and z_to): (Chain, rows)."""
+    zs = np.sort([s.z_vertex for s in scene.optical])
+    ahead = np.searchsorted(zs, z1, side="right")
+    for k in np.unique(ahead[ahead < len(zs)]):
+        yield Chain.between(scene.optical, float(zs[k]) - 1e-9, z_to), np.flatnonzero(ahead == k)
+
+
+def _solve(scene, y1, y2, n2, wl) -> ChainRays:
+    """solve_chain by the chain ahead of each y1 (not ok where none)."""
+    m = len(y1)
+    out = ChainRays(np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m), np.zeros(m, bool))
+    for chain, rows in _chains(scene, y1[:, 2], scene.detector.z):
+        if not chain.surfaces:
+            continue
+        r = solve_chain(chain, y1[rows], y2[rows], n2[rows], wl[rows])
+        out.direction[rows], out.exit_direction[rows] = r.direction, r.exit_direction
+        out.d_omega_d_area[rows], out.ok[rows] = r.d_omega_d_area, r.ok
+    return out
+
+
+@dataclass
+class Arrivals:
+    """The connections that landed on y2: rows of the scatters they started from, position, direction
+    (travel, after the optics), normal, flux Φ f1 cos θ1 |dω1/dA2| T / p_area · share, tag, prim, and share,
+    the balance heuristic's weight p_area / (p_area + p_walk) included in flux."""
+
+    rows: np.ndarray
+    position: np.ndarray
+    direction: np.ndarray
+    normal: np.ndarray
+    flux: np.ndarray
+    tag: np.ndarray
+    prim: np.ndarray
+    share: np.ndarray
+
+
+def connections_through_optics(scene, tracer, cells: ViewCells, aim, v: Vertices, bounce: int, seed: int,
+                               purpose: str) -> Arrivals:
+    """Virtual photons on the faces behind the optics (`ViewCells`), one per scatter y1 in `v` (each in
+    front of an optical surface): y2 drawn by area, the chain y1 → y2 solved, traced by the tracer (metal
+    on the way, Fresnel and absorption), weighted by the balance heuristic against the walk's own photons
+    reaching y2 that way (`walk_share`), for the detector connection."""
+    m = len(v.flux)
+    u = Streams(seed, purpose + "/through-optics", v.id, step=int(bounce)).random((m, 3))
+    y2, n2, tag2, prim2, p_area = cells.sample(u)
+    chain = _solve(scene, v.position, y2, n2, v.wavelength)
+    w1 = chain.direction
+    cos1 = np.einsum("ij,ij->i", w1, v.normal)
+    ok = chain.ok & (cos1 > 0) & (np.einsum("ij,ij->i", chain.exit_direction, n2) < 0)
+    k = np.flatnonzero(ok)
+    throughput = np.zeros(0)
+    if len(k):
+        seen = tracer.next_event(RayBatch.make(v.position[k], w1[k], np.ones(len(k)), v.wavelength[k], v.id[k]),
+                                 None, v.normal[k])
+        landed = ((seen.kind == FACE) & (seen.tag == tag2[k])
+                  & (np.linalg.norm(seen.position - y2[k], axis=1) < ARRIVAL_TOL) & (seen.weight > 0))
+        k, throughput = k[landed], seen.weight[landed]
+    f1 = np.zeros(len(k))
+    for t in np.unique(v.tag[k]):
+        rows = np.flatnonzero(v.tag[k] == t)
+        f1[rows] = np.asarray(scene.bsdf_of_tag[int(t)].eval(v.wi[k][rows], w1[k][rows], v.normal[k][rows]), np.float64)
+    g = chain.d_omega_d_area[k]
+    p_walk = photon_direction_pdf(scene, aim, v.tag[k], v.position[k], v.wi[k], v.normal[k], w1[k]) * g
+    share = p_area[k] / (p_area[k] + p_walk)
+    flux = v.flux[k] * np.maximum(f1, 0.0) * cos1[k] * g * throughput / p_area[k] * share
+    return Arrivals(k, y2[k], chain.exit_direction[k], n2[k], flux, tag2[k], prim2[k], share)
+
+
+def walk_share(scene, cells: ViewCells, aim, came_from: Vertices, arrival_position, arrival_direction,
+               arrival_normal, arrival_prim) -> np.ndarray:
+    """(M,) the balance heuristic's weight of photons that scattered at `came_from` (y1) and reached y2
+    (arrival_*) with nothing but the optics between: p_walk / (p_walk + p_area) where the connection
+    would have found the same chain (the solve from y1 to y2 leaves along the photon's own last
+    direction), 1 elsewhere."""
+    share = np.ones(len(arrival_position))
+    p_area = cells.pdf_of_prim[arrival_prim]
+    k = np.flatnonzero(p_area > 0)
+    if not len(k):
+        return share
+    chain = _solve(scene, came_from.position[k], arrival_position[k], arrival_normal[k], came_from.wavelength[k])
+    same = chain.ok & (np.einsum("ij,ij->i", chain.exit_direction, arrival_direction[k]) > 1 - 1e-9)
+    k, w1, g = k[same], chain.direction[same], chain.d_omega_d_area[same]
+    p_walk = photon_direction_pdf(scene, aim, came_from.tag[k], came_from.position[k], came_from.wi[k],
+                                  came_from.normal[k], w1) * g
+    share[k] = p_walk / (p_walk + p_area[k])
+    return share
+
+
+__all__ = ["Arrivals", "Chain", "ChainRays", "ThroughOptics", "Vertices", "ViewCells", "connections_through_optics",
+           "photon_direction_pdf", "solve_chain", "trace_chain", "walk_share"]
