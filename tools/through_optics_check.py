@@ -23,7 +23,7 @@ angle, passes, n_b, n_f = float(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 scene = singlet_barrel(make_bsdf("lambertian", reflectance=0.5), off_axis_deg=angle, pixels=(8, 8))
 tracer = Tracer(scene)
 methods = {"bidir-off": Bidirectional(dataclasses.replace(EstimatorSettings(), connect_through_optics=False)),
-           "bidir-on": Bidirectional(), "forward": Forward()}
+           "bidir-on": Bidirectional(dataclasses.replace(EstimatorSettings(), connect_through_optics=True)), "forward": Forward()}
 for name, m in methods.items():
     n = n_f if name == "forward" else n_b
     t0 = time.perf_counter()

@@ -1,5 +1,5 @@
 """Per-pass PST-scene flux of a design at one angle, bidirectional without / with the connection through the
-optics (and optionally forward): python tools/through_optics_ref.py DESIGN SCENE ANGLE PASSES PHOTONS SEED [forward]
+optics (and optionally forward): python tools/through_optics_ref.py DESIGN SCENE ANGLE PASSES PHOTONS SEED[,SEED…] [off,on,forward]
 Prints one line per method: mean, standard error, pass spread, max/median, s a pass; and the passes."""
 
 import dataclasses
@@ -17,8 +17,9 @@ from lensmount.loop.prepare import build, read_inputs
 from lensmount.scene.build import make_source
 from lensmount.trace.tracer import Tracer
 
-design_dir, scene_file, angle, passes, photons, seed = (Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3]),
-                                                        int(sys.argv[4]), int(sys.argv[5]), int(sys.argv[6]))
+design_dir, scene_file, angle, passes, photons = (Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3]),
+                                                  int(sys.argv[4]), int(sys.argv[5]))
+seeds = [int(x) for x in sys.argv[6].split(",")]
 methods = sys.argv[7].split(",") if len(sys.argv) > 7 else ["off", "on"]
 design, spec = read_inputs(design_dir, scene_file)
 base = build(design, spec, None).scene
@@ -28,8 +29,8 @@ scene = dataclasses.replace(base, source=source)
 tracer = Tracer(scene)
 settings = EstimatorSettings(view_map_pitch=spec.run.view_map_pitch)
 make = {"off": lambda: Bidirectional(dataclasses.replace(settings, connect_through_optics=False)),
-        "on": lambda: Bidirectional(settings), "forward": lambda: Forward(settings)}
-for name in methods:
+        "on": lambda: Bidirectional(dataclasses.replace(settings, connect_through_optics=True)), "forward": lambda: Forward(settings)}
+for seed, name in ((s, n) for s in seeds for n in methods):
     m = make[name]()
     t0 = time.perf_counter()
     x = np.array([m.run_pass(scene, tracer, i, photons, seed).flux for i in range(passes)])
