@@ -126,24 +126,29 @@ def solve_chain(chain: Chain, y1: np.ndarray, y2: np.ndarray, normal2: np.ndarra
         x, _, _, ok = _landing(chain, y1[rows], a[rows], z2[rows], wl[rows])
         r = x - y2[rows, :2]
         done[rows[ok & (np.hypot(r[:, 0], r[:, 1]) < NEWTON_TOL)]] = True
+        live[rows[~ok]] = False
+        step = ok & ~done[rows]  # the Jacobian only where a step is still to take (most chains fail at once)
+        rows, r = rows[step], r[step]
         jac, jok = _jacobian(chain, y1[rows], a[rows], z2[rows], wl[rows])
         det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-        good = ok & jok & (np.abs(det) > 1e-300) & ~done[rows]
-        live[rows[~ok | ~jok | (np.abs(det) <= 1e-300)]] = False
+        good = jok & (np.abs(det) > 1e-300)
+        live[rows[~good]] = False
         g = np.flatnonzero(good)
         inv = np.stack([np.stack([jac[g, 1, 1], -jac[g, 0, 1]], -1), np.stack([-jac[g, 1, 0], jac[g, 0, 0]], -1)], 1)
-        step = np.einsum("nij,nj->ni", inv, r[g]) / det[g][:, None]
-        a[rows[g]] -= _limited(step, chain)
+        a[rows[g]] -= _limited(np.einsum("nij,nj->ni", inv, r[g]) / det[g][:, None], chain)
     ok = done & live
-    x, d2, w1, reached = _landing(chain, y1, a, z2, wl)
-    jac, jok = _jacobian(chain, y1, a, z2, wl)
-    ok &= reached & jok
+    w1, d2, g = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m)
+    k = np.flatnonzero(ok)
+    _, d2[k], w1[k], reached = _landing(chain, y1[k], a[k], z2[k], wl[k])
+    jac, jok = _jacobian(chain, y1[k], a[k], z2[k], wl[k])
     det = np.abs(jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0])
-    to_a = np.column_stack([a, np.full(m, chain.aim_z)]) - y1
-    per_aim = np.abs(w1[:, 2]) / np.einsum("ij,ij->i", to_a, to_a)
-    per_face = np.abs(np.einsum("ij,ij->i", d2, normal2)) / np.maximum(np.abs(d2[:, 2]), 1e-300)
-    ok &= det > 0
-    g = np.where(ok, per_aim / np.where(ok, det, 1.0) * per_face, 0.0)
+    fine = reached & jok & (det > 0)
+    ok[k] = fine
+    k, det = k[fine], det[fine]
+    to_a = np.column_stack([a[k], np.full(len(k), chain.aim_z)]) - y1[k]
+    per_aim = np.abs(w1[k, 2]) / np.einsum("ij,ij->i", to_a, to_a)
+    per_face = np.abs(np.einsum("ij,ij->i", d2[k], normal2[k])) / np.maximum(np.abs(d2[k, 2]), 1e-300)
+    g[k] = per_aim / det * per_face
     return ChainRays(w1, d2, g, ok)
 
 
