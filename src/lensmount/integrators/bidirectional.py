@@ -37,7 +37,9 @@ each photon there is connected to a random point of the detector (`connect`, lig
 backward rays that reach such a face straight from the detector make no hit point there.
 Why: such a face is often lit in a small spot (off the field, the sun's image), which a gather sees
 only through the few hit points near it; the connections see every photon of the spot (case 2: a
-pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's.
+pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's. With `connect_through_optics`
+(off by default) a scatter in front of the optics is also connected through them to such a face
+(`refracted_connection`), sharing those paths with the photons' own by the balance heuristic.
 
 A mirror's coated face with a finish (`[assign] "surface:N"`) is counted by the photons too, a
 decision, not an approximation: the tracer ends a ray there only with probability p (at least

@@ -22,6 +22,17 @@ normal). Without glass this is cos θ2 / |y1 − y2|², the ordinary geometric t
 surface's mechanical aperture, meet total internal reflection or do not converge are refused: the
 found chain is a candidate whose visibility (metal on the way) and Fresnel / absorption throughput
 the tracer decides.
+
+The connection (`connections_through_optics`). At a photon's scatter y1 on a broad mechanical face in front
+of an optical surface, y2 is drawn by area on the broad faces behind the last surface (`ViewCells`: a
+triangle with probability ∝ area × its view of the detector), the chain solved and traced, and y2 handed
+to the detector connection (`connect`) as a photon of flux Φ f(y1) cos θ1 |dω1/dA2| T / p_area(y2). The
+walk's own photons that made the same step are the other technique for the same paths: each path is
+shared by the balance heuristic on the two area densities at y2, p_area and p_walk = p_dir(ω1)·|dω1/dA2|
+(p_dir the walk's density at y1, aimed or not; roulette left out of both, so the two weights add to 1 path
+by path, `walk_share`). The walk's photon counts as "the same step" only where the solve from its y1 to its
+y2 leaves along its own last direction, so a chain the solve would not find stays the walk's alone.
+Off by default (`EstimatorSettings.connect_through_optics`; docs/bidirectional.md has the measurements).
 """
 
 from __future__ import annotations
