@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lensmount.integrators.scatter_aim import AIMED_SHARE, disc_pdf
+from lensmount.integrators.scatter_aim import AIMED_SHARE, ApertureTargets, disc_pdf
 from lensmount.optics.snell import refract
 from lensmount.physics.rays import RayBatch
 from lensmount.physics.sampler import Streams
@@ -300,7 +300,7 @@ class ThroughOptics:
     last optical surface's vertex (a start lies in front of it)."""
 
     cells: ViewCells
-    aim: object
+    aim: ApertureTargets | None
     whole: np.ndarray
     last_vertex: float
 
