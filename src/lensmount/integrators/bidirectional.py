@@ -37,7 +37,9 @@ each photon there is connected to a random point of the detector (`connect`, lig
 backward rays that reach such a face straight from the detector make no hit point there.
 Why: such a face is often lit in a small spot (off the field, the sun's image), which a gather sees
 only through the few hit points near it; the connections see every photon of the spot (case 2: a
-pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's.
+pass's spread 1.7 % → 0.6 %). Paths through the glass stay the gather's. With `connect_through_optics`
+(off by default) a scatter in front of the optics is also connected through them to such a face
+(`refracted_connection`), sharing those paths with the photons' own by the balance heuristic.
 
 A mirror's coated face with a finish (`[assign] "surface:N"`) is counted by the photons too, a
 decision, not an approximation: the tracer ends a ray there only with probability p (at least
@@ -73,15 +75,46 @@ from lensmount.integrators.photon_mapping.photon_gather import (
 from lensmount.integrators.photon_mapping.photon_target import (
     aims_at_edge, edge_band, emission_component, guided_photons, pilot_check, pilot_check_diagnostics, tally_edge_flux)
 from lensmount.integrators.photon_mapping.radius import FaceBoundaries, radius_caps, radius_scale
+from lensmount.integrators.photon_mapping.refracted_connection import ThroughOptics, connections_through_optics, walk_share
 from lensmount.integrators.photon_mapping.view_map import build_view_map, view_map_streams
 from lensmount.integrators.registry import INTEGRATORS, NoParams
 from lensmount.integrators.scatter_aim import aperture_targets
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.integrators.walk import photon_walk
+from lensmount.integrators.walk import Vertices, photon_walk
 from lensmount.scene.scene import optical_faces
 from lensmount.trace.tracer import FACE
 
 _CACHE: dict[tuple, tuple] = {}
+
+
+def _walk_share(scene, optics: ThroughOptics, step, rows: np.ndarray) -> np.ndarray:
+    """(len(rows),) the balance heuristic's share of the photons `rows` of this step that came to their face
+    through the optics alone from a scatter a connection through the optics starts from; 1 for the rest."""
+    share = np.ones(len(rows))
+    if step.came_from is None:
+        return share
+    ev, came = step.events, step.came_from
+    k = np.flatnonzero(optics.starts(came.tag[rows], came.position[rows]) & (ev.reflections[rows] == 0))
+    if len(k):
+        r = rows[k]
+        share[k] = walk_share(scene, optics.cells, optics.aim, came.take(r), ev.position[r], ev.direction[r],
+                              ev.normal[r], ev.prim[r])
+    return share
+
+
+def _through_optics(scene, tracer, film, optics: ThroughOptics, ev, f, step, signature, core, seed, purpose) -> None:
+    """Connect the scatters among photons `f` (at faces this step) through the optics to the faces the
+    detector sees straight, and those on to the detector (`refracted_connection`)."""
+    s = np.flatnonzero(optics.starts(ev.tag[f], ev.position[f]))
+    if not len(s):
+        return
+    r = f[s]
+    v = Vertices(ev.position[r], -ev.direction[r], ev.normal[r], ev.tag[r], ev.weight[r], ev.wavelength[r], ev.id[r])
+    a = connections_through_optics(scene, tracer, optics.cells, optics.aim, v, step.scatterings, seed, purpose)
+    if len(a.rows):
+        connect_to_detector(scene, tracer, film, a.position, a.direction, a.normal, a.flux, a.tag, v.wavelength[a.rows],
+                            film.paths.extend(signature[s][a.rows], a.tag), v.id[a.rows], step.scatterings, core, seed,
+                            purpose + "/through-optics")
 
 
 def gather_cores(bsdf_of_tag, threshold_deg: float = EstimatorSettings.glossy_threshold_deg,
@@ -203,6 +236,8 @@ class Bidirectional:
         apertures = aperture_targets(scene)
         aimable = (core == 0) & (np.count_nonzero(scatters) - scatters > 0)
         apertures = apertures.only(aimable) if apertures is not None else None
+        optics = (ThroughOptics.of_scene(scene, core, scatters, apertures)
+                  if connects and cfg.connect_through_optics and not tracer.fresnel_branch else None)
         for step in photon_walk(scene, tracer, rays, seed, self.purpose, cfg, film, ledger, gathered=core,
                                 aim=apertures):
             ev = step.events
@@ -218,9 +253,14 @@ class Bidirectional:
                                            ev.tag[f].astype(np.int32), ev.wavelength[f], signature))
                 if connects:  # every pass, whether or not its view map has direct hit points (unbiased)
                     c = np.flatnonzero(broad[ev.tag[f]])
+                    flux = ev.weight[f][c]
+                    if optics is not None:
+                        flux = flux * _walk_share(scene, optics, step, f[c])
                     connect_to_detector(scene, tracer, film, ev.position[f][c], ev.direction[f][c], ev.normal[f][c],
-                                        ev.weight[f][c], ev.tag[f][c], ev.wavelength[f][c], signature[c],
+                                        flux, ev.tag[f][c], ev.wavelength[f][c], signature[c],
                                         ev.id[f][c], step.scatterings, core, seed, self.purpose)
+                    if optics is not None:
+                        _through_optics(scene, tracer, film, optics, ev, f, step, signature, core, seed, self.purpose)
                 gather_s += phase_clock() - start
         diagnostics.update(phase_times(view_map=view.seconds, gather=gather_s,
                                        walk=phase_clock() - clock - gather_s))

@@ -41,6 +41,11 @@ class EstimatorSettings:
         connect_direct_view: bidirectional: light whose last segment runs straight from a broad face to
             the detector is counted by connecting each photon there to a point of the detector
             (`integrators.photon_mapping.connect`), not by the gather (unbiased either way; no kernel bias there).
+        connect_through_optics: bidirectional, with connect_direct_view: each broad scatter in front of the
+            optics is also connected through them to a point of a face the detector sees straight
+            (`integrators.photon_mapping.refracted_connection`), combined with the photons' own way there by the balance heuristic.
+            Off by default: on the reference design it costs 3–5× a pass and narrows the passes' spread only
+            at 45° (docs/bidirectional.md, "Connection through the optics").
     """
 
     max_bounces: int = 64
@@ -59,6 +64,7 @@ class EstimatorSettings:
     ghost_rays_across: int = 33
     edge_photons: bool = True
     connect_direct_view: bool = True
+    connect_through_optics: bool = False
 
     def __post_init__(self):
         checks = {

@@ -52,6 +52,24 @@ class NonFiniteError(FloatingPointError):
 
 
 @dataclass
+class Vertices:
+    """M photon scatters y1: position, wi (toward the light), normal (photon's side), tag, flux Φ
+    arriving, wavelength index, photon id."""
+
+    position: np.ndarray
+    wi: np.ndarray
+    normal: np.ndarray
+    tag: np.ndarray
+    flux: np.ndarray
+    wavelength: np.ndarray
+    id: np.ndarray
+
+    def take(self, rows) -> "Vertices":
+        return Vertices(*(getattr(self, k)[rows]
+                          for k in ("position", "wi", "normal", "tag", "flux", "wavelength", "id")))
+
+
+@dataclass
 class Bounce:
     """One step of N photons, before they scatter.
 
@@ -60,6 +78,7 @@ class Bounce:
     reflections : (N,) Fresnel reflections so far along the path (ghosts)
     scatterings : scattering events so far (the same for every photon of the step)
     signature : (N,) int64 path signature up to the event (`integrators.paths`), not yet the face reached
+    came_from : the scatter each photon left before the event (its position, wi, normal, tag), None before the first
     """
 
     events: Events
@@ -67,6 +86,7 @@ class Bounce:
     reflections: np.ndarray
     scatterings: int
     signature: np.ndarray
+    came_from: Vertices | None = None
 
 
 def emit_photons(scene, seed: int, purpose: str, first: int, n: int, n_pass: int) -> RayBatch:
@@ -102,6 +122,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
     reflections = np.zeros(len(rays), np.int32)
     signature = np.full(len(rays), EMPTY, np.int64)
     start_normal = None  # photons start in free space; after a scatter, on the face they left
+    came_from = None
     for bounce in range(settings.max_bounces + 1):
         if len(rays) == 0:
             return
@@ -118,7 +139,7 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         ledger.add("lost/tracer_guard", ev.weight[ev.lost])
         ledger.add("escaped", ev.weight[(ev.kind == GONE) & ~ev.lost])
         _to_film(film, ledger, ev, part, by_gather, reflections, signature)
-        yield Bounce(ev, part, reflections, bounce, signature)
+        yield Bounce(ev, part, reflections, bounce, signature, came_from)
 
         face = np.flatnonzero(ev.kind == FACE)
         tag = ev.tag[face]
@@ -144,6 +165,8 @@ def photon_walk(scene, tracer, rays: RayBatch, seed: int, purpose: str, settings
         rays = RayBatch(origin=ev.position[keep], direction=wo[ok], weight=w[ok], wavelength=ev.wavelength[keep],
                         alive=np.ones(len(keep), bool), id=ev.id[keep])
         start_normal = ev.normal[keep]
+        came_from = Vertices(ev.position[keep], -ev.direction[keep], start_normal, tag[ok], w_in[ok], ev.wavelength[keep],
+                             ev.id[keep])
         part = part_of_tag[tag[ok]].astype(np.int32)
         if gathered is not None:
             core = gathered[tag[ok]]
