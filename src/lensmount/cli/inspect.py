@@ -168,14 +168,16 @@ def _print_tables(doc: dict) -> None:
             console.print(f"surface {s['number']}: Forbes Q-type ({'Qbfs' if q['form'] == 'qbfs' else 'Qcon'}) on the "
                           f"radius and conic {s['conic']:g} above, {len(q['coefficients_mm'])} terms on normalisation "
                           f"radius {q['norm_radius_mm']:g} mm; vertex (paraxial) radius {vertex}")
-    p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
+    title = ("paraxial data of the lens unfolded (z from surface 1 vertex), the focal lengths along the folded "
+             "axis" if doc.get("frames") else "paraxial data (z from surface 1 vertex)")
+    p = Table(title=title, title_justify="left", show_header=False)
     p.add_column("quantity")
     p.add_column("value", justify="right")
     if doc["afocal"]:
         focal = [("afocal", f"angular magnification {doc['angular_magnification']:.6g}x: no focal length, "
                   "F/# or image at a finite distance (init and simulate need a focusing lens)")]
     elif doc.get("frames"):
-        focal = [(f"effective focal length ({k}, along the folded axis)",
+        focal = [(f"EFL {k} (folded axis)",
                   "none (no power)" if doc[key] is None else f"{doc[key]:.4f} mm")
                  for k, key in (("y", "efl_mm"), ("x", "efl_x_mm"))]
     else:
@@ -208,12 +210,12 @@ def _print_tables(doc: dict) -> None:
 def _print_frames(console, doc: dict) -> None:
     f = Table(title="frames: the surfaces do not share one axis (assembly frame, mm; tilts in the order-0 break "
               "convention)", title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("#", "origin x", "origin y", "origin z", "axis", "tilt x", "tilt y", "tilt z"):
+    for col in ("#", "origin (x, y, z)", "axis", "tilt x, y, z"):
         f.add_column(col, justify="right", no_wrap=True)
     for r in doc["frames"]:
-        f.add_row(str(r["number"]), *(f"{v:.4f}" for v in r["origin_mm"]),
-                  "(" + ", ".join(f"{v:.4f}" for v in r["axis"]) + ")",
-                  *(f"{r[k]:.4f}°" for k in ("tilt_x_deg", "tilt_y_deg", "tilt_z_deg")))
+        f.add_row(str(r["number"]), ", ".join(f"{v:.3f}" for v in r["origin_mm"]),
+                  ", ".join(f"{v:.4f}" for v in r["axis"]),
+                  ", ".join(f"{r[k] + 0.0:.3f}°" for k in ("tilt_x_deg", "tilt_y_deg", "tilt_z_deg")))
     console.print(f)
     x, y = doc["chief_ray_image_local_mm"]
     console.print(f"chief ray of the on-axis field on the image plane: ({x:.6f}, {y:.6f}) mm from its vertex")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lensmount.optics.paraxial import indices
 from lensmount.optics.placement import coaxial_frames
 from lensmount.optics.prescription import Prescription
 from lensmount.optics.realrays import trace
@@ -89,8 +90,9 @@ def folded_axis(p: Prescription, wavelength_um: float | None = None) -> FoldedAx
     ex, ey = ex / np.linalg.norm(ex), ey / np.linalg.norm(ey)
     along = dirs @ chief
     ux, uy = dirs @ ex / along, dirs @ ey / along
-    efl_x = -2.0 * h / (ux[1] - ux[2]) if ux[1] != ux[2] else math.inf
-    efl_y = -2.0 * h / (uy[3] - uy[4]) if uy[3] != uy[4] else math.inf
+    n_image = float(indices(p, r.wavelength_um)[-1])   # in an immersion medium f' = n' f
+    efl_x = -2.0 * h / (n_image * (ux[1] - ux[2])) if ux[1] != ux[2] else math.inf
+    efl_y = -2.0 * h / (n_image * (uy[3] - uy[4])) if uy[3] != uy[4] else math.inf
     return FoldedAxis((float(xy[0]), float(xy[1])), tuple(float(v) for v in d[0]),
                       tuple(float(v) for v in r.points[-1][0]), (float(local[0, 0]), float(local[0, 1])),
                       float(efl_x), float(efl_y))
