@@ -12,7 +12,7 @@ paraxial EFL (tests/optics/test_folded.py).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -44,7 +44,7 @@ class FoldedAxis:
 
 def placed(p: Prescription) -> Prescription:
     """The lens with explicit frames (a coaxial lens gets identity frames at its vertices)."""
-    return p if p.frames else p.__class__(**{**p.__dict__, "frames": coaxial_frames(p.vertex_z, p.image_z)})
+    return p if p.frames else replace(p, frames=coaxial_frames(p.vertex_z, p.image_z))
 
 
 def folded_axis(p: Prescription, wavelength_um: float | None = None) -> FoldedAxis:

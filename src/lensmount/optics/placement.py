@@ -111,7 +111,7 @@ def require_coaxial(prescription, what: str) -> None:
     if prescription.frames:
         raise InputError(
             f"the lens '{prescription.name}' is folded, tilted or decentred (its surfaces do not share one axis: "
-            f"see `lensmount inspect` for their frames), and {what} needs every surface centred on one axis",
+            f"see `lensmount inspect` for their frames); for {what}, every surface must be centred on one axis",
             valid="a lens whose surfaces share one axis; a folded or off-axis lens can be inspected "
                   "(`lensmount inspect`), not yet mounted, traced for stray light or simulated")
 
