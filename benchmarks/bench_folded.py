@@ -8,7 +8,8 @@ onto lensmount's image plane.
 Printed per file: the image-plane vertex (assembly frame) from both, the chief ray's point on the
 image plane in the image frame, and the EFLs (x and y) from the same small-angle derivative on
 rayoptics's rays; and rayoptics's own paraxial EFL, which unfolds the system and ignores tilts (so it
-differs on a tilted mirror, where the real focal lengths are astigmatic).
+differs on a tilted mirror, where the real focal lengths are astigmatic). rayoptics writes its reader's
+log, zmx_read_lens.log, into the working directory: run it from a scratch one.
 """
 
 from __future__ import annotations

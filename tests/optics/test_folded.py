@@ -28,10 +28,6 @@ def _zmx(*surfaces: str) -> str:
     return f"UNIT MM\nENPD 10\nWAVM 1 0.55 1\nSURF 0\n  DISZ INFINITY\nSURF 1\n  STOP\n  DISZ 10\n{body}"
 
 
-def _shift(text: str) -> str:   # _zmx numbers its surfaces from 1: after the stop they are 2, 3, ...
-    return re.sub(r"SURF (\d+)\n(?!  STOP)", lambda m: f"SURF {int(m.group(1)) + 1}\n", text, count=0)
-
-
 def _lens(*surfaces: str):
     text = _zmx(*surfaces)
     lines, k = [], 0
