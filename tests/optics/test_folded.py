@@ -5,7 +5,6 @@ focal lengths of a tilted sphere."""
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 
 import numpy as np
