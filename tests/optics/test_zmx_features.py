@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 
 from lensmount.cli import app
 from lensmount.errors import InputError
+from lensmount.optics.placement import require_coaxial
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.io.zemax import convert, parse_zmx
 from lensmount.optics.paraxial import paraxial
@@ -99,7 +100,7 @@ def test_a_finite_objects_field_angle_is_the_chief_rays_angle_at_the_entrance_pu
     assert p.object_heights_mm[1] == pytest.approx(3.629181535504, abs=1e-9)
 
 
-def test_coordinate_breaks_that_undo_each_other_import_and_one_that_tilts_a_lens_is_refused():
+def test_coordinate_breaks_that_undo_each_other_import_on_one_axis_and_one_that_tilts_a_lens_gives_frames():
     undone = ["SURF 1", "  TYPE COORDBRK", "  PARM 3 5", "  DISZ 0", "SURF 2", "  DISZ 0",
               "SURF 3", "  TYPE COORDBRK", "  PARM 3 -5", "  DISZ 2"]
     text = "\n".join(SINGLET).format(aperture="ENPD 10", ftyp=0, field=5, object="INFINITY", glass="N-BK7")
@@ -108,10 +109,13 @@ def test_coordinate_breaks_that_undo_each_other_import_and_one_that_tilts_a_lens
     assert len(lens.surfaces) == 2 and lens.surfaces[0].radius == pytest.approx(50.0)
     assert sum(1 for n in notes if n.what.startswith("coordinate break")) == 2
     assert lens.surfaces[0].thickness == 6.0 and lens.vertex_z == (0.0, 6.0)   # the 2 mm gap sits before surface 1
+    assert lens.frames == ()
     tilted = text.replace("  PARM 3 -5\n  DISZ 2", "  PARM 3 5\n  DISZ 0")
-    with pytest.raises(InputError) as err:
-        convert(parse_zmx(tilted, "t.zmx"), "t.zmx")
-    assert "surface 4" in err.value.paragraph() and "rotationally symmetric" in err.value.paragraph()
+    lens, _ = convert(parse_zmx(tilted, "t.zmx"), "t.zmx")   # the singlet on an axis turned 10° about x
+    assert [f.tilts_deg()[0] for f in lens.frames] == pytest.approx([10.0] * 4, abs=1e-12)   # dummy, 2 faces, image
+    with pytest.raises(InputError) as err:   # the mount, scene and tracer need one axis: refused where they start
+        require_coaxial(lens, "the mount")
+    assert "one axis" in err.value.paragraph() and "\n" not in err.value.paragraph()
 
 
 def test_inspect_prints_the_import_table(tmp_path):

@@ -21,6 +21,7 @@ from lensmount.cli.options import GlassCatalogs
 from lensmount.design.edges import clip_warnings
 from lensmount.design.lens import import_notes, load_lens, load_lens_and_clips, save_lens_toml
 from lensmount.errors import InputError
+from lensmount.optics.folded import folded_axis
 from lensmount.optics.glass import refractive_index
 from lensmount.optics.paraxial import paraxial
 
@@ -89,7 +90,28 @@ def inspect_document(prescription, notes=None, clips=()) -> dict:
              for c, what in zip(clips, clip_warnings(clips))]
     if rows:
         doc["import_notes"] = rows
+    if prescription.frames:
+        doc.update(_placed(prescription))
     return doc
+
+
+def _placed(prescription) -> dict:
+    """For a lens off one axis: every surface's frame and the first-order data along the folded axis (the
+    chief ray of the on-axis field); the coaxial paraxial data above are the unfolded lens's, so the focal
+    ones are replaced."""
+    axis = folded_axis(prescription)
+    frames = []
+    for i, f in enumerate(prescription.frames):
+        tilt = f.tilts_deg()
+        frames.append({"number": i + 1 if i < len(prescription.surfaces) else "image",
+                       "origin_mm": list(f.origin), "axis": [float(v) for v in f.axis],
+                       "tilt_x_deg": tilt[0], "tilt_y_deg": tilt[1], "tilt_z_deg": tilt[2]})
+    def finite(v):   # a flat fold has no focal length: None, as for an afocal lens
+        return v if math.isfinite(v) else None
+    return {"frames": frames, "efl_mm": finite(axis.efl_y), "efl_x_mm": finite(axis.efl_x), "bfl_mm": None,
+            "f_number": None,
+            "image_space_na": None, "paraxial_image_z_mm": None,
+            "chief_ray_image_mm": list(axis.image_point), "chief_ray_image_local_mm": list(axis.image_local)}
 
 
 def _recomputed(prescription, note, clipped) -> str:
@@ -137,6 +159,8 @@ def _print_tables(doc: dict) -> None:
                   s["material"] + (" (mirror)" if s["mirror"] else ""), f"{s['n_primary']:.6f}",
                   csd, f"{s['z_mm']:.3f}", "STOP" if s["is_stop"] else "")
     console.print(t)
+    if doc.get("frames"):
+        _print_frames(console, doc)
     for s in doc["surfaces"]:
         if s["qtype"] is not None:
             q = s["qtype"]
@@ -144,12 +168,18 @@ def _print_tables(doc: dict) -> None:
             console.print(f"surface {s['number']}: Forbes Q-type ({'Qbfs' if q['form'] == 'qbfs' else 'Qcon'}) on the "
                           f"radius and conic {s['conic']:g} above, {len(q['coefficients_mm'])} terms on normalisation "
                           f"radius {q['norm_radius_mm']:g} mm; vertex (paraxial) radius {vertex}")
-    p = Table(title="paraxial data (z from surface 1 vertex)", title_justify="left", show_header=False)
+    title = ("paraxial data of the lens unfolded (z from surface 1 vertex), the focal lengths along the folded "
+             "axis" if doc.get("frames") else "paraxial data (z from surface 1 vertex)")
+    p = Table(title=title, title_justify="left", show_header=False)
     p.add_column("quantity")
     p.add_column("value", justify="right")
     if doc["afocal"]:
         focal = [("afocal", f"angular magnification {doc['angular_magnification']:.6g}x: no focal length, "
                   "F/# or image at a finite distance (init and simulate need a focusing lens)")]
+    elif doc.get("frames"):
+        focal = [(f"EFL {k} (folded axis)",
+                  "none (no power)" if doc[key] is None else f"{doc[key]:.4f} mm")
+                 for k, key in (("y", "efl_mm"), ("x", "efl_x_mm"))]
     else:
         focal = [("effective focal length", f"{doc['efl_mm']:.4f} mm"),
                  ("back focal length", f"{doc['bfl_mm']:.4f} mm"),
@@ -163,7 +193,8 @@ def _print_tables(doc: dict) -> None:
             ("entrance pupil z", f"{doc['entrance_pupil_z_mm']:.4f} mm"),
             ("exit pupil z", f"{doc['exit_pupil_z_mm']:.4f} mm"),
             ("exit pupil diameter", f"{doc['exit_pupil_diameter_mm']:.4f} mm"),
-            *([("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm")] if not doc["afocal"] else []),
+            *([("paraxial image z", f"{doc['paraxial_image_z_mm']:.4f} mm")]
+              if doc["paraxial_image_z_mm"] is not None else []),
             ("image plane z (file)", f"{doc['image_plane_z_mm']:.4f} mm"),
             ("object", "at infinity" if doc["object_distance_mm"] is None
              else f"{doc['object_distance_mm']:g} mm in front of surface 1"),
@@ -174,6 +205,20 @@ def _print_tables(doc: dict) -> None:
     for r in rows:
         p.add_row(*r)
     console.print(p)
+
+
+def _print_frames(console, doc: dict) -> None:
+    f = Table(title="frames: the surfaces do not share one axis (assembly frame, mm; tilts in the order-0 break "
+              "convention)", title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("#", "origin (x, y, z)", "axis", "tilt x, y, z"):
+        f.add_column(col, justify="right", no_wrap=True)
+    for r in doc["frames"]:
+        f.add_row(str(r["number"]), ", ".join(f"{v:.3f}" for v in r["origin_mm"]),
+                  ", ".join(f"{v:.4f}" for v in r["axis"]),
+                  ", ".join(f"{r[k] + 0.0:.3f}°" for k in ("tilt_x_deg", "tilt_y_deg", "tilt_z_deg")))
+    console.print(f)
+    x, y = doc["chief_ray_image_local_mm"]
+    console.print(f"chief ray of the on-axis field on the image plane: ({x:.6f}, {y:.6f}) mm from its vertex")
 
 
 @COMMANDS.register("inspect", CommandLine)
@@ -191,7 +236,7 @@ def inspect_command(
     was found), the surfaces with their clear semi-diameters, and the paraxial data (for an afocal
     system its angular magnification instead of a focal length)."""
     try:
-        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, afocal_ok=True)
+        prescription, clips = load_lens_and_clips(lens, margin_mm=margin, afocal_ok=True, placed_ok=True)
         if save_toml is not None:
             raw = load_lens(lens, auto_clear_apertures=False, afocal_ok=True)
             # lens.toml has no vignetting factors: a vignetted lens keeps the semi-diameters they give

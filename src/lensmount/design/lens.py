@@ -31,6 +31,7 @@ from lensmount.optics.io.lens_toml import line_of_field, read_lens_toml, write_l
 from lensmount.optics.io.zemax import read_zmx, read_zmx_with_notes
 from lensmount.optics.io.zemax_file import ImportNote
 from lensmount.optics.paraxial import AFOCAL_POWER_RATIO, paraxial
+from lensmount.optics.placement import require_coaxial
 from lensmount.optics.prescription import AIR, Prescription
 from lensmount.optics.profiles import Profile
 
@@ -58,8 +59,8 @@ def load_lens(path, *, auto_clear_apertures: bool = True, margin_mm: float | Non
 
 def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: float | None = None,
                         glass_catalogs=(), afocal_ok: bool = False, clip_edge_mm: float | None = None,
-                        max_clip_vignetting: float | None = MAX_CLIP_VIGNETTING, clip_thin: bool = False
-                        ) -> tuple[Prescription, tuple[EdgeClip, ...]]:
+                        max_clip_vignetting: float | None = MAX_CLIP_VIGNETTING, clip_thin: bool = False,
+                        placed_ok: bool = False) -> tuple[Prescription, tuple[EdgeClip, ...]]:
     """Read `lens.toml` or `.zmx` into a validated Prescription, and the elements edged inside
     the beam (design.edges: faces meeting inside automatic semi-diameters; a warning for the user).
 
@@ -79,6 +80,9 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
         max_clip_vignetting: the largest share of a field's pupil such clips may stop before the lens
             is refused (any on-axis ray refused too); None: the glass decides, whatever they cost.
         clip_thin: also edge there an element whose faces come closer than that gap inside the beam.
+        placed_ok: accept a lens whose surfaces do not share one axis (for `inspect`), as read: its
+            semi-diameters stay the file's, since the beam heights come from the coaxial trace; the
+            mount, the scene and the tracer refuse it here.
     """
     path = _resolve(Path(path))
     file = str(path)
@@ -90,6 +94,10 @@ def load_lens_and_clips(path, *, auto_clear_apertures: bool = True, margin_mm: f
     margin = file_margin if margin_mm is None else margin_mm
     try:
         validate(prescription, file, afocal_ok)
+        if prescription.frames:
+            if not placed_ok:
+                require_coaxial(prescription, "the mount, the stray-light scene and the tracer")
+            return prescription, ()
         complete, clips = clip_crossing_elements(prescription, margin, file, clip_edge_mm, max_clip_vignetting,
                                                  clip_thin)
         _check_radii(complete, file, given_only=False)

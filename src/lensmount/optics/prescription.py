@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from lensmount.optics.placement import Frame
 from lensmount.optics.profiles import Profile
 from lensmount.optics.qtype import QType
 
@@ -111,6 +112,10 @@ class Prescription:
             pupil is far away anyway).
         glass_catalogs: the user's glass catalogues (.agf paths) the materials were found in
             (a material `NAME:GLASS` names one by its file's stem; lensmount.optics.glass).
+        frames: for a lens whose surfaces do not share one axis (folded, tilted, decentred), the
+            placement of every surface and then of the image plane (lensmount.optics.placement);
+            each thickness runs along the local z of its surface. () for a coaxial lens, whose
+            surfaces sit on the z axis at `vertex_z`.
     """
 
     surfaces: tuple[Surface, ...]
@@ -125,6 +130,7 @@ class Prescription:
     vignetting: tuple[tuple[float, float, float, float, float], ...] = ()
     object_telecentric: bool = False
     glass_catalogs: tuple[str, ...] = ()
+    frames: tuple[Frame, ...] = ()
 
     @property
     def finite_object(self) -> bool:

@@ -116,15 +116,19 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
     stopped_at = np.where(bad, 0, -1).astype(np.int64)
     p, cur = o.copy(), d.copy()
 
+    frames = prescription.frames   # () on one axis: the vertices at z_vertex, no rotation
     for i, surface in enumerate(surfaces):
         profile = Profile.of(surface)
         # localise
-        local = p - np.array([0.0, 0.0, z_vertex[i]])
+        if frames:
+            local, cur_local = frames[i].to_local(p, cur)
+        else:
+            local, cur_local = p - np.array([0.0, 0.0, z_vertex[i]]), cur
         # intersect
-        t = profile.intersect(local, cur)
+        t = profile.intersect(local, cur_local)
         hit_ok = np.isfinite(t)
         t = np.where(hit_ok, t, 0.0)
-        q = local + t[:, None] * cur
+        q = local + t[:, None] * cur_local
         # clip
         ok = alive & hit_ok
         if clip and surface.clear_semi_diameter is not None:
@@ -132,24 +136,33 @@ def trace(prescription: Prescription, origins, directions, wavelength_um: float 
             ok &= q[:, 0] ** 2 + q[:, 1] ** 2 <= limit * limit
         # refract, or reflect at a mirror
         if surface.mirror:
-            new_dir = reflect(cur, profile.normal(q))
+            new_dir = reflect(cur_local, profile.normal(q))
             new_dir = new_dir / _safe_norm(new_dir)[:, None]
         else:
-            new_dir, tir, _, _ = refract(cur, profile.normal(q), np.full(len(cur), n[i] / n[i + 1]))
+            new_dir, tir, _, _ = refract(cur_local, profile.normal(q), np.full(len(cur), n[i] / n[i + 1]))
             ok &= ~tir
         # record (vignetted lanes keep their last valid point and direction)
         newly = alive & ~ok
         stopped_at[newly] = i
         alive = ok
-        q_global = q + np.array([0.0, 0.0, z_vertex[i]])
+        # globalise
+        if frames:
+            q_global, new_dir = frames[i].to_global(q, new_dir)
+        else:
+            q_global = q + np.array([0.0, 0.0, z_vertex[i]])
         p = np.where(alive[:, None], q_global, p)
         cur = np.where(alive[:, None], new_dir, cur)
         points[i], dirs[i] = p, cur
 
-    # image plane
+    # image plane (off one axis: the z = image_z - its vertex plane of the image frame)
     z_img = prescription.image_z if image_z is None else float(image_z)
-    forward = cur[:, 2] * (prescription.travel[nsurf - 1] if nsurf else 1) > 1e-12
-    t = np.where(forward, (z_img - p[:, 2]) / np.where(forward, cur[:, 2], 1.0), 0.0)
+    if frames:
+        p_img, cur_img = frames[-1].to_local(p, cur)
+        z_img -= prescription.image_z
+    else:
+        p_img, cur_img = p, cur
+    forward = cur_img[:, 2] * (prescription.travel[nsurf - 1] if nsurf else 1) > 1e-12
+    t = np.where(forward, (z_img - p_img[:, 2]) / np.where(forward, cur_img[:, 2], 1.0), 0.0)
     ok = alive & forward
     stopped_at[alive & ~ok] = nsurf
     alive = ok

@@ -59,7 +59,7 @@ from lensmount.errors import InputError
 from lensmount.optics.apertures import beam_heights
 from lensmount.optics.glass import CATALOGUES
 from lensmount.optics.io.agf import register_catalogue
-from lensmount.optics.io import zemax_glass
+from lensmount.optics.io import zemax_breaks, zemax_glass
 from lensmount.optics.io.zemax_file import ImportNote, read_text
 from lensmount.optics.io.zemax_first_order import apply_aperture_and_fields
 from lensmount.optics.io.zemax_qtype import qtype_note, qtype_of
@@ -109,6 +109,8 @@ class ZmxSurface:
     coating: str | None = None
     comment: str | None = None
     pickups: list = field(default_factory=list)  # "curvature from surface 6", ... (values as written)
+    ppar: dict = field(default_factory=dict)  # k -> (source surface, scale, offset, source parameter): PPAR
+    scbd: tuple | None = None  # (values, line): the surface's own tilt/decentre data, when not all zero
 
 
 @dataclass
@@ -214,7 +216,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
             lens.configurations = (int(arg(args, 0, ln, "number of configurations")),
                                    int(arg(args, 1, ln, "active configuration", 1.0)))
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
-                     "PZUP", "OEMA", "XDAT"):
+                     "PZUP", "OEMA", "XDAT", "PPAR", "SCBD"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
             _surface_line(cur, cmd, args, rest, ln, err, num, arg)
@@ -243,6 +245,14 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.conic = arg(args, 0, ln, "conic")
     elif cmd == "PARM":
         cur.parm[int(arg(args, 0, ln, "parameter index"))] = (arg(args, 1, ln, "parameter"), ln)
+    elif cmd == "PPAR":   # parameter pickup: k, source surface, scale, offset, source parameter (0: k)
+        k, source = int(arg(args, 0, ln, "parameter index")), int(arg(args, 1, ln, "pickup surface"))
+        cur.ppar[k] = (source, arg(args, 2, ln, "pickup scale", 1.0), arg(args, 3, ln, "pickup offset", 0.0),
+                       int(arg(args, 4, ln, "pickup parameter", 0.0)))
+    elif cmd == "SCBD":
+        values = tuple(num(a, ln, "tilt/decentre value") for a in args[1:])
+        if any(values[2:]):
+            cur.scbd = (values, ln)
     elif cmd == "XDAT":
         cur.xdat[int(arg(args, 0, ln, "extra data index"))] = (arg(args, 1, ln, "extra data"), ln)
     elif cmd == "DISZ":
@@ -312,7 +322,10 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     notes.append(ImportNote("imported", "object", "at infinity" if math.isinf(object_distance)
                             else f"at {object_distance:g} mm in front of surface 1"))
 
-    automatic = _automatic(lens)
+    placed = zemax_breaks.frames(lens, file, notes)
+    coaxial = all(f.is_axial for f in placed.values())
+    # off one axis, the automatic DIAMs stay the file's: the beam heights come from the coaxial trace
+    automatic = _automatic(lens) if coaxial else set()
     user = tuple(register_catalogue(p) for p in glass_catalogs)
     for p in glass_catalogs:
         notes.append(ImportNote("imported", "glass catalogues", f"{Path(p).resolve()} (searched before the "
@@ -324,6 +337,16 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     tilt = None  # (surface number, description) of a coordinate break not yet undone
     state = [0.0, 0.0, 0.0, 0.0]  # decenter x, y, tilt x, tilt y accumulated by breaks
     for zs in body:
+        if zs.type == "COORDBRK" and not coaxial:
+            if surfaces:
+                _add_gap(surfaces, zs.thickness * s)
+            elif math.isfinite(object_distance):
+                object_distance += zs.thickness * s  # a gap before surface 1 moves the object away
+            dx, dy, tx, ty, tz, order = zemax_breaks.break_values(lens, zs)
+            notes.append(ImportNote("imported", f"SURF {zs.number}", f"coordinate break: decentre {dx:g}, {dy:g}, tilt "
+                                    f"{tx:g}°, {ty:g}°, {tz:g}° ({'decentre, then tilt x, y, z' if order == 0 else 'tilt z, y, x, then decentre'})"
+                                    " -> the frames of the surfaces after it"))
+            continue
         if zs.type == "COORDBRK":
             for k in range(4):
                 state[k] += zs.parm.get(k + 1, (0.0, 0))[0]
@@ -342,7 +365,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
                                        else "undone by a later break" if tilt is None else "(see the next break)")))
             continue
         optical = zs.mirror or zs.stop or zs.curvature != 0.0 or zs.parm or zs.xdat or _glass_name(zs) != medium.upper()
-        if tilt is not None:
+        if tilt is not None and coaxial:
             if optical or zs.thickness != 0.0:
                 _asymmetric(file, zs, tilt, "is a mirror, lens surface or stop" if optical else
                             "has a thickness along the decentred or tilted axis")
@@ -360,7 +383,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             raise InputError(f"surface {zs.number} has an infinite thickness", file=file,
                              line=zs.thickness_line, valid="a finite DISZ for SURF 1..N-1")
         clear, mech = _semi_diameters(lens, zs, s, notes, automatic, len(surfaces))
-        if _bounds_glass(lens, zs) and not zs.mirror and (material.upper() != AIR or medium.upper() != AIR):
+        if coaxial and _bounds_glass(lens, zs) and not zs.mirror and (material.upper() != AIR or medium.upper() != AIR):
             edges[len(surfaces)] = (zs.diam * s, zs.clap * s if zs.clap else None)
         qtype = qtype_of(zs, s, file)
         if qtype is not None:
@@ -375,7 +398,7 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
             mirror=zs.mirror, qtype=qtype))
         numbers.append(zs.number)
         medium = material
-    if tilt is not None:
+    if tilt is not None and coaxial:
         _asymmetric(file, image, tilt, "is the image surface")
     if not surfaces:
         raise InputError("no optical surface between the object and the image", file=file,
@@ -391,7 +414,8 @@ def convert(lens: ZmxLens, file: str = "lens.zmx", glass_catalogs=()) -> tuple[P
     base = Prescription(surfaces=tuple(surfaces), aperture=Aperture("epd", 1.0), wavelengths_um=tuple(waves),
                         wavelength_weights=tuple(weights), primary_wavelength=primary,
                         name=lens.name, object_distance=object_distance, object_telecentric=lens.telecentric,
-                        glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs))
+                        glass_catalogs=tuple(str(Path(p).resolve()) for p in glass_catalogs),
+                        frames=() if coaxial else tuple(placed[n] for n in (*numbers, image.number)))
     return _glass_edges(apply_aperture_and_fields(base, lens, numbers, notes, file), edges, numbers, notes), notes
 
 
