@@ -59,7 +59,7 @@ def fail(error: InputError) -> None:
 
 # Modules that define commands; each does `@app.command()` at import.
 COMMAND_MODULES = ("inspect", "regenerate", "check", "simulate", "compare", "watch", "history", "pst", "converge", "sweep",
-                   "ghosts", "fit_abg", "paths")
+                   "ghosts", "fit_abg", "paths", "optimize")
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"lensmount.cli.{_name}")
