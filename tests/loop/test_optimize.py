@@ -37,8 +37,8 @@ scene = "case2-lambertian"
 max_length_mm = 80.0
 
 [optimize.fidelity]
-photons_per_pass = 2000
-passes = [3, 8]
+photons_per_pass = 4000
+passes = [3, 6]
 final_passes = 6
 
 [optimize.search]
@@ -60,16 +60,17 @@ def design(folder: Path, spec: str = SPEC) -> Path:
      "low < high"),
     ('scene = "case2-lambertian"', "optimize.objective.kind", "stray_fraction"),
     ('max_length_mm = 80.0', "optimize.constraints.max_length_mm", "> 0"),
-    ('passes = [3, 8]', "optimize.fidelity.passes", "must rise"),
+    ('passes = [3, 6]', "optimize.fidelity.passes", "must rise"),
     ('"hood.length_mm" = { low = 5.0, high = 40.0 }', "optimize.variables.vanes.finish.finishes", "black-paint"),
 ])
 def test_a_bad_table_is_one_paragraph_naming_the_field(tmp_path, edit, field, words):
     bad = {
         'trials = 4': 'trails = 4',
-        '"vanes.count" = { low = 1, high = 3, integer = true }': '"vanes.count" = { low = 3, high = 3, integer = true }',
+        '"vanes.count" = { low = 1, high = 3, integer = true }':
+            '"vanes.count" = { low = 3, high = 3, integer = true }',
         'scene = "case2-lambertian"': 'scene = "case2-lambertian"\nkind = "pst"',
         'max_length_mm = 80.0': 'max_length_mm = -1.0',
-        'passes = [3, 8]': 'passes = [8, 3]',
+        'passes = [3, 6]': 'passes = [6, 3]',
         '"hood.length_mm" = { low = 5.0, high = 40.0 }': '"vanes.finish" = { finishes = ["blak-paint"] }',
     }[edit]
     folder = design(tmp_path / "d", SPEC.replace(edit, bad))
@@ -107,7 +108,8 @@ def studies(tmp_path_factory):
 @pytest.mark.slow
 def test_common_random_numbers_shrink_the_variance_of_a_difference(studies):
     crn = studies[0].crn
-    assert crn.passes == 8 and crn.nearby["hood.length_mm"] == pytest.approx(11.75)
+    # measured at the re-evaluation's passes (twice the top rung), the hood 1 % of its range longer
+    assert crn.passes == 12 and crn.nearby["hood.length_mm"] == pytest.approx(10.35)
     assert crn.ratio < 1.0, (crn.shared_variance, crn.independent_variance)
 
 

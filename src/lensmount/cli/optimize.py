@@ -60,14 +60,17 @@ def _print(r: OptimizeResult) -> None:
     console = Console()
     keys = list(r.spec.variables)
     table = Table(title="optimize: candidates on the search seed (common random numbers)", title_justify="left")
-    for column in ["candidate", *keys, "stray fraction", "passes", "note"]:
-        table.add_column(column, justify="right")
+    for column in ["#", *keys, "stray fraction", "passes", "note"]:
+        table.add_column(column, justify="right", overflow="fold")
     for c in [r.start, *r.candidates]:
         value = "—" if c.value is None else f"{c.value:.4g}±{c.std_error:.1g}"
-        note = "best" if c is r.best else ("" if c.feasible else "infeasible: " + c.why.splitlines()[0][:80])
+        note = "best" if c is r.best else ("" if c.feasible else "infeasible")
         table.add_row("start" if c.index < 0 else str(c.index + 1), *(str(c.values[k]) for k in keys), value,
                       str(c.passes), note)
     console.print(table)
+    for c in r.candidates:
+        if not c.feasible:
+            console.print(f"candidate {c.index + 1} is infeasible: {c.why}")
     console.print(f"common random numbers: var(difference) shared / independent seeds = "
                   f"{r.crn.shared_variance:.3g} / {r.crn.independent_variance:.3g} = {r.crn.ratio:.3g} "
                   f"({r.crn.passes} passes, start against {r.crn.nearby})")

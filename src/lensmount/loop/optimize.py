@@ -26,13 +26,14 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import warnings
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from lensmount.analysis.passes import Accumulator
+from lensmount.atomic import write_text
 from lensmount.design.folder import load_design
 from lensmount.errors import InputError
 from lensmount.loop.compare import CompareOptions, compare
@@ -82,13 +83,19 @@ class Search:
         self.scene = scene_file(self.design, spec.objective.scene)
         self.params = tuple(Param("mount", tuple(key.split(".")), ()) for key in spec.variables)
         self.seed = spec.search.seed
+        self.study = study_name(self.design, spec)
 
     def candidate(self, index: int, values: dict, folder: Path) -> Candidate:
-        """Write, regenerate and check one revision (no simulation yet)."""
+        """Write, regenerate and check one revision (no simulation yet). A folder another study or
+        other values left there is cleared: its runs would resume on other inputs."""
         c = Candidate(index, values, folder)
         named = {f"mount.{k}": v for k, v in values.items()}
+        mark = {"study": self.study, "values": values}
+        if folder.exists() and _read_json(folder / "candidate.json") != mark:
+            shutil.rmtree(folder)
         try:
             design, _ = write_variant(self.design, self.scene, folder, self.params, named)
+            write_text(folder / "candidate.json", json.dumps(mark))
             regenerate(RegenerateOptions(design, out=folder / "build"))
         except InputError as error:  # the mount cannot be built from these values, or fails its checks
             c.feasible, c.why = False, error.paragraph()
@@ -122,6 +129,10 @@ class Search:
         if seed == self.seed:  # from the passes themselves: the same rung reads the same after a resume
             c.runs[passes] = mean_and_error(per_pass_fraction(out)[:passes])
         return out, run_id
+
+
+def _read_json(path: Path):
+    return json.loads(path.read_text()) if path.is_file() else None
 
 
 def extent(mesh: TaggedMesh) -> tuple[float, float]:
@@ -158,10 +169,10 @@ def start_values(design: Path, variables: dict[str, Variable]) -> dict:
 
 
 def nearby(values: dict, variables: dict[str, Variable]) -> dict:
-    """The start with its first continuous variable moved by 5 % of its range (towards the middle)."""
+    """The start with its first continuous variable moved by 1 % of its range (towards the middle)."""
     for key, var in variables.items():
         if var.finishes is None and not var.integer:
-            step = 0.05 * (var.high - var.low) * (1 if values[key] < (var.low + var.high) / 2 else -1)
+            step = 0.01 * (var.high - var.low) * (1 if values[key] < (var.low + var.high) / 2 else -1)
             return {**values, key: values[key] + step}
     raise InputError("measuring common random numbers needs a continuous variable", field="optimize.variables",
                      valid="at least one variable with low and high and no integer = true")
@@ -172,7 +183,7 @@ def crn_effect(search: Search, start: Candidate, out: Path, passes: int) -> CrnE
     values = nearby(start.values, search.spec.variables)
     near = search.candidate(-2, values, out / "crn-nearby")
     if not near.feasible:
-        raise InputError(f"the design 5 % away from the start cannot be built: {near.why}",
+        raise InputError(f"the design 1 % away from the start cannot be built: {near.why}",
                          field="optimize.variables", valid="bounds around a start that builds")
     a = per_pass_fraction(search.run(start, passes)[0])
     b = per_pass_fraction(search.run(near, passes)[0])
@@ -208,8 +219,8 @@ def optimize(options: OptimizeOptions, observer: OptimizeObserver | None = None)
     for p in (*rungs, reeval):  # the first incumbent, evaluated as every incumbent is
         s.run(start, p)
     start.incumbent = True
-    obs.stage("common random numbers: the start against a design 5 % away, shared and independent seeds")
-    crn = crn_effect(s, start, out, rungs[-1])
+    obs.stage("common random numbers: the start against a design 1 % away, shared and independent seeds")
+    crn = crn_effect(s, start, out, reeval)
     search_seeds = (s.seed, s.seed + 1)  # the candidates' seed; the independent one of the measurement
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -237,7 +248,7 @@ def optimize(options: OptimizeOptions, observer: OptimizeObserver | None = None)
             except InputError as error:  # the scene cannot be built on this mount
                 c.feasible, c.why, c.runs = False, error.paragraph(), {}
         trial.set_user_attr("candidate", c.to_dict())
-        trial.set_user_attr("violation", 0.0 if c.feasible else 1.0)
+        trial.set_constraint("builds, passes its checks and meets the constraints", 0.0 if c.feasible else 1.0)
         study.tell(trial, c.value if c.feasible else INFEASIBLE)
         candidates.append(c)
         evaluated += 1
@@ -294,7 +305,9 @@ def importances(study) -> dict[str, float]:
     values = {t.value for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))}
     if len(values) < 2:
         return {}
-    return {k: float(v) for k, v in optuna.importance.get_param_importances(study).items()}
+    # its forest is random: seeded, the same study gives the same figures
+    evaluator = optuna.importance.FanovaImportanceEvaluator(seed=0)
+    return {k: float(v) for k, v in optuna.importance.get_param_importances(study, evaluator=evaluator).items()}
 
 
 def _distribution(var: Variable):
@@ -319,10 +332,8 @@ def _sampler(seed: int, k: int, trials: int):
     candidates, not on how many calls the study took."""
     import optuna  # lazy: keeps lensmount --help from loading optuna
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        return optuna.samplers.TPESampler(seed=seed * 1_000_003 + k, n_startup_trials=max(2, trials // 4),
-                                          constraints_func=lambda t: (t.user_attrs.get("violation", 0.0),))
+    # infeasible candidates carry a constraint (Trial.set_constraint), which TPE keeps out of its good group
+    return optuna.samplers.TPESampler(seed=seed * 1_000_003 + k, n_startup_trials=max(2, trials // 4))
 
 
 __all__ = ["OptimizeObserver", "OptimizeOptions", "Search", "extent", "crn_effect",

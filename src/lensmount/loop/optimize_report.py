@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lensmount.analysis.compare import IMPROVEMENT, Verdict
+from lensmount.analysis.compare import Verdict
 from lensmount.atomic import atomic_path, write_text
 from lensmount.loop.optimize_spec import OptimizeSpec
 
@@ -83,10 +83,6 @@ class OptimizeResult:
     importances: dict[str, float] = field(default_factory=dict)
     paths: dict[str, Path] = field(default_factory=dict)
     finished: bool = False  # every trial evaluated (else the budget stopped it: run again to resume)
-
-    @property
-    def improved(self) -> bool:
-        return self.verdict is not None and self.verdict.verdict == IMPROVEMENT
 
 
 

@@ -130,7 +130,8 @@ def load_optimize(design: Path, path: Path | None = None) -> OptimizeSpec:
         if unknown:
             raise InputError(f"unknown finish {', '.join(map(repr, unknown))}", file=str(path),
                              field=f"optimize.variables.{key}.finishes",
-                             valid="finishes the design's finishes.toml defines or built-ins: " + ", ".join(sorted(known)))
+                             valid="finishes the design's finishes.toml defines or built-ins: "
+                                   + ", ".join(sorted(known)))
     return spec
 
 
