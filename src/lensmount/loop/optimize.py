@@ -84,6 +84,7 @@ class Search:
         self.params = tuple(Param("mount", tuple(key.split(".")), ()) for key in spec.variables)
         self.seed = spec.search.seed
         self.study = study_name(self.design, spec)
+        self.store = default_path(self.design, options.store)  # the start design's: a revision's row goes there
 
     def candidate(self, index: int, values: dict, folder: Path) -> Candidate:
         """Write, regenerate and check one revision (no simulation yet). A folder another study or
@@ -121,7 +122,7 @@ class Search:
         if done < passes:
             base = SimulateOptions(c.folder / "design", c.folder / self.scene.name, method=self.o.method, seed=seed,
                                    out=out, passes=passes, photons_per_pass=self.spec.fidelity.photons_per_pass,
-                                   workers=self.o.workers, geometry=c.folder / "build", store=self.o.store,
+                                   workers=self.o.workers, geometry=c.folder / "build", store=self.store,
                                    record=record, resume=(out / CHECKPOINT).is_file())
             result = simulate(base, self.obs)
             result.raise_if_stopped("the optimize study resumes where it stopped: run the same command again")
@@ -224,7 +225,7 @@ def optimize(options: OptimizeOptions, observer: OptimizeObserver | None = None)
     search_seeds = (s.seed, s.seed + 1)  # the candidates' seed; the independent one of the measurement
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = default_path(s.design, options.store).parent / "optimize.sqlite"
+    storage = s.store.parent / "optimize.sqlite"
     storage.parent.mkdir(parents=True, exist_ok=True)
     study = optuna.create_study(study_name=study_name(s.design, spec), storage=f"sqlite:///{storage}",
                                 direction="minimize", load_if_exists=True)
