@@ -84,11 +84,11 @@ def test_sweep_of_four_reference_variants_ranks_them(tmp_path):
 
 
 def _written(tmp_path, *params):
-    from lensmount.loop.sweep import _write_variant
+    from lensmount.loop.sweep import write_variant
 
     grid = variants_of(params)
     scene = DESIGN / "scenes" / "case2-lambertian.toml"
-    return grid, [_write_variant(DESIGN, scene, tmp_path / f"{k:02d}", params, v)[0] for k, v in enumerate(grid)]
+    return grid, [write_variant(DESIGN, scene, tmp_path / f"{k:02d}", params, v)[0] for k, v in enumerate(grid)]
 
 
 def test_a_parameter_that_builds_identical_mounts_is_refused_before_any_run(tmp_path):

@@ -167,9 +167,10 @@ class TerminalObserver(Observer):
         self._close()
 
 
-def observed(call, *args):
-    """call(*args, observer) with progress on stderr; an InputError becomes the one-paragraph exit 2."""
-    observer = TerminalObserver(live=sys.stderr.isatty())
+def observed(call, *args, kind: type[TerminalObserver] = TerminalObserver):
+    """call(*args, observer) with progress on stderr (an observer of `kind`); an InputError becomes the
+    one-paragraph exit 2."""
+    observer = kind(live=sys.stderr.isatty())
     try:
         return call(*args, observer)
     except InputError as error:

@@ -7,7 +7,7 @@ parse options, call these and print. Scripts and notebooks call them directly:
     result = simulate(SimulateOptions(Path("mylens"), Path("mylens/scenes/case1.toml"), passes=8))
     result.summary["stray_fraction"], result.paths["exr"]
 
-Modules: `regenerate`, `simulate`, `compare`, `history`, `sweep`, `pst`, `converge`,
+Modules: `regenerate`, `simulate`, `compare`, `history`, `sweep`, `optimize`, `pst`, `converge`,
 `sightlines` (`check`), `ghosts` (ghost ranking), and their helpers `prepare`, `progress`,
 `provenance`.
 """

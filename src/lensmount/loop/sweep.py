@@ -119,7 +119,7 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
     obs = observer or Observer()
     base = options.simulate or SimulateOptions(options.design, options.scene)
     grid = variants_of(options.params)
-    written = [_write_variant(Path(options.design), Path(options.scene), Path(options.out) / "variants" / f"{k:02d}",
+    written = [write_variant(Path(options.design), Path(options.scene), Path(options.out) / "variants" / f"{k:02d}",
                               options.params, values) for k, values in enumerate(grid)]
     refuse_identical_layouts(options.params, grid, [design for design, _ in written])
     variants = []
@@ -140,7 +140,7 @@ def sweep(options: SweepOptions, observer: Observer | None = None) -> SweepResul
     return SweepResult(variants, table, plot)
 
 
-def _write_variant(design: Path, scene: Path, folder: Path, params, values: dict) -> tuple[Path, Path]:
+def write_variant(design: Path, scene: Path, folder: Path, params, values: dict) -> tuple[Path, Path]:
     """A copy of the design folder and the scene with the variant's keys set."""
     target = folder / "design"
     if target.exists():
@@ -305,5 +305,5 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "refuse_identical_layouts",
+__all__ = ["Param", "SweepOptions", "SweepResult", "Variant", "sweep", "rank", "refuse_identical_layouts", "write_variant",
            "variants_of"]
