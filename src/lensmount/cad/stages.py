@@ -44,9 +44,11 @@ class Mount:
         envelope: the beam's radius at any z (`cad.plan.Envelope`).
         parts: every part placed so far, in order (the barrel first; earlier stages' parts after it).
         notes: what the plan tells the user; a stage appends its own (a part left out, and why).
-        z_front, z_back: the barrel's front and back end, mm.
+        z_front: the barrel's front end, mm.
+        z_back: the barrel's back end, mm.
         r_barrel: the barrel's outside radius, mm.
-        bore_front, bore_back: the barrel's bore at its front and back end, mm.
+        bore_front: the barrel's bore at its front end, mm.
+        bore_back: the barrel's bore at its back end, mm.
         aperture: (ρ, z) samples of the entrance aperture (the first surface over its clear aperture).
     """
 
