@@ -125,6 +125,10 @@ def read_step(path: Path, name: str) -> StepFile:
     if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
         raise InputError("not a readable STEP file", file=str(path), field=_field(name),
                          valid="an ISO 10303-21 (AP203/AP214/AP242) file")
+    damage = _parse_failures(reader.Reader())
+    if damage:  # OCC's transfer of a model with broken entities can crash the process
+        raise InputError(f"the STEP file is damaged: {damage}", file=str(path), field=_field(name),
+                         valid="a whole ISO 10303-21 file (export it again, or restore it from a copy)")
     unit = file_unit(reader.Reader())
     doc = TDocStd_Document(TCollection_ExtendedString("XCAF"))
     if not reader.Transfer(doc):
@@ -197,6 +201,20 @@ def read_step(path: Path, name: str) -> StepFile:
         raise InputError("the STEP file holds no solid", file=str(path), field=_field(name),
                          valid="a STEP file with at least one solid (or closed shell)")
     return StepFile(path, unit, out)
+
+
+def _parse_failures(reader) -> str:
+    """What OCC's parser failed on in the file just read (syntax, wrong parameter counts, references to
+    entities that are not there), first few; "" when nothing."""
+    checks = reader.WS().ModelCheckList(True)
+    said, count = [], 0
+    checks.Start()
+    while checks.More():
+        check = checks.Value()
+        count += check.NbFails()
+        said += [check.CFail(i, True) for i in range(1, check.NbFails() + 1)][:3 - len(said)]
+        checks.Next()
+    return f"{count} parse failure(s): " + "; ".join(said) + (" …" if count > len(said) else "") if count else ""
 
 
 def free_edges(shape) -> list[tuple[np.ndarray, list[int]]]:

@@ -384,7 +384,7 @@ class SourceParams(BaseModel):
     """The [source] table of a scene file: `type` names the kind, the other keys are the kind's own
     (unknown keys are errors). Each kind subclasses this with `type: Literal[name]`."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no key takes NaN or inf
     at_infinity: ClassVar[bool]
     type: str
 
@@ -437,8 +437,8 @@ def register_source(name: str, params: type[SourceParams], build: Callable[[Sour
 def source_params(table: dict) -> SourceParams:
     """The validated [source] table; an InputError (field `source.KEY`) names what is wrong."""
     name = table.get("type", "sun")
-    if name not in SOURCE_KINDS:
-        raise InputError(f"unknown source type '{name}'", field="source.type", valid=" | ".join(SOURCE_KINDS))
+    if not isinstance(name, str) or name not in SOURCE_KINDS:
+        raise InputError(f"unknown source type {name!r}", field="source.type", valid=" | ".join(SOURCE_KINDS))
     model = SOURCE_KINDS[name].params
     for key in table:  # a key of another kind would otherwise read as a plain typo
         if key not in model.model_fields:
