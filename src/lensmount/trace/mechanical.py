@@ -157,9 +157,9 @@ class MechanicalFaces:
     def _boxes_near(self, points, pad):
         """Local triangles whose bounding box, padded by `pad`, holds each of points (m, 3):
         (row (k,), triangle (k,)); pad a number or one per point. It runs for rays passing a silhouette edge
-        (~6 600 a case-1 pass, whose backward rays aim at the diaphragm's 50 µm edge) and for rays whose
-        first candidate is the face they leave; over every box that was 2 of a view map's 3 CPU seconds,
-        through the grid of boxes a few milliseconds."""
+        (~6 600 a case-1 pass, whose backward rays aim at the diaphragm's 50 µm edge) and for rays grazing
+        the face they leave (Embree's t overshoots it); over every box that was 2 of a view map's 3 CPU
+        seconds, through the grid of boxes a few milliseconds."""
         return kernels.boxes_near(points, self._box, pad, *self._grid)
 
     # ------------------------------------------------------------------ query
