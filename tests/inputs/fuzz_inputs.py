@@ -135,7 +135,8 @@ def _all_keys(node):
             yield from _all_keys(x)
 
 
-_arg = st.one_of(_numbers, st.sampled_from([w.encode() for w in ZMX_WORDS]), st.integers(-3, 12).map(lambda i: b"%d" % i))
+_arg = st.one_of(_numbers, st.sampled_from([w.encode() for w in ZMX_WORDS]),
+                 st.integers(-3, 12).map(lambda i: b"%d" % i))
 
 
 @st.composite
