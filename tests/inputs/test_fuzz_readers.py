@@ -250,4 +250,6 @@ SCENE_EXAMPLES = [
 STEP_EXAMPLES = [  # broken entities: OCC's transfer crashed the process (a segmentation fault)
     STEP[0].replace(b"#18=CYLINDRICAL_SURFACE('',#680,17.5);", b"#18=CYLINDRICAL_SURFACE('',#60.0,17.5);", 1)
     .replace(b"#74=FACE_OUTER_BOUND('',#114,.T.);", b"#74=FACE_OUTER_BOUND('',#1CM,.T.);", 1),
+    # an instance name beyond 32 bits: OCC's reader itself crashed
+    STEP[0].replace(b"#175=LINE('',#998,#243);", b"#12106238143296=LINE('',#998,#243);", 1),
 ]

@@ -17,6 +17,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -116,6 +117,7 @@ def read_step(path: Path, name: str) -> StepFile:
     from OCP.TopLoc import TopLoc_Location
     from OCP.XCAFDoc import XCAFDoc_ColorTool, XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
+    _check_instance_names(path, name)  # OCC's reader itself crashes on some of these
     STEPCAFControl_Controller.Init_s()
     Interface_Static.SetIVal_s("read.stepcaf.subshapes.name", 1)  # STEP face names
     reader = STEPCAFControl_Reader()
@@ -201,6 +203,27 @@ def read_step(path: Path, name: str) -> StepFile:
         raise InputError("the STEP file holds no solid", file=str(path), field=_field(name),
                          valid="a STEP file with at least one solid (or closed shell)")
     return StepFile(path, unit, out)
+
+
+_INSTANCE = re.compile(rb"^[ \t]*#(\d+)[ \t]*=", re.M)
+
+
+def _check_instance_names(path: Path, name: str) -> None:
+    """Each entity's instance name (#N = ...) once and within 32 bits, as ISO 10303-21 requires;
+    InputError naming the first that is not (a damaged file)."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return  # OCC's reader says what is wrong with a file it cannot open
+    seen: dict[int, int] = {}
+    for m in _INSTANCE.finditer(data):
+        number, line = int(m.group(1)), data.count(b"\n", 0, m.start()) + 1
+        if number >= 2 ** 31 or number in seen:
+            why = f"defined again (first on line {seen[number]})" if number in seen else "beyond 2^31 - 1"
+            raise InputError(f"the STEP file is damaged: entity #{number} on line {line} is {why}", file=str(path),
+                             field=_field(name), line=line,
+                             valid="a whole ISO 10303-21 file (export it again, or restore it from a copy)")
+        seen[number] = line
 
 
 def _parse_failures(reader) -> str:
