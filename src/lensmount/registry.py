@@ -122,7 +122,7 @@ class Registry(Generic[T]):
 
     def entry(self, name: str, *, file: str | None = None, field: str | None = None) -> Entry[T]:
         """The implementation called `name`; InputError listing the valid names (and a did-you-mean) when none is."""
-        if name not in self._all():
+        if not isinstance(name, str) or name not in self._all():  # a list or number from a file is no name
             hint = did_you_mean(str(name), self._entries)
             raise InputError(f"unknown {self.kind} {name!r}" + (f" (did you mean {hint!r}?)" if hint else ""),
                              file=file, field=field, valid=f"one of {', '.join(sorted(self._entries))} in {self.where}")

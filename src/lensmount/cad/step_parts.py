@@ -178,6 +178,7 @@ def read_step(path: Path, name: str) -> StepFile:
     from OCP.TopLoc import TopLoc_Location
     from OCP.XCAFDoc import XCAFDoc_ColorTool, XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
+    _check_instance_names(path, name)  # OCC's reader itself crashes on some of these
     STEPCAFControl_Controller.Init_s()
     Interface_Static.SetIVal_s("read.stepcaf.subshapes.name", 1)  # STEP face names
     reader = STEPCAFControl_Reader()
@@ -189,6 +190,10 @@ def read_step(path: Path, name: str) -> StepFile:
     if status != IFSelect_ReturnStatus.IFSelect_RetDone:
         raise InputError("not a readable STEP file" + _kernel_said(said), file=str(path), field=_field(name),
                          valid="an ISO 10303-21 (AP203/AP214/AP242) file, whole (re-export it if it was cut short)")
+    damage = _parse_failures(reader.Reader())
+    if damage:  # OCC's transfer of a model with broken entities can crash the process
+        raise InputError(f"the STEP file is damaged: {damage}", file=str(path), field=_field(name),
+                         valid="a whole ISO 10303-21 file (export it again, or restore it from a copy)")
     unit = file_unit(reader.Reader())
     doc = TDocStd_Document(TCollection_ExtendedString("XCAF"))
     with kernel_output() as more:
@@ -264,6 +269,41 @@ def read_step(path: Path, name: str) -> StepFile:
         raise InputError("the STEP file holds no solid" + _kernel_said(said), file=str(path), field=_field(name),
                          valid="a STEP file with at least one solid (or closed shell)")
     return StepFile(path, unit, out)
+
+
+_INSTANCE = re.compile(rb"^[ \t]*#(\d+)[ \t]*=", re.M)
+
+
+def _check_instance_names(path: Path, name: str) -> None:
+    """Each entity's instance name (#N = ...) once and within 32 bits, as ISO 10303-21 requires;
+    InputError naming the first that is not (a damaged file)."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return  # OCC's reader says what is wrong with a file it cannot open
+    seen: dict[int, int] = {}
+    for m in _INSTANCE.finditer(data):
+        number, line = int(m.group(1)), data.count(b"\n", 0, m.start()) + 1
+        if number >= 2 ** 31 or number in seen:
+            why = f"defined again (first on line {seen[number]})" if number in seen else "beyond 2^31 - 1"
+            raise InputError(f"the STEP file is damaged: entity #{number} on line {line} is {why}", file=str(path),
+                             field=_field(name), line=line,
+                             valid="a whole ISO 10303-21 file (export it again, or restore it from a copy)")
+        seen[number] = line
+
+
+def _parse_failures(reader) -> str:
+    """What OCC's parser failed on in the file just read (syntax, wrong parameter counts, references to
+    entities that are not there), first few; "" when nothing."""
+    checks = reader.WS().ModelCheckList(True)
+    said, count = [], 0
+    checks.Start()
+    while checks.More():
+        check = checks.Value()
+        count += check.NbFails()
+        said += [check.CFail(i, True) for i in range(1, check.NbFails() + 1)][:3 - len(said)]
+        checks.Next()
+    return f"{count} parse failure(s): " + "; ".join(said) + (" …" if count > len(said) else "") if count else ""
 
 
 def free_edges(shape) -> list[tuple[np.ndarray, list[int]]]:

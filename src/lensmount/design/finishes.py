@@ -55,7 +55,7 @@ from lensmount.design.brdf_data import read_brdf
 from lensmount.errors import InputError
 from lensmount.mesh import FaceTag
 from lensmount.physics.interfaces import parse_coating
-from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, located, parse_toml
+from lensmount.validation import ReadFromFile, did_you_mean, input_error, line_of_key, located, parse_toml, read_text
 
 FINISHES_NAME = "finishes.toml"
 TABLES = ("finishes", "coatings", "assign")
@@ -182,7 +182,7 @@ def _measured_table(name: str, params: dict, base_dir: str | Path) -> dict:
 class Finishes(ReadFromFile):
     """A design's surface treatment, `finishes.toml` validated (see the module docstring)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no key takes NaN or inf
 
     finishes: dict[str, dict] = Field(default_factory=dict)
     coatings: dict[str, str] = Field(default_factory=lambda: {"default": "perfect-ar"})
@@ -205,7 +205,7 @@ def load_finishes(design_root: str | Path) -> Finishes:
     path = Path(design_root) / FINISHES_NAME
     if not path.is_file():
         return Finishes()
-    text = path.read_text(encoding="utf-8")
+    text = read_text(path, "finishes file", "the design's finishes.toml")
     data = parse_toml(text, str(path))
     try:
         spec = Finishes(**data)

@@ -22,7 +22,7 @@ FINISH_TABLES = ("barrel", "lens_edge", "spacers", "retainer", "diaphragm", "van
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no key takes NaN or inf
 
 
 class Barrel(_Strict):

@@ -71,7 +71,7 @@ from lensmount.physics.sources import SourceParams, source_params
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no key takes NaN or inf
 
 
 DETECTOR_PIXELS_LONG_SIDE = 600

@@ -361,19 +361,25 @@ def _grid_members(box, lo, cell, dims):
     return first, member
 
 
-@njit(cache=True)
 def boxes_near(points, box, pad, lo, cell, dims, first, member):
     """(row (k,), triangle (k,)): the triangles whose bounding box (box (T, 2, 3): lo, hi), padded by
-    pad, holds each of points (m, 3); rows in order, triangles ascending within a row. The same
-    comparisons as the numpy test (lo - pad <= q <= hi + pad), on the boxes listed in the grid cells
-    (`box_grid`) that [q - pad, q + pad] overlaps, widened by `slack` for the rounding of those
-    comparisons (a box that holds the point lies in one of them); every box when that is many cells.
-    A point with a non-finite coordinate is in no box (every comparison with it is false)."""
+    pad (a number, or one per point), holds each of points (m, 3); rows in order, triangles ascending
+    within a row. The same comparisons as the numpy test (lo - pad <= q <= hi + pad), on the boxes
+    listed in the grid cells (`box_grid`) that [q - pad, q + pad] overlaps, widened by `slack` for the
+    rounding of those comparisons (a box that holds the point lies in one of them); every box when that
+    is many cells. A point with a non-finite coordinate is in no box (every comparison with it is false)."""
+    points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+    pads = np.ascontiguousarray(np.broadcast_to(np.asarray(pad, np.float64), (len(points),)))
+    return _boxes_near(points, box, pads, lo, cell, dims, first, member)
+
+
+@njit(cache=True)
+def _boxes_near(points, box, pads, lo, cell, dims, first, member):
+    """`boxes_near` with one pad per point."""
     m, t_n = points.shape[0], box.shape[0]
     scale = 0.0
     for a in range(3):
         scale = max(scale, abs(lo[a]), abs(lo[a] + dims[a] * cell[a]))
-    slack = pad + 1e-9 * (scale + pad)
     seen = np.full(t_n, -1, np.int64)
     found = np.empty(t_n, np.int64)
     count = 0
@@ -388,6 +394,8 @@ def boxes_near(points, box, pad, lo, cell, dims, first, member):
             qx, qy, qz = points[i, 0], points[i, 1], points[i, 2]
             if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)):
                 continue
+            pad = pads[i]
+            slack = pad + 1e-9 * (scale + pad)
             a0, a1, b0, b1, c0, c1 = _cell_span((qx - slack, qy - slack, qz - slack),
                                                 (qx + slack, qy + slack, qz + slack), lo, cell, dims)
             n_found = 0

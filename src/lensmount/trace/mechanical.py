@@ -18,13 +18,16 @@ intersection says so (to ~1e-12 of its size), whatever float32 rounding did:
    of its box (listed once, at build), and which is not parallel to it, is solved in float64 too
    when its box and its plane pass within that band of the hit point; the nearest crossing wins.
    Elsewhere (no such face near the point, the common case) this costs one lookup.
-3. *Relaunch along the line.* If nothing in the ring is hit near the candidate (the line
-   passes a silhouette edge), every triangle whose box comes within the relaunch step of the
-   candidate point is intersected in float64 too (a face that meets the candidate's edge without
-   sharing its vertices: a T-junction, e.g. a vane's root on a spacer's bore wall, whose wall
-   the relaunch would otherwise step over); only if none is hit there is the query relaunched
-   from just beyond the candidate on the same line. The line is never shifted sideways and a
-   hit is never moved.
+3. *Relaunch along the line.* If nothing is hit near the candidate (the line passes a silhouette
+   edge, or the candidate is the face the ray leaves), every triangle whose box comes near the
+   stretch of line the relaunch steps over is intersected in float64 too: from where the
+   candidate's own plane is crossed (or Embree's t, whichever is nearer) to the relaunch point,
+   padded by the relaunch step. That stretch holds a face meeting the candidate's edge without
+   sharing its vertices (a T-junction, e.g. a vane's root on a spacer's bore wall), and, for a ray
+   grazing the face it leaves, the neighbouring face across a crease: Embree's float32 t along a
+   ray at 0.02° to its face is tens of µm off, the neighbour within a µm. Only if none is hit
+   there is the query relaunched from just beyond the candidate on the same line. The line is
+   never shifted sideways and a hit is never moved.
 4. *The face a ray leaves.* A hit at |t| ≤ `t_tol` (the ray starts on that face) counts only
    when the caller says what the ray left and the ray enters this face (its outward normal
    faces the ray): a ray leaving glass meets metal touching the glass (gap 0); a ray leaving a
@@ -137,12 +140,27 @@ class MechanicalFaces:
             tris.append(self._vt[np.repeat(start, cnt) + offs])
         return np.concatenate(rows), np.concatenate(tris)
 
-    def _boxes_near(self, points, pad: float):
+    def _skipped(self, base, te, tc, cand, d, step):
+        """The stretch of line (lo (m,), hi (m,), as ray parameters) a relaunch from te + step steps over
+        after a candidate that is no hit (the face the ray leaves, a silhouette): from where its float64
+        plane crossing tc or Embree's te puts it, whichever is nearer, to te + 2 step. Embree's t is
+        float32: off by its coordinates' rounding (under `margin`) over the sine of the angle between
+        the ray and the candidate's plane, tens of µm for a ray grazing the face it leaves, which
+        crosses a neighbour at a crease within a µm. Never before this round's launch (the rounds
+        before looked there), nor farther back than that rounding explains (a silhouette's plane
+        crossing may lie anywhere)."""
+        sine = np.abs(np.einsum("ij,ij->i", self._n[cand], d))
+        noise = self.margin * (1.0 + 1.0 / np.maximum(sine, 1e-12))
+        near = np.minimum(te, np.where(np.isfinite(tc), tc, te)) - self.margin
+        return np.maximum(base, np.maximum(near, te - noise)), te + 2.0 * step
+
+    def _boxes_near(self, points, pad):
         """Local triangles whose bounding box, padded by `pad`, holds each of points (m, 3):
-        (row (k,), triangle (k,)). It runs only for rays passing a silhouette edge: ~60 a case-2 view map,
-        but ~6 600 a case-1 pass, whose backward rays aim at the diaphragm's 50 µm edge; over every box
-        that was 2 of the view map's 3 CPU seconds, through the grid of boxes a few milliseconds."""
-        return kernels.boxes_near(np.ascontiguousarray(points, np.float64), self._box, float(pad), *self._grid)
+        (row (k,), triangle (k,)); pad a number or one per point. It runs for rays passing a silhouette edge
+        (~6 600 a case-1 pass, whose backward rays aim at the diaphragm's 50 µm edge) and for rays grazing
+        the face they leave (Embree's t overshoots it); over every box that was 2 of a view map's 3 CPU
+        seconds, through the grid of boxes a few milliseconds."""
+        return kernels.boxes_near(points, self._box, pad, *self._grid)
 
     # ------------------------------------------------------------------ query
 
@@ -194,7 +212,8 @@ class MechanicalFaces:
             # self-hit there is simply skipped).
             tc, lam, valid = self._crossings(cand, oo, dd, leaving[todo], left_normal[todo])
             ok = hit & valid
-            clear = hit & np.all(lam * self._alt[cand] >= self.margin, axis=1)
+            inside = np.min(lam * self._alt[cand], axis=1)  # distance of the crossing from the candidate's edges
+            clear = hit & (inside >= self.margin)
             t64[clear & ok], loc[clear & ok] = tc[clear & ok], cand[clear & ok]
             # ... else (near or outside its edges) its ring: the nearest float64 hit among them
             # that is not beyond the candidate's neighbourhood.
@@ -217,10 +236,16 @@ class MechanicalFaces:
                     self._nearest_of(got[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t_near, l_near)
                     nearer = t_near < t64
                     t64[nearer], loc[nearer] = t_near[nearer], l_near[nearer]
-            # 3. Nothing in the ring: any face within the step of the candidate point (a T-junction).
-            beside = np.flatnonzero(hit & ~clear & ~np.isfinite(t64))
+            # 3. Nothing found: any face near the stretch of line the relaunch below steps over (a
+            # T-junction; a face the ray leaves and its neighbour across a crease), unless that stretch
+            # ends before the line can leave the candidate's face (its crossing as far inside as that).
+            with np.errstate(invalid="ignore"):
+                over_face = ~clear | ~(te + 2.0 * step <= tc + inside)
+            beside = np.flatnonzero(hit & ~np.isfinite(t64) & over_face)
             if beside.size:
-                row, tri = self._boxes_near(oo[beside] + te[beside, None] * dd[beside], 4.0 * step + self.margin)
+                lo, hi = self._skipped(base[todo[beside]], te[beside], tc[beside], cand[beside], dd[beside], step)
+                row, tri = self._boxes_near(oo[beside] + (0.5 * (lo + hi))[:, None] * dd[beside],
+                                            0.5 * (hi - lo) + 4.0 * step + self.margin)
                 self._nearest_of(beside[row], tri, oo, dd, leaving[todo], left_normal[todo], te, step, t64, loc)
             done = ~hit | np.isfinite(t64)
             idx = todo[done & hit]

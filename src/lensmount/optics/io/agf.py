@@ -22,6 +22,7 @@ Other formulas are an error naming the glass and the line.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,12 +106,12 @@ def parse_agf(text: str, file: str = "catalogue.agf") -> dict[str, AgfGlass]:
             if len(args) < 5:
                 raise InputError("an NM line needs the name, formula, MIL code, n_d and V_d", file=file, line=ln,
                                  valid="NM name formula MIL n_d V_d ... (Zemax's .agf format)")
-            formula = int(_number(args[1], file, ln, "formula"))
+            formula = _number(args[1], file, ln, "formula")
             if formula not in FORMULAS:
-                raise InputError(f"glass {args[0]} uses dispersion formula {formula}, which lensmount does not "
+                raise InputError(f"glass {args[0]} uses dispersion formula {formula:g}, which lensmount does not "
                                  "evaluate", file=file, line=ln,
                                  valid="formula " + ", ".join(f"{k} ({v})" for k, v in FORMULAS.items()))
-            current = dict(name=args[0], formula=formula, coefficients=(), nd=_number(args[3], file, ln, "n_d"),
+            current = dict(name=args[0], formula=int(formula), coefficients=(), nd=_number(args[3], file, ln, "n_d"),
                            vd=_number(args[4], file, ln, "V_d"), line=ln)
         elif cmd == "CD" and current is not None:
             current["coefficients"] = tuple(_number(a, file, ln, "coefficient") for a in args)
@@ -125,9 +126,12 @@ def parse_agf(text: str, file: str = "catalogue.agf") -> dict[str, AgfGlass]:
 
 def _number(token: str, file: str, line: int, what: str) -> float:
     try:
-        return float(token)
+        value = float(token)
     except ValueError:
         raise InputError(f"{what} '{token}' is not a number", file=file, line=line, valid="a decimal number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{what} '{token}' is not a finite number", file=file, line=line, valid="a decimal number")
+    return value
 
 
 __all__ = ["AgfGlass", "FORMULAS", "parse_agf", "read_agf", "register_catalogue"]

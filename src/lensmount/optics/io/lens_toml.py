@@ -40,7 +40,7 @@ import math
 import re
 from dataclasses import replace
 from pathlib import Path
-from typing import Literal, Union
+from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -57,7 +57,7 @@ _INF_WORDS = ("inf", "+inf", "infinity", "+infinity", "-inf", "-infinity", "plan
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # only a radius may be inf
 
 
 class ApertureModel(_Strict):
@@ -125,7 +125,7 @@ class QTypeModel(_Strict):
 
 
 class SurfaceModel(_Strict):
-    radius: Union[float, str, None] = None
+    radius: Union[Annotated[float, Field(allow_inf_nan=True)], str, None] = None
     curvature: float | None = None
     thickness: float
     material: str = AIR
@@ -147,6 +147,8 @@ class SurfaceModel(_Strict):
             return math.inf
         if v is not None and v == 0:
             raise ValueError('radius 0 is not a surface; use "inf" (or omit it) for a plane')
+        if v is not None and math.isnan(v):
+            raise ValueError('radius nan is not a number of mm')
         return v
 
     @field_validator("thickness", "conic")

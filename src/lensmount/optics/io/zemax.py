@@ -79,6 +79,8 @@ _NOT_BUILDABLE = {
                  "ODDASPH)"),
 }
 _D_LINE = 0.5875618
+_MOST = 10 ** 6  # a surface number, index or flag beyond this is a damaged file
+_MOST_TERMS = 256  # PARM / XDAT indices (OpticStudio's extended asphere has up to 232 terms)
 
 
 @dataclass
@@ -145,9 +147,12 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
 
     def num(tok, line, what):
         try:
-            return float(tok)
+            value = float(tok)
         except (TypeError, ValueError):
             raise err(f"{what} '{tok}' is not a number", line, "a decimal number") from None
+        if not math.isfinite(value):
+            raise err(f"{what} '{tok}' is not a finite number", line, "a decimal number")
+        return value
 
     def arg(args, k, line, what, default=None):
         if len(args) > k:
@@ -155,6 +160,12 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         if default is None:
             raise err(f"{what} is missing", line, "a decimal number")
         return default
+
+    def whole(args, k, line, what, default=None, most=_MOST):
+        value = arg(args, k, line, what, default)
+        if not (value.is_integer() and abs(value) <= most):
+            raise err(f"{what} '{args[k]}' is not a whole number up to {most}", line, f"a whole number up to {most}")
+        return int(value)
 
     for ln, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -164,7 +175,7 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         cmd = cmd.upper()
         args = rest.split()
         if cmd == "SURF":
-            cur = ZmxSurface(number=int(arg(args, 0, ln, "surface number")), line=ln)
+            cur = ZmxSurface(number=whole(args, 0, ln, "surface number"), line=ln)
             lens.surfaces.append(cur)
         elif cmd == "UNIT":
             unit = args[0].upper() if args else "MM"
@@ -187,23 +198,23 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         elif cmd == "FLOA":
             lens.aperture = ("float", 0.0, ln)
         elif cmd == "WAVM":
-            i, wl = int(arg(args, 0, ln, "wavelength index")), arg(args, 1, ln, "wavelength")
+            i, wl = whole(args, 0, ln, "wavelength index"), arg(args, 1, ln, "wavelength")
             lens.wavelengths[i] = (wl, arg(args, 2, ln, "wavelength weight", 1.0))
         elif cmd == "WAVL":
             lens.wavl = [num(a, ln, "wavelength") for a in args]
         elif cmd == "WWGT":
             lens.wwgt = [num(a, ln, "wavelength weight") for a in args]
         elif cmd == "PWAV":
-            lens.primary = int(arg(args, 0, ln, "primary wavelength"))
+            lens.primary = whole(args, 0, ln, "primary wavelength")
         elif cmd == "FTYP":
-            lens.field_type, lens.field_type_line = int(arg(args, 0, ln, "field type")), ln
+            lens.field_type, lens.field_type_line = whole(args, 0, ln, "field type"), ln
             if lens.field_type not in (0, 1, 2, 3):
                 raise err(f"field type {lens.field_type} is not supported", ln,
                           "FTYP 0 (angles), 1 (object heights), 2 (paraxial image heights) or 3 (real image heights)")
             lens.telecentric = arg(args, 1, ln, "telecentric object space", 0.0) == 1
             if len(args) >= 4:
-                lens.n_fields = int(arg(args, 2, ln, "number of fields"))
-                lens.n_waves = int(arg(args, 3, ln, "number of wavelengths"))
+                lens.n_fields = whole(args, 2, ln, "number of fields")
+                lens.n_waves = whole(args, 3, ln, "number of wavelengths")
         elif cmd in ("YFLN", "YFLD"):
             lens.yfields = [num(a, ln, "field") for a in args]
         elif cmd in ("XFLN", "XFLD"):
@@ -213,18 +224,18 @@ def parse_zmx(text: str, file: str = "lens.zmx") -> ZmxLens:
         elif cmd == "GCAT":
             lens.catalogues = list(args)
         elif cmd == "MNUM":  # configurations: the surface data hold the active one's values
-            lens.configurations = (int(arg(args, 0, ln, "number of configurations")),
-                                   int(arg(args, 1, ln, "active configuration", 1.0)))
+            lens.configurations = (whole(args, 0, ln, "number of configurations"),
+                                   whole(args, 1, ln, "active configuration", 1.0))
         elif cmd in ("TYPE", "CURV", "CONI", "PARM", "DISZ", "GLAS", "DIAM", "CLAP", "MEMA", "STOP", "COAT", "COMM",
                      "PZUP", "OEMA", "XDAT", "PPAR", "SCBD"):
             if cur is None:
                 raise err(f"{cmd} before any SURF line", ln, "surface data after a 'SURF n' line")
-            _surface_line(cur, cmd, args, rest, ln, err, num, arg)
+            _surface_line(cur, cmd, args, rest, ln, err, num, arg, whole)
         # every other command is a display/optimisation setting with no effect here
     return lens
 
 
-def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
+def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg, whole) -> None:
     if cmd == "TYPE":
         cur.type, cur.type_line = (args[0].upper() if args else ""), ln
         if cur.type in _NOT_BUILDABLE:
@@ -238,23 +249,24 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
     elif cmd == "CURV":
         cur.curvature = arg(args, 0, ln, "curvature")
         if len(args) > 2 and args[1] == "4":  # solve type 4: pickup from surface args[2]
-            cur.pickups.append(f"curvature from surface {int(arg(args, 2, ln, 'pickup surface'))}")
+            cur.pickups.append(f"curvature from surface {whole(args, 2, ln, 'pickup surface')}")
     elif cmd == "PZUP":  # thickness pickup: source surface, scale, offset
-        cur.pickups.append(f"thickness from surface {int(arg(args, 0, ln, 'pickup surface'))}")
+        cur.pickups.append(f"thickness from surface {whole(args, 0, ln, 'pickup surface')}")
     elif cmd == "CONI":
         cur.conic = arg(args, 0, ln, "conic")
     elif cmd == "PARM":
-        cur.parm[int(arg(args, 0, ln, "parameter index"))] = (arg(args, 1, ln, "parameter"), ln)
+        cur.parm[whole(args, 0, ln, "parameter index", most=_MOST_TERMS)] = (arg(args, 1, ln, "parameter"), ln)
     elif cmd == "PPAR":   # parameter pickup: k, source surface, scale, offset, source parameter (0: k)
-        k, source = int(arg(args, 0, ln, "parameter index")), int(arg(args, 1, ln, "pickup surface"))
+        k = whole(args, 0, ln, "parameter index", most=_MOST_TERMS)
+        source = whole(args, 1, ln, "pickup surface")
         cur.ppar[k] = (source, arg(args, 2, ln, "pickup scale", 1.0), arg(args, 3, ln, "pickup offset", 0.0),
-                       int(arg(args, 4, ln, "pickup parameter", 0.0)))
+                       whole(args, 4, ln, "pickup parameter", 0.0, most=_MOST_TERMS))
     elif cmd == "SCBD":
         values = tuple(num(a, ln, "tilt/decentre value") for a in args[1:])
         if any(values[2:]):
             cur.scbd = (values, ln)
     elif cmd == "XDAT":
-        cur.xdat[int(arg(args, 0, ln, "extra data index"))] = (arg(args, 1, ln, "extra data"), ln)
+        cur.xdat[whole(args, 0, ln, "extra data index", most=_MOST_TERMS)] = (arg(args, 1, ln, "extra data"), ln)
     elif cmd == "DISZ":
         tok = args[0] if args else ""
         cur.thickness = math.inf if tok.upper() in ("INFINITY", "INF") else num(tok, ln, "thickness")
@@ -269,17 +281,17 @@ def _surface_line(cur: ZmxSurface, cmd, args, rest, ln, err, num, arg) -> None:
         cur.glass = name
     elif cmd == "DIAM":
         cur.diam = arg(args, 0, ln, "semi-diameter")
-        cur.diam_flag = int(arg(args, 1, ln, "semi-diameter type", 0.0))
+        cur.diam_flag = whole(args, 1, ln, "semi-diameter type", 0.0)
         if cur.diam_flag == 2:
-            cur.diam_from = int(arg(args, 2, ln, "semi-diameter pickup surface"))
+            cur.diam_from = whole(args, 2, ln, "semi-diameter pickup surface")
     elif cmd == "CLAP":
         cur.clap = arg(args, 1, ln, "circular aperture radius")
     elif cmd == "MEMA":
         cur.mema = arg(args, 0, ln, "mechanical semi-diameter")
         if len(args) > 1:
-            cur.mema_flag = int(arg(args, 1, ln, "mechanical semi-diameter type"))
+            cur.mema_flag = whole(args, 1, ln, "mechanical semi-diameter type")
             if cur.mema_flag == 2:
-                cur.mema_from = int(arg(args, 2, ln, "mechanical semi-diameter pickup surface"))
+                cur.mema_from = whole(args, 2, ln, "mechanical semi-diameter pickup surface")
     elif cmd == "OEMA":
         cur.chip_zone = arg(args, 0, ln, "chip zone")
     elif cmd == "STOP":
@@ -658,7 +670,12 @@ def _polynomial(zs: ZmxSurface, file) -> tuple[bool, dict]:
         return zs.type == "EVENASPH", zs.parm
     if zs.type not in ("XASPHERE", "XOSPHERE") or not zs.xdat:
         return True, {}
-    count = int(zs.xdat.get(1, (0.0, 0))[0])
+    count, count_line = zs.xdat.get(1, (0.0, zs.type_line))
+    if not (count.is_integer() and 0 <= count <= _MOST_TERMS - 2):
+        raise InputError(f"surface {zs.number} ({zs.type}) has {count:g} terms", file=file, line=count_line,
+                         valid=f"XDAT 1: the extended asphere's number of terms, a whole number from 0 to "
+                               f"{_MOST_TERMS - 2}")
+    count = int(count)
     r0, line = zs.xdat.get(2, (0.0, zs.type_line))
     if not r0 > 0.0:
         raise InputError(f"surface {zs.number} ({zs.type}) has normalisation radius {r0:g}", file=file, line=line,

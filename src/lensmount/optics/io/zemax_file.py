@@ -30,13 +30,21 @@ def read_text(path) -> str:
     except OSError as exc:
         raise InputError(f"cannot read the file ({exc})", file=str(path), valid="a readable .zmx file") from None
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return raw.decode("utf-16")
-    if raw[:200].count(b"\x00") > 20:  # UTF-16 without a BOM
-        return raw.decode("utf-16-le" if raw[1:2] == b"\x00" else "utf-16-be")
+        encoding = "utf-16"
+    elif raw[:200].count(b"\x00") > 20:  # UTF-16 without a BOM
+        encoding = "utf-16-le" if raw[1:2] == b"\x00" else "utf-16-be"
+    else:
+        try:
+            return raw.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            return raw.decode("latin-1")
     try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
+        return raw.decode(encoding)
+    except UnicodeDecodeError as exc:  # a truncated or damaged UTF-16 file: an odd byte count, a lone surrogate
+        line = raw[:exc.start].decode(encoding, errors="replace").count("\n") + 1
+        raise InputError(f"the file is damaged: it reads as UTF-16 (as Zemax writes it), but byte {exc.start} is "
+                         f"not ({exc.reason})", file=str(path), line=line,
+                         valid="a whole .zmx file (restore it from a copy or your version control)") from None
 
 
 __all__ = ["ImportNote", "read_text"]

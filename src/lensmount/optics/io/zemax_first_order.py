@@ -142,6 +142,11 @@ def _with_fields(p: Prescription, lens, notes, file) -> Prescription:
         values = _real_image_height_fields(p, values, par, file, lens.field_type_line)
     if p.finite_object:
         d = p.object_distance + par.entrance_pupil_z
+        if not abs(d) > 1e-9 * max(1.0, abs(p.object_distance)):
+            raise InputError(f"the object lies in the entrance pupil (object distance {p.object_distance:g} mm, the "
+                             f"pupil {par.entrance_pupil_z:g} mm from the first surface): a field has no angle there",
+                             file=file, line=lens.surfaces[0].thickness_line if lens.surfaces else None,
+                             valid="SURF 0's DISZ placing the object away from the entrance pupil, or INFINITY")
         # OpticStudio measures a field angle from the paraxial entrance pupil's centre on the axis:
         # the object point of angle theta is d tan(theta) high (Thorlabs MAP105050-A: 4° -> 3.629 mm,
         # its SURF 0 DIAM)

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 
 from lensmount.errors import InputError
@@ -84,7 +85,7 @@ def _file_nd_vd(args, model: bool = False) -> tuple[float, float] | None:
         return None
     if not model and _is_placeholder(args):
         return None
-    return (nd, vd) if nd > 1.0 and vd >= 0.0 else None
+    return (nd, vd) if 1.0 < nd < math.inf and 0.0 <= vd < math.inf else None
 
 
 def _offset(args) -> tuple[float, float] | None:
@@ -95,7 +96,7 @@ def _offset(args) -> tuple[float, float] | None:
         dn, dv = float(args[8]), float(args[9])
     except (IndexError, ValueError):
         return None
-    return (dn, dv) if (dn, dv) != (0.0, 0.0) else None
+    return (dn, dv) if (dn, dv) != (0.0, 0.0) and math.isfinite(dn) and math.isfinite(dv) else None
 
 
 def _nd_vd(material: str) -> tuple[float, float]:

@@ -179,7 +179,7 @@ class SourceParams(BaseModel):
     """The [source] table of a scene file: `type` names the kind, the other keys are the kind's own
     (unknown keys are errors). Each kind subclasses this with `type: Literal[name]`."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no key takes NaN or inf
     at_infinity: ClassVar[bool]
     type: str
 
