@@ -22,7 +22,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 LM = [str(Path(sys.executable).parent / "lensmount")]
-VOLATILE = re.compile(r"time|second|wall|cpu|date|commit|command|host|python|version|elapsed|rate|path|store|out|"
+VOLATILE = re.compile(r"provenance|time|second|wall|cpu|date|commit|command|host|python|version|elapsed|rate|path|store|out|"
                       r"created|_s$|eta|throughput|workers|geometry|sha256", re.I)  # sha256 covers times too
 
 
