@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 LM     := $(VENV)/bin/lensmount
 DESIGN := examples/double-gauss-360
 
-.PHONY: install install-test install-docs browser demo test test-all test-latest lock bench docs clean
+.PHONY: install install-test install-docs browser demo test test-all test-latest lock bench docs fuzz clean
 
 # The runtime alone for the demo; the test extra (pytest, CadQuery as an independent STEP reader) for tests.
 # opticalglass declares PySide6 (673 MB, for its glass-map window) as a requirement; lensmount only reads
@@ -85,6 +85,10 @@ test: install-test browser
 test-all: install-test browser
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q $(PYTEST_WORKERS)
+
+# Every reader fed 10^4 malformed inputs (the full suite feeds 2 000 each); the counts are printed.
+fuzz: install-test
+	LENSMOUNT_FUZZ_INPUTS=10000 $(PY) -m pytest -m slow -q -s -p no:xdist tests/inputs/test_fuzz_readers.py
 
 # The fast suite on the newest versions the registries serve (no constraints), in a venv of its own.
 test-latest:
