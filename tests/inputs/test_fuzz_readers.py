@@ -43,16 +43,8 @@ FAST, SLOW = 300, int(os.environ.get("LENSMOUNT_FUZZ_INPUTS", "2000"))
 # Corpus files that load in tens of ms (a patent's finite-conjugate lens takes seconds: too slow for 10⁴).
 ZMX_SEEDS = ["thorlabs-AC254-050-B.zmx", "thorlabs-AC127-025-A.zmx", "thorlabs-AL2520-A.zmx", "edmund-49270.zmx",
              "thorlabs-ACL3026U-utf16.zmx", "optiland-lens1.zmx", "thorlabs-AL1210-A-latin1.zmx"]
-AGF = b"""CC A user's catalogue
-NM MYCROWN 2 0 1.5301 60.1 0 0 0
-GC
-ED 7.1 0 2.5 0 0 0
-CD 1.1 0.006 0.2 0.02 1.0 100.0 0 0 0 0
-TD 0 0 0 0 0 0 20
-OD 0 0 0 0 0 0
-LD 0.3 2.5
-IT 0.4 0.99 10
-NM MYFLINT 1 0 1.62 36.4 0 0 0
+# The optics tests' one-glass catalogue, with a second glass and a formula-3 one behind it.
+AGF = (CORPUS.parent / "data" / "user-catalogue.agf").read_bytes() + b"""NM MYFLINT 1 0 1.62 36.4 0 0 0
 CD 2.56 -0.0103 0.0217 0.0008 -3.4e-05 3.1e-06
 LD 0.35 2.3
 NM HERZ 3 0 1.5 60 0 0 0

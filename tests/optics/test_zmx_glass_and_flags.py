@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -124,16 +125,8 @@ def test_a_glass_with_data_on_one_surface_and_placeholders_on_another_resolves_t
     assert any("table of legacy" in n.what and "D263TECO" in n.what for n in notes)
 
 
-AGF = """CC A user's catalogue
-NM MYCROWN 2 0 1.5301 60.1 0 0 0
-GC
-ED 7.1 0 2.5 0 0 0
-CD 1.1 0.006 0.2 0.02 1.0 100.0 0 0 0 0
-TD 0 0 0 0 0 0 20
-OD 0 0 0 0 0 0
-LD 0.3 2.5
-IT 0.4 0.99 10
-"""
+# A user's .agf catalogue of one glass (MYCROWN), shared with the readers' fuzzing as a seed.
+AGF = (Path(__file__).parent / "data" / "user-catalogue.agf").read_text()
 
 
 def _sellmeier_by_hand(wl):
