@@ -35,6 +35,17 @@ def test_bad_angles_are_one_paragraph_and_exit_2(tmp_path):
     assert not out.exists()
 
 
+def test_a_scene_is_named_as_simulate_names_it_and_an_unknown_name_lists_the_scenes(tmp_path):
+    out = tmp_path / "out"
+    named = CliRunner().invoke(app, ["pst", str(DESIGN), "--scene", "case1-diaphragm-edge", "--angles", "5",
+                                     "--seed", "-1", "--out", str(out)])
+    assert named.exit_code == 2 and "--seed" in named.output and "not found" not in named.output  # the name was read
+    unknown = CliRunner().invoke(app, ["pst", str(DESIGN), "--scene", "case9", "--angles", "5", "--out", str(out)])
+    text = " ".join(unknown.output.split())
+    assert unknown.exit_code == 2 and "case1-diaphragm-edge" in text and "case2-lambertian" in text
+    assert "Traceback" not in unknown.output and not out.exists()
+
+
 def _small_scene(design: Path, direct: bool = True) -> Path:
     """Case 2 (every mount face Lambertian 5 %) with the direct image on (or not), a 30×30 detector, few photons."""
     text = (design / "scenes" / "case2-lambertian.toml").read_text()

@@ -17,7 +17,7 @@ from lensmount.loop.pst_report import EXCEEDS, NOT_JUDGED, judge, write_pst
 @COMMANDS.register("pst", CommandLine)
 def pst(
     design: Path = typer.Argument(..., help="Design folder (lens.toml or lens.zmx, mount.toml, scenes/)."),
-    scene: Path = typer.Option(..., "--scene", help="Scene file; its source is swept in angle, the rest kept."),
+    scene: Path = typer.Option(..., "--scene", help="Scene: a name from DESIGN/scenes/ or a scene file; its source is swept in angle, the rest kept."),
     angles: str = typer.Option("0:30:1", "--angles", help="Off-axis angles: " + ANGLES_VALID + "."),
     azimuth: Optional[float] = typer.Option(None, "--azimuth",
                                             help="Direction of the tilt in degrees (default: the scene's)."),

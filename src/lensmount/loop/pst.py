@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -41,7 +41,7 @@ from lensmount.design.scene import RequirementSpec
 from lensmount.errors import InputError
 from lensmount.integrators.registry import SourceIndependentView, integrator
 from lensmount.integrators.settings import EstimatorSettings
-from lensmount.loop.prepare import build, read_inputs
+from lensmount.loop.prepare import build, read_inputs, scene_file
 from lensmount.loop.provenance import collect
 from lensmount.loop.simulate import SimulateOptions, check_options
 from lensmount.run.runner import Runner, Stopping, default_workers
@@ -263,7 +263,7 @@ def pst(options: PstOptions, progress: Callable[[str], None] | None = None) -> P
     # lazy: keeps lensmount --help from loading scene.build and the BSDF models
     from lensmount.scene.build import make_source
 
-    o = options
+    o = replace(options, scene=scene_file(options.design, options.scene))  # a file, or a scene's name
     say = progress or (lambda text: None)
     check_options(SimulateOptions(o.design, o.scene, method=o.method, seed=o.seed, passes=o.passes,
                                   target_rel_error=o.target_rel_error,
